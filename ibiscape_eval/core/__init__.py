@@ -1,0 +1,23 @@
+"""Core value types and batched geometry: numpy/scipy only, no I/O."""
+
+from .errors import (
+    CalibrationError,
+    DegenerateInputError,
+    FormatError,
+    IbiscapeError,
+    IbiscapeWarning,
+)
+from .time import NS_PER_S, ns_from_s, s_from_ns
+from .trajectory import Trajectory
+
+__all__ = [
+    "NS_PER_S",
+    "CalibrationError",
+    "DegenerateInputError",
+    "FormatError",
+    "IbiscapeError",
+    "IbiscapeWarning",
+    "Trajectory",
+    "ns_from_s",
+    "s_from_ns",
+]

@@ -1,0 +1,160 @@
+"""The :class:`Trajectory` value type: timestamped poses ``T_world_body``."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+import numpy.typing as npt
+
+from .errors import IbiscapeError
+from .rotations import matrix_from_quat, quat_normalize
+from .time import s_from_ns
+from .transforms import matrices_from_pose, pose_from_matrices
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+__all__ = ["Trajectory"]
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a = np.ascontiguousarray(a)
+    if a.flags.writeable:
+        a = a.copy() if a.base is not None or not a.flags.owndata else a
+        a.flags.writeable = False
+    return a
+
+
+@dataclass(frozen=True, eq=False)
+class Trajectory:
+    """Timestamped poses ``T_world_body``; immutable (its arrays are read-only).
+
+    Parameters
+    ----------
+    stamps_ns : ndarray, shape (N,), int64
+        Timestamps in nanoseconds, strictly increasing.
+    pos_m : ndarray, shape (N, 3), float64
+        Positions of the body origin in the world frame, metres.
+    quat_xyzw : ndarray, shape (N, 4), float64
+        Unit quaternions x, y, z, w of the body orientation in the world frame.  They are
+        renormalised; rows further than 1e-3 from unit norm are rejected.
+    name : str
+        A label for tables and plots (usually the file name).
+
+    Readers in :mod:`ibiscape_eval.io` validate files and report the offending line; this
+    constructor checks shapes, finiteness and ordering so that every metric can rely on them.
+    """
+
+    stamps_ns: npt.NDArray[np.int64]
+    pos_m: npt.NDArray[np.float64]
+    quat_xyzw: npt.NDArray[np.float64]
+    name: str = ""
+
+    def __post_init__(self) -> None:
+        stamps = np.asarray(self.stamps_ns)
+        if stamps.dtype.kind not in "iu":
+            raise IbiscapeError(
+                f"trajectory {self.name!r}: stamps_ns must be integer nanoseconds, got {stamps.dtype}"
+            )
+        stamps = stamps.astype(np.int64, copy=False)
+        pos = np.asarray(self.pos_m, dtype=np.float64)
+        quat = np.asarray(self.quat_xyzw, dtype=np.float64)
+        n = stamps.shape[0] if stamps.ndim == 1 else -1
+        if stamps.ndim != 1 or pos.shape != (n, 3) or quat.shape != (n, 4):
+            raise IbiscapeError(
+                f"trajectory {self.name!r}: expected stamps (N,), pos (N, 3), quat (N, 4); got "
+                f"{stamps.shape}, {pos.shape}, {quat.shape}"
+            )
+        if not (np.isfinite(pos).all() and np.isfinite(quat).all()):
+            bad = int(np.flatnonzero(~(np.isfinite(pos).all(1) & np.isfinite(quat).all(1)))[0])
+            raise IbiscapeError(f"trajectory {self.name!r}: pose {bad} is not finite")
+        if n > 1:
+            d = np.diff(stamps)
+            if (d <= 0).any():
+                i = int(np.flatnonzero(d <= 0)[0])
+                raise IbiscapeError(
+                    f"trajectory {self.name!r}: timestamps must increase strictly, "
+                    f"pose {i + 1} ({stamps[i + 1]} ns) follows {stamps[i]} ns"
+                )
+        norms = np.linalg.norm(quat, axis=1)
+        if n and (np.abs(norms - 1.0) > 1e-3).any():
+            i = int(np.flatnonzero(np.abs(norms - 1.0) > 1e-3)[0])
+            raise IbiscapeError(
+                f"trajectory {self.name!r}: quaternion {i} has norm {norms[i]:.6g}, "
+                "expected a unit quaternion"
+            )
+        quat = quat_normalize(quat) if n else quat
+        object.__setattr__(self, "stamps_ns", _frozen(stamps))
+        object.__setattr__(self, "pos_m", _frozen(pos))
+        object.__setattr__(self, "quat_xyzw", _frozen(quat))
+
+    # -- construction -----------------------------------------------------------------------
+    @classmethod
+    def from_matrices(
+        cls, stamps_ns: npt.ArrayLike, T_world_body: npt.ArrayLike, name: str = ""
+    ) -> Trajectory:
+        """Build from homogeneous matrices ``(N, 4, 4)``."""
+        pos, quat = pose_from_matrices(T_world_body)
+        return cls(np.asarray(stamps_ns, dtype=np.int64), pos, quat, name)
+
+    # -- views ------------------------------------------------------------------------------
+    def __len__(self) -> int:
+        return int(self.stamps_ns.shape[0])
+
+    @property
+    def stamps_s(self) -> npt.NDArray[np.float64]:
+        """Timestamps in seconds (float64; for plots and text output)."""
+        return s_from_ns(self.stamps_ns)
+
+    @property
+    def duration_s(self) -> float:
+        """Time span from the first to the last pose, seconds."""
+        return float(self.stamps_ns[-1] - self.stamps_ns[0]) / 1e9 if len(self) else 0.0
+
+    def matrices(self) -> npt.NDArray[np.float64]:
+        """Poses as homogeneous matrices ``T_world_body``, shape ``(N, 4, 4)``."""
+        return matrices_from_pose(self.pos_m, self.quat_xyzw)
+
+    def rotation_matrices(self) -> npt.NDArray[np.float64]:
+        """Orientations as rotation matrices ``R_world_body``, shape ``(N, 3, 3)``."""
+        return matrix_from_quat(self.quat_xyzw)
+
+    def path_length_m(self) -> npt.NDArray[np.float64]:
+        """Cumulative distance travelled along the positions, metres, shape ``(N,)``, from 0."""
+        steps = np.linalg.norm(np.diff(self.pos_m, axis=0), axis=1)
+        return np.concatenate(([0.0], np.cumsum(steps)))
+
+    def take(self, index: npt.ArrayLike, name: str | None = None) -> Trajectory:
+        """A new trajectory of the rows selected by an index array or boolean mask."""
+        idx = np.asarray(index)
+        return Trajectory(
+            self.stamps_ns[idx], self.pos_m[idx], self.quat_xyzw[idx],
+            self.name if name is None else name,
+        )
+
+    def with_name(self, name: str) -> Trajectory:
+        """The same poses under another label."""
+        return Trajectory(self.stamps_ns, self.pos_m, self.quat_xyzw, name)
+
+    def to_frame(self) -> pd.DataFrame:
+        """A pandas DataFrame with columns ``stamp_ns, x_m, y_m, z_m, qx, qy, qz, qw``."""
+        import pandas as pd
+
+        return pd.DataFrame(
+            {
+                "stamp_ns": self.stamps_ns,
+                "x_m": self.pos_m[:, 0],
+                "y_m": self.pos_m[:, 1],
+                "z_m": self.pos_m[:, 2],
+                "qx": self.quat_xyzw[:, 0],
+                "qy": self.quat_xyzw[:, 1],
+                "qz": self.quat_xyzw[:, 2],
+                "qw": self.quat_xyzw[:, 3],
+            }
+        )
+
+    def __repr__(self) -> str:
+        span = f", {self.duration_s:.3f} s" if len(self) else ""
+        return f"Trajectory({self.name!r}, {len(self)} poses{span})"
