@@ -20,9 +20,9 @@ __all__ = ["Trajectory"]
 
 
 def _frozen(a: np.ndarray) -> np.ndarray:
-    a = np.ascontiguousarray(a)
-    if a.flags.writeable:
-        a = a.copy() if a.base is not None or not a.flags.owndata else a
+    """A read-only contiguous array; copies writeable input so the caller's array stays untouched."""
+    if a.flags.writeable or not a.flags.c_contiguous:
+        a = np.array(a, order="C", copy=True)
         a.flags.writeable = False
     return a
 
