@@ -32,7 +32,9 @@ def info(message: str) -> None:
     click.echo(message, err=True)
 
 
-def _show_warning(message: Any, category: Any, filename: Any, lineno: Any, file: Any = None, line: Any = None) -> None:
+def _show_warning(
+    message: Any, category: Any, filename: Any, lineno: Any, file: Any = None, line: Any = None
+) -> None:
     label = "warning" if issubclass(category, IbiscapeWarning) else category.__name__
     click.echo(f"{label}: {' '.join(str(message).split())}", err=True)
 

@@ -10,12 +10,28 @@ import click
 
 # name -> (module in ibiscape_eval.cli, attribute, one-line help shown by --help)
 COMMANDS: dict[str, tuple[str, str, str]] = {
-    "ate": ("ate", "ate", "Absolute trajectory error after alignment (translation m, rotation deg)."),
-    "rpe": ("ate", "rpe", "Relative pose error over a delta in frames, seconds, metres or degrees."),
+    "ate": (
+        "ate",
+        "ate",
+        "Absolute trajectory error after alignment (translation m, rotation deg).",
+    ),
+    "rpe": (
+        "ate",
+        "rpe",
+        "Relative pose error over a delta in frames, seconds, metres or degrees.",
+    ),
     "drift": ("ate", "drift", "KITTI-style drift over segment lengths, in % and deg/m."),
-    "convert": ("convert", "convert", "Convert a trajectory between formats (TUM, KITTI, EuRoC, ...)."),
+    "convert": (
+        "convert",
+        "convert",
+        "Convert a trajectory between formats (TUM, KITTI, EuRoC, ...).",
+    ),
     "allan": ("allan", "allan", "IMU noise densities and random walks from the Allan deviation."),
-    "hotpix": ("hotpix", "hotpix", "Detect and remove DVS hot pixels (top-N and n-sigma criteria)."),
+    "hotpix": (
+        "hotpix",
+        "hotpix",
+        "Detect and remove DVS hot pixels (top-N and n-sigma criteria).",
+    ),
     "events": ("events", "events", "Event-camera utilities: accumulation frames, time surfaces."),
 }
 

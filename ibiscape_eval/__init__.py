@@ -54,5 +54,10 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .core.errors import DegenerateInputError, FormatError, IbiscapeError, IbiscapeWarning
-    from .core.trajectory import Trajectory
+    from .core.errors import (  # noqa: F401
+        DegenerateInputError,
+        FormatError,
+        IbiscapeError,
+        IbiscapeWarning,
+    )
+    from .core.trajectory import Trajectory  # noqa: F401

@@ -10,8 +10,14 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["WGS84_A_M", "WGS84_F", "ecef_from_geodetic", "enu_from_geodetic", "geodetic_from_ecef",
-           "geodetic_from_enu"]
+__all__ = [
+    "WGS84_A_M",
+    "WGS84_F",
+    "ecef_from_geodetic",
+    "enu_from_geodetic",
+    "geodetic_from_ecef",
+    "geodetic_from_enu",
+]
 
 WGS84_A_M = 6378137.0
 WGS84_F = 1.0 / 298.257223563
@@ -22,14 +28,19 @@ _EP2 = (WGS84_A_M**2 - _B_M**2) / _B_M**2
 FloatArray = npt.NDArray[np.float64]
 
 
-def ecef_from_geodetic(lat_deg: npt.ArrayLike, lon_deg: npt.ArrayLike, alt_m: npt.ArrayLike) -> FloatArray:
+def ecef_from_geodetic(
+    lat_deg: npt.ArrayLike, lon_deg: npt.ArrayLike, alt_m: npt.ArrayLike
+) -> FloatArray:
     """Earth-centred earth-fixed coordinates ``(N, 3)`` in metres."""
     lat = np.radians(np.asarray(lat_deg, dtype=np.float64))
     lon = np.radians(np.asarray(lon_deg, dtype=np.float64))
     h = np.asarray(alt_m, dtype=np.float64)
     sl, cl = np.sin(lat), np.cos(lat)
     n = WGS84_A_M / np.sqrt(1.0 - _E2 * sl * sl)  # prime vertical radius of curvature
-    return np.stack(((n + h) * cl * np.cos(lon), (n + h) * cl * np.sin(lon), (n * (1.0 - _E2) + h) * sl), axis=-1)
+    return np.stack(
+        ((n + h) * cl * np.cos(lon), (n + h) * cl * np.sin(lon), (n * (1.0 - _E2) + h) * sl),
+        axis=-1,
+    )
 
 
 def geodetic_from_ecef(xyz_m: npt.ArrayLike) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -43,7 +54,9 @@ def geodetic_from_ecef(xyz_m: npt.ArrayLike) -> tuple[FloatArray, FloatArray, Fl
     lat = np.arctan2(z + _EP2 * _B_M * np.sin(beta) ** 3, p - _E2 * WGS84_A_M * np.cos(beta) ** 3)
     for _ in range(2):
         beta = np.arctan2((1.0 - WGS84_F) * np.sin(lat), np.cos(lat))
-        lat = np.arctan2(z + _EP2 * _B_M * np.sin(beta) ** 3, p - _E2 * WGS84_A_M * np.cos(beta) ** 3)
+        lat = np.arctan2(
+            z + _EP2 * _B_M * np.sin(beta) ** 3, p - _E2 * WGS84_A_M * np.cos(beta) ** 3
+        )
     sl = np.sin(lat)
     n = WGS84_A_M / np.sqrt(1.0 - _E2 * sl * sl)
     cl = np.cos(lat)
@@ -61,8 +74,12 @@ def _enu_rotation(lat0_deg: float, lon0_deg: float) -> FloatArray:
 
 
 def enu_from_geodetic(
-    lat_deg: npt.ArrayLike, lon_deg: npt.ArrayLike, alt_m: npt.ArrayLike,
-    lat0_deg: float, lon0_deg: float, alt0_m: float,
+    lat_deg: npt.ArrayLike,
+    lon_deg: npt.ArrayLike,
+    alt_m: npt.ArrayLike,
+    lat0_deg: float,
+    lon0_deg: float,
+    alt0_m: float,
 ) -> FloatArray:
     """Local east, north, up coordinates ``(N, 3)`` [m] about the reference (lat0, lon0, alt0)."""
     d = ecef_from_geodetic(lat_deg, lon_deg, alt_m) - ecef_from_geodetic(lat0_deg, lon0_deg, alt0_m)

@@ -66,7 +66,7 @@ def matrix_from_quat(quat_xyzw: npt.ArrayLike) -> FloatArray:
     xx, yy, zz = x * x, y * y, z * z
     xy, xz, yz = x * y, x * z, y * z
     wx, wy, wz = w * x, w * y, w * z
-    R = np.empty(q.shape[:-1] + (3, 3))
+    R = np.empty((*q.shape[:-1], 3, 3))
     R[..., 0, 0] = 1.0 - 2.0 * (yy + zz)
     R[..., 0, 1] = 2.0 * (xy - wz)
     R[..., 0, 2] = 2.0 * (xz + wy)
@@ -90,27 +90,54 @@ def quat_from_matrix(R: npt.ArrayLike) -> FloatArray:
     trace = m00 + m11 + m22
     cand = np.stack((m00, m11, m22, trace), axis=-1)
     k = np.argmax(cand, axis=-1)
-    q = np.empty(M.shape[:-2] + (4,))
+    q = np.empty((*M.shape[:-2], 4))
     # Branch w largest.
     s = np.sqrt(np.maximum(1.0 + trace, 0.0)) * 2.0
     with np.errstate(divide="ignore", invalid="ignore"):
         qw = np.stack(
-            ((M[..., 2, 1] - M[..., 1, 2]) / s, (M[..., 0, 2] - M[..., 2, 0]) / s,
-             (M[..., 1, 0] - M[..., 0, 1]) / s, 0.25 * s), axis=-1)
+            (
+                (M[..., 2, 1] - M[..., 1, 2]) / s,
+                (M[..., 0, 2] - M[..., 2, 0]) / s,
+                (M[..., 1, 0] - M[..., 0, 1]) / s,
+                0.25 * s,
+            ),
+            axis=-1,
+        )
         s0 = np.sqrt(np.maximum(1.0 + m00 - m11 - m22, 0.0)) * 2.0
         qx = np.stack(
-            (0.25 * s0, (M[..., 0, 1] + M[..., 1, 0]) / s0, (M[..., 0, 2] + M[..., 2, 0]) / s0,
-             (M[..., 2, 1] - M[..., 1, 2]) / s0), axis=-1)
+            (
+                0.25 * s0,
+                (M[..., 0, 1] + M[..., 1, 0]) / s0,
+                (M[..., 0, 2] + M[..., 2, 0]) / s0,
+                (M[..., 2, 1] - M[..., 1, 2]) / s0,
+            ),
+            axis=-1,
+        )
         s1 = np.sqrt(np.maximum(1.0 - m00 + m11 - m22, 0.0)) * 2.0
         qy = np.stack(
-            ((M[..., 0, 1] + M[..., 1, 0]) / s1, 0.25 * s1, (M[..., 1, 2] + M[..., 2, 1]) / s1,
-             (M[..., 0, 2] - M[..., 2, 0]) / s1), axis=-1)
+            (
+                (M[..., 0, 1] + M[..., 1, 0]) / s1,
+                0.25 * s1,
+                (M[..., 1, 2] + M[..., 2, 1]) / s1,
+                (M[..., 0, 2] - M[..., 2, 0]) / s1,
+            ),
+            axis=-1,
+        )
         s2 = np.sqrt(np.maximum(1.0 - m00 - m11 + m22, 0.0)) * 2.0
         qz = np.stack(
-            ((M[..., 0, 2] + M[..., 2, 0]) / s2, (M[..., 1, 2] + M[..., 2, 1]) / s2, 0.25 * s2,
-             (M[..., 1, 0] - M[..., 0, 1]) / s2), axis=-1)
-    q = np.where((k == 3)[..., None], qw,
-                 np.where((k == 0)[..., None], qx, np.where((k == 1)[..., None], qy, qz)))
+            (
+                (M[..., 0, 2] + M[..., 2, 0]) / s2,
+                (M[..., 1, 2] + M[..., 2, 1]) / s2,
+                0.25 * s2,
+                (M[..., 1, 0] - M[..., 0, 1]) / s2,
+            ),
+            axis=-1,
+        )
+    q = np.where(
+        (k == 3)[..., None],
+        qw,
+        np.where((k == 0)[..., None], qx, np.where((k == 1)[..., None], qy, qz)),
+    )
     return quat_normalize(q)
 
 

@@ -130,7 +130,9 @@ class Trajectory:
         """A new trajectory of the rows selected by an index array or boolean mask."""
         idx = np.asarray(index)
         return Trajectory(
-            self.stamps_ns[idx], self.pos_m[idx], self.quat_xyzw[idx],
+            self.stamps_ns[idx],
+            self.pos_m[idx],
+            self.quat_xyzw[idx],
             self.name if name is None else name,
         )
 

@@ -18,7 +18,7 @@ FloatArray = npt.NDArray[np.float64]
 def matrices_from_pose(pos_m: npt.ArrayLike, quat_xyzw: npt.ArrayLike) -> FloatArray:
     """Homogeneous matrices ``(N, 4, 4)`` from positions ``(N, 3)`` and quaternions ``(N, 4)``."""
     p = np.asarray(pos_m, dtype=np.float64)
-    T = np.zeros(p.shape[:-1] + (4, 4))
+    T = np.zeros((*p.shape[:-1], 4, 4))
     T[..., :3, :3] = matrix_from_quat(quat_xyzw)
     T[..., :3, 3] = p
     T[..., 3, 3] = 1.0

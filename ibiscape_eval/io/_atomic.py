@@ -11,34 +11,38 @@ import os
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
-from typing import IO, Literal, overload
+from typing import IO, Any
 
 __all__ = ["atomic_output_path", "atomic_write"]
 
 
-@overload
-def atomic_write(path: str | os.PathLike[str], mode: Literal["w"] = "w") -> contextlib.AbstractContextManager[IO[str]]: ...
-@overload
-def atomic_write(path: str | os.PathLike[str], mode: Literal["wb"]) -> contextlib.AbstractContextManager[IO[bytes]]: ...
-
-
-def atomic_write(path, mode="w"):  # type: ignore[no-untyped-def]
-    """Open ``path`` for writing through a temporary file that replaces it on success.
+def atomic_write(
+    path: str | os.PathLike[str], mode: str = "w"
+) -> contextlib.AbstractContextManager[IO[Any]]:
+    """Open ``path`` for writing (``"w"`` text, UTF-8, ``\\n`` newlines; or ``"wb"``) through a
+    temporary file beside it that replaces ``path`` only when the block finishes without error.
 
     Examples
     --------
     >>> with atomic_write("out.txt") as f:  # doctest: +SKIP
     ...     f.write("hello")
     """
+    if mode not in ("w", "wb"):
+        raise ValueError(f"atomic_write mode must be 'w' or 'wb', got {mode!r}")
     return _atomic_write(Path(path), mode)
 
 
 @contextlib.contextmanager
-def _atomic_write(path: Path, mode: str) -> Iterator[IO]:  # type: ignore[type-arg]
+def _atomic_write(path: Path, mode: str) -> Iterator[IO[Any]]:
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
-        with os.fdopen(fd, mode, **({} if "b" in mode else {"encoding": "utf-8", "newline": "\n"})) as f:
+        f: IO[Any]
+        if mode == "wb":
+            f = os.fdopen(fd, "wb")
+        else:
+            f = os.fdopen(fd, "w", encoding="utf-8", newline="\n")
+        with f:
             yield f
         os.replace(tmp, path)
     except BaseException:

@@ -46,7 +46,9 @@ def test_multiply_conjugate_rotate() -> None:
     a, b = random_quats(100), random_quats(100)[::-1]
     np.testing.assert_allclose(
         rot.matrix_from_quat(rot.quat_multiply(a, b)),
-        Rotation.from_quat(a).as_matrix() @ Rotation.from_quat(b).as_matrix(), atol=1e-13)
+        Rotation.from_quat(a).as_matrix() @ Rotation.from_quat(b).as_matrix(),
+        atol=1e-13,
+    )
     ident = rot.quat_multiply(a, rot.quat_conjugate(a))
     np.testing.assert_allclose(np.abs(ident[:, 3]), 1.0, atol=1e-14)
     v = RNG.normal(size=(100, 3))

@@ -8,7 +8,9 @@ from ibiscape_eval.core import IbiscapeError, Trajectory, ns_from_s, s_from_ns
 
 def make(n: int = 5) -> Trajectory:
     q = np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))
-    return Trajectory(np.arange(n, dtype=np.int64) * 10, np.arange(3 * n, dtype=float).reshape(n, 3), q, "t")
+    return Trajectory(
+        np.arange(n, dtype=np.int64) * 10, np.arange(3 * n, dtype=float).reshape(n, 3), q, "t"
+    )
 
 
 def test_arrays_are_read_only_and_inputs_untouched() -> None:

@@ -1,0 +1,61 @@
+"""``ibiscape-eval convert``: rewrite a trajectory in another format."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from ._common import info, user_errors
+
+
+@click.command()
+@click.argument("src", type=click.Path(path_type=Path))
+@click.argument("dst", type=click.Path(path_type=Path))
+@click.option(
+    "--from",
+    "src_fmt",
+    type=click.Choice(("auto", "tum", "kitti", "euroc", "ibiscape", "bag")),
+    default="auto",
+    show_default=True,
+    help="Format of SRC.",
+)
+@click.option(
+    "--to",
+    "dst_fmt",
+    type=click.Choice(("tum", "kitti", "euroc", "ibiscape")),
+    default="tum",
+    show_default=True,
+    help="Format of DST.",
+)
+@click.option("--topic", default=None, help="Bag topic (tf: '/tf:parent.child').")
+@click.option(
+    "--times",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="KITTI times file for SRC (s, one per line).",
+)
+@user_errors
+def convert(
+    src: Path, dst: Path, src_fmt: str, dst_fmt: str, topic: str | None, times: Path | None
+) -> None:
+    """Convert the trajectory SRC into DST (written atomically).
+
+    IBISCape files are converted between CARLA's left-handed frame and the right-handed frame used
+    everywhere else; a KITTI DST gets a times file beside it (DST with suffix .times.txt).
+
+    \b
+    Examples:
+      ibiscape-eval convert vehicle_gt/groundtruth_sync.csv gt_tum.txt --to tum
+      ibiscape-eval convert run.bag est.txt --topic /odom
+    """
+    from ibiscape_eval.io import detect_trajectory_format, read_trajectory, write_trajectory
+
+    if src_fmt == "auto":
+        src_fmt = detect_trajectory_format(src)
+        info(f"{src}: format {src_fmt} (detected; force another with --from)")
+    traj = read_trajectory(
+        src, src_fmt, topic=topic, times_path=None if times is None else str(times)
+    )
+    write_trajectory(dst, traj, dst_fmt)
+    info(f"wrote {len(traj)} poses to {dst} ({dst_fmt})")

@@ -1,0 +1,140 @@
+"""Figures for trajectory metrics (matplotlib, Agg backend: no display needed).
+
+Every function writes one PNG/PDF/SVG atomically and returns nothing; matplotlib is imported inside.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ibiscape_eval.io._atomic import atomic_output_path
+
+if TYPE_CHECKING:
+    from ibiscape_eval.core.trajectory import Trajectory
+
+__all__ = ["plot_drift", "plot_trajectory_errors"]
+
+
+def _pyplot() -> Any:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(fig: Any, path: str | os.PathLike[str]) -> None:
+    with atomic_output_path(path) as tmp:
+        fig.savefig(tmp, dpi=120, bbox_inches="tight")
+    _pyplot().close(fig)
+
+
+def plot_trajectory_errors(
+    path: str | os.PathLike[str],
+    *,
+    est_aligned: Trajectory,
+    ref: Trajectory,
+    stamps_ns: npt.NDArray[np.int64],
+    errors_m: npt.NDArray[np.float64],
+    errors_deg: npt.NDArray[np.float64],
+    title: str,
+    gps_xyz_m: npt.NDArray[np.float64] | None = None,
+    distance_m: npt.NDArray[np.float64] | None = None,
+) -> None:
+    """Top view of the aligned estimate over the reference (and GPS), errors over time and
+    distance travelled, and error histograms.
+
+    Parameters
+    ----------
+    est_aligned, ref
+        Matched trajectories in the reference's world frame.
+    stamps_ns, errors_m, errors_deg : ndarray, shape (M,)
+        Per-pose (ATE) or per-pair (RPE) errors and their times.
+    gps_xyz_m : ndarray, shape (K, 3), optional
+        GNSS fixes already expressed in the reference frame.
+    distance_m : ndarray, shape (M,), optional
+        Distance travelled along the reference at each error sample (second x axis).
+    """
+    plt = _pyplot()
+    fig, axes = plt.subplots(2, 2, figsize=(12, 9))
+    ax = axes[0, 0]
+    ax.plot(ref.pos_m[:, 0], ref.pos_m[:, 1], "k-", lw=1.2, label=f"reference ({ref.name})")
+    ax.plot(
+        est_aligned.pos_m[:, 0],
+        est_aligned.pos_m[:, 1],
+        "-",
+        color="tab:blue",
+        lw=1.0,
+        label=f"estimate ({est_aligned.name}), aligned",
+    )
+    if gps_xyz_m is not None and len(gps_xyz_m):
+        ax.plot(gps_xyz_m[:, 0], gps_xyz_m[:, 1], ".", color="tab:green", ms=3, label="GNSS")
+    ax.plot(ref.pos_m[0, 0], ref.pos_m[0, 1], "ko", ms=5)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title("top view")
+    ax.legend(loc="best", fontsize=8)
+    ax.grid(alpha=0.3)
+
+    t_s = (stamps_ns - ref.stamps_ns[0]) / 1e9
+    ax = axes[0, 1]
+    ax.plot(t_s, errors_m, color="tab:red", lw=0.8)
+    ax.set_xlabel("time since start [s]")
+    ax.set_ylabel("translation error [m]")
+    ax.grid(alpha=0.3)
+    ax2 = ax.twinx()
+    ax2.plot(t_s, errors_deg, color="tab:purple", lw=0.6, alpha=0.7)
+    ax2.set_ylabel("rotation error [deg]", color="tab:purple")
+    ax.set_title("error over time")
+
+    ax = axes[1, 0]
+    if distance_m is not None:
+        ax.plot(distance_m, errors_m, color="tab:red", lw=0.8)
+        ax.set_xlabel("distance travelled [m]")
+        ax.set_title("error over distance")
+    else:
+        ax.plot(t_s, errors_deg, color="tab:purple", lw=0.8)
+        ax.set_xlabel("time since start [s]")
+        ax.set_title("rotation error")
+    ax.set_ylabel("translation error [m]" if distance_m is not None else "rotation error [deg]")
+    ax.grid(alpha=0.3)
+
+    ax = axes[1, 1]
+    bins = max(10, min(100, int(np.sqrt(max(len(errors_m), 1)))))
+    ax.hist(errors_m, bins=bins, color="tab:red", alpha=0.8)
+    ax.set_xlabel("translation error [m]")
+    ax.set_ylabel("count")
+    ax.set_title("histogram")
+    rmse = float(np.sqrt(np.mean(errors_m**2))) if len(errors_m) else float("nan")
+    ax.axvline(rmse, color="k", ls="--", lw=1, label=f"rmse {rmse:.4f} m")
+    ax.legend(fontsize=8)
+    fig.suptitle(title)
+    fig.tight_layout()
+    _save(fig, path)
+
+
+def plot_drift(path: str | os.PathLike[str], doc: dict[str, Any], *, title: str) -> None:
+    """Bar charts of KITTI drift per segment length: translation [%] and rotation [deg/m]."""
+    plt = _pyplot()
+    lengths = np.asarray(doc["lengths_m"], dtype=float)
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    labels = [f"{v:.0f}" for v in lengths]
+    axes[0].bar(labels, np.asarray(doc["translation_pct"], dtype=float), color="tab:red")
+    axes[0].axhline(doc["mean_translation_pct"], color="k", ls="--", lw=1, label="average")
+    axes[0].set_ylabel("translation error [%]")
+    axes[1].bar(labels, np.asarray(doc["rotation_deg_per_m"], dtype=float), color="tab:purple")
+    axes[1].axhline(doc["mean_rotation_deg_per_m"], color="k", ls="--", lw=1, label="average")
+    axes[1].set_ylabel("rotation error [deg/m]")
+    for ax in axes:
+        ax.set_xlabel("segment length [m]")
+        ax.legend(fontsize=8)
+        ax.grid(alpha=0.3, axis="y")
+    fig.suptitle(title)
+    fig.tight_layout()
+    _save(fig, path)
