@@ -1,0 +1,288 @@
+"""IMU noise model read off an Allan deviation curve (IEEE Std 952-1997, Annex C).
+
+Per axis:
+
+- white noise density ``N`` (angle / velocity random walk): the line of slope -1/2,
+  ``sigma(tau) = N / sqrt(tau)``, read at tau = 1 s;
+- rate random walk ``K`` (bias random walk): the line of slope +1/2,
+  ``sigma(tau) = K sqrt(tau / 3)``, read at tau = 3 s;
+- bias instability ``B``: the curve's minimum divided by ``sqrt(2 ln 2 / pi) = 0.664``.
+
+The ranges of the two lines are found from the local log-log slope of the curve (or given).
+Inside each range the other noise's contribution (``N^2 / tau`` or ``K^2 tau / 3``) is removed
+before the fixed-slope fit, alternating twice, so that a range near the cross-over is not biased.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ibiscape_eval.core.errors import IbiscapeError
+
+from .allan import AllanResult
+
+if TYPE_CHECKING:  # pragma: no cover
+    import pandas as pd
+
+__all__ = ["BIAS_INSTABILITY_FACTOR", "AxisNoise", "NoiseModel", "fit_noise_model"]
+
+#: ``sqrt(2 ln 2 / pi)``: the flicker-noise floor of the Allan deviation is ``0.664 B``.
+BIAS_INSTABILITY_FACTOR = math.sqrt(2.0 * math.log(2.0) / math.pi)
+
+
+@dataclass(frozen=True)
+class AxisNoise:
+    """Noise parameters of one axis.  Units follow the input samples ``u`` (rad/s or m/s^2).
+
+    Attributes
+    ----------
+    name : str
+    noise_density, noise_density_unc : float
+        ``N`` and its one-sigma uncertainty, u/sqrt(Hz) (rad/s/sqrt(Hz), m/s^2/sqrt(Hz)).
+        NaN when no slope -1/2 region exists.
+    random_walk, random_walk_unc : float
+        ``K`` and its uncertainty, u*sqrt(Hz) (rad/s^2/sqrt(Hz), m/s^3/sqrt(Hz)).  NaN when the
+        record is too short to show the random walk (see ``notes``).
+    bias_instability, bias_instability_unc : float
+        ``B`` and its uncertainty, u.  NaN when the curve has no minimum.
+    bias_tau_s : float
+        Tau of the curve's minimum, s.
+    white_range_s, walk_range_s : tuple of float or None
+        Tau ranges used for the -1/2 and +1/2 fits, s.
+    discrete_sigma : float
+        Per-sample white-noise sigma at the record's rate, ``N sqrt(rate)``, u.
+    discrete_walk_sigma : float
+        Per-sample bias step, ``K / sqrt(rate)``, u.
+    notes : tuple of str
+        Why a parameter is NaN, or what to be careful about.
+    """
+
+    name: str
+    noise_density: float
+    noise_density_unc: float
+    random_walk: float
+    random_walk_unc: float
+    bias_instability: float
+    bias_instability_unc: float
+    bias_tau_s: float
+    white_range_s: tuple[float, float] | None
+    walk_range_s: tuple[float, float] | None
+    discrete_sigma: float
+    discrete_walk_sigma: float
+    notes: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class NoiseModel:
+    """Noise parameters of every axis of an :class:`~ibiscape_eval.imu.AllanResult`."""
+
+    axes: tuple[AxisNoise, ...]
+    rate_hz: float
+    duration_s: float
+
+    def __getitem__(self, name: str) -> AxisNoise:
+        for a in self.axes:
+            if a.name == name:
+                return a
+        raise KeyError(name)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(a.name for a in self.axes)
+
+    def to_frame(self) -> pd.DataFrame:
+        """One row per axis with every numeric field and the notes joined by '; '."""
+        import pandas as pd
+
+        rows = []
+        for a in self.axes:
+            row = {k: getattr(a, k) for k in AxisNoise.__dataclass_fields__ if k != "notes"}
+            row["notes"] = "; ".join(a.notes)
+            rows.append(row)
+        return pd.DataFrame(rows).set_index("name")
+
+
+def _local_slopes(logt: np.ndarray, logs: np.ndarray, half_width_dec: float) -> np.ndarray:
+    """Least-squares slope of log sigma vs log tau over a window of +-half_width decades."""
+    out = np.full(logt.size, np.nan)
+    for i in range(logt.size):  # over taus (tens), not samples
+        sel = np.abs(logt - logt[i]) <= half_width_dec + 1e-12
+        if sel.sum() < 3:
+            sel = np.zeros(logt.size, dtype=bool)
+            sel[max(0, i - 1) : i + 2] = True
+        if sel.sum() >= 2:
+            x = logt[sel] - logt[sel].mean()
+            out[i] = float(np.dot(x, logs[sel] - logs[sel].mean()) / np.dot(x, x))
+    return out
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """Contiguous runs of True as (start, stop) index pairs."""
+    d = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist(), strict=True))
+
+
+def _fixed_slope_fit(var: np.ndarray, taus: np.ndarray, edf: np.ndarray, slope: float,
+                     tau_read: float) -> tuple[float, float]:
+    """Fit sigma = c * tau^slope (log space, weights edf) and return (sigma(tau_read), rel unc).
+
+    The relative uncertainty combines the scatter about the line with the chi-squared spread of
+    the best-determined point (neighbouring overlapping taus are strongly correlated, so their
+    count does not shrink it)."""
+    ok = var > 0
+    if not ok.any():
+        return math.nan, math.nan
+    lt = np.log(taus[ok])
+    ls = 0.5 * np.log(var[ok])
+    w = edf[ok]
+    offs = ls - slope * lt
+    c = float(np.sum(w * offs) / np.sum(w))
+    resid_var = float(np.sum(w * (offs - c) ** 2) / np.sum(w)) if offs.size > 1 else 0.0
+    rel = math.sqrt(1.0 / (2.0 * float(np.max(w))) + resid_var)
+    return math.exp(c + slope * math.log(tau_read)), rel
+
+
+def _in_range(taus: np.ndarray, rng: tuple[float, float], what: str) -> np.ndarray:
+    lo, hi = float(min(rng)), float(max(rng))
+    sel = (taus >= lo * (1 - 1e-9)) & (taus <= hi * (1 + 1e-9))
+    if not sel.any():
+        raise IbiscapeError(
+            f"the {what} range [{lo:g}, {hi:g}] s contains no tau of the curve "
+            f"(taus run from {taus[0]:g} to {taus[-1]:g} s)"
+        )
+    return sel
+
+
+def fit_noise_model(
+    result: AllanResult,
+    *,
+    white_range_s: tuple[float, float] | None = None,
+    walk_range_s: tuple[float, float] | None = None,
+    slope_tolerance: float = 0.12,
+    min_edf: float = 4.0,
+) -> NoiseModel:
+    """Read N, K and B of every axis off an Allan deviation curve.
+
+    Parameters
+    ----------
+    result : AllanResult
+        Output of :func:`~ibiscape_eval.imu.allan_deviation`.
+    white_range_s, walk_range_s : (float, float), optional
+        Tau ranges (s) of the slope -1/2 (white noise) and +1/2 (random walk) fits, overriding the
+        automatic choice.
+    slope_tolerance : float
+        Automatic ranges: taus whose local slope (least squares over +-0.25 decade) lies within
+        this distance of -1/2 (first run from the short end) or +1/2 (last run).
+    min_edf : float
+        Taus with fewer equivalent degrees of freedom are too noisy for the automatic ranges and
+        for the minimum.
+
+    Returns
+    -------
+    NoiseModel
+        Per-axis :class:`AxisNoise`.  A parameter that the curve does not show is NaN with the
+        reason in ``notes`` (e.g. a record too short to see the random walk), never a guess.
+    """
+    taus = np.asarray(result.taus_s, dtype=np.float64)
+    edf = np.asarray(result.edf, dtype=np.float64)
+    usable = edf >= min_edf
+    if usable.sum() < 2:
+        usable = edf >= 1.0
+    rate = result.rate_hz
+    axes = []
+    for j, name in enumerate(result.names):
+        adev = result.adev[:, j]
+        var = adev**2
+        notes: list[str] = []
+        logt = np.log10(taus)
+        with np.errstate(divide="ignore"):
+            logs = np.log10(adev)
+        slopes = np.full(taus.size, np.nan)
+        if usable.sum() >= 2:
+            slopes[usable] = _local_slopes(logt[usable], logs[usable], 0.25)
+
+        # ranges
+        if white_range_s is not None:
+            w_sel = _in_range(taus, white_range_s, "white-noise")
+        else:
+            cand = usable & (np.abs(slopes + 0.5) <= slope_tolerance)
+            runs = _runs(cand)
+            w_sel = np.zeros(taus.size, dtype=bool)
+            if runs:
+                w_sel[runs[0][0] : runs[0][1]] = True
+        if walk_range_s is not None:
+            k_sel = _in_range(taus, walk_range_s, "random-walk")
+        else:
+            cand = usable & (np.abs(slopes - 0.5) <= slope_tolerance)
+            runs = [r for r in _runs(cand) if r[1] - r[0] >= 2]
+            k_sel = np.zeros(taus.size, dtype=bool)
+            if runs:
+                k_sel[runs[-1][0] : runs[-1][1]] = True
+            if w_sel.any() and k_sel.any() and taus[k_sel][0] <= taus[w_sel][-1]:
+                k_sel[:] = False
+
+        # alternate: N with the K part removed, K with the N part removed
+        N = K = math.nan
+        n_rel = k_rel = math.nan
+        for _ in range(3):
+            if w_sel.any():
+                v = var[w_sel] - (K**2 * taus[w_sel] / 3.0 if math.isfinite(K) else 0.0)
+                N, n_rel = _fixed_slope_fit(v, taus[w_sel], edf[w_sel], -0.5, 1.0)
+            if k_sel.any():
+                v = var[k_sel] - (N**2 / taus[k_sel] if math.isfinite(N) else 0.0)
+                K, k_rel = _fixed_slope_fit(v, taus[k_sel], edf[k_sel], 0.5, 3.0)
+        if not w_sel.any():
+            notes.append(
+                "no slope -1/2 region at short taus: the white noise is hidden (filtered or "
+                "quantised data?); give --white-range to force a fit"
+            )
+        if not k_sel.any():
+            last = np.flatnonzero(usable)
+            t_last = float(taus[last[-1]]) if last.size else float(taus[-1])
+            s_last = float(slopes[last[-1]]) if last.size else math.nan
+            notes.append(
+                f"record too short to see the rate random walk: no slope +1/2 region up to "
+                f"tau = {t_last:.4g} s (local slope there {s_last:+.2f}); record for longer or "
+                "give --walk-range"
+            )
+
+        # bias instability: the minimum over the trustworthy part of the curve
+        idx = np.flatnonzero(usable)
+        B = B_unc = tau_b = math.nan
+        if idx.size:
+            i_min = int(idx[np.argmin(adev[idx])])
+            if i_min == idx[-1]:
+                notes.append(
+                    f"curve still falling at tau = {taus[i_min]:.4g} s: no bias-instability floor "
+                    "in this record"
+                )
+            else:
+                B = float(adev[i_min] / BIAS_INSTABILITY_FACTOR)
+                B_unc = float(
+                    (result.adev_hi[i_min, j] - result.adev_lo[i_min, j]) / 2.0
+                    / BIAS_INSTABILITY_FACTOR
+                )
+                tau_b = float(taus[i_min])
+
+        axes.append(
+            AxisNoise(
+                name=name,
+                noise_density=N,
+                noise_density_unc=N * n_rel,
+                random_walk=K,
+                random_walk_unc=K * k_rel,
+                bias_instability=B,
+                bias_instability_unc=B_unc,
+                bias_tau_s=tau_b,
+                white_range_s=(float(taus[w_sel][0]), float(taus[w_sel][-1])) if w_sel.any() else None,
+                walk_range_s=(float(taus[k_sel][0]), float(taus[k_sel][-1])) if k_sel.any() else None,
+                discrete_sigma=N * math.sqrt(rate),
+                discrete_walk_sigma=K / math.sqrt(rate),
+                notes=tuple(notes),
+            )
+        )
+    return NoiseModel(axes=tuple(axes), rate_hz=float(rate), duration_s=result.duration_s)
