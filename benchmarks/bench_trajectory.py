@@ -1,0 +1,169 @@
+"""ibiscape-eval ``ate``/``rpe`` against evo's ``evo_ape``/``evo_rpe`` on generated trajectories.
+
+Both tools run as fresh command-line processes on the same TUM files in the same run; the table
+gives wall time, peak memory (the process's own max RSS) and the ratio, and checks that both
+report the same RMSE.  Run: ``.venv/bin/python benchmarks/bench_trajectory.py [--sizes 100000,1000000]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import shutil
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+sys.path.insert(0, str(Path(__file__).parent))
+from _runner import Run, run
+
+from ibiscape_eval.core import Trajectory
+from ibiscape_eval.core.rotations import quat_from_rotvec, quat_multiply
+from ibiscape_eval.io import write_trajectory
+
+BIN = Path(sys.executable).parent
+
+
+def make_pair(n: int, seed: int = 0) -> tuple[Trajectory, Trajectory]:
+    """A smooth 200 Hz ground truth (random-walk velocity, sinusoidal attitude) and a drifting,
+    noisy estimate with the same stamps."""
+    rng = np.random.default_rng(seed)
+    dt_ns = 5_000_000
+    stamps = 1_403_715_000_000_000_000 + np.arange(n, dtype=np.int64) * dt_ns
+    vel = np.cumsum(rng.normal(0, 0.02, (n, 3)), axis=0)
+    vel -= np.linspace(0, 1, n)[:, None] * vel[-1]  # keep it bounded
+    pos = np.cumsum(vel * 0.005, axis=0)
+    t = np.arange(n) * 0.005
+    angles = np.stack(
+        [0.3 * np.sin(2 * np.pi * f * t + ph) for f, ph in ((0.01, 0), (0.05, 1), (0.07, 2))], 1
+    )
+    q = Rotation.from_euler("zyx", angles).as_quat()
+    gt = Trajectory(stamps, pos, q, "gt")
+    est_pos = pos + np.cumsum(rng.normal(0, 1e-4, (n, 3)), axis=0) + rng.normal(0, 0.01, (n, 3))
+    est_q = quat_multiply(q, quat_from_rotvec(rng.normal(0, 0.002, (n, 3))))
+    return Trajectory(stamps, est_pos, est_q, "est"), gt
+
+
+def evo_rmse(out: str) -> float:
+    m = re.search(r"^\s*rmse\s+([0-9.eE+-]+)", out, re.M)
+    return float(m.group(1)) if m else float("nan")
+
+
+def ours_rmse(out: str) -> float:
+    try:
+        return float(json.loads(out)["translation_m"]["rmse"])
+    except (ValueError, KeyError):
+        return float("nan")
+
+
+def row(name: str, ours: Run, evo: Run | None, r_ours: float, r_evo: float) -> str:
+    if evo is None:
+        return f"{name:<34}{ours.wall_s:>9.2f}{'-':>9}{'-':>9}{ours.peak_mb:>10.0f}{'-':>10}{r_ours:>12.6g}{'-':>12}"
+    ratio = evo.wall_s / ours.wall_s
+    return (
+        f"{name:<34}{ours.wall_s:>9.2f}{evo.wall_s:>9.2f}{ratio:>8.1f}x{ours.peak_mb:>10.0f}"
+        f"{evo.peak_mb:>10.0f}{r_ours:>12.6g}{r_evo:>12.6g}"
+    )
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--sizes", default="100000,1000000")
+    ap.add_argument(
+        "--allpairs-evo-size",
+        type=int,
+        default=10000,
+        help="evo's all-pairs RPE is quadratic: its size for the side-by-side run",
+    )
+    ap.add_argument("--timeout-s", type=float, default=600)
+    args = ap.parse_args()
+    ours_bin, evo_ape, evo_rpe = (
+        str(BIN / "ibiscape-eval"),
+        str(BIN / "evo_ape"),
+        str(BIN / "evo_rpe"),
+    )
+    tmp = Path(tempfile.mkdtemp(prefix="bench_traj_"))
+    print(
+        f"{'case':<34}{'ours s':>9}{'evo s':>9}{'ratio':>9}{'ours MB':>10}{'evo MB':>10}"
+        f"{'rmse ours':>12}{'rmse evo':>12}"
+    )
+    try:
+        help_ours = min(run([ours_bin, "--help"]).wall_s for _ in range(5))
+        help_evo = min(run([evo_ape, "--help"]).wall_s for _ in range(3))
+        print(
+            f"{'--help start-up':<34}{help_ours:>9.3f}{help_evo:>9.3f}{help_evo / help_ours:>8.1f}x"
+        )
+        for n in (int(s) for s in args.sizes.split(",")):
+            est, gt = make_pair(n)
+            fe, fg = tmp / f"est_{n}.txt", tmp / f"gt_{n}.txt"
+            write_trajectory(fe, est, "tum")
+            write_trajectory(fg, gt, "tum")
+            o = run(
+                [ours_bin, "ate", str(fe), str(fg), "--format", "tum", "--align", "se3", "--json"]
+            )
+            e = run([evo_ape, "tum", str(fg), str(fe), "-a"], timeout_s=args.timeout_s)
+            print(row(f"ate se3, {n:,} poses", o, e, ours_rmse(o.stdout), evo_rmse(e.stdout)))
+            o = run(
+                [ours_bin, "rpe", str(fe), str(fg), "--format", "tum", "--delta", "1", "--json"]
+            )
+            e = run(
+                [evo_rpe, "tum", str(fg), str(fe), "--delta", "1", "--delta_unit", "f"],
+                timeout_s=args.timeout_s,
+            )
+            print(row(f"rpe 1 frame, {n:,} poses", o, e, ours_rmse(o.stdout), evo_rmse(e.stdout)))
+            if n <= 100_000:
+                o = run(
+                    [
+                        ours_bin,
+                        "rpe",
+                        str(fe),
+                        str(fg),
+                        "--format",
+                        "tum",
+                        "--delta",
+                        "1",
+                        "--delta-unit",
+                        "metres",
+                        "--pairs",
+                        "all",
+                        "--json",
+                    ]
+                )
+                print(row(f"rpe 1 m all pairs, {n:,} poses", o, None, ours_rmse(o.stdout), 0))
+        n = args.allpairs_evo_size
+        est, gt = make_pair(n, seed=1)
+        fe, fg = tmp / f"est_{n}.txt", tmp / f"gt_{n}.txt"
+        write_trajectory(fe, est, "tum")
+        write_trajectory(fg, gt, "tum")
+        o = run(
+            [
+                ours_bin,
+                "rpe",
+                str(fe),
+                str(fg),
+                "--format",
+                "tum",
+                "--delta",
+                "1",
+                "--delta-unit",
+                "metres",
+                "--pairs",
+                "all",
+                "--json",
+            ]
+        )
+        e = run(
+            [evo_rpe, "tum", str(fg), str(fe), "--delta", "1", "--delta_unit", "m", "--all_pairs"],
+            timeout_s=args.timeout_s,
+        )
+        print(row(f"rpe 1 m all pairs, {n:,} poses", o, e, ours_rmse(o.stdout), evo_rmse(e.stdout)))
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()
