@@ -1,0 +1,38 @@
+"""Trajectory metrics: association, alignment, ATE, RPE and KITTI-style drift.
+
+Every function takes :class:`~ibiscape_eval.core.Trajectory` objects and returns a frozen result
+with numpy arrays, ``to_frame()`` (pandas) and ``to_dict()`` (the JSON the CLI prints)::
+
+    from ibiscape_eval.metrics import ate, rpe
+    res = ate(est, gt, align="sim3")
+    res.translation_m.rmse, res.n_matched, res.n_dropped_est
+
+Definitions follow evo (APE/RPE, Umeyama alignment) and the KITTI odometry devkit (drift).
+"""
+
+from ._stats import ErrorStats
+from .alignment import Alignment, AlignmentResult, align
+from .association import Matched, associate, associate_by_index
+from .ate import AteResult, ate
+from .drift import KITTI_LENGTHS_M, DriftResult, drift
+from .offset import estimate_time_offset
+from .rpe import RpeResult, rpe, select_pairs
+
+__all__ = [
+    "KITTI_LENGTHS_M",
+    "Alignment",
+    "AlignmentResult",
+    "AteResult",
+    "DriftResult",
+    "ErrorStats",
+    "Matched",
+    "RpeResult",
+    "align",
+    "associate",
+    "associate_by_index",
+    "ate",
+    "drift",
+    "estimate_time_offset",
+    "rpe",
+    "select_pairs",
+]

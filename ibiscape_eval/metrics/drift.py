@@ -1,0 +1,252 @@
+"""KITTI-style drift: relative error of path segments of fixed lengths, per metre travelled."""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ibiscape_eval.core import IbiscapeError, IbiscapeWarning, Trajectory
+
+from ._common import common_dict, frozen, nan_to_none, relative_errors
+from ._common import match as _match
+from ._stats import ErrorStats
+from .alignment import Alignment, AlignmentResult
+from .alignment import align as _align
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+__all__ = ["KITTI_LENGTHS_M", "DriftResult", "drift"]
+
+#: Segment lengths of the KITTI odometry devkit, metres.
+KITTI_LENGTHS_M = (100.0, 200.0, 300.0, 400.0, 500.0, 600.0, 700.0, 800.0)
+
+
+@dataclass(frozen=True, eq=False)
+class DriftResult:
+    """Drift per segment length (KITTI odometry devkit definition).
+
+    Attributes
+    ----------
+    lengths_m : ndarray, shape (K,)
+        Segment lengths along the reference path, metres.
+    translation_pct : ndarray, shape (K,)
+        Mean translation error / length per length, percent (NaN where ``n_segments`` is 0).
+    rotation_deg_per_m : ndarray, shape (K,)
+        Mean rotation error / length per length, degrees per metre (NaN where no segment).
+    n_segments : ndarray, shape (K,), int
+        Segments found for each length.
+    mean_translation_pct, mean_rotation_deg_per_m : float
+        Averages over all segments of all lengths, as the KITTI devkit reports them.
+    segment_first_index, segment_second_index : ndarray, shape (S,), int
+        Start and end rows of every segment in ``est_aligned`` / ``ref``.
+    segment_length_m : ndarray, shape (S,)
+        Nominal length of each segment, metres.
+    segment_translation_pct, segment_rotation_deg_per_m : ndarray, shape (S,)
+        Per-segment errors divided by the nominal length.
+    translation_m, rotation_deg : ErrorStats
+        Statistics of the per-segment errors in metres and degrees (not divided by length).
+    step_frames : int
+        Distance between segment start frames.
+    alignment, est_aligned, ref, n_matched, n_dropped_est, n_dropped_ref, t_offset_s,
+    interpolated
+        As in :class:`AteResult`.
+    """
+
+    lengths_m: npt.NDArray[np.float64]
+    translation_pct: npt.NDArray[np.float64]
+    rotation_deg_per_m: npt.NDArray[np.float64]
+    n_segments: npt.NDArray[np.int64]
+    mean_translation_pct: float
+    mean_rotation_deg_per_m: float
+    segment_first_index: npt.NDArray[np.intp]
+    segment_second_index: npt.NDArray[np.intp]
+    segment_length_m: npt.NDArray[np.float64]
+    segment_translation_pct: npt.NDArray[np.float64]
+    segment_rotation_deg_per_m: npt.NDArray[np.float64]
+    translation_m: ErrorStats
+    rotation_deg: ErrorStats
+    step_frames: int
+    alignment: AlignmentResult
+    est_aligned: Trajectory
+    ref: Trajectory
+    n_matched: int
+    n_dropped_est: int
+    n_dropped_ref: int
+    t_offset_s: float
+    interpolated: bool
+
+    def to_frame(self) -> pd.DataFrame:
+        """One row per length: ``length_m, n_segments, translation_pct, rotation_deg_per_m``."""
+        import pandas as pd
+
+        return pd.DataFrame(
+            {
+                "length_m": self.lengths_m,
+                "n_segments": self.n_segments,
+                "translation_pct": self.translation_pct,
+                "rotation_deg_per_m": self.rotation_deg_per_m,
+            }
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON document: ATE's keys plus per-length lists and the averages (NaN -> null)."""
+        doc = common_dict(self, metric="drift")
+        doc["step_frames"] = int(self.step_frames)
+        doc["lengths_m"] = [float(x) for x in self.lengths_m]
+        doc["n_segments"] = [int(x) for x in self.n_segments]
+        doc["translation_pct"] = [nan_to_none(float(x)) for x in self.translation_pct]
+        doc["rotation_deg_per_m"] = [nan_to_none(float(x)) for x in self.rotation_deg_per_m]
+        doc["mean_translation_pct"] = nan_to_none(self.mean_translation_pct)
+        doc["mean_rotation_deg_per_m"] = nan_to_none(self.mean_rotation_deg_per_m)
+        doc["translation_m"] = {k: nan_to_none(v) for k, v in self.translation_m.to_dict().items()}
+        doc["rotation_deg"] = {k: nan_to_none(v) for k, v in self.rotation_deg.to_dict().items()}
+        return doc
+
+
+def _lengths(
+    lengths_m: Sequence[float] | None, lengths_pct: Sequence[float] | None, total_m: float
+) -> npt.NDArray[np.float64]:
+    if lengths_pct is not None:
+        pct = np.asarray(lengths_pct, dtype=np.float64).ravel()
+        if pct.size == 0 or not np.all(np.isfinite(pct)) or np.any(pct <= 0) or np.any(pct > 100):
+            raise IbiscapeError(
+                f"lengths_pct must be percentages in (0, 100], got {list(pct)}"
+            )
+        return pct / 100.0 * total_m
+    lengths = np.asarray(KITTI_LENGTHS_M if lengths_m is None else lengths_m, dtype=np.float64)
+    lengths = lengths.ravel()
+    if lengths.size == 0 or not np.all(np.isfinite(lengths)) or np.any(lengths <= 0):
+        raise IbiscapeError(f"lengths_m must be positive lengths in metres, got {list(lengths)}")
+    return lengths
+
+
+def _segment_ends(
+    cum: npt.NDArray[np.float64], first: npt.NDArray[np.intp], length: float
+) -> npt.NDArray[np.intp]:
+    """First row ``j`` with ``cum[j] - cum[i] >= length`` for each ``i`` in ``first``; -1 if none."""
+    n = cum.shape[0]
+    k = np.searchsorted(cum, cum[first] + length, side="left")
+    end = np.full(first.shape[0], -1, dtype=np.intp)
+    # The sum cum[i] + length is rounded; settle the exact condition among k-1, k, k+1,
+    # scanning from the back so the first qualifying index wins.
+    for shift in (1, 0, -1):
+        j = k + shift
+        valid = (j > first) & (j < n)
+        jj = np.where(valid, j, 0)
+        ok = valid & ((cum[jj] - cum[first]) >= length)
+        end = np.where(ok, jj, end)
+    return end
+
+
+def drift(
+    est: Trajectory,
+    ref: Trajectory,
+    *,
+    lengths_m: Sequence[float] | None = KITTI_LENGTHS_M,
+    lengths_pct: Sequence[float] | None = None,
+    step_frames: int = 10,
+    align: str | Alignment = "none",
+    n_align: int | None = None,
+    max_diff_s: float = 0.01,
+    offset_s: float = 0.0,
+    estimate_offset: bool = False,
+    interpolate: bool = False,
+    match: str = "time",
+) -> DriftResult:
+    """Translation and rotation drift over segments of the reference path (KITTI devkit).
+
+    From every ``step_frames``-th matched pose ``i`` and for every length ``L``, the segment
+    ends at the first pose ``j`` with ``path_length[j] - path_length[i] >= L`` on the
+    reference; its error is the relative pose error of the pair ``(i, j)`` (see :func:`rpe`),
+    reported as translation / L in percent and rotation / L in degrees per metre.
+
+    Parameters
+    ----------
+    est, ref : Trajectory
+        Estimate and reference.
+    lengths_m : sequence of float
+        Segment lengths, metres (KITTI: 100, 200, ..., 800).
+    lengths_pct : sequence of float, optional
+        Lengths as percentages of the total reference path (rpg_trajectory_evaluation style);
+        replaces ``lengths_m`` when given.
+    step_frames : int
+        Distance between start frames (KITTI uses 10).
+    align, n_align, max_diff_s, offset_s, estimate_offset, interpolate, match
+        As in :func:`ate`.
+
+    Returns
+    -------
+    DriftResult
+        Lengths without any segment have ``n_segments`` 0 and NaN errors; the averages skip them.
+    """
+    if int(step_frames) != step_frames or step_frames < 1:
+        raise IbiscapeError(f"step_frames must be a positive integer, got {step_frames!r}")
+    m = _match(est, ref, match=match, max_diff_s=max_diff_s, offset_s=offset_s,
+               estimate_offset=estimate_offset, interpolate=interpolate)
+    al = _align(m.est, m.ref, method=align, n_align=n_align)
+    est_al = al.apply(m.est)
+    cum = m.ref.path_length_m()
+    lengths = _lengths(lengths_m, lengths_pct, float(cum[-1]))
+    starts = np.arange(0, len(m.ref), int(step_frames), dtype=np.intp)
+    firsts, seconds, seg_len = [], [], []
+    for L in lengths:  # K lengths (a handful); each is vectorised over the start frames
+        end = _segment_ends(cum, starts, float(L))
+        ok = end >= 0
+        firsts.append(starts[ok])
+        seconds.append(end[ok])
+        seg_len.append(np.full(int(ok.sum()), L))
+    i = np.concatenate(firsts)
+    j = np.concatenate(seconds)
+    seg_l = np.concatenate(seg_len)
+    which = np.repeat(np.arange(lengths.shape[0]), [f.shape[0] for f in firsts])
+    trans, rot = relative_errors(est_al, m.ref, i, j)
+    rot_deg = np.degrees(rot)
+    t_pct = trans / seg_l * 100.0
+    r_deg_m = rot_deg / seg_l
+    counts = np.bincount(which, minlength=lengths.shape[0]).astype(np.int64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        per_t = np.bincount(which, weights=t_pct, minlength=lengths.shape[0]) / counts
+        per_r = np.bincount(which, weights=r_deg_m, minlength=lengths.shape[0]) / counts
+    per_t[counts == 0] = math.nan
+    per_r[counts == 0] = math.nan
+    if i.shape[0] == 0:
+        warnings.warn(
+            f"no drift segment fits: the matched reference path is {cum[-1]:.3f} m long, shorter "
+            f"than the shortest length {lengths.min():g} m; use shorter --lengths or --lengths-pct",
+            IbiscapeWarning,
+            stacklevel=2,
+        )
+        mean_t = mean_r = math.nan
+    else:
+        mean_t, mean_r = float(np.mean(t_pct)), float(np.mean(r_deg_m))
+    return DriftResult(
+        lengths_m=frozen(lengths),
+        translation_pct=frozen(per_t),
+        rotation_deg_per_m=frozen(per_r),
+        n_segments=frozen(counts),
+        mean_translation_pct=mean_t,
+        mean_rotation_deg_per_m=mean_r,
+        segment_first_index=frozen(i),
+        segment_second_index=frozen(j),
+        segment_length_m=frozen(seg_l),
+        segment_translation_pct=frozen(t_pct),
+        segment_rotation_deg_per_m=frozen(r_deg_m),
+        translation_m=ErrorStats.from_errors(trans),
+        rotation_deg=ErrorStats.from_errors(rot_deg),
+        step_frames=int(step_frames),
+        alignment=al,
+        est_aligned=est_al,
+        ref=m.ref,
+        n_matched=m.n_matched,
+        n_dropped_est=m.n_dropped_est,
+        n_dropped_ref=m.n_dropped_ref,
+        t_offset_s=m.t_offset_s,
+        interpolated=m.interpolated,
+    )

@@ -1,0 +1,247 @@
+"""Relative pose error (RPE) over pose pairs chosen by frames, seconds, metres or degrees."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ibiscape_eval.core import DegenerateInputError, IbiscapeError, Trajectory
+from ibiscape_eval.core.rotations import angle_rad_from_quat, quat_conjugate, quat_multiply
+from ibiscape_eval.core.time import s_from_ns
+
+from ._common import common_dict, frozen, relative_errors
+from ._common import match as _match
+from ._pairs import pairs_by_frames, pairs_by_steps
+from ._stats import ErrorStats
+from .alignment import Alignment, AlignmentResult
+from .alignment import align as _align
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+__all__ = ["DELTA_UNITS", "PAIR_MODES", "RpeResult", "rpe", "select_pairs"]
+
+DELTA_UNITS = ("frames", "seconds", "metres", "degrees")
+PAIR_MODES = ("consecutive", "all")
+_UNIT_ALIASES = {"meters": "metres", "m": "metres", "s": "seconds", "deg": "degrees",
+                 "f": "frames"}
+
+
+@dataclass(frozen=True, eq=False)
+class RpeResult:
+    """Relative errors over pose pairs ``(i, j)`` of the matched trajectories.
+
+    Attributes
+    ----------
+    stamps_ns : ndarray, shape (M,), int64
+        Reference stamp of each pair's start pose.
+    first_index, second_index : ndarray, shape (M,), int
+        Rows ``i`` and ``j`` of the pairs in ``est_aligned`` / ``ref``.
+    errors_m : ndarray, shape (M,)
+        ``||t(E)||`` with ``E = (Q_i^-1 Q_j)^-1 (P_i^-1 P_j)``, metres.
+    errors_deg : ndarray, shape (M,)
+        Rotation angle of ``E``, degrees.
+    translation_m, rotation_deg : ErrorStats
+        Statistics of the two error vectors.
+    n_pairs : int
+        Number of pairs ``M``.
+    delta : float
+        Pair distance, in ``delta_unit`` (frames, seconds, metres or degrees).
+    pairs : str
+        ``"consecutive"`` (non-overlapping, like evo) or ``"all"``.
+    alignment, est_aligned, ref, n_matched, n_dropped_est, n_dropped_ref, t_offset_s,
+    interpolated
+        As in :class:`AteResult`.
+    """
+
+    stamps_ns: npt.NDArray[np.int64]
+    first_index: npt.NDArray[np.intp]
+    second_index: npt.NDArray[np.intp]
+    errors_m: npt.NDArray[np.float64]
+    errors_deg: npt.NDArray[np.float64]
+    translation_m: ErrorStats
+    rotation_deg: ErrorStats
+    n_pairs: int
+    delta: float
+    delta_unit: str
+    pairs: str
+    alignment: AlignmentResult
+    est_aligned: Trajectory
+    ref: Trajectory
+    n_matched: int
+    n_dropped_est: int
+    n_dropped_ref: int
+    t_offset_s: float
+    interpolated: bool
+
+    def to_frame(self) -> pd.DataFrame:
+        """Per-pair rows: ``stamp_ns, t_s, first_index, second_index, error_m, error_deg``."""
+        import pandas as pd
+
+        return pd.DataFrame(
+            {
+                "stamp_ns": self.stamps_ns,
+                "t_s": s_from_ns(self.stamps_ns),
+                "first_index": self.first_index,
+                "second_index": self.second_index,
+                "error_m": self.errors_m,
+                "error_deg": self.errors_deg,
+            }
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON document the CLI prints (ATE's keys plus ``n_pairs, delta, delta_unit,
+        pairs``)."""
+        doc = common_dict(self, metric="rpe")
+        doc.update(n_pairs=int(self.n_pairs), delta=float(self.delta),
+                   delta_unit=self.delta_unit, pairs=self.pairs)
+        doc["translation_m"] = self.translation_m.to_dict()
+        doc["rotation_deg"] = self.rotation_deg.to_dict()
+        return doc
+
+
+def _check_delta(delta: float, delta_unit: str) -> tuple[float, str]:
+    unit = _UNIT_ALIASES.get(delta_unit, delta_unit)
+    if unit not in DELTA_UNITS:
+        raise IbiscapeError(
+            f"unknown delta unit {delta_unit!r}; choose one of {', '.join(DELTA_UNITS)}"
+        )
+    try:
+        d = float(delta)
+    except (TypeError, ValueError):
+        raise IbiscapeError(f"delta must be a number, got {delta!r}") from None
+    if not (math.isfinite(d) and d > 0.0):
+        raise IbiscapeError(f"delta must be a positive number of {unit}, got {delta!r}")
+    if unit == "frames" and not d.is_integer():
+        raise IbiscapeError(f"delta in frames must be a whole number, got {delta!r}")
+    return d, unit
+
+
+def select_pairs(
+    traj: Trajectory,
+    *,
+    delta: float,
+    delta_unit: str = "frames",
+    pairs: str = "consecutive",
+    rel_tol: float = 0.1,
+) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.intp]]:
+    """Start and end rows ``(i, j)`` of the pose pairs of ``traj`` ``delta`` apart.
+
+    ``frames``: ``j = i + delta``.  ``seconds`` / ``metres`` / ``degrees``: measured along the
+    path, by the time, the distance travelled or the cumulative rotation angle between
+    consecutive poses.  ``consecutive``: non-overlapping pairs, each ending at the first pose
+    where the accumulated quantity reaches ``delta`` (evo's pairs); ``all``: every start pose,
+    ending at the pose whose accumulated quantity is closest to ``delta``, kept when within
+    ``rel_tol * delta`` (evo's default tolerance 0.1).  O(n log n), no per-pose Python loop.
+    """
+    d, unit = _check_delta(delta, delta_unit)
+    if pairs not in PAIR_MODES:
+        raise IbiscapeError(f"unknown pair mode {pairs!r}; choose 'consecutive' or 'all'")
+    all_pairs = pairs == "all"
+    n = len(traj)
+    if unit == "frames":
+        return pairs_by_frames(n, int(d), all_pairs=all_pairs)
+    if unit == "metres":
+        steps = np.linalg.norm(traj.pos_m[:-1] - traj.pos_m[1:], axis=1)
+        return pairs_by_steps(steps, d, all_pairs=all_pairs, rel_tol=rel_tol)
+    if unit == "degrees":
+        q = traj.quat_xyzw
+        steps = angle_rad_from_quat(quat_multiply(quat_conjugate(q[:-1]), q[1:]))
+        return pairs_by_steps(steps, math.radians(d), all_pairs=all_pairs, rel_tol=rel_tol)
+    steps = np.diff(traj.stamps_ns).astype(np.float64) / 1e9
+    return pairs_by_steps(steps, d, all_pairs=all_pairs, rel_tol=rel_tol)
+
+
+def rpe(
+    est: Trajectory,
+    ref: Trajectory,
+    *,
+    delta: float = 1.0,
+    delta_unit: str = "frames",
+    pairs: str = "consecutive",
+    align: str | Alignment = "none",
+    n_align: int | None = None,
+    max_diff_s: float = 0.01,
+    offset_s: float = 0.0,
+    estimate_offset: bool = False,
+    interpolate: bool = False,
+    match: str = "time",
+    rel_tol: float = 0.1,
+) -> RpeResult:
+    """Relative pose error of ``est`` against ``ref`` (evo's RPE).
+
+    For each pair ``(i, j)`` chosen on the (aligned) estimate by :func:`select_pairs`,
+    ``E = (Q_i^-1 Q_j)^-1 (P_i^-1 P_j)`` with ``Q`` the reference and ``P`` the estimate; the
+    errors are ``||t(E)||`` (m) and ``angle(R(E))`` (deg).
+
+    Parameters
+    ----------
+    est, ref : Trajectory
+        Estimate and reference, poses ``T_world_body``.
+    delta : float
+        Distance between the poses of a pair, in ``delta_unit``.
+    delta_unit : {"frames", "seconds", "metres", "degrees"}
+        Unit of ``delta``.
+    pairs : {"consecutive", "all"}
+        Non-overlapping pairs (evo's default) or one pair per start pose.
+    align, n_align, max_diff_s, offset_s, estimate_offset, interpolate, match
+        As in :func:`ate` (alignment defaults to ``"none"``: RPE does not need one, except
+        ``sim3`` for a monocular scale).
+    rel_tol : float
+        Relative tolerance on ``delta`` for ``pairs="all"`` in continuous units.
+
+    Returns
+    -------
+    RpeResult
+
+    Raises
+    ------
+    DegenerateInputError
+        When ``delta`` yields no pair (the message gives the trajectory's extent).
+    """
+    d, unit = _check_delta(delta, delta_unit)
+    if pairs not in PAIR_MODES:
+        raise IbiscapeError(f"unknown pair mode {pairs!r}; choose 'consecutive' or 'all'")
+    m = _match(est, ref, match=match, max_diff_s=max_diff_s, offset_s=offset_s,
+               estimate_offset=estimate_offset, interpolate=interpolate)
+    al = _align(m.est, m.ref, method=align, n_align=n_align)
+    est_al = al.apply(m.est)
+    i, j = select_pairs(est_al, delta=d, delta_unit=unit, pairs=pairs, rel_tol=rel_tol)
+    if i.shape[0] == 0:
+        extent = {
+            "frames": f"{len(est_al)} matched poses",
+            "seconds": f"{est_al.duration_s:.3f} s",
+            "metres": f"{est_al.path_length_m()[-1]:.3f} m of path",
+            "degrees": "its rotation",
+        }[unit]
+        raise DegenerateInputError(
+            f"delta = {delta:g} {unit} gives no pose pair ({pairs} pairs) on the estimate "
+            f"({extent}); use a smaller --delta"
+        )
+    trans, rot = relative_errors(est_al, m.ref, i, j)
+    rot_deg = np.degrees(rot)
+    return RpeResult(
+        stamps_ns=frozen(m.ref.stamps_ns[i]),
+        first_index=frozen(i),
+        second_index=frozen(j),
+        errors_m=frozen(trans),
+        errors_deg=frozen(rot_deg),
+        translation_m=ErrorStats.from_errors(trans),
+        rotation_deg=ErrorStats.from_errors(rot_deg),
+        n_pairs=int(i.shape[0]),
+        delta=d,
+        delta_unit=unit,
+        pairs=pairs,
+        alignment=al,
+        est_aligned=est_al,
+        ref=m.ref,
+        n_matched=m.n_matched,
+        n_dropped_est=m.n_dropped_est,
+        n_dropped_ref=m.n_dropped_ref,
+        t_offset_s=m.t_offset_s,
+        interpolated=m.interpolated,
+    )
