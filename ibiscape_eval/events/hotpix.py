@@ -1,0 +1,550 @@
+"""Hot-pixel detection and removal for DVS event streams.
+
+Two criteria from the IBISCape paper (section "Event-based evaluation", figure
+``fig:histo_hot_pixel``), as implemented by dvs_tools' ``dvs_hot_pixel_filter``:
+
+* ranking: the ``top_n`` pixels with the largest event counts over the whole recording;
+* threshold: pixels whose count exceeds ``mean + n_sigma * std``, where mean and the population
+  standard deviation (``cv::meanStdDev``, divisor N) are taken over the pixels that fired at least
+  once.  dvs_tools uses ``n_sigma = 5`` when no count is given, and so do we.
+
+Plus libcaer's rate criterion (hot if a pixel fires at least K events within a time window).
+
+Counting and filtering run in numba kernels over the raw ``uint16`` coordinates: one pass, a flat
+``uint32`` count array, a ``uint8`` lookup table of hot pixels, and single-pass compaction.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+import numpy.typing as npt
+
+from ibiscape_eval.core.errors import FormatError, IbiscapeError
+from ibiscape_eval.core.events import EventChunk, Events
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+__all__ = [
+    "HotPixelResult",
+    "PixelCounter",
+    "count_events",
+    "detect_hot_pixels",
+    "filter_events",
+    "hot_pixel_mask",
+    "hot_pixels_from_counts",
+    "rate_hot_pixels",
+]
+
+DEFAULT_N_SIGMA = 5.0  # dvs_tools' default (--n_std)
+
+
+def _check_sensor_size(sensor_size: tuple[int, int]) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in sensor_size)
+    except (TypeError, ValueError):
+        raise IbiscapeError(
+            f"sensor_size must be (width, height) in pixels, got {sensor_size!r}"
+        ) from None
+    if not (0 < w <= 65536 and 0 < h <= 65536):
+        raise IbiscapeError(f"sensor_size must be positive and at most 65536, got {w}x{h}")
+    return w, h
+
+
+def _coords(x: npt.ArrayLike, y: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    xa = np.ascontiguousarray(x)
+    ya = np.ascontiguousarray(y)
+    if xa.ndim != 1 or ya.ndim != 1 or xa.shape != ya.shape:
+        raise IbiscapeError(
+            f"x and y must be 1-D arrays of one length, got shapes {xa.shape} and {ya.shape}"
+        )
+    if xa.dtype.kind not in "iu" or ya.dtype.kind not in "iu":
+        raise IbiscapeError(f"x and y must be integer pixel coordinates, got {xa.dtype}, {ya.dtype}")
+    return xa, ya
+
+
+def _outside(x: np.ndarray, y: np.ndarray, i: int, w: int, h: int) -> IbiscapeError:
+    return IbiscapeError(
+        f"event {i} at pixel (x={int(x[i])}, y={int(y[i])}) lies outside the {w}x{h} sensor; "
+        "pass the right sensor size (--sensor-size WxH)"
+    )
+
+
+def count_events(
+    x: npt.ArrayLike,
+    y: npt.ArrayLike,
+    *,
+    sensor_size: tuple[int, int],
+    p: npt.ArrayLike | None = None,
+) -> npt.NDArray[np.int64]:
+    """Number of events per pixel.
+
+    Parameters
+    ----------
+    x, y : array_like, shape (N,), integer
+        Pixel coordinates of the events (uint16 is the fast path).
+    sensor_size : (int, int)
+        Sensor width and height in pixels.
+    p : array_like, shape (N,), bool, optional
+        Polarities; if given, the counts are split by polarity.
+
+    Returns
+    -------
+    ndarray, int64
+        Shape (H, W), or (2, H, W) with ``[0]`` negative and ``[1]`` positive events if ``p`` is
+        given.
+
+    Raises
+    ------
+    IbiscapeError
+        If an event lies outside the sensor (the message names its index).
+    """
+    from . import _kernels
+
+    w, h = _check_sensor_size(sensor_size)
+    xa, ya = _coords(x, y)
+    # uint32 cannot overflow: a pixel holds at most N events; split larger inputs.
+    step = 2**31
+    total = np.zeros((2 if p is not None else 1) * w * h, np.int64)
+    for s in range(0, max(xa.shape[0], 1), step):
+        part = np.zeros(total.shape, np.uint32)
+        if p is None:
+            bad = _kernels.count_xy(xa[s : s + step], ya[s : s + step], w, h, part)
+        else:
+            pa = np.ascontiguousarray(p, dtype=np.bool_)
+            if pa.shape != xa.shape:
+                raise IbiscapeError(f"p has shape {pa.shape}, x and y have {xa.shape}")
+            bad = _kernels.count_xyp(xa[s : s + step], ya[s : s + step], pa[s : s + step], w, h, part)
+        if bad >= 0:
+            raise _outside(xa, ya, s + int(bad), w, h)
+        total += part
+    return total.reshape((h, w) if p is None else (2, h, w))
+
+
+@dataclass(frozen=True, eq=False)
+class HotPixelResult:
+    """Hot pixels of a recording and the statistics they were chosen from.
+
+    Attributes
+    ----------
+    pixels : ndarray, shape (K, 2), int64
+        Hot pixels as (x, y), sorted by decreasing count (ties by row-major pixel index).
+    counts : ndarray, shape (K,), int64
+        Events of each hot pixel over the whole recording.
+    count_map : ndarray, shape (H, W), int64
+        Events per pixel (all polarities), the histogram the criteria work on.
+    sensor_size : (int, int)
+        Width, height in pixels.
+    threshold : float
+        ``mean + n_sigma * std`` when the n-sigma criterion was used, else NaN.
+    mean, std : float
+        Mean and population standard deviation of the counts of the pixels that fired.
+    top_n, n_sigma
+        The criteria used (None when not used).
+    """
+
+    pixels: npt.NDArray[np.int64]
+    counts: npt.NDArray[np.int64]
+    count_map: npt.NDArray[np.int64]
+    sensor_size: tuple[int, int]
+    threshold: float
+    mean: float
+    std: float
+    top_n: int | None
+    n_sigma: float | None
+
+    @property
+    def n_events(self) -> int:
+        """Events in the recording."""
+        return int(self.count_map.sum())
+
+    @property
+    def n_discarded(self) -> int:
+        """Events that removing the hot pixels discards."""
+        return int(self.counts.sum())
+
+    @property
+    def fraction_discarded(self) -> float:
+        """``n_discarded / n_events`` (0 for an empty recording)."""
+        n = self.n_events
+        return self.n_discarded / n if n else 0.0
+
+    def to_frame(self) -> pd.DataFrame:
+        """The hot pixels as a table with columns ``x, y, count``."""
+        import pandas as pd
+
+        return pd.DataFrame(
+            {"x": self.pixels[:, 0], "y": self.pixels[:, 1], "count": self.counts}
+        )
+
+
+def _union_sorted(flat: np.ndarray, counts_flat: np.ndarray) -> np.ndarray:
+    """Unique flat indices ordered by decreasing count, then increasing index."""
+    flat = np.unique(flat)
+    order = np.lexsort((flat, -counts_flat[flat]))
+    return flat[order]
+
+
+def hot_pixels_from_counts(
+    count_map: npt.ArrayLike,
+    *,
+    top_n: int | None = None,
+    n_sigma: float | None = None,
+    extra_pixels: npt.ArrayLike | None = None,
+) -> HotPixelResult:
+    """Apply the ranking and/or threshold criteria to a per-pixel count map.
+
+    Parameters
+    ----------
+    count_map : array_like, shape (H, W) or (2, H, W), integer
+        Events per pixel; with a polarity axis, each polarity is judged on its own and a pixel is
+        hot if it is hot in either (the "per polarity" mode).
+    top_n : int, optional
+        Mark the ``top_n`` pixels with the largest counts (pixels that never fired are never hot).
+    n_sigma : float, optional
+        Mark pixels with ``count > mean + n_sigma * std`` over the pixels that fired (population
+        std).  If neither criterion is given, ``n_sigma = 5`` (dvs_tools' default).  If both are
+        given, a pixel is hot if either criterion marks it.
+    extra_pixels : array_like, shape (M, 2), optional
+        Further hot pixels (x, y) found by another criterion (e.g. :func:`rate_hot_pixels`).
+
+    Returns
+    -------
+    HotPixelResult
+    """
+    cm = np.asarray(count_map)
+    if cm.ndim not in (2, 3) or (cm.ndim == 3 and cm.shape[0] != 2) or cm.dtype.kind not in "iu":
+        raise IbiscapeError(f"count_map must be integer (H, W) or (2, H, W), got {cm.shape} {cm.dtype}")
+    if top_n is not None and int(top_n) < 0:
+        raise IbiscapeError(f"top_n must be >= 0, got {top_n}")
+    if n_sigma is not None and not np.isfinite(n_sigma):
+        raise IbiscapeError(f"n_sigma must be a finite number, got {n_sigma}")
+    if top_n is None and n_sigma is None and extra_pixels is None:
+        n_sigma = DEFAULT_N_SIGMA
+    planes = cm.reshape(-1, cm.shape[-2] * cm.shape[-1]).astype(np.int64, copy=False)
+    h, w = cm.shape[-2:]
+    total = planes.sum(axis=0)
+    chosen: list[np.ndarray] = []
+    threshold = mean = std = float("nan")
+    for plane in planes:
+        fired = plane[plane > 0]
+        if fired.size:
+            m = float(fired.mean())
+            s = float(fired.std())  # population std, like cv::meanStdDev
+        else:
+            m = s = float("nan")
+        if planes.shape[0] == 1:
+            mean, std = m, s
+        if n_sigma is not None and fired.size:
+            thr = m + float(n_sigma) * s
+            if planes.shape[0] == 1:
+                threshold = thr
+            chosen.append(np.flatnonzero(plane > thr))
+        if top_n is not None and int(top_n) > 0:
+            k = min(int(top_n), int(fired.size))
+            if k:
+                # partial selection, then a stable order: count desc, index asc (dvs_tools'
+                # repeated minMaxLoc scans row-major, so ties go to the lower index too)
+                cand = np.argpartition(-plane, k - 1)[:k]
+                kth = plane[cand].min()
+                above = np.flatnonzero(plane > kth)
+                ties = np.flatnonzero(plane == kth)[: k - above.size]
+                chosen.append(np.concatenate([above, ties]))
+    if planes.shape[0] == 2:
+        fired = total[total > 0]
+        mean = float(fired.mean()) if fired.size else float("nan")
+        std = float(fired.std()) if fired.size else float("nan")
+    if extra_pixels is not None:
+        ep = np.asarray(extra_pixels, dtype=np.int64).reshape(-1, 2)
+        if ep.size and ((ep[:, 0] < 0) | (ep[:, 0] >= w) | (ep[:, 1] < 0) | (ep[:, 1] >= h)).any():
+            raise IbiscapeError(f"extra hot pixels lie outside the {w}x{h} sensor")
+        chosen.append(ep[:, 1] * w + ep[:, 0])
+    flat = _union_sorted(np.concatenate(chosen) if chosen else np.empty(0, np.int64), total)
+    pixels = np.stack([flat % w, flat // w], axis=1).astype(np.int64)
+    return HotPixelResult(
+        pixels=pixels,
+        counts=total[flat],
+        count_map=total.reshape(h, w),
+        sensor_size=(int(w), int(h)),
+        threshold=threshold,
+        mean=mean,
+        std=std,
+        top_n=None if top_n is None else int(top_n),
+        n_sigma=None if n_sigma is None else float(n_sigma),
+    )
+
+
+def detect_hot_pixels(
+    x: npt.ArrayLike,
+    y: npt.ArrayLike,
+    *,
+    sensor_size: tuple[int, int],
+    top_n: int | None = None,
+    n_sigma: float | None = None,
+) -> HotPixelResult:
+    """Find the hot pixels of a recording from its per-pixel event counts.
+
+    Parameters
+    ----------
+    x, y : array_like, shape (N,), integer
+        Pixel coordinates of all events of the recording.
+    sensor_size : (int, int)
+        Sensor width and height in pixels.
+    top_n : int, optional
+        Ranking criterion: the ``top_n`` pixels with the most events.
+    n_sigma : float, optional
+        Threshold criterion: ``count > mean + n_sigma * std`` over the pixels that fired
+        (population std).  Default 5 when neither criterion is given; with both, their union.
+
+    Returns
+    -------
+    HotPixelResult
+        ``pixels`` (K, 2) as x, y and their ``counts`` (K,).
+
+    Examples
+    --------
+    >>> res = detect_hot_pixels(x, y, sensor_size=(346, 260), n_sigma=5)  # doctest: +SKIP
+    >>> keep = hot_pixel_mask(x, y, res.pixels, sensor_size=(346, 260))  # doctest: +SKIP
+    """
+    counts = count_events(x, y, sensor_size=sensor_size)
+    return hot_pixels_from_counts(counts, top_n=top_n, n_sigma=n_sigma)
+
+
+def _hot_lut(pixels: npt.ArrayLike, w: int, h: int) -> np.ndarray:
+    px = np.asarray(pixels)
+    if px.size == 0:
+        return np.zeros(w * h, np.uint8)
+    if px.ndim != 2 or px.shape[1] != 2 or px.dtype.kind not in "iu":
+        raise IbiscapeError(f"pixels must be an integer (K, 2) array of x, y; got {px.shape} {px.dtype}")
+    px = px.astype(np.int64)
+    bad = (px[:, 0] < 0) | (px[:, 0] >= w) | (px[:, 1] < 0) | (px[:, 1] >= h)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise IbiscapeError(
+            f"hot pixel {i} (x={px[i, 0]}, y={px[i, 1]}) lies outside the {w}x{h} sensor; "
+            "check the hot-pixel list and the sensor size"
+        )
+    lut = np.zeros(w * h, np.uint8)
+    lut[px[:, 1] * w + px[:, 0]] = 1
+    return lut
+
+
+def hot_pixel_mask(
+    x: npt.ArrayLike,
+    y: npt.ArrayLike,
+    pixels: npt.ArrayLike,
+    *,
+    sensor_size: tuple[int, int],
+) -> npt.NDArray[np.bool_]:
+    """Boolean keep-mask: True for events that do not come from a hot pixel.
+
+    Parameters
+    ----------
+    x, y : array_like, shape (N,), integer
+        Pixel coordinates of the events.
+    pixels : array_like, shape (K, 2), integer
+        Hot pixels as x, y (e.g. ``HotPixelResult.pixels`` or a ``hot_pixels.txt``).
+    sensor_size : (int, int)
+        Sensor width and height in pixels.
+
+    Returns
+    -------
+    ndarray, shape (N,), bool
+    """
+    from . import _kernels
+
+    w, h = _check_sensor_size(sensor_size)
+    xa, ya = _coords(x, y)
+    lut = _hot_lut(pixels, w, h)
+    out = np.empty(xa.shape[0], np.bool_)
+    bad = _kernels.keep_mask(xa, ya, w, h, lut, out)
+    if bad >= 0:
+        raise _outside(xa, ya, int(bad), w, h)
+    return out
+
+
+def filter_events(
+    events: Events, pixels: npt.ArrayLike, *, sensor_size: tuple[int, int]
+) -> Events:
+    """The events that do not come from a hot pixel, in their order (one pass, no mask array).
+
+    Parameters
+    ----------
+    events
+        The stream; its coordinates must lie inside the sensor.
+    pixels : array_like, shape (K, 2), integer
+        Hot pixels as x, y.
+    sensor_size : (int, int)
+        Sensor width and height in pixels.
+    """
+    t, x, y, p = filter_arrays(events.t_ns, events.x, events.y, events.p, pixels, sensor_size=sensor_size)
+    return Events(t, x, y, p)
+
+
+def filter_arrays(
+    t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray, pixels: npt.ArrayLike,
+    *, sensor_size: tuple[int, int],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`filter_events` on plain arrays of any dtypes (kept exactly, as are the inputs)."""
+    from . import _kernels
+
+    w, h = _check_sensor_size(sensor_size)
+    xa, ya = _coords(x, y)
+    ta, pa = np.ascontiguousarray(t), np.ascontiguousarray(p)
+    if ta.shape != xa.shape or pa.shape != xa.shape:
+        raise IbiscapeError(f"t, x, y, p lengths differ: {ta.shape}, {xa.shape}, {ya.shape}, {pa.shape}")
+    # coordinates are checked by a cheap max first (compaction trusts them)
+    if xa.size and (int(xa.max()) >= w or int(ya.max()) >= h or int(xa.min()) < 0 or int(ya.min()) < 0):
+        i = int(np.flatnonzero((xa >= w) | (ya >= h) | (xa < 0) | (ya < 0))[0])
+        raise _outside(xa, ya, i, w, h)
+    lut = _hot_lut(pixels, w, h)
+    to, xo, yo, po = (np.empty_like(a) for a in (ta, xa, ya, pa))
+    k = int(_kernels.compact4(ta, xa, ya, pa, w, lut, to, xo, yo, po))
+    return to[:k].copy(), xo[:k].copy(), yo[:k].copy(), po[:k].copy()
+
+
+def rate_hot_pixels(
+    t_ns: npt.ArrayLike,
+    x: npt.ArrayLike,
+    y: npt.ArrayLike,
+    *,
+    sensor_size: tuple[int, int],
+    min_events: int,
+    window_ns: int,
+) -> npt.NDArray[np.int64]:
+    """libcaer's rate criterion: pixels that fire at least ``min_events`` events within one
+    window of ``window_ns`` ns (consecutive windows from the first event; libcaer learns over
+    one window, here every window of the recording counts).
+
+    Returns
+    -------
+    ndarray, shape (K, 2), int64
+        Hot pixels as x, y, in row-major order.
+    """
+    acc = PixelCounter(sensor_size=sensor_size, rate_min_events=min_events, rate_window_ns=window_ns)
+    acc.add(Events(np.asarray(t_ns), np.asarray(x), np.asarray(y), np.zeros(np.shape(x), bool)))
+    return acc.rate_pixels()
+
+
+class PixelCounter:
+    """Streaming per-pixel counts (and the rate statistic) over a recording read in chunks.
+
+    Parameters
+    ----------
+    sensor_size : (int, int), optional
+        Width, height.  If None the sensor grows to the largest coordinate seen.
+    per_polarity : bool
+        Keep one count map per polarity.
+    rate_min_events, rate_window_ns : int, optional
+        Enable the libcaer-like rate criterion.
+    """
+
+    def __init__(
+        self,
+        *,
+        sensor_size: tuple[int, int] | None = None,
+        per_polarity: bool = False,
+        rate_min_events: int | None = None,
+        rate_window_ns: int | None = None,
+    ) -> None:
+        self.fixed = sensor_size is not None
+        self.w, self.h = _check_sensor_size(sensor_size) if sensor_size is not None else (0, 0)
+        self.per_polarity = per_polarity
+        if (rate_min_events is None) != (rate_window_ns is None):
+            raise IbiscapeError("the rate criterion needs both a minimum event count and a window")
+        if rate_window_ns is not None and (int(rate_window_ns) <= 0 or int(rate_min_events or 0) < 1):
+            raise IbiscapeError(
+                f"rate criterion: window must be > 0 ns and min events >= 1, got "
+                f"{rate_window_ns} ns, {rate_min_events}"
+            )
+        self.rate_min = rate_min_events
+        self.rate_window_ns = rate_window_ns
+        self.n_events = 0
+        self._planes = 2 if per_polarity else 1
+        self._counts = np.zeros((self._planes, self.h, self.w), np.int64)
+        self._t0: int | None = None
+        self._rate_state: list[np.ndarray] = []
+        if rate_window_ns is not None:
+            self._rate_state = self._new_rate_state(self.h, self.w)
+
+    @staticmethod
+    def _new_rate_state(h: int, w: int) -> list[np.ndarray]:
+        return [np.full(h * w, -1, np.int64), np.zeros(h * w, np.int64), np.zeros(h * w, np.int64)]
+
+    def _grow(self, w: int, h: int) -> None:
+        counts = np.zeros((self._planes, h, w), np.int64)
+        counts[:, : self.h, : self.w] = self._counts
+        if self._rate_state:
+            new = self._new_rate_state(h, w)
+            for old, nw in zip(self._rate_state, new, strict=True):
+                nw.reshape(h, w)[: self.h, : self.w] = old.reshape(self.h, self.w)
+            self._rate_state = new
+        self._counts, self.w, self.h = counts, w, h
+
+    def add(self, events: Events, chunk: EventChunk | None = None) -> None:
+        """Count a chunk.  Out-of-sensor coordinates raise :class:`FormatError` naming the file
+        (and line) when ``chunk`` is given."""
+        from . import _kernels
+
+        n = len(events)
+        if n == 0:
+            return
+        if not self.fixed:
+            mw, mh = int(events.x.max()) + 1, int(events.y.max()) + 1
+            if mw > self.w or mh > self.h:
+                self._grow(max(mw, self.w), max(mh, self.h))
+        part = np.zeros(self._planes * self.h * self.w, np.uint32)
+        if self.per_polarity:
+            bad = _kernels.count_xyp(events.x, events.y, events.p, self.w, self.h, part)
+        else:
+            bad = _kernels.count_xy(events.x, events.y, self.w, self.h, part)
+        if bad >= 0:
+            i = int(bad)
+            msg = (
+                f"pixel (x={int(events.x[i])}, y={int(events.y[i])}) lies outside the "
+                f"{self.w}x{self.h} sensor; pass the right --sensor-size WxH"
+            )
+            if chunk is not None:
+                path, line, what = chunk.where(i)
+                raise FormatError(path, f"{what}: {msg}", line=line)
+            raise IbiscapeError(f"event {self.n_events + i}: {msg}")
+        self._counts += part.reshape(self._counts.shape)
+        if self._rate_state:
+            if self._t0 is None:
+                self._t0 = int(events.t_ns[0])
+            _kernels.rate_max(events.t_ns, events.x, events.y, self.w, self._t0,
+                              int(self.rate_window_ns or 1), *self._rate_state)
+        self.n_events += n
+
+    @property
+    def count_map(self) -> npt.NDArray[np.int64]:
+        """(H, W) or, per polarity, (2, H, W) counts so far."""
+        return self._counts[0] if self._planes == 1 else self._counts
+
+    @property
+    def sensor_size(self) -> tuple[int, int]:
+        return self.w, self.h
+
+    def rate_pixels(self) -> npt.NDArray[np.int64]:
+        """Pixels meeting the rate criterion so far, as (K, 2) x, y."""
+        if not self._rate_state:
+            return np.empty((0, 2), np.int64)
+        flat = np.flatnonzero(self._rate_state[2] >= int(self.rate_min or 0))
+        return np.stack([flat % self.w, flat // self.w], axis=1).astype(np.int64)
+
+    def result(self, *, top_n: int | None = None, n_sigma: float | None = None) -> HotPixelResult:
+        """Hot pixels from everything counted (ranking / threshold / rate criteria, union)."""
+        extra = self.rate_pixels() if self._rate_state else None
+        return hot_pixels_from_counts(self.count_map, top_n=top_n, n_sigma=n_sigma, extra_pixels=extra)
+
+
+def iter_filtered(
+    chunks: Iterable[EventChunk], pixels: npt.ArrayLike, *, sensor_size: tuple[int, int]
+) -> Iterable[tuple[EventChunk, Events]]:
+    """Filter a stream chunk by chunk: yields each input chunk with its filtered events."""
+    for chunk in chunks:
+        yield chunk, filter_events(chunk.events, pixels, sensor_size=sensor_size)

@@ -1,0 +1,713 @@
+"""DVS event files: read as one time-ordered stream, in chunks, and write back in the same format.
+
+Formats
+-------
+``ibiscape``
+    A DVS folder of the IBISCape layout: ``timestamps.csv``
+    (``#timestamp_start [ns], timestamp_end [ns], filename``) listing ``events/<ns>.npz`` windows
+    with keys ``t`` (int64 ns), ``x``, ``y`` (uint16), ``p`` (bool).  Read window by window, so
+    folders larger than memory stream in bounded memory.
+``npz``
+    One ``.npz`` file with the same four keys.
+``text``
+    rpg / ESIM text (``.txt``): ``t x y p`` per line, ``t`` in decimal seconds (parsed exactly to
+    the nanosecond), ``p`` 0/1 (or -1/1); ``#`` comments; an optional first line ``width height``
+    (E2VID's convention) gives the sensor size.
+``hdf5``
+    E2CALIB / DSEC layout (``.h5``, ``.hdf5``): datasets ``events/x``, ``events/y`` (uint16),
+    ``events/t`` (microseconds; DSEC: uint32 relative to the scalar dataset ``t_offset``, also in
+    microseconds), ``events/p`` (0/1); DSEC adds ``ms_to_idx`` (index of the first event at or after
+    each millisecond, relative to ``t_offset``), which is recomputed when writing.
+
+npz files are always opened with ``allow_pickle=False``: object arrays are refused, never unpickled.
+Writers go through a temporary file (or folder) renamed on success.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import tempfile
+import zipfile
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ibiscape_eval.core.errors import FormatError, IbiscapeError
+from ibiscape_eval.core.events import EventChunk, Events
+
+from ._atomic import atomic_output_path, atomic_write
+
+__all__ = [
+    "EventSource",
+    "detect_event_format",
+    "iter_event_chunks",
+    "open_events",
+    "read_events",
+    "read_hot_pixels",
+    "write_events",
+    "write_filtered_events",
+    "write_frames_png",
+    "write_hot_pixels",
+]
+
+FORMATS = ("ibiscape", "npz", "text", "hdf5")
+NPZ_KEYS = ("t", "x", "y", "p")
+DEFAULT_CHUNK_EVENTS = 1 << 24
+_TEXT_BLOCK_BYTES = 1 << 25
+
+
+@dataclass(frozen=True)
+class EventSource:
+    """An opened (and checked) event recording; iterate it with :func:`iter_event_chunks`.
+
+    Attributes
+    ----------
+    path : Path
+        What the user gave (folder or file).
+    fmt : str
+        One of ``ibiscape``, ``npz``, ``text``, ``hdf5``.
+    windows : list of (int, int, Path)
+        IBISCape: ``(t_start_ns, t_end_ns, npz path)`` per ``timestamps.csv`` row.
+    sensor_size : (int, int) or None
+        Width, height when the file states it (text header, HDF5 attributes).
+    n_events : int or None
+        Number of events when known without reading them (HDF5).
+    meta : dict
+        Format details needed to write the same layout back (HDF5 dtypes, ``t_offset``...).
+    """
+
+    path: Path
+    fmt: str
+    windows: list[tuple[int, int, Path]] = field(default_factory=list)
+    sensor_size: tuple[int, int] | None = None
+    n_events: int | None = None
+    meta: dict[str, Any] = field(default_factory=dict)
+
+
+# ------------------------------------------------------------------------------------------
+# format detection and opening
+# ------------------------------------------------------------------------------------------
+
+
+def detect_event_format(path: str | os.PathLike[str]) -> str:
+    """The format of an event recording from its path (see the module docstring)."""
+    p = Path(path)
+    if p.is_dir():
+        return "ibiscape"
+    suffix = p.suffix.lower()
+    if suffix == ".npz":
+        return "npz"
+    if suffix in (".h5", ".hdf5"):
+        return "hdf5"
+    if suffix in (".txt", ".dat", ".csv", ""):
+        return "text"
+    raise FormatError(
+        p, f"unknown event file type {suffix!r}; expected a DVS folder with timestamps.csv, "
+        ".npz, .txt (t x y p) or .h5 (E2CALIB/DSEC)"
+    )
+
+
+def _ibiscape_root(p: Path) -> Path:
+    if (p / "timestamps.csv").is_file():
+        return p
+    if p.name == "events" and (p.parent / "timestamps.csv").is_file():
+        return p.parent
+    raise FormatError(
+        p, "not an IBISCape DVS folder: timestamps.csv is missing; give the davisL/davisR folder "
+        "that holds timestamps.csv and events/"
+    )
+
+
+def _read_windows(root: Path) -> list[tuple[int, int, Path]]:
+    csv = root / "timestamps.csv"
+    rows: list[tuple[int, int, Path]] = []
+    with open(csv, encoding="utf-8") as f:
+        for n, raw in enumerate(f, start=1):
+            line = raw.strip()
+            if not line or line.startswith("#"):
+                continue
+            cols = [c.strip() for c in line.split(",")]
+            if len(cols) != 3:
+                raise FormatError(
+                    csv, f"expected 3 columns (timestamp_start [ns], timestamp_end [ns], filename), "
+                    f"got {len(cols)}", line=n,
+                )
+            try:
+                a, b = (int(float(c)) if "." in c or "e" in c.lower() else int(c) for c in cols[:2])
+            except ValueError:
+                raise FormatError(csv, f"timestamps must be integers in ns, got {cols[:2]}", line=n) from None
+            name = cols[2]
+            cand = [root / "events" / name, root / name]
+            hit = next((c for c in cand if c.is_file()), None)
+            if hit is None:
+                raise FormatError(
+                    csv, f"lists {name} but {cand[0]} does not exist; restore the file or remove "
+                    "its row from timestamps.csv", line=n,
+                )
+            rows.append((a, b, hit))
+    if not rows:
+        raise FormatError(csv, "lists no event windows: the recording is empty")
+    return rows
+
+
+def _text_header(path: Path) -> tuple[tuple[int, int] | None, bytes]:
+    """An E2VID-style ``width height`` first line, if present."""
+    with open(path, "rb") as f:
+        first = f.readline(4096)
+    cols = first.replace(b",", b" ").split()
+    if len(cols) == 2 and all(c.isdigit() for c in cols):
+        return (int(cols[0]), int(cols[1])), first
+    return None, b""
+
+
+def _h5py() -> Any:
+    import h5py
+
+    with contextlib.suppress(ImportError):  # registers the Blosc filter DSEC files need
+        import hdf5plugin  # noqa: F401
+    return h5py
+
+
+def open_events(path: str | os.PathLike[str], *, fmt: str | None = None) -> EventSource:
+    """Open and check an event recording without reading its events.
+
+    Checks the folder listing (every file in ``timestamps.csv`` exists), the HDF5 datasets and
+    their lengths.  Raises :class:`FormatError` naming the file (and line) otherwise.
+    """
+    p = Path(path)
+    if not p.exists():
+        raise FormatError(p, "no such file or directory; check the path")
+    fmt = fmt or detect_event_format(p)
+    if fmt not in FORMATS:
+        raise IbiscapeError(f"unknown event format {fmt!r}; choose one of {', '.join(FORMATS)}")
+    if fmt == "ibiscape":
+        root = _ibiscape_root(p)
+        return EventSource(root, fmt, windows=_read_windows(root))
+    if fmt == "text":
+        size, header = _text_header(p)
+        return EventSource(p, fmt, sensor_size=size, meta={"header": header})
+    if fmt == "hdf5":
+        h5py = _h5py()
+        try:
+            with h5py.File(p, "r") as f:
+                missing = [k for k in NPZ_KEYS if f"events/{k}" not in f]
+                if missing:
+                    raise FormatError(
+                        p, f"missing datasets {', '.join('events/' + k for k in missing)}; expected "
+                        "the E2CALIB/DSEC layout events/x, events/y, events/t, events/p"
+                    )
+                ds = {k: f[f"events/{k}"] for k in NPZ_KEYS}
+                lens = {k: d.shape[0] if d.ndim == 1 else -1 for k, d in ds.items()}
+                if len(set(lens.values())) != 1 or -1 in lens.values():
+                    raise FormatError(
+                        p, "events/t, x, y, p must be 1-D and of one length, got "
+                        + ", ".join(f"{k}={ds[k].shape}" for k in NPZ_KEYS)
+                    )
+                if ds["t"].dtype.kind not in "iu" or ds["x"].dtype.kind not in "iu" or ds["y"].dtype.kind not in "iu":
+                    raise FormatError(p, "events/t, x, y must be integer datasets (t in microseconds)")
+                t_offset = 0
+                if "t_offset" in f:
+                    t_offset = int(np.asarray(f["t_offset"][()]).reshape(-1)[0])
+                size = None
+                for wk, hk in (("width", "height"), ("sensor_width", "sensor_height")):
+                    if wk in f.attrs and hk in f.attrs:
+                        size = (int(f.attrs[wk]), int(f.attrs[hk]))
+                meta = {
+                    "dtypes": {k: ds[k].dtype.str for k in NPZ_KEYS},
+                    "t_offset_us": t_offset,
+                    "has_t_offset": "t_offset" in f,
+                    "has_ms_to_idx": "ms_to_idx" in f,
+                    "attrs": {k: f.attrs[k] for k in f.attrs},
+                }
+                return EventSource(p, fmt, sensor_size=size, n_events=lens["t"], meta=meta)
+        except OSError as e:
+            raise FormatError(p, f"cannot read as HDF5 ({e}); is it an .h5 file?") from None
+    return EventSource(p, fmt)
+
+
+# ------------------------------------------------------------------------------------------
+# reading
+# ------------------------------------------------------------------------------------------
+
+
+def _load_npz(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    try:
+        npz = np.load(path, allow_pickle=False)
+    except (zipfile.BadZipFile, ValueError, EOFError) as e:
+        raise FormatError(path, f"not a readable .npz file ({e}); re-export the window") from None
+    if not isinstance(npz, np.lib.npyio.NpzFile):
+        raise FormatError(path, "expected an .npz archive with keys t, x, y, p")
+    with npz:
+        missing = [k for k in NPZ_KEYS if k not in npz.files]
+        if missing:
+            raise FormatError(
+                path, f"missing key(s) {', '.join(missing)}; found {', '.join(npz.files) or 'none'}; "
+                "expected t (int64 ns), x, y (uint16), p (bool)"
+            )
+        arrays = []
+        for k in NPZ_KEYS:
+            try:
+                arrays.append(npz[k])
+            except ValueError:
+                raise FormatError(
+                    path, f"key {k!r} holds pickled Python objects, which are refused for safety; "
+                    "save plain numeric arrays (t int64, x y uint16, p bool)"
+                ) from None
+    t, x, y, p = arrays
+    if any(a.ndim != 1 for a in arrays) or len({a.shape[0] for a in arrays}) != 1:
+        raise FormatError(
+            path, "arrays t, x, y, p must be 1-D and of one length, got "
+            + ", ".join(f"{k}={a.shape}" for k, a in zip(NPZ_KEYS, arrays, strict=True))
+        )
+    if t.dtype.kind not in "iu":
+        raise FormatError(path, f"t must be integer nanoseconds, got dtype {t.dtype}")
+    for k, a in (("x", x), ("y", y)):
+        if a.dtype.kind not in "iu":
+            raise FormatError(path, f"{k} must be integer pixel coordinates, got dtype {a.dtype}")
+        if a.dtype != np.uint16 and a.size and (int(a.min()) < 0 or int(a.max()) > 65535):
+            raise FormatError(path, f"{k} must lie in 0..65535, found {int(a.min())}..{int(a.max())}")
+    if p.dtype != np.bool_:
+        if p.dtype.kind not in "iub" or (p.size and not np.isin(p, (-1, 0, 1)).all()):
+            raise FormatError(path, f"p must be bool (or 0/1), got dtype {p.dtype}")
+        p = p > 0
+    return t, x, y, p
+
+
+def _chunks_npz_files(files: list[Path]) -> Iterator[EventChunk]:
+    for f in files:
+        t, x, y, p = _load_npz(f)
+        yield EventChunk(Events(t, x, y, p), str(f), 0)
+
+
+def _chunks_text(src: EventSource, chunk_events: int) -> Iterator[EventChunk]:
+    from ibiscape_eval.events import _kernels
+
+    path = src.path
+    line = 1
+    offset = 0
+    header = src.meta.get("header", b"")
+    with open(path, "rb") as f:
+        if header:
+            f.readline()
+            line = 2
+        rest = b""
+        while True:
+            block = f.read(_TEXT_BLOCK_BYTES)
+            data = rest + block
+            if not block:
+                cut = len(data)
+            else:
+                cut = data.rfind(b"\n") + 1
+                if cut == 0:
+                    rest = data
+                    continue
+            buf = np.frombuffer(data[:cut], np.uint8)
+            rest = data[cut:]
+            nmax = int(np.count_nonzero(buf == 10)) + 1
+            t = np.empty(nmax, np.int64)
+            x = np.empty(nmax, np.uint16)
+            y = np.empty(nmax, np.uint16)
+            p = np.empty(nmax, np.bool_)
+            ln = np.empty(nmax, np.int64)
+            n, nlines, err, err_line = _kernels.parse_text(buf, line, t, x, y, p, ln)
+            if err:
+                raise FormatError(path, _kernels.TEXT_ERRORS[int(err)], line=int(err_line))
+            line += int(nlines)
+            for s in range(0, int(n), chunk_events):
+                e = min(int(n), s + chunk_events)
+                yield EventChunk(Events(t[s:e], x[s:e], y[s:e], p[s:e]), str(path), offset + s, ln[s:e])
+            offset += int(n)
+            if not block:
+                break
+
+
+def _chunks_hdf5(src: EventSource, chunk_events: int) -> Iterator[EventChunk]:
+    h5py = _h5py()
+    off_ns = int(src.meta["t_offset_us"]) * 1000
+    try:
+        with h5py.File(src.path, "r") as f:
+            ds = [f[f"events/{k}"] for k in NPZ_KEYS]
+            n = ds[0].shape[0]
+            for s in range(0, n, chunk_events):
+                e = min(n, s + chunk_events)
+                t, x, y, p = (d[s:e] for d in ds)
+                t_ns = t.astype(np.int64) * 1000 + off_ns
+                yield EventChunk(Events(t_ns, x, y, p > 0), str(src.path), s)
+    except OSError as e:
+        raise FormatError(
+            src.path, f"cannot read the event datasets ({e}); DSEC files are Blosc-compressed: "
+            "install hdf5plugin and retry"
+        ) from None
+
+
+def iter_event_chunks(
+    source: EventSource | str | os.PathLike[str],
+    *,
+    chunk_events: int = DEFAULT_CHUNK_EVENTS,
+    check_sorted: bool = True,
+) -> Iterator[EventChunk]:
+    """Read a recording as one stream, piece by piece (bounded memory).
+
+    Every chunk is checked: equal lengths, integer types, and (``check_sorted``) timestamps that
+    never decrease, within and across files; the first violation raises :class:`FormatError`
+    naming the file and the event index (text: the line).  A recording without any event raises
+    too.
+
+    Yields
+    ------
+    EventChunk
+        Events with the file they come from and their position in it.
+    """
+    from ibiscape_eval.events import _kernels
+
+    src = source if isinstance(source, EventSource) else open_events(source)
+    if src.fmt == "ibiscape":
+        it = _chunks_npz_files([w[2] for w in src.windows])
+    elif src.fmt == "npz":
+        it = _chunks_npz_files([src.path])
+    elif src.fmt == "text":
+        it = _chunks_text(src, chunk_events)
+    else:
+        it = _chunks_hdf5(src, chunk_events)
+    prev = np.iinfo(np.int64).min
+    prev_where = ""
+    total = 0
+    for chunk in it:
+        t = chunk.events.t_ns
+        if check_sorted and t.size:
+            bad = int(_kernels.first_decrease(t, prev))
+            if bad >= 0:
+                path, line, what = chunk.where(bad)
+                before = f"event {chunk.offset + bad - 1}" if bad > 0 else f"the last event of {prev_where}"
+                raise FormatError(
+                    path, f"timestamps go backwards at {what}: {int(t[bad])} ns after {before} at "
+                    f"{int(prev if bad == 0 else t[bad - 1])} ns; events must be sorted by time",
+                    line=line,
+                )
+            prev = int(t[-1])
+            prev_where = chunk.source
+        total += t.size
+        yield chunk
+    if total == 0:
+        raise FormatError(src.path, "the recording holds no events; nothing to process")
+
+
+def read_events(path: str | os.PathLike[str], *, fmt: str | None = None) -> Events:
+    """Read a whole recording into memory as one :class:`Events` stream (see
+    :func:`iter_event_chunks` for the checks)."""
+    return Events.concatenate([c.events for c in iter_event_chunks(open_events(path, fmt=fmt))])
+
+
+# ------------------------------------------------------------------------------------------
+# writing
+# ------------------------------------------------------------------------------------------
+
+
+def _save_npz(path: Path, ev: Events) -> None:
+    with atomic_output_path(path) as tmp, open(tmp, "wb") as f:
+        np.savez(f, t=np.asarray(ev.t_ns, np.int64), x=np.asarray(ev.x, np.uint16),
+                 y=np.asarray(ev.y, np.uint16), p=np.asarray(ev.p, np.bool_))
+
+
+def _text_bytes(ev: Events) -> bytes:
+    from ibiscape_eval.events import _kernels
+
+    if len(ev) and int(ev.t_ns[0]) < 0:
+        raise IbiscapeError("the text format cannot hold negative timestamps")
+    buf = np.empty(41 * len(ev) + 1, np.uint8)
+    k = int(_kernels.format_text(ev.t_ns, ev.x, ev.y, ev.p, buf))
+    return buf[:k].tobytes()
+
+
+class _Writer:
+    """Streaming writer of one recording in a given format, into a temporary path that
+    :meth:`commit` renames onto the target (folders included)."""
+
+    def __init__(self, dst: Path, fmt: str, like: EventSource | None) -> None:
+        self.dst, self.fmt, self.like = dst, fmt, like
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        if fmt == "ibiscape":
+            if dst.exists() and (not dst.is_dir() or any(dst.iterdir())):
+                raise IbiscapeError(f"{dst}: already exists; choose a new output folder or remove it")
+            self.tmp = Path(tempfile.mkdtemp(prefix=f".{dst.name}.", dir=dst.parent))
+            (self.tmp / "events").mkdir()
+            self.rows: list[str] = []
+        else:
+            fd, name = tempfile.mkstemp(prefix=f".{dst.stem}.", suffix=dst.suffix, dir=dst.parent)
+            os.close(fd)
+            self.tmp = Path(name)
+        self.parts: list[Events] = []
+        self.n = 0
+        self._fh: Any = None
+        self._h5: Any = None
+        self._ms: np.ndarray = np.zeros(0, np.int64)
+
+    def add(self, ev: Events, window: tuple[int, int, Path] | None = None) -> None:
+        self.n += len(ev)
+        if self.fmt == "ibiscape":
+            a, b, src = window if window is not None else (
+                int(ev.t_ns[0]) if len(ev) else 0, int(ev.t_ns[-1]) if len(ev) else 0,
+                Path(f"{int(ev.t_ns[0]) if len(ev) else len(self.rows)}.npz"))
+            np.savez(self.tmp / "events" / src.name, t=np.asarray(ev.t_ns, np.int64),
+                     x=np.asarray(ev.x, np.uint16), y=np.asarray(ev.y, np.uint16),
+                     p=np.asarray(ev.p, np.bool_))
+            self.rows.append(f"{a}, {b}, {src.name} \n")
+        elif self.fmt == "npz":
+            self.parts.append(ev)
+        elif self.fmt == "text":
+            if self._fh is None:
+                self._fh = open(self.tmp, "wb")  # noqa: SIM115 (closed in commit/abort)
+                if self.like is not None and self.like.meta.get("header"):
+                    self._fh.write(self.like.meta["header"])
+            self._fh.write(_text_bytes(ev))
+        else:
+            self._add_h5(ev)
+
+    def _add_h5(self, ev: Events) -> None:
+        meta = self.like.meta if self.like is not None and self.like.fmt == "hdf5" else {}
+        dtypes = meta.get("dtypes", {"t": "<i8", "x": "<u2", "y": "<u2", "p": "|u1"})
+        off = int(meta.get("t_offset_us", 0))
+        if self._h5 is None:
+            h5py = _h5py()
+            self._h5 = h5py.File(self.tmp, "w")
+            for k in NPZ_KEYS:
+                self._h5.create_dataset(f"events/{k}", shape=(0,), maxshape=(None,),
+                                        dtype=np.dtype(dtypes[k]), chunks=(1 << 16,))
+            for k, v in meta.get("attrs", {}).items():
+                self._h5.attrs[k] = v
+            if meta.get("has_t_offset"):
+                self._h5.create_dataset("t_offset", data=np.int64(off))
+        if len(ev) == 0:
+            return
+        t_us = ev.t_ns // 1000 - off
+        if (ev.t_ns % 1000).any():
+            raise IbiscapeError("HDF5 (E2CALIB/DSEC) stores microseconds; these events have ns digits")
+        tdt = np.dtype(dtypes["t"])
+        if tdt.kind in "iu" and (int(t_us[0]) < np.iinfo(tdt).min or int(t_us[-1]) > np.iinfo(tdt).max):
+            raise IbiscapeError(f"timestamps do not fit the file's {tdt} microsecond field")
+        cols = {"t": t_us, "x": ev.x, "y": ev.y, "p": ev.p}
+        n0 = self._h5["events/t"].shape[0]
+        for k in NPZ_KEYS:
+            d = self._h5[f"events/{k}"]
+            d.resize((n0 + len(ev),))
+            d[n0:] = np.asarray(cols[k]).astype(np.dtype(dtypes[k]), copy=False)
+        if meta.get("has_ms_to_idx"):
+            ms = np.bincount(t_us // 1000)
+            if ms.size > self._ms.size:
+                ms[: self._ms.size] += self._ms
+                self._ms = ms
+            else:
+                self._ms[: ms.size] += ms
+
+    def commit(self) -> None:
+        if self.fmt == "ibiscape":
+            with open(self.tmp / "timestamps.csv", "w", encoding="utf-8", newline="\n") as f:
+                f.write("#timestamp_start [ns], timestamp_end [ns], filename\n")
+                f.writelines(self.rows)
+            if self.dst.is_dir():
+                self.dst.rmdir()
+            os.replace(self.tmp, self.dst)
+            return
+        if self.fmt == "npz":
+            ev = Events.concatenate(self.parts)
+            with open(self.tmp, "wb") as f:
+                np.savez(f, t=np.asarray(ev.t_ns, np.int64), x=np.asarray(ev.x, np.uint16),
+                         y=np.asarray(ev.y, np.uint16), p=np.asarray(ev.p, np.bool_))
+        elif self.fmt == "text":
+            if self._fh is None:
+                self._fh = open(self.tmp, "wb")  # noqa: SIM115
+            self._fh.close()
+        else:
+            if self._h5 is None:
+                self._add_h5(Events.empty())
+            if self.like is not None and self.like.meta.get("has_ms_to_idx"):
+                # ms_to_idx[k] = number of events before millisecond k (DSEC's definition)
+                idx = np.concatenate([[0], np.cumsum(self._ms)]).astype(np.uint64)
+                self._h5.create_dataset("ms_to_idx", data=idx)
+            self._h5.close()
+        os.replace(self.tmp, self.dst)
+
+    def abort(self) -> None:
+        with contextlib.suppress(Exception):
+            if self._fh is not None:
+                self._fh.close()
+            if self._h5 is not None:
+                self._h5.close()
+        if self.tmp.is_dir():
+            shutil.rmtree(self.tmp, ignore_errors=True)
+        else:
+            with contextlib.suppress(FileNotFoundError):
+                self.tmp.unlink()
+
+
+def _out_format(dst: Path, like: EventSource | None, fmt: str | None) -> str:
+    if fmt is not None:
+        return fmt
+    if like is not None:
+        return like.fmt
+    if dst.suffix == "" and not dst.is_file():
+        return "ibiscape"
+    return detect_event_format(dst)
+
+
+def write_events(
+    path: str | os.PathLike[str],
+    events: Events,
+    *,
+    fmt: str | None = None,
+    like: EventSource | None = None,
+    window_ns: int | None = None,
+) -> None:
+    """Write a stream atomically in ``fmt`` (default: the format of ``like``, else from the
+    path's suffix; a path without suffix is an IBISCape DVS folder).
+
+    Parameters
+    ----------
+    path
+        Target file or folder (a folder must not exist or be empty).
+    events
+        The events.
+    fmt : {"ibiscape", "npz", "text", "hdf5"}, optional
+    like : EventSource, optional
+        Copy layout details (text header, HDF5 dtypes, ``t_offset``, attributes) from this source.
+    window_ns : int, optional
+        IBISCape folders: length of the ``events/<ns>.npz`` windows (default 50 ms).
+    """
+    dst = Path(path)
+    fmt = _out_format(dst, like, fmt)
+    w = _Writer(dst, fmt, like)
+    try:
+        if fmt == "ibiscape":
+            win = int(window_ns or 50_000_000)
+            t = events.t_ns
+            if len(events):
+                t0 = int(t[0])
+                edges = t0 + win * np.arange(0, (int(t[-1]) - t0) // win + 2, dtype=np.int64)
+                cuts = np.searchsorted(t, edges)
+                for k in range(len(edges) - 1):
+                    a, b = int(cuts[k]), int(cuts[k + 1])
+                    part = Events(t[a:b], events.x[a:b], events.y[a:b], events.p[a:b])
+                    w.add(part, (int(edges[k]), int(edges[k + 1]), Path(f"{int(edges[k])}.npz")))
+        else:
+            w.add(events)
+        w.commit()
+    except BaseException:
+        w.abort()
+        raise
+
+
+def write_filtered_events(
+    source: EventSource,
+    dst: str | os.PathLike[str],
+    keep: Callable[[Events], Events],
+    *,
+    chunk_events: int = DEFAULT_CHUNK_EVENTS,
+    progress: Callable[[int], None] | None = None,
+) -> tuple[int, int]:
+    """Stream ``source`` through ``keep`` (e.g. a hot-pixel filter) into ``dst`` in the source's
+    own format, window by window / chunk by chunk; atomic (nothing is left at ``dst`` on failure).
+
+    Returns
+    -------
+    (n_in, n_out) : events read and written.
+    """
+    out = Path(dst)
+    if out.resolve() == source.path.resolve():
+        raise IbiscapeError(f"{out}: the output would overwrite the input; choose another path")
+    w = _Writer(out, source.fmt, source)
+    n_in = 0
+    try:
+        windows = iter(source.windows)
+        for chunk in iter_event_chunks(source, chunk_events=chunk_events):
+            kept = keep(chunk.events)
+            w.add(kept, next(windows) if source.fmt == "ibiscape" else None)
+            n_in += len(chunk.events)
+            if progress is not None:
+                progress(len(chunk.events))
+        w.commit()
+    except BaseException:
+        w.abort()
+        raise
+    return n_in, w.n
+
+
+# ------------------------------------------------------------------------------------------
+# hot_pixels.txt (dvs_tools / E2CALIB): one "x, y" per line
+# ------------------------------------------------------------------------------------------
+
+
+def read_hot_pixels(path: str | os.PathLike[str]) -> npt.NDArray[np.int64]:
+    """Read a ``hot_pixels.txt`` (one ``x, y`` per line; blank lines and ``#`` comments ignored).
+
+    Returns
+    -------
+    ndarray, shape (K, 2), int64
+        Pixels as x, y.
+    """
+    p = Path(path)
+    rows: list[tuple[int, int]] = []
+    with open(p, encoding="utf-8") as f:
+        for n, raw in enumerate(f, start=1):
+            line = raw.split("#", 1)[0].strip()
+            if not line:
+                continue
+            cols = line.replace(",", " ").split()
+            if len(cols) != 2:
+                raise FormatError(p, f"expected 'x, y' (two integers), got {line!r}", line=n)
+            try:
+                xv, yv = int(cols[0]), int(cols[1])
+            except ValueError:
+                raise FormatError(p, f"expected integer pixel coordinates 'x, y', got {line!r}", line=n) from None
+            if xv < 0 or yv < 0:
+                raise FormatError(p, f"pixel coordinates must be >= 0, got {line!r}", line=n)
+            rows.append((xv, yv))
+    return np.array(rows, dtype=np.int64).reshape(-1, 2)
+
+
+def write_hot_pixels(path: str | os.PathLike[str], pixels: npt.ArrayLike) -> None:
+    """Write pixels (K, 2) as ``x, y`` lines (dvs_tools' format), atomically."""
+    px = np.asarray(pixels, dtype=np.int64).reshape(-1, 2)
+    with atomic_write(path) as f:
+        f.writelines(f"{int(a)}, {int(b)}\n" for a, b in px)
+
+
+# ------------------------------------------------------------------------------------------
+# event frames as PNG images
+# ------------------------------------------------------------------------------------------
+
+
+def write_frames_png(
+    out_dir: str | os.PathLike[str],
+    frames: Iterator[tuple[int, int, np.ndarray]],
+    *,
+    to_uint8: Callable[[np.ndarray], np.ndarray],
+    progress: Callable[[int], None] | None = None,
+) -> int:
+    """Write frames as ``<out_dir>/<t_end_ns>.png`` plus ``timestamps.csv``
+    (``#timestamp_start [ns], timestamp_end [ns], filename``); each file atomically.
+
+    Returns the number of frames written.
+    """
+    import cv2
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for a, b, frame in frames:
+        name = f"{b}.png"
+        with atomic_output_path(out / name) as tmp:
+            if not cv2.imwrite(str(tmp), to_uint8(frame)):
+                raise IbiscapeError(f"{out / name}: could not write the PNG image")
+        rows.append(f"{a}, {b}, {name} \n")
+        if progress is not None:
+            progress(1)
+    with atomic_write(out / "timestamps.csv") as f:
+        f.write("#timestamp_start [ns], timestamp_end [ns], filename\n")
+        f.writelines(rows)
+    return len(rows)
