@@ -12,7 +12,7 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True)
-def count_xy(x, y, width, height, counts):  # type: ignore[no-untyped-def]
+def count_xy(x, y, width, height, counts):
     """Add one to ``counts[y * width + x]`` per event; return the index of the first event outside
     the sensor (nothing counted from it on) or -1."""
     for i in range(x.shape[0]):
@@ -25,7 +25,7 @@ def count_xy(x, y, width, height, counts):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, nogil=True)
-def count_xyp(x, y, p, width, height, counts):  # type: ignore[no-untyped-def]
+def count_xyp(x, y, p, width, height, counts):
     """Per-polarity counts: ``counts[0]`` negative, ``counts[1]`` positive (flat (2, H*W))."""
     plane = width * height
     for i in range(x.shape[0]):
@@ -38,7 +38,7 @@ def count_xyp(x, y, p, width, height, counts):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, nogil=True)
-def keep_mask(x, y, width, height, hot_lut, out):  # type: ignore[no-untyped-def]
+def keep_mask(x, y, width, height, hot_lut, out):
     """``out[i] = not hot_lut[pixel of event i]``; return the first out-of-sensor index or -1."""
     for i in range(x.shape[0]):
         xi = np.int64(x[i])
@@ -50,7 +50,7 @@ def keep_mask(x, y, width, height, hot_lut, out):  # type: ignore[no-untyped-def
 
 
 @njit(cache=True, nogil=True)
-def compact4(t, x, y, p, width, hot_lut, to, xo, yo, po):  # type: ignore[no-untyped-def]
+def compact4(t, x, y, p, width, hot_lut, to, xo, yo, po):
     """Copy the events whose pixel is not hot into the output arrays, in order, in one pass
     (branch-free: every event is written, the write position advances only for kept ones).
     Coordinates must have been checked against the sensor before.  Returns the kept count."""
@@ -67,7 +67,7 @@ def compact4(t, x, y, p, width, hot_lut, to, xo, yo, po):  # type: ignore[no-unt
 
 
 @njit(cache=True, nogil=True)
-def first_decrease(t, prev):  # type: ignore[no-untyped-def]
+def first_decrease(t, prev):
     """Index of the first ``t[i] < t[i-1]`` (``t[-1]`` taken as ``prev``), or -1."""
     last = prev
     for i in range(t.shape[0]):
@@ -78,7 +78,7 @@ def first_decrease(t, prev):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, nogil=True)
-def rate_max(t, x, y, width, t0, window_ns, win_id, cur, best):  # type: ignore[no-untyped-def]
+def rate_max(t, x, y, width, t0, window_ns, win_id, cur, best):
     """libcaer-like rate statistic, streamable: for every pixel the largest number of events in
     one of the consecutive windows ``[t0 + k W, t0 + (k+1) W)``.  ``win_id``, ``cur`` (current
     window's count) and ``best`` are per-pixel state arrays carried from chunk to chunk."""
@@ -94,7 +94,7 @@ def rate_max(t, x, y, width, t0, window_ns, win_id, cur, best):  # type: ignore[
 
 
 @njit(cache=True, nogil=True)
-def last_time(t, x, y, p, width, last_t, last_p):  # type: ignore[no-untyped-def]
+def last_time(t, x, y, p, width, last_t, last_p):
     """Latest timestamp (and its polarity) per pixel, updated in place (events sorted by t)."""
     for i in range(t.shape[0]):
         pix = np.int64(y[i]) * width + np.int64(x[i])
@@ -117,14 +117,14 @@ TEXT_ERRORS = {
 
 
 @njit(cache=True, nogil=True)
-def _skip_blanks(buf, i, end):  # type: ignore[no-untyped-def]
+def _skip_blanks(buf, i, end):
     while i < end and (buf[i] == 32 or buf[i] == 9 or buf[i] == 44 or buf[i] == 13):
         i += 1
     return i
 
 
 @njit(cache=True, nogil=True)
-def _read_uint(buf, i, end):  # type: ignore[no-untyped-def]
+def _read_uint(buf, i, end):
     """Parse digits at ``i``; returns (value, next index, ok)."""
     v = np.int64(0)
     start = i
@@ -137,7 +137,7 @@ def _read_uint(buf, i, end):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, nogil=True)
-def parse_text(buf, first_line, t_out, x_out, y_out, p_out, line_out):  # type: ignore[no-untyped-def]
+def parse_text(buf, first_line, t_out, x_out, y_out, p_out, line_out):
     """Parse complete lines in ``buf`` (uint8).  Returns ``(n_events, n_lines, err, err_line)``;
     ``err`` is 0 or a key of :data:`TEXT_ERRORS`.  Columns are separated by blanks or commas."""
     n = 0
@@ -215,7 +215,7 @@ def parse_text(buf, first_line, t_out, x_out, y_out, p_out, line_out):  # type: 
 
 
 @njit(cache=True, nogil=True)
-def _put_uint(out, k, v):  # type: ignore[no-untyped-def]
+def _put_uint(out, k, v):
     if v == 0:
         out[k] = 48
         return k + 1
@@ -231,7 +231,7 @@ def _put_uint(out, k, v):  # type: ignore[no-untyped-def]
 
 
 @njit(cache=True, nogil=True)
-def format_text(t, x, y, p, out):  # type: ignore[no-untyped-def]
+def format_text(t, x, y, p, out):
     """Write ``"<s>.<9 digits> x y p\\n"`` per event into ``out`` (uint8, large enough:
     41 bytes per event); return the number of bytes written.  ``t`` must be >= 0."""
     k = 0

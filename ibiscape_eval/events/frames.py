@@ -89,7 +89,7 @@ def frame_windows(
         raise IbiscapeError(f"rate_hz must be > 0, got {rate_hz}")
     if window_ns is not None and int(window_ns) <= 0:
         raise IbiscapeError(f"window must be > 0 ns, got {window_ns}")
-    period = int(round(1e9 / rate_hz)) if rate_hz is not None else int(window_ns or 0)
+    period = round(1e9 / rate_hz) if rate_hz is not None else int(window_ns or 0)
     period = max(period, 1)
     win = int(window_ns) if window_ns is not None else period
     n = max(1, -(-(int(t_last_ns) - int(t_first_ns) + 1) // period))
