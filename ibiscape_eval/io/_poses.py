@@ -1,0 +1,112 @@
+"""Checks shared by every trajectory reader: NaN rows, quaternion norms, timestamp order.
+
+Rules (the same for every format, so a user learns them once):
+
+- rows with a NaN or inf value are skipped, with ONE :class:`IbiscapeWarning` naming the file
+  and the line numbers;
+- quaternions within 1e-3 of unit norm are renormalised silently, others (all-zero included)
+  raise :class:`FormatError` naming the line;
+- a timestamp smaller than its predecessor raises :class:`FormatError` naming the line;
+- repeated timestamps warn with the line numbers and keep the first row of each run.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+
+import numpy as np
+import numpy.typing as npt
+
+from ibiscape_eval.core.errors import FormatError, IbiscapeWarning
+from ibiscape_eval.core.trajectory import Trajectory
+
+from ._text import format_lines
+
+__all__ = ["QUAT_NORM_TOL", "check_rows", "finish_trajectory"]
+
+QUAT_NORM_TOL = 1e-3
+
+
+def check_rows(
+    path: str | os.PathLike[str],
+    stamps_ns: npt.NDArray[np.int64],
+    finite: npt.NDArray[np.bool_],
+    lines: npt.NDArray[np.int64],
+    *,
+    where: str = "line",
+    stacklevel: int = 4,
+) -> npt.NDArray[np.intp]:
+    """Indices of the rows to keep: finite, in order, first of each repeated timestamp.
+
+    Warns about skipped non-finite rows and duplicates; raises on decreasing timestamps.
+    """
+    keep = np.flatnonzero(finite)
+    if keep.size < finite.size:
+        bad = lines[~finite]
+        warnings.warn(
+            f"{path}: skipped {bad.size} row{'s' * (bad.size != 1)} with NaN/inf values at "
+            f"{where}{'s' * (bad.size != 1)} {format_lines(bad)}",
+            IbiscapeWarning, stacklevel=stacklevel,
+        )
+    if keep.size == 0:
+        raise FormatError(path, "no valid rows: every row has NaN/inf values")
+    st = stamps_ns[keep]
+    d = np.diff(st)
+    if (d < 0).any():
+        i = int(np.flatnonzero(d < 0)[0])
+        msg = (f"timestamp {st[i + 1]} ns is earlier than {st[i]} ns on {where} "
+               f"{lines[keep[i]]}; timestamps must not decrease (sort the file)")
+        if where == "line":
+            raise FormatError(path, msg, line=int(lines[keep[i + 1]]))
+        raise FormatError(path, f"{where} {lines[keep[i + 1]]}: {msg}")
+    dup = np.flatnonzero(d == 0) + 1
+    if dup.size:
+        warnings.warn(
+            f"{path}: {dup.size} duplicate timestamp{'s' * (dup.size != 1)} at "
+            f"{where}{'s' * (dup.size != 1)} {format_lines(lines[keep[dup]])}; "
+            "kept the first row of each",
+            IbiscapeWarning, stacklevel=stacklevel,
+        )
+        mask = np.ones(keep.size, dtype=bool)
+        mask[dup] = False
+        keep = keep[mask]
+    return keep
+
+
+def check_quaternions(
+    path: str | os.PathLike[str],
+    quat: npt.NDArray[np.float64],
+    lines: npt.NDArray[np.int64],
+    *,
+    where: str = "line",
+) -> npt.NDArray[np.float64]:
+    """Unit quaternions (any layout, one per row); raises for a norm further than 1e-3 from 1."""
+    norms = np.sqrt(np.einsum("ij,ij->i", quat, quat))
+    bad = np.abs(norms - 1.0) > QUAT_NORM_TOL
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        msg = (f"quaternion norm is {norms[i]:.6g}, expected a unit quaternion (within "
+               f"{QUAT_NORM_TOL:g}); check the column order")
+        if where == "line":
+            raise FormatError(path, msg, line=int(lines[i]))
+        raise FormatError(path, f"{where} {lines[i]}: {msg}")
+    return quat / norms[:, None]
+
+
+def finish_trajectory(
+    path: str | os.PathLike[str],
+    stamps_ns: npt.NDArray[np.int64],
+    pos_m: npt.NDArray[np.float64],
+    quat_xyzw: npt.NDArray[np.float64],
+    finite: npt.NDArray[np.bool_],
+    lines: npt.NDArray[np.int64],
+    name: str,
+    *,
+    where: str = "line",
+) -> Trajectory:
+    """Apply the shared rules and build the :class:`Trajectory`."""
+    finite = finite & np.isfinite(pos_m).all(axis=1) & np.isfinite(quat_xyzw).all(axis=1)
+    keep = check_rows(path, stamps_ns, finite, lines, where=where, stacklevel=5)
+    quat = check_quaternions(path, quat_xyzw[keep], lines[keep], where=where)
+    return Trajectory(stamps_ns[keep], pos_m[keep], quat, name)

@@ -1,0 +1,201 @@
+"""Trajectories from ROS 1 bags and ROS 2 bags (sqlite3 / mcap folders) through ``rosbags``.
+
+Supported messages: ``geometry_msgs/PoseStamped``, ``PoseWithCovarianceStamped``,
+``TransformStamped``, ``nav_msgs/Odometry`` and ``tf2_msgs/TFMessage``.  For a TF topic the
+transform is chosen like evo does, ``topic="/tf:parent.child"`` (evo's syntax
+``<tf topic>:<parent frame>.<child frame>``); here only transforms published directly from
+``parent`` to ``child`` are read (no chaining through intermediate frames, no interpolation).
+
+Stamps come from the message headers (``header.stamp``), not from the bag's receive times;
+messages are sorted by header stamp when they were recorded out of order (with a warning).
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ibiscape_eval.core.errors import FormatError, IbiscapeWarning
+from ibiscape_eval.core.trajectory import Trajectory
+
+from ._poses import finish_trajectory
+
+__all__ = ["BAG_SUFFIXES", "POSE_MSGTYPES", "list_pose_topics", "read_bag"]
+
+BAG_SUFFIXES = (".bag", ".db3", ".mcap")
+POSE_MSGTYPES = (
+    "geometry_msgs/msg/PoseStamped",
+    "geometry_msgs/msg/PoseWithCovarianceStamped",
+    "geometry_msgs/msg/TransformStamped",
+    "nav_msgs/msg/Odometry",
+)
+TF_MSGTYPE = "tf2_msgs/msg/TFMessage"
+
+
+def _bag_path(path: str | os.PathLike[str]) -> Path:
+    p = Path(path)
+    if not p.exists():
+        raise FileNotFoundError(2, "No such file or directory", str(p))
+    if p.is_file() and p.suffix in (".db3", ".mcap"):
+        p = p.parent  # a ROS 2 storage file: the bag is its folder (with metadata.yaml)
+    return p
+
+
+def _open(path: Path) -> Any:
+    from rosbags.highlevel import AnyReader
+
+    try:
+        reader = AnyReader([path])
+        reader.open()
+    except Exception as e:  # rosbags raises several unrelated types for broken bags
+        raise FormatError(path, f"cannot open as a ROS bag: {e}") from None
+    return reader
+
+
+def _frame(name: str) -> str:
+    return name.lstrip("/")
+
+
+def _tf_pairs(reader: Any) -> list[str]:
+    """``/tf:parent.child`` identifiers of every transform published on TF topics."""
+    out: set[str] = set()
+    for conn in reader.connections:
+        if conn.msgtype != TF_MSGTYPE:
+            continue
+        for c, _, raw in reader.messages(connections=[conn]):
+            msg = reader.deserialize(raw, c.msgtype)
+            for tr in msg.transforms:
+                out.add(f"{c.topic}:{_frame(tr.header.frame_id)}.{_frame(tr.child_frame_id)}")
+    return sorted(out)
+
+
+def list_pose_topics(path: str | os.PathLike[str]) -> list[str]:
+    """Topics of supported pose messages, then ``/tf:parent.child`` ids of TF transforms."""
+    reader = _open(_bag_path(path))
+    try:
+        topics = sorted({c.topic for c in reader.connections
+                         if c.msgtype in POSE_MSGTYPES and c.msgcount > 0})
+        return topics + _tf_pairs(reader)
+    finally:
+        reader.close()
+
+
+def _split_tf_id(topic: str) -> tuple[str, str, str] | None:
+    """evo's ``/tf:parent.child`` -> (tf topic, parent, child), or None for a plain topic."""
+    tf_topic, sep, rest = topic.partition(":")
+    if not sep:
+        return None
+    parent, dot, child = rest.partition(".")
+    if not dot or not parent or not child:
+        return None
+    return tf_topic, _frame(parent), _frame(child)
+
+
+def read_bag(
+    path: str | os.PathLike[str], *, topic: str | None = None, name: str | None = None
+) -> Trajectory:
+    """Read one trajectory from a ROS 1 or ROS 2 bag.
+
+    Parameters
+    ----------
+    path
+        A ROS 1 ``.bag`` file, a ROS 2 bag folder (with ``metadata.yaml``) or its ``.db3`` /
+        ``.mcap`` file.
+    topic
+        A topic of a supported pose message, or ``"/tf:parent.child"`` for a TF transform.
+        Required when the bag has more than one pose-like topic (the error lists them).
+    name
+        Label; the topic by default.
+
+    Returns
+    -------
+    Trajectory
+        Stamps from ``header.stamp`` (int64 ns, exact), positions in m, quaternions x, y, z, w.
+
+    Raises
+    ------
+    FormatError
+        Unreadable bag, unknown or ambiguous topic, unsupported message type, no messages,
+        non-unit quaternions; the message names the bag and the message index.
+    """
+    p = _bag_path(path)
+    reader = _open(p)
+    try:
+        return _read(reader, p, topic, name)
+    finally:
+        reader.close()
+
+
+def _read(reader: Any, p: Path, topic: str | None, name: str | None) -> Trajectory:
+    pose_topics = sorted({c.topic for c in reader.connections
+                          if c.msgtype in POSE_MSGTYPES and c.msgcount > 0})
+    if topic is None:
+        if len(pose_topics) == 1:
+            topic = pose_topics[0]
+        else:
+            choices = pose_topics + _tf_pairs(reader)
+            if not choices:
+                raise FormatError(p, "no pose topics (PoseStamped, PoseWithCovarianceStamped, "
+                                     "TransformStamped, Odometry, TFMessage) in the bag")
+            raise FormatError(p, "several pose topics; choose one with --topic: "
+                                 + ", ".join(choices))
+    tf = _split_tf_id(topic) if topic not in reader.topics else None
+    rows: list[tuple[int, float, float, float, float, float, float, float]] = []
+    if tf is not None:
+        tf_topic, parent, child = tf
+        conns = [c for c in reader.connections if c.topic == tf_topic]
+        if not conns or any(c.msgtype != TF_MSGTYPE for c in conns):
+            raise FormatError(p, f"no TF topic {tf_topic!r} in the bag; TF ids: "
+                                 + (", ".join(_tf_pairs(reader)) or "none"))
+        for c, _, raw in reader.messages(connections=conns):
+            msg = reader.deserialize(raw, c.msgtype)
+            for tr in msg.transforms:
+                if _frame(tr.header.frame_id) == parent and _frame(tr.child_frame_id) == child:
+                    rows.append(_row_from_transform(tr))
+        if not rows:
+            raise FormatError(p, f"no transform from {parent!r} to {child!r} on {tf_topic}; "
+                                 "TF ids: " + (", ".join(_tf_pairs(reader)) or "none"))
+    else:
+        conns = [c for c in reader.connections if c.topic == topic]
+        if not conns:
+            raise FormatError(p, f"no topic {topic!r} in the bag; pose topics: "
+                                 + (", ".join(pose_topics + _tf_pairs(reader)) or "none"))
+        msgtype = conns[0].msgtype
+        if msgtype not in POSE_MSGTYPES:
+            raise FormatError(p, f"topic {topic!r} has unsupported type {msgtype}; supported: "
+                                 + ", ".join((*POSE_MSGTYPES, TF_MSGTYPE)))
+        for c, _, raw in reader.messages(connections=conns):
+            msg = reader.deserialize(raw, c.msgtype)
+            if msgtype == "geometry_msgs/msg/TransformStamped":
+                rows.append(_row_from_transform(msg))
+            else:
+                pose = msg.pose.pose if hasattr(msg.pose, "pose") else msg.pose
+                rows.append((_stamp_ns(msg.header.stamp), pose.position.x, pose.position.y,
+                             pose.position.z, pose.orientation.x, pose.orientation.y,
+                             pose.orientation.z, pose.orientation.w))
+        if not rows:
+            raise FormatError(p, f"no messages on topic {topic!r}")
+    stamps = np.array([r[0] for r in rows], dtype=np.int64)
+    vals = np.array([r[1:] for r in rows], dtype=np.float64)
+    index = np.arange(1, len(rows) + 1, dtype=np.int64)  # 1-based message numbers for errors
+    order = np.argsort(stamps, kind="stable")
+    if (np.diff(stamps) < 0).any():
+        warnings.warn(f"{p}: {topic}: messages were recorded out of header-stamp order; "
+                      "sorted by header stamp", IbiscapeWarning, stacklevel=3)
+        stamps, vals, index = stamps[order], vals[order], index[order]
+    finite = np.asarray(np.isfinite(vals).all(axis=1), dtype=bool)
+    return finish_trajectory(p, stamps, vals[:, :3], vals[:, 3:], finite, index,
+                             topic if name is None else name, where=f"{topic} message")
+
+
+def _stamp_ns(stamp: Any) -> int:
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+def _row_from_transform(tr: Any) -> tuple[int, float, float, float, float, float, float, float]:
+    t, q = tr.transform.translation, tr.transform.rotation
+    return (_stamp_ns(tr.header.stamp), t.x, t.y, t.z, q.x, q.y, q.z, q.w)

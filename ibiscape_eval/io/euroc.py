@@ -1,0 +1,61 @@
+"""EuRoC / ASL ``data.csv`` trajectories (Burri et al., IJRR 2016), also BASALT's
+``trajectory.csv``.
+
+Columns: ``#timestamp [ns], p_x, p_y, p_z, q_w, q_x, q_y, q_z`` followed by any number of extra
+columns (EuRoC's velocity and bias columns), which are ignored.  Timestamps are nanoseconds,
+written as integers by EuRoC and in scientific notation by BASALT (``1.403715273262143e+18``);
+both are parsed exactly from their decimal text.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ibiscape_eval.core.trajectory import Trajectory
+
+from ._atomic import atomic_write
+from ._poses import finish_trajectory
+from ._text import decimal_to_ns, parse_table, read_bytes, write_table
+
+__all__ = ["EUROC_HEADER", "read_euroc", "write_euroc"]
+
+EUROC_HEADER = ("#timestamp [ns],p_RS_R_x [m],p_RS_R_y [m],p_RS_R_z [m],"
+                "q_RS_w [],q_RS_x [],q_RS_y [],q_RS_z []")
+
+_EXPECTED = "at least 8 columns (timestamp [ns], p_x, p_y, p_z, q_w, q_x, q_y, q_z, ...)"
+
+
+def read_euroc(path: str | os.PathLike[str], *, name: str | None = None) -> Trajectory:
+    """Read an EuRoC/ASL ``data.csv`` (or BASALT ``trajectory.csv``) trajectory.
+
+    Parameters
+    ----------
+    path
+        Comma separated file, ``#`` header; stamps in ns; positions in m; quaternion w first.
+    name
+        Label; the file name by default.
+
+    Raises
+    ------
+    FormatError
+        Fewer than 8 columns, non-numeric fields in the first 8, non-unit quaternions,
+        decreasing timestamps, empty/binary file; the message names the file and line.
+    """
+    data = read_bytes(path)
+    tb = parse_table(path, data, nkeep=8, ncols_min=8, ncols_max=10_000, expected=_EXPECTED)
+    stamps = decimal_to_ns(path, tb, unit_exp=0)
+    quat_xyzw = tb.values[:, [5, 6, 7, 4]]
+    return finish_trajectory(path, stamps, tb.values[:, 1:4], quat_xyzw, tb.finite, tb.lines,
+                             Path(path).name if name is None else name)
+
+
+def write_euroc(path: str | os.PathLike[str], traj: Trajectory) -> None:
+    """Write ``traj`` as an EuRoC ``data.csv`` (8 columns, integer ns, quaternion w first)."""
+    q = traj.quat_xyzw
+    values = np.concatenate((traj.pos_m, q[:, 3:4], q[:, :3]), axis=1)
+    with atomic_write(path, "wb") as f:
+        f.write((EUROC_HEADER + "\n").encode())
+        write_table(f, traj.stamps_ns, values, stamp="ns", sep=",")
