@@ -17,7 +17,7 @@ from collections.abc import Iterator, Sequence
 
 import numpy as np
 
-__all__ = ["imu_noise_chunks", "imu_noise"]
+__all__ = ["imu_noise", "imu_noise_chunks"]
 
 
 def imu_noise_chunks(

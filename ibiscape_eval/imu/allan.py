@@ -48,8 +48,11 @@ class ChunkedSamples(Protocol):
     """A record too large for memory: ``n_samples`` rows of ``n_columns`` rate samples, read in
     order, chunk by chunk, as float64 arrays of shape (rows, len(columns))."""
 
-    n_samples: int
-    n_columns: int
+    @property
+    def n_samples(self) -> int: ...
+
+    @property
+    def n_columns(self) -> int: ...
 
     def iter_chunks(self, columns: Sequence[int]) -> Iterator[np.ndarray]: ...
 
@@ -160,7 +163,7 @@ def default_averaging_factors(n_samples: int, *, points_per_decade: int = 10,
     decade, rounded to integers and de-duplicated (int64, ascending)."""
     m_max = max(1, int(max_fraction * n_samples))
     n_dec = math.log10(m_max) if m_max > 1 else 0.0
-    n_pts = max(1, int(math.ceil(n_dec * points_per_decade)) + 1)
+    n_pts = max(1, math.ceil(n_dec * points_per_decade) + 1)
     ms = np.unique(np.round(np.logspace(0.0, n_dec, n_pts)).astype(np.int64))
     return ms[(ms >= 1) & (ms <= m_max)]
 
@@ -223,7 +226,8 @@ def allan_deviation(
         Memory allowed for the integrated signals held at once (8 bytes per sample and axis);
         axes are processed in groups that fit, reading the input once per group.
     progress : callable, optional
-        Called with the number of samples processed (per axis group) as the work advances.
+        Called with the number of values (rows x axes) integrated as the work advances;
+        the total is ``N k``.
 
     Returns
     -------
@@ -348,7 +352,7 @@ def _integrate(source: ChunkedSamples, cols: list[int], n: int, names: tuple[str
         seg += theta[:, pos : pos + 1]
         pos += rows
         if progress is not None:
-            progress(rows)
+            progress(rows * len(cols))
     if pos != n:
         raise IbiscapeError(f"the input yielded {pos} samples, {n} were announced")
     return theta

@@ -1,0 +1,245 @@
+"""``ibiscape-eval allan``: IMU noise densities and random walks from the Allan deviation."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import sys
+from typing import Any
+
+import click
+
+from ._common import echo_json, fail, info, user_errors
+
+_GYRO_U = ("rad/s/sqrt(Hz)", "rad/s^2/sqrt(Hz)", "rad/s")
+_ACCEL_U = ("m/s^2/sqrt(Hz)", "m/s^3/sqrt(Hz)", "m/s^2")
+_BIG = 5_000_000  # samples x axes above which a progress bar is worth showing
+
+
+def _range(text: str | None, option: str) -> tuple[float, float] | None:
+    if text is None:
+        return None
+    try:
+        lo, hi = (float(v) for v in text.split(","))
+    except ValueError:
+        fail(f"{option}: expected two taus in seconds, e.g. 0.02,1 ; got {text!r}")
+        raise  # pragma: no cover
+    if not (0 < lo < hi and math.isfinite(hi)):
+        fail(f"{option}: expected 0 < lo < hi, got {text!r}")
+    return lo, hi
+
+
+def _fmt(v: float, u: float) -> str:
+    if not math.isfinite(v):
+        return "n/a"
+    return f"{v:.4g} ± {u:.2g}"
+
+
+@click.command(
+    "allan",
+    epilog="""\b
+Examples:
+  ibiscape-eval allan imu.csv
+  ibiscape-eval allan imu.csv --yaml imu.yaml --plot adev.png --csv curves.csv
+  ibiscape-eval allan still.npy --rate-hz 200 --json
+  ibiscape-eval allan log.csv --columns t_s=time,w_x=gx,w_y=gy,w_z=gz,a_x=ax,a_y=ay,a_z=az \\
+      --units gyro=deg/s,accel=g
+  ibiscape-eval allan recording.bag --rostopic /imu0 --yaml imu.yaml
+""",
+)
+@click.argument("imu", type=click.Path(dir_okay=True, path_type=str))
+@click.option("--format", "fmt", type=click.Choice(["euroc", "csv", "npy", "npz", "parquet", "rosbag"]),
+              help="Input format (default: from the file name).")
+@click.option("--columns", help="Generic CSV/parquet column mapping: t=0 (ns) or t_s=NAME (s), "
+              "w_x..a_z = index or header name.")
+@click.option("--units", help="Units of the file, e.g. gyro=deg/s,accel=g (default rad/s, m/s^2).")
+@click.option("--rostopic", help="sensor_msgs/Imu topic in a bag (also written to --yaml).")
+@click.option("--rate-hz", type=float, help="Sample rate for files without timestamps (.npy (N, 6)).")
+@click.option("--allow-gaps", is_flag=True, help="Analyse records with gaps above the threshold.")
+@click.option("--max-missing", type=float, default=0.005, show_default=True,
+              help="Largest fraction of missing samples (gaps) accepted without --allow-gaps.")
+@click.option("--points-per-decade", type=int, default=10, show_default=True,
+              help="Density of the log-spaced taus.")
+@click.option("--white-range", help="Tau range (s) of the slope -1/2 fit, e.g. 0.02,1 (default: auto).")
+@click.option("--walk-range", help="Tau range (s) of the slope +1/2 fit, e.g. 1000,6000 (default: auto).")
+@click.option("--yaml", "yaml_path", type=click.Path(dir_okay=False), help="Write a Kalibr imu.yaml.")
+@click.option("--csv", "csv_path", type=click.Path(dir_okay=False), help="Write the curves (one row per tau).")
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="Write a log-log figure (png/pdf/svg).")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON document instead of the table.")
+@user_errors
+def allan(imu: str, fmt: str | None, columns: str | None, units: str | None, rostopic: str | None,
+          rate_hz: float | None, allow_gaps: bool, max_missing: float, points_per_decade: int,
+          white_range: str | None, walk_range: str | None, yaml_path: str | None,
+          csv_path: str | None, plot_path: str | None, as_json: bool) -> None:
+    """IMU noise from the overlapping Allan deviation of a still recording.
+
+    Prints the white-noise density N (slope -1/2 read at 1 s), the rate random walk K (slope +1/2
+    read at 3 s) and the bias instability B (minimum / 0.664) of the three gyro and three
+    accelerometer axes, with one-sigma uncertainties, as continuous-time densities (Kalibr's
+    convention) and as per-sample sigmas at the file's rate.
+    """
+    from ibiscape_eval.core.errors import FormatError, IbiscapeError
+    from ibiscape_eval.imu import allan_deviation, fit_noise_model
+    from ibiscape_eval.io.imu import read_imu
+
+    wr = _range(white_range, "--white-range")
+    kr = _range(walk_range, "--walk-range")
+    if points_per_decade < 1:
+        fail("--points-per-decade must be at least 1")
+    rec = read_imu(imu, fmt=fmt, columns=columns, units=units, rostopic=rostopic, rate_hz=rate_hz)
+    tm = rec.timing
+    if tm.has_stamps:
+        info(f"{imu}: {rec.n_samples} samples at {rec.rate_hz:.6g} Hz (median interval), "
+             f"{rec.n_samples / rec.rate_hz / 3600:.3g} h; {tm.n_gaps} gap(s), "
+             f"{100 * tm.missing_fraction:.3g} % missing, largest interval {tm.largest_gap_s:.4g} s, "
+             f"jitter {tm.jitter_s * 1e6:.3g} us")
+        too_big = tm.missing_fraction > max_missing or tm.largest_gap_s > 100 * tm.median_dt_s
+        if too_big and not allow_gaps:
+            raise FormatError(
+                imu,
+                f"{tm.n_gaps} gap(s) in the timestamps, {100 * tm.missing_fraction:.3g} % of the "
+                f"samples missing, longest {tm.largest_gap_s:.4g} s (first gap here): the Allan "
+                "deviation assumes equal spacing; cut the record or pass --allow-gaps",
+                line=tm.first_gap_line,
+            )
+        if tm.n_gaps and allow_gaps:
+            info("warning: gaps are ignored (samples treated as equally spaced)")
+
+    total = rec.n_samples * rec.n_columns
+    show = total >= _BIG and sys.stderr.isatty()
+    from tqdm import tqdm
+
+    with tqdm(total=total, disable=not show, unit="sample",
+              unit_scale=True, file=sys.stderr, desc="allan") as bar:
+        res = allan_deviation(rec, rec.rate_hz, points_per_decade=points_per_decade,
+                              names=rec.names, progress=bar.update)
+    model = fit_noise_model(res, white_range_s=wr, walk_range_s=kr)
+
+    # outputs that are always meaningful first: the curves
+    if csv_path:
+        from ibiscape_eval.io._atomic import atomic_write
+
+        with atomic_write(csv_path) as fh:
+            res.to_frame().to_csv(fh, index=False, float_format="%.10g", lineterminator="\n")
+    if plot_path:
+        _plot(res, model, plot_path, title=imu)
+
+    gyro = [model[n] for n in rec.names[:3]]
+    acc = [model[n] for n in rec.names[3:]]
+
+    def worst(axes: list[Any], attr: str) -> float:
+        vals = [getattr(a, attr) for a in axes]
+        return math.nan if any(not math.isfinite(v) for v in vals) else max(vals)
+
+    kalibr: dict[str, Any] = {
+        "accelerometer_noise_density": worst(acc, "noise_density"),
+        "accelerometer_random_walk": worst(acc, "random_walk"),
+        "gyroscope_noise_density": worst(gyro, "noise_density"),
+        "gyroscope_random_walk": worst(gyro, "random_walk"),
+        "rostopic": rostopic or rec.rostopic or "/imu0",
+        "update_rate": rec.rate_hz,
+    }
+    for a in model.axes:
+        for note in a.notes:
+            info(f"note: {a.name}: {note}")
+
+    if as_json:
+        echo_json({
+            "file": imu,
+            "rate_hz": rec.rate_hz,
+            "n_samples": rec.n_samples,
+            "duration_s": res.duration_s,
+            "timing": dataclasses.asdict(tm),
+            "n_taus": int(res.taus_s.size),
+            "confidence": res.ci,
+            "edf_model": "white FM (NIST SP 1065 Table 5), chi-squared bounds",
+            "axes": {a.name: {**{k: getattr(a, k) for k in a.__dataclass_fields__ if k != "name"},
+                              "notes": list(a.notes)} for a in model.axes},
+            "kalibr": kalibr,
+        })
+    else:
+        _table(model, rec.rate_hz)
+
+    if yaml_path:
+        from ibiscape_eval.io.imu import write_kalibr_imu_yaml
+
+        missing = [k for k, v in kalibr.items() if isinstance(v, float) and not math.isfinite(v)]
+        if missing:
+            raise IbiscapeError(
+                f"{yaml_path} not written: {', '.join(missing)} could not be determined "
+                f"(see the notes above; the record of {res.duration_s:.4g} s is too short to show "
+                "the random walk); record longer or give --walk-range"
+            )
+        rate = rec.rate_hz
+        write_kalibr_imu_yaml(
+            yaml_path,
+            accelerometer_noise_density=kalibr["accelerometer_noise_density"],
+            accelerometer_random_walk=kalibr["accelerometer_random_walk"],
+            gyroscope_noise_density=kalibr["gyroscope_noise_density"],
+            gyroscope_random_walk=kalibr["gyroscope_random_walk"],
+            update_rate_hz=rate,
+            rostopic=str(kalibr["rostopic"]),
+            comments=[
+                f"ibiscape-eval allan {imu}: largest value over the three axes, continuous time",
+                f"per-sample (discrete) sigmas at {rate:.6g} Hz:",
+                f"  gyroscope_noise_sigma: {kalibr['gyroscope_noise_density'] * math.sqrt(rate):.6g} rad/s",
+                f"  gyroscope_bias_step_sigma: {kalibr['gyroscope_random_walk'] / math.sqrt(rate):.6g} rad/s",
+                f"  accelerometer_noise_sigma: {kalibr['accelerometer_noise_density'] * math.sqrt(rate):.6g} m/s^2",
+                f"  accelerometer_bias_step_sigma: {kalibr['accelerometer_random_walk'] / math.sqrt(rate):.6g} m/s^2",
+            ],
+        )
+
+
+def _table(model: Any, rate_hz: float) -> None:
+    head = (f"{'axis':<5} {'N (white noise density)':>26} {'K (random walk)':>24} "
+            f"{'B (bias instability)':>24} {'sigma/sample':>13} {'units N, K, B'}")
+    click.echo(head)
+    for i, a in enumerate(model.axes):
+        u = _GYRO_U if i < 3 else _ACCEL_U
+        click.echo(f"{a.name:<5} {_fmt(a.noise_density, a.noise_density_unc):>26} "
+                   f"{_fmt(a.random_walk, a.random_walk_unc):>24} "
+                   f"{_fmt(a.bias_instability, a.bias_instability_unc):>24} "
+                   f"{a.discrete_sigma:>13.4g} {u[0]}, {u[1]}, {u[2]}")
+    click.echo(f"(uncertainties one sigma; sigma/sample = N*sqrt({rate_hz:.6g} Hz))")
+
+
+def _plot(res: Any, model: Any, path: str, *, title: str) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from ibiscape_eval.imu import BIAS_INSTABILITY_FACTOR
+    from ibiscape_eval.io._atomic import atomic_output_path
+
+    fig, axs = plt.subplots(1, 2, figsize=(12, 5), constrained_layout=True)
+    t = res.taus_s
+    for g, (ax, unit) in enumerate(zip(axs, ("rad/s", "m/s^2"), strict=True)):
+        for j in range(3 * g, min(3 * g + 3, len(res.names))):
+            a = model.axes[j]
+            (line,) = ax.loglog(t, res.adev[:, j], lw=1.5, label=a.name)
+            c = line.get_color()
+            ax.fill_between(t, res.adev_lo[:, j], res.adev_hi[:, j], color=c, alpha=0.15, lw=0)
+            if math.isfinite(a.noise_density):
+                ax.loglog(t, a.noise_density / np.sqrt(t), "--", color=c, lw=0.8)
+                ax.plot([1.0], [a.noise_density], "o", color=c, ms=6)
+            if math.isfinite(a.random_walk):
+                ax.loglog(t, a.random_walk * np.sqrt(t / 3.0), ":", color=c, lw=1.0)
+                ax.plot([3.0], [a.random_walk], "s", color=c, ms=6)
+            if math.isfinite(a.bias_instability):
+                ax.plot([a.bias_tau_s], [a.bias_instability * BIAS_INSTABILITY_FACTOR], "^",
+                        color=c, ms=7)
+        lo = np.nanmin(res.adev_lo[:, 3 * g : 3 * g + 3])
+        hi = np.nanmax(res.adev_hi[:, 3 * g : 3 * g + 3])
+        ax.set_ylim(lo / 2, hi * 2)
+        ax.set_xlabel("tau [s]")
+        ax.set_ylabel(f"Allan deviation [{unit}]")
+        ax.set_title(("gyroscope", "accelerometer")[g])
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(title="-- N line (o at 1 s), : K line (s at 3 s), ^ 0.664 B", fontsize=8,
+                  title_fontsize=8)
+    fig.suptitle(f"Overlapping Allan deviation: {title}")
+    with atomic_output_path(path) as tmp:
+        fig.savefig(tmp)
+    plt.close(fig)
