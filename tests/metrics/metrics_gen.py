@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import numpy as np
@@ -66,6 +67,14 @@ def from_evo(t: object) -> Trajectory:
 
 
 def load_evo(name: str) -> object:
+    """A fresh copy of :func:`_load_evo_cached` (evo objects are mutable)."""
+    import copy
+
+    return copy.deepcopy(_load_evo_cached(name))
+
+
+@functools.cache
+def _load_evo_cached(name: str) -> object:
     """Read a real trajectory with evo's own readers; drop rows repeating a timestamp.
 
     ``V102.txt`` repeats four stamps; evo would match both copies, we keep the pairing
