@@ -220,8 +220,9 @@ def fit_noise_model(
             cand = usable & (np.abs(slopes - 0.5) <= slope_tolerance)
             runs = [r for r in _runs(cand) if r[1] - r[0] >= 2]
             k_sel = np.zeros(taus.size, dtype=bool)
-            if runs:
-                k_sel[runs[-1][0] : runs[-1][1]] = True
+            if runs:  # the run with the most information (sum of edf), usually the earliest
+                best = max(runs, key=lambda r: float(edf[r[0] : r[1]].sum()))
+                k_sel[best[0] : best[1]] = True
             if w_sel.any() and k_sel.any() and taus[k_sel][0] <= taus[w_sel][-1]:
                 k_sel[:] = False
 

@@ -1,0 +1,104 @@
+"""Allan deviation: ibiscape-eval vs allantools.oadev, and the 168-hour streaming case.
+
+    .venv/bin/python benchmarks/bench_allan.py             # both parts (the big one takes minutes)
+    .venv/bin/python benchmarks/bench_allan.py --skip-big  # only the allantools comparison
+
+Part 1: 10M samples of one axis, the same 100 log-spaced taus, one run of each; prints times,
+the ratio and the largest relative difference of the deviations.
+Part 2: 168 h at 200 Hz (121M rows x 6 axes, ~5.8 GB) written by ``sim/noise.py`` into a temporary
+folder under /tmp, analysed by ``ibiscape-eval allan`` in a fresh process (wall time and peak RSS
+from ``wait4``), then deleted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from _runner import run  # noqa: E402
+
+
+def part1(n: int = 10_000_000, rate: float = 200.0) -> None:
+    import allantools
+
+    from ibiscape_eval.imu import allan_deviation
+    from ibiscape_eval.sim.noise import imu_noise
+
+    y = imu_noise(n, rate, noise_density=0.004 / np.sqrt(rate), random_walk=1e-4, seed=1)[:, 0]
+    taus = np.logspace(0, np.log10(n / 4), 100) / rate
+    allan_deviation(y[:1000], rate)  # load the compiled kernel once (numba cache)
+    t0 = time.perf_counter()
+    ours = allan_deviation(y, rate, taus_s=taus)
+    t_ours = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    t_at, ad, _, ns = allantools.oadev(y, rate=rate, data_type="freq", taus=taus)
+    t_ref = time.perf_counter() - t0
+    same_taus = np.array_equal(t_at, ours.taus_s)
+    rel = float(np.max(np.abs(ad / ours.adev[:, 0] - 1.0))) if same_taus else float("nan")
+    print(f"\n1) overlapping ADEV, {n / 1e6:.0f}M samples, {taus.size} taus requested "
+          f"({ours.taus_s.size} distinct after rounding to the sample grid)")
+    print(f"{'tool':<28}{'time [s]':>10}")
+    print(f"{'allantools.oadev':<28}{t_ref:>10.2f}")
+    print(f"{'ibiscape_eval.allan_deviation':<28}{t_ours:>10.2f}")
+    print(f"RATIO allantools / ibiscape-eval: {t_ref / t_ours:.1f}x   "
+          f"same taus: {same_taus}   same n: {np.array_equal(ns, ours.n_terms)}   "
+          f"max relative difference: {rel:.2e}")
+
+
+def part2(hours: float = 168.0, rate: float = 200.0) -> None:
+    from ibiscape_eval.io.imu import write_imu_npy
+    from ibiscape_eval.sim.noise import imu_noise_chunks
+
+    n = int(hours * 3600 * rate)
+    N = [2.8e-4, 2.8e-4, 2.8e-4, 5e-3, 5e-3, 5e-3]
+    K = [2e-5, 2e-5, 2e-5, 4e-4, 4e-4, 4e-4]
+    tmp = Path(tempfile.mkdtemp(prefix="bench-allan-", dir="/tmp"))
+    try:
+        path = tmp / "still_168h.npy"
+        t0 = time.perf_counter()
+        write_imu_npy(path, imu_noise_chunks(n, rate, noise_density=N, random_walk=K,
+                                             bias0=[0, 0, 0, 0, 0, 9.81], seed=7), width=6)
+        t_gen = time.perf_counter() - t0
+        size_gb = path.stat().st_size / 1e9
+        exe = str(Path(sys.executable).with_name("ibiscape-eval"))
+        r = run([exe, "allan", str(path), "--rate-hz", str(rate), "--json"])
+        print(f"\n2) streaming: {hours:g} h at {rate:g} Hz = {n / 1e6:.1f}M rows x 6 axes "
+              f"(.npy {size_gb:.2f} GB, generated in {t_gen:.0f} s)")
+        print(f"{'case':<34}{'time [s]':>10}{'peak RSS [MB]':>15}{'limit':>16}")
+        print(f"{'ibiscape-eval allan (.npy)':<34}{r.wall_s:>10.1f}{r.peak_mb:>15.0f}"
+              f"{'180 s / 4096 MB':>16}")
+        if r.ok:
+            doc = json.loads(r.stdout)
+            print(f"{'axis':<6}{'N true':>10}{'N est':>11}{'K true':>10}{'K est':>11}")
+            for i, (name, a) in enumerate(doc["axes"].items()):
+                print(f"{name:<6}{N[i]:>10.3g}{a['noise_density'] or float('nan'):>11.4g}"
+                      f"{K[i]:>10.3g}{a['random_walk'] or float('nan'):>11.4g}")
+        else:
+            print(f"FAILED with exit status {r.returncode}")
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--skip-big", action="store_true", help="skip the 168-hour streaming case")
+    ap.add_argument("--only-big", action="store_true", help="only the 168-hour streaming case")
+    ap.add_argument("--hours", type=float, default=168.0)
+    args = ap.parse_args()
+    if not args.only_big:
+        part1()
+    if not args.skip_big:
+        part2(hours=args.hours)
+
+
+if __name__ == "__main__":
+    main()
