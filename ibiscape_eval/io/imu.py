@@ -494,9 +494,14 @@ def _read_csv(p: Path, cols: Mapping[str, str | int], spill_bytes: int,
         writer = _NpyStreamWriter(spill_path, 6)
     n = 0
     try:
-        reader = pd.read_csv(p, header=None, skiprows=skip, dtype=np.float64, engine="c",
-                             chunksize=_CHUNK_ROWS, skip_blank_lines=True,
-                             usecols=range(n_fields))
+        # integer ns stamps are parsed exactly (float64 would round 1.4e18 ns to 256 ns)
+        fields = first_row.split(",")
+        int_time = t_col is not None and not t_in_s and fields[t_col].strip().isdigit()
+        dtypes: dict[int, Any] = {i: np.float64 for i in range(n_fields)}
+        if int_time:
+            dtypes[t_col] = np.int64  # type: ignore[index]
+        reader = pd.read_csv(p, header=None, skiprows=skip, dtype=dtypes, engine="c",
+                             chunksize=_CHUNK_ROWS, skip_blank_lines=True)
         while True:
             try:
                 chunk = next(reader)
@@ -504,12 +509,14 @@ def _read_csv(p: Path, cols: Mapping[str, str | int], spill_bytes: int,
                 break
             except (ValueError, pd.errors.ParserError):
                 raise _diagnose(p, skip + 1 + n, n_fields) from None
-            arr = chunk.to_numpy()
-            if arr.shape[1] != n_fields or not np.isfinite(arr).all():
+            if chunk.shape[1] != n_fields:
+                raise _diagnose(p, skip + 1 + n, n_fields)
+            arr = chunk.to_numpy(dtype=np.float64)
+            if not np.isfinite(arr).all():
                 raise _diagnose(p, skip + 1 + n, n_fields)
             if timing_acc is not None:
-                t = arr[:, t_col]
-                timing_acc.add(np.round(t * 1e9) if t_in_s else t)
+                tcol = chunk.iloc[:, t_col].to_numpy()
+                timing_acc.add(np.round(tcol * 1e9) if t_in_s else tcol)
             data = arr[:, axis_cols]
             if writer is not None:
                 writer.write(data)

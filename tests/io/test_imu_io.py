@@ -1,0 +1,232 @@
+"""IMU readers and writers: round trips, formats, units, bad input with file and line."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from ibiscape_eval.core.errors import FormatError, IbiscapeError
+from ibiscape_eval.io.imu import (
+    read_imu,
+    read_kalibr_imu_yaml,
+    write_imu_csv,
+    write_imu_npy,
+    write_kalibr_imu_yaml,
+)
+
+T0 = 1_403_636_579_758_555_392
+
+
+def _data(n: int = 500, seed: int = 0, rate: float = 200.0) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    t = T0 + np.round(np.arange(n) * 1e9 / rate).astype(np.int64)
+    return t, rng.normal(size=(n, 6))
+
+
+finite = st.floats(min_value=-1e6, max_value=1e6, allow_nan=False, allow_infinity=False, width=64)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(rows=st.lists(st.lists(finite, min_size=6, max_size=6), min_size=3, max_size=40),
+       step=st.integers(min_value=1_000_000, max_value=50_000_000))
+def test_csv_round_trip(tmp_path: Path, rows: list[list[float]], step: int) -> None:
+    y = np.array(rows)
+    t = np.int64(1_000_000_000) + np.arange(len(rows), dtype=np.int64) * step
+    path = tmp_path / "imu.csv"
+    write_imu_csv(path, t, y[:, :3], y[:, 3:])
+    rec = read_imu(path)
+    np.testing.assert_array_equal(rec.samples, y)
+    assert rec.rate_hz == pytest.approx(1e9 / step)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(rows=st.lists(st.lists(finite, min_size=6, max_size=6), min_size=3, max_size=40),
+       chunk=st.integers(min_value=1, max_value=50))
+def test_npy_round_trip_streamed(tmp_path: Path, rows: list[list[float]], chunk: int) -> None:
+    y = np.array(rows)
+    t = 10**9 + np.arange(len(rows), dtype=np.int64) * 5_000_000
+    full = np.column_stack([t, y])
+    path = tmp_path / "imu.npy"
+    n = write_imu_npy(path, (full[i : i + chunk] for i in range(0, len(full), chunk)))
+    assert n == len(rows)
+    np.testing.assert_array_equal(np.load(path, allow_pickle=False), full)
+    rec = read_imu(path)
+    assert rec.samples is None  # read in chunks, never loaded whole
+    np.testing.assert_array_equal(np.concatenate(list(rec.iter_chunks(range(6), 7))), y)
+    assert rec.rate_hz == pytest.approx(200.0)
+
+
+@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(vals=st.lists(st.floats(min_value=1e-9, max_value=10.0), min_size=5, max_size=5),
+       topic=st.from_regex(r"/[a-z][a-z0-9_]{0,10}", fullmatch=True))
+def test_kalibr_yaml_round_trip(tmp_path: Path, vals: list[float], topic: str) -> None:
+    path = tmp_path / "imu.yaml"
+    write_kalibr_imu_yaml(path, accelerometer_noise_density=vals[0], accelerometer_random_walk=vals[1],
+                          gyroscope_noise_density=vals[2], gyroscope_random_walk=vals[3],
+                          update_rate_hz=vals[4] * 100, rostopic=topic, comments=["sigma: 1"])
+    doc = read_kalibr_imu_yaml(path)
+    assert doc["accelerometer_noise_density"] == vals[0]
+    assert doc["gyroscope_random_walk"] == vals[3]
+    assert doc["update_rate"] == vals[4] * 100 and doc["rostopic"] == topic
+
+
+def test_kalibr_yaml_refuses_nan(tmp_path: Path) -> None:
+    with pytest.raises(IbiscapeError, match="gyroscope_random_walk not determined"):
+        write_kalibr_imu_yaml(tmp_path / "imu.yaml", accelerometer_noise_density=1.0,
+                              accelerometer_random_walk=1.0, gyroscope_noise_density=1.0,
+                              gyroscope_random_walk=float("nan"), update_rate_hz=200)
+    assert not (tmp_path / "imu.yaml").exists()
+
+
+def test_euroc_csv_with_trailing_spaces(tmp_path: Path) -> None:
+    t, y = _data(50)
+    lines = ["#timestamp [ns],w_x [rad s^-1],w_y,w_z,a_x,a_y,a_z"]
+    lines += [",".join([str(ti)] + [repr(float(v)) for v in row]) + " " for ti, row in zip(t, y, strict=True)]
+    (tmp_path / "imu.csv").write_text("\n".join(lines) + "\n")
+    rec = read_imu(tmp_path / "imu.csv")
+    np.testing.assert_array_equal(rec.samples, y)
+    assert rec.rate_hz == pytest.approx(200.0, rel=1e-6)
+    assert rec.timing.n_gaps == 0
+
+
+def test_spilled_csv_equals_in_memory(tmp_path: Path) -> None:
+    t, y = _data(3000)
+    write_imu_csv(tmp_path / "imu.csv", t, y[:, :3], y[:, 3:])
+    rec = read_imu(tmp_path / "imu.csv", spill_bytes=1000)
+    assert rec.samples is None
+    np.testing.assert_array_equal(rec.gyro_rad_s, y[:, :3])
+    np.testing.assert_array_equal(rec.accel_m_s2, y[:, 3:])
+
+
+def test_generic_csv_columns_and_units(tmp_path: Path) -> None:
+    t, y = _data(100, rate=100.0)
+    text = "time,ax,ay,az,gx,gy,gz\n" + "\n".join(
+        ",".join([f"{ti * 1e-9:.6f}"] + [repr(float(v)) for v in row]) for ti, row in zip(t - T0, y, strict=True))
+    (tmp_path / "log.csv").write_text(text + "\n")
+    rec = read_imu(tmp_path / "log.csv", columns="t_s=time,w_x=gx,w_y=gy,w_z=gz,a_x=ax,a_y=ay,a_z=az",
+                   units="gyro=deg/s,accel=g")
+    np.testing.assert_allclose(rec.gyro_rad_s, y[:, 3:] * np.pi / 180)
+    np.testing.assert_allclose(rec.accel_m_s2, y[:, :3] * 9.80665)
+    assert rec.rate_hz == pytest.approx(100.0)
+
+
+def test_npz_parquet_and_rate_without_stamps(tmp_path: Path) -> None:
+    import pandas as pd
+
+    t, y = _data(200)
+    np.savez(tmp_path / "imu.npz", stamps_ns=t, gyro_rad_s=y[:, :3], accel_m_s2=y[:, 3:])
+    np.testing.assert_array_equal(read_imu(tmp_path / "imu.npz").samples, y)
+    np.save(tmp_path / "six.npy", y)
+    with pytest.raises(FormatError, match="rate-hz"):
+        read_imu(tmp_path / "six.npy")
+    assert read_imu(tmp_path / "six.npy", rate_hz=50.0).rate_hz == 50.0
+    df = pd.DataFrame(y, columns=["w_x", "w_y", "w_z", "a_x", "a_y", "a_z"])
+    df.insert(0, "#timestamp [ns]", t)
+    df.to_parquet(tmp_path / "imu.parquet")
+    rec = read_imu(tmp_path / "imu.parquet")
+    np.testing.assert_array_equal(rec.samples, y)
+
+
+def test_npz_with_pickled_objects_is_refused(tmp_path: Path) -> None:
+    np.savez(tmp_path / "bad.npz", data=np.array([{"a": 1}], dtype=object))
+    with pytest.raises(FormatError, match="pickled"):
+        read_imu(tmp_path / "bad.npz")
+
+
+def test_ros2_bag(tmp_path: Path) -> None:
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    Imu = ts.types["sensor_msgs/msg/Imu"]
+    Header = ts.types["std_msgs/msg/Header"]
+    Time = ts.types["builtin_interfaces/msg/Time"]
+    V3 = ts.types["geometry_msgs/msg/Vector3"]
+    Q = ts.types["geometry_msgs/msg/Quaternion"]
+    t, y = _data(60)
+    bag = tmp_path / "bag"
+    with Writer(bag, version=8) as w:
+        conn = w.add_connection("/imu0", Imu.__msgtype__, typestore=ts)
+        for ti, row in zip(t, y, strict=True):
+            msg = Imu(header=Header(stamp=Time(sec=int(ti // 10**9), nanosec=int(ti % 10**9)), frame_id="imu"),
+                      orientation=Q(x=0.0, y=0.0, z=0.0, w=1.0), orientation_covariance=np.zeros(9),
+                      angular_velocity=V3(x=row[0], y=row[1], z=row[2]), angular_velocity_covariance=np.zeros(9),
+                      linear_acceleration=V3(x=row[3], y=row[4], z=row[5]),
+                      linear_acceleration_covariance=np.zeros(9))
+            w.write(conn, int(ti), ts.serialize_cdr(msg, Imu.__msgtype__))
+    rec = read_imu(bag)
+    np.testing.assert_array_equal(rec.samples, y)
+    assert rec.rostopic == "/imu0"
+    with pytest.raises(FormatError, match="not in the bag"):
+        read_imu(bag, rostopic="/imu1")
+
+
+# --- bad input -------------------------------------------------------------------------------
+
+
+def _csv(tmp_path: Path, n: int = 20) -> Path:
+    t, y = _data(n)
+    path = tmp_path / "imu.csv"
+    write_imu_csv(path, t, y[:, :3], y[:, 3:])
+    return path
+
+
+def _edit(path: Path, line: int, text: str) -> None:
+    lines = path.read_text().splitlines()
+    lines[line - 1] = text
+    path.write_text("\n".join(lines) + "\n")
+
+
+def test_non_numeric_row_names_line(tmp_path: Path) -> None:
+    p = _csv(tmp_path)
+    _edit(p, 7, "1403636579788555392,0.1,abc,0.3,0.4,0.5,0.6")
+    with pytest.raises(FormatError, match=r"imu.csv:7: column 3 is not a number"):
+        read_imu(p)
+
+
+@pytest.mark.parametrize("row", ["1403636579788555392,0.1,0.2,0.3,0.4,0.5,0.6,0.7",
+                                 "1403636579788555392,0.1,0.2,0.3,0.4,0.5"])
+def test_wrong_column_count_names_line(tmp_path: Path, row: str) -> None:
+    p = _csv(tmp_path)
+    _edit(p, 9, row)
+    with pytest.raises(FormatError, match=r"imu.csv:9: expected 7 comma-separated columns"):
+        read_imu(p)
+
+
+def test_non_monotonic_timestamps_name_line(tmp_path: Path) -> None:
+    p = _csv(tmp_path)
+    lines = p.read_text().splitlines()
+    lines[5], lines[6] = lines[6], lines[5]
+    p.write_text("\n".join(lines) + "\n")
+    with pytest.raises(FormatError, match=r"imu.csv:7: timestamps are not strictly increasing"):
+        read_imu(p)
+
+
+def test_gaps_are_measured(tmp_path: Path) -> None:
+    t, y = _data(1000)
+    keep = np.ones(1000, dtype=bool)
+    keep[300:400] = False
+    write_imu_csv(tmp_path / "g.csv", t[keep], y[keep, :3], y[keep, 3:])
+    tm = read_imu(tmp_path / "g.csv").timing
+    assert tm.n_gaps == 1 and tm.missing_samples == 100
+    assert tm.largest_gap_s == pytest.approx(0.505)
+    assert tm.first_gap_line == 302  # header + 300 rows, then the row after the gap
+
+
+def test_unknown_units_and_columns(tmp_path: Path) -> None:
+    p = _csv(tmp_path)
+    with pytest.raises(IbiscapeError, match="unknown gyro unit 'rpm'"):
+        read_imu(p, units="gyro=rpm")
+    with pytest.raises(IbiscapeError, match="unknown accel unit"):
+        read_imu(p, units="accel=furlong")
+    with pytest.raises(IbiscapeError, match="lacks"):
+        read_imu(p, columns="t=0,w_x=1")
+
+
+def test_missing_file(tmp_path: Path) -> None:
+    with pytest.raises(FileNotFoundError):
+        read_imu(tmp_path / "nope.csv")
