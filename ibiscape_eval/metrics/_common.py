@@ -16,7 +16,11 @@ from ibiscape_eval.core.rotations import (
     quat_rotate,
 )
 
+from ._fast import take, trusted
 from .association import Matched, associate, associate_by_index
+
+__all__ = ["absolute_errors", "common_dict", "frozen", "match", "relative_errors", "take",
+           "trusted"]
 
 FloatArray = npt.NDArray[np.float64]
 

@@ -11,6 +11,8 @@ import numpy.typing as npt
 from ibiscape_eval.core import DegenerateInputError, IbiscapeError, Trajectory
 from ibiscape_eval.core.rotations import quat_slerp
 
+from ._fast import take, trusted
+
 __all__ = ["MIN_MATCHES", "Matched", "associate", "associate_by_index"]
 
 #: Fewest matched poses any metric accepts.
@@ -92,6 +94,8 @@ def _one_to_one(
     Among equally close partners the earliest short stamp wins.  Matched long indices are
     non-decreasing in the short index, so duplicates form contiguous runs.
     """
+    if i_long.shape[0] < 2 or bool(np.all(i_long[1:] != i_long[:-1])):
+        return np.ones(i_short.shape[0], dtype=bool)  # already one to one (the usual case)
     order = np.lexsort((i_short, diff, i_long))  # by long index, then difference, then time
     first = np.ones(order.shape[0], dtype=bool)
     first[1:] = i_long[order][1:] != i_long[order][:-1]
@@ -105,14 +109,14 @@ def _interpolate(traj: Trajectory, stamps_ns: npt.NDArray[np.int64]) -> Trajecto
     t = traj.stamps_ns
     k = np.clip(np.searchsorted(t, stamps_ns, side="right") - 1, 0, max(len(t) - 2, 0))
     if len(t) == 1:
-        return Trajectory(stamps_ns, traj.pos_m[k], traj.quat_xyzw[k], traj.name)
+        return trusted(stamps_ns, traj.pos_m[k], traj.quat_xyzw[k], traj.name)
     t0 = t[k]
     # Fractions from integer differences: exact 0 and 1 on the nodes themselves.
     a = (stamps_ns - t0).astype(np.float64) / (t[k + 1] - t0).astype(np.float64)
     p0, p1 = traj.pos_m[k], traj.pos_m[k + 1]
     pos = p0 + a[:, None] * (p1 - p0)
     quat = quat_slerp(traj.quat_xyzw[k], traj.quat_xyzw[k + 1], a)
-    return Trajectory(stamps_ns, pos, quat, traj.name)
+    return trusted(stamps_ns, pos, quat, traj.name)
 
 
 def _check_count(n: int, est: Trajectory, ref: Trajectory, how: str) -> None:
@@ -182,7 +186,7 @@ def associate(
             f"{_span(ref_ns)}: the time ranges do not overlap; check the files' time units or "
             "give an --offset-s"
         )
-    est_shifted = Trajectory(est_ns, est.pos_m, est.quat_xyzw, est.name)
+    est_shifted = trusted(est_ns, est.pos_m, est.quat_xyzw, est.name)
     # Like evo: start from the trajectory with fewer poses (the estimate on a tie).
     est_is_short = len(est) <= len(ref)
     short, long_ = (est_shifted, ref) if est_is_short else (ref, est_shifted)
@@ -194,7 +198,7 @@ def associate(
         )
         i_short = i_short[inside]
         _check_count(i_short.shape[0], est, ref, how + " inside the overlap")
-        short_m = short.take(i_short)
+        short_m = take(short, i_short)
         long_m = _interpolate(long_, short_m.stamps_ns)
         # No original pose of the denser trajectory is kept: those outside the matched span
         # count as dropped.
@@ -204,7 +208,7 @@ def associate(
         keep = _one_to_one(i_short, i_long, diff)
         i_short, i_long = i_short[keep], i_long[keep]
         _check_count(i_short.shape[0], est, ref, how)
-        short_m, long_m = short.take(i_short), long_.take(i_long)
+        short_m, long_m = take(short, i_short), take(long_, i_long)
         drop_long = len(long_) - len(long_m)
     drop_short = len(short) - len(short_m)
     if est_is_short:
