@@ -19,17 +19,17 @@ MANT_LIMIT = 922337203685477579
 EXACT_POW = np.array([10.0**k for k in range(23)])
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def is_sep(c):
     return c == 32 or c == 9 or c == 44 or c == 13
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def lower(c):
     return c + 32 if 65 <= c <= 90 else c
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def word_is(buf, s, e, word):
     if e - s != len(word):
         return False
@@ -39,7 +39,7 @@ def word_is(buf, s, e, word):
     return True
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def parse_number(buf, s, e):
     """Return (ok, value, mantissa, exp10, finite) of the token buf[s:e]."""
     i = s
@@ -55,33 +55,29 @@ def parse_number(buf, s, e):
         return False, 0.0, 0, 0, False
     mant = np.int64(0)
     exp10 = 0
-    seen = False
     dropped = -1
+    d0 = i
     while i < e and 48 <= buf[i] <= 57:
-        d = buf[i] - 48
-        seen = True
-        if mant == 0 and d == 0:
-            pass
-        elif mant <= MANT_LIMIT:
-            mant = mant * 10 + d
+        if mant <= MANT_LIMIT:
+            mant = mant * 10 + (buf[i] - 48)
         else:
             if dropped < 0:
-                dropped = d
+                dropped = buf[i] - 48
             exp10 += 1
         i += 1
+    ndig = i - d0
     if i < e and buf[i] == 46:  # '.'
         i += 1
+        d0 = i
         while i < e and 48 <= buf[i] <= 57:
-            d = buf[i] - 48
-            seen = True
-            if mant == 0 and d == 0:
-                exp10 -= 1
-            elif mant <= MANT_LIMIT:
-                mant = mant * 10 + d
+            if mant <= MANT_LIMIT:
+                mant = mant * 10 + (buf[i] - 48)
                 exp10 -= 1
             elif dropped < 0:
-                dropped = d
+                dropped = buf[i] - 48
             i += 1
+        ndig += i - d0
+    seen = ndig > 0
     if not seen:
         return False, 0.0, 0, 0, False
     if i < e and (buf[i] == 101 or buf[i] == 69):  # e / E
@@ -116,7 +112,7 @@ def parse_number(buf, s, e):
     return True, v, mant, exp10, np.isfinite(v)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def scan(buf, nkeep, ncols_min, ncols_max):
     n = buf.shape[0]
     nmax = 1
@@ -134,34 +130,37 @@ def scan(buf, nkeep, ncols_min, ncols_max):
     row = 0
     while i < n:
         line += 1
-        j = i
-        while j < n and buf[j] != 10:
-            j += 1
         col = 0
-        k = i
-        while k < j:
-            c = buf[k]
-            if c == 35:  # '#': comment to the end of the line
+        while i < n:  # one line, single pass over its bytes
+            c = buf[i]
+            if c == 10:
                 break
-            if is_sep(c):
-                k += 1
+            if c == 35:  # '#': comment to the end of the line
+                while i < n and buf[i] != 10:
+                    i += 1
+                break
+            if c == 32 or c == 44 or c == 9 or c == 13:
+                i += 1
                 continue
-            s = k
-            while k < j and not is_sep(buf[k]) and buf[k] != 35:
-                if buf[k] == 0:
+            s = i
+            while i < n:
+                c = buf[i]
+                if c == 32 or c == 44 or c == 10 or c == 9 or c == 13 or c == 35:
+                    break
+                if c == 0:
                     status[0] = _NUL
                     status[1] = line
                     return 0, vals, mant, exps, finite, lines, status
-                k += 1
+                i += 1
             col += 1
             if col <= nkeep:
-                ok, v, m, ex, fin = parse_number(buf, s, k)
+                ok, v, m, ex, fin = parse_number(buf, s, i)
                 if not ok:
                     status[0] = _NOTNUM
                     status[1] = line
                     status[2] = col
                     status[3] = s
-                    status[4] = k
+                    status[4] = i
                     return 0, vals, mant, exps, finite, lines, status
                 vals[row, col - 1] = v
                 if not fin:
@@ -169,8 +168,8 @@ def scan(buf, nkeep, ncols_min, ncols_max):
                 if col == 1:
                     mant[row] = m
                     exps[row] = ex
+        i += 1  # past the newline
         if col == 0:
-            i = j + 1
             continue
         if col < ncols_min or col > ncols_max:
             status[0] = _NCOLS
@@ -178,11 +177,7 @@ def scan(buf, nkeep, ncols_min, ncols_max):
             status[5] = col
             return 0, vals, mant, exps, finite, lines, status
         lines[row] = line
-        finite[row] = finite[row]
         row += 1
-        if row < nmax:
-            finite[row] = True
-        i = j + 1
     return row, vals, mant, exps, finite, lines, status
 
 
@@ -190,7 +185,7 @@ def scan(buf, nkeep, ncols_min, ncols_max):
 INT_POW = np.array([10**k for k in range(19)], dtype=np.int64)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def write_uint(out, pos, v, width):
     """Write the non-negative int ``v``, zero-padded to ``width`` digits; return the new pos."""
     nd = 1
@@ -206,7 +201,7 @@ def write_uint(out, pos, v, width):
     return pos
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def write_float(out, pos, x):
     """Write ``x`` with 15 significant digits, trailing zeros stripped (like ``%.15g``, but fixed
     notation for exponents in [-5, 15)); return the new pos."""
@@ -295,7 +290,7 @@ def write_float(out, pos, x):
     return pos
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def format_rows(stamps_ns, values, stamp_mode, sep, row_end):
     """Format rows as text.
 
