@@ -515,7 +515,7 @@ def _read_csv(p: Path, cols: Mapping[str, str | int], spill_bytes: int,
             if not np.isfinite(arr).all():
                 raise _diagnose(p, skip + 1 + n, n_fields)
             if timing_acc is not None:
-                tcol = chunk.iloc[:, t_col].to_numpy()
+                tcol = np.asarray(chunk.iloc[:, t_col])  # type: ignore[index]
                 timing_acc.add(np.round(tcol * 1e9) if t_in_s else tcol)
             data = arr[:, axis_cols]
             if writer is not None:

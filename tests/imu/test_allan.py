@@ -97,7 +97,7 @@ class _Chunks:
 
 
 def test_streaming_and_axis_groups_match_in_memory(tmp_path: Path) -> None:
-    y = np.random.default_rng(4).normal(size=(30_000, 3)) + [0.0, 5.0, -9.8]
+    y = np.random.default_rng(4).normal(size=(30_000, 3)) + np.array([0.0, 5.0, -9.8])
     ref = allan_deviation(y, 200.0)
     chunked = allan_deviation(_Chunks(y), 200.0, memory_budget_bytes=1)  # one axis at a time
     np.testing.assert_allclose(chunked.adev, ref.adev, rtol=1e-9)

@@ -6,10 +6,10 @@ import math
 
 import numpy as np
 import pytest
+from ibiscape_eval.sim.noise import imu_noise
 
 from ibiscape_eval.core.errors import IbiscapeError
 from ibiscape_eval.imu import BIAS_INSTABILITY_FACTOR, allan_deviation, fit_noise_model
-from ibiscape_eval.sim.noise import imu_noise
 
 NAMES = ("w_x", "w_y", "w_z", "a_x", "a_y", "a_z")
 N_TRUE = np.array([1.0e-3, 2.0e-3, 5.0e-4, 2.0e-2, 3.0e-2, 5.0e-2])
@@ -40,7 +40,7 @@ def test_random_walk_within_30_percent(model_8h) -> None:  # type: ignore[no-unt
 
 def test_uncertainties_ranges_and_discrete_values(model_8h) -> None:  # type: ignore[no-untyped-def]
     res, model = model_8h
-    for n, N, K in zip(NAMES, N_TRUE, K_TRUE, strict=True):
+    for n in NAMES:
         a = model[n]
         assert 0 < a.noise_density_unc < 0.05 * a.noise_density
         assert 0 < a.random_walk_unc < 0.6 * a.random_walk

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from ibiscape_eval.sim.noise import imu_noise, imu_noise_chunks
 
 
