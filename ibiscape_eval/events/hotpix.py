@@ -103,26 +103,45 @@ def count_events(
     IbiscapeError
         If an event lies outside the sensor (the message names its index).
     """
-    from . import _kernels
-
     w, h = _check_sensor_size(sensor_size)
     xa, ya = _coords(x, y)
+    pa = None
+    if p is not None:
+        pa = np.ascontiguousarray(p, dtype=np.bool_)
+        if pa.shape != xa.shape:
+            raise IbiscapeError(f"p has shape {pa.shape}, x and y have {xa.shape}")
     # uint32 cannot overflow: a pixel holds at most N events; split larger inputs.
     step = 2**31
-    total = np.zeros((2 if p is not None else 1) * w * h, np.int64)
+    total: np.ndarray | None = None
     for s in range(0, max(xa.shape[0], 1), step):
-        part = np.zeros(total.shape, np.uint32)
-        if p is None:
-            bad = _kernels.count_xy(xa[s : s + step], ya[s : s + step], w, h, part)
-        else:
-            pa = np.ascontiguousarray(p, dtype=np.bool_)
-            if pa.shape != xa.shape:
-                raise IbiscapeError(f"p has shape {pa.shape}, x and y have {xa.shape}")
-            bad = _kernels.count_xyp(xa[s : s + step], ya[s : s + step], pa[s : s + step], w, h, part)
-        if bad >= 0:
-            raise _outside(xa, ya, s + int(bad), w, h)
-        total += part
-    return total.reshape((h, w) if p is None else (2, h, w))
+        part = _count_padded(xa[s : s + step], ya[s : s + step],
+                             None if pa is None else pa[s : s + step], w, h)
+        if isinstance(part, int):
+            raise _outside(xa, ya, s + part, w, h)
+        total = part.astype(np.int64) if total is None else total + part
+    assert total is not None
+    return total[0] if p is None else total
+
+
+_PAD = 16  # uint32 counters = one 64-byte cache line of row padding (see _kernels.count_xy)
+
+
+def _count_padded(
+    x: np.ndarray, y: np.ndarray, p: np.ndarray | None, w: int, h: int
+) -> np.ndarray | int:
+    """(planes, H, W) uint32 counts of one piece, or the index of its first out-of-sensor event."""
+    from . import _kernels
+
+    stride = w + _PAD
+    planes = 1 if p is None else 2
+    buf = np.zeros(planes * h * stride, np.uint32)
+    if p is None:
+        bad = _kernels.count_xy(x, y, w, h, stride, buf)
+    else:
+        bad = _kernels.count_xyp(x, y, p, w, h, stride, buf)
+    if bad >= 0:
+        return int(bad)
+    return buf.reshape(planes, h, stride)[:, :, :w]
 
 
 @dataclass(frozen=True, eq=False)
@@ -397,14 +416,15 @@ def filter_arrays(
     ta, pa = np.ascontiguousarray(t), np.ascontiguousarray(p)
     if ta.shape != xa.shape or pa.shape != xa.shape:
         raise IbiscapeError(f"t, x, y, p lengths differ: {ta.shape}, {xa.shape}, {ya.shape}, {pa.shape}")
-    # coordinates are checked by a cheap max first (compaction trusts them)
-    if xa.size and (int(xa.max()) >= w or int(ya.max()) >= h or int(xa.min()) < 0 or int(ya.min()) < 0):
-        i = int(np.flatnonzero((xa >= w) | (ya >= h) | (xa < 0) | (ya < 0))[0])
-        raise _outside(xa, ya, i, w, h)
     lut = _hot_lut(pixels, w, h)
+    keep = np.empty(xa.shape[0], np.bool_)
+    bad = _kernels.keep_mask(xa, ya, w, h, lut, keep)
+    if bad >= 0:
+        raise _outside(xa, ya, int(bad), w, h)
     to, xo, yo, po = (np.empty_like(a) for a in (ta, xa, ya, pa))
-    k = int(_kernels.compact4(ta, xa, ya, pa, w, lut, to, xo, yo, po))
-    return to[:k].copy(), xo[:k].copy(), yo[:k].copy(), po[:k].copy()
+    k = int(_kernels.compact4(ta, xa, ya, pa, keep.view(np.uint8), to, xo, yo, po))
+    # views, not copies: the unused tail (the discarded events) is the only memory kept
+    return to[:k], xo[:k], yo[:k], po[:k]
 
 
 def rate_hot_pixels(
@@ -497,13 +517,10 @@ class PixelCounter:
             mw, mh = int(events.x.max()) + 1, int(events.y.max()) + 1
             if mw > self.w or mh > self.h:
                 self._grow(max(mw, self.w), max(mh, self.h))
-        part = np.zeros(self._planes * self.h * self.w, np.uint32)
-        if self.per_polarity:
-            bad = _kernels.count_xyp(events.x, events.y, events.p, self.w, self.h, part)
-        else:
-            bad = _kernels.count_xy(events.x, events.y, self.w, self.h, part)
-        if bad >= 0:
-            i = int(bad)
+        part = _count_padded(events.x, events.y, events.p if self.per_polarity else None,
+                             self.w, self.h)
+        if isinstance(part, int):
+            i = part
             msg = (
                 f"pixel (x={int(events.x[i])}, y={int(events.y[i])}) lies outside the "
                 f"{self.w}x{self.h} sensor; pass the right --sensor-size WxH"
@@ -512,7 +529,7 @@ class PixelCounter:
                 path, line, what = chunk.where(i)
                 raise FormatError(path, f"{what}: {msg}", line=line)
             raise IbiscapeError(f"event {self.n_events + i}: {msg}")
-        self._counts += part.reshape(self._counts.shape)
+        self._counts += part
         if self._rate_state:
             if self._t0 is None:
                 self._t0 = int(events.t_ns[0])

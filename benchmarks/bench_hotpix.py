@@ -1,0 +1,183 @@
+"""Hot-pixel counting and filtering: ibiscape-eval's numba kernels against the plain numpy
+bincount-and-mask baseline, in the same run, on one core; then peak memory of
+``ibiscape-eval hotpix`` streaming an IBISCape DVS folder (count + write the filtered folder).
+
+Run::
+
+    .venv/bin/python benchmarks/bench_hotpix.py                       # 5e7 in memory, 1e7 streamed
+    .venv/bin/python benchmarks/bench_hotpix.py --n-events 1e8 --stream-events 1e9 --tmp /tmp
+
+The streamed folder is generated with the synthetic builder under ``--tmp`` (~13 bytes per
+event on disk, twice: input and filtered output) and deleted afterwards.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).parent))
+from _runner import run  # noqa: E402
+
+from ibiscape_eval.core.events import Events  # noqa: E402
+from ibiscape_eval.events import (  # noqa: E402
+    count_events,
+    filter_events,
+    hot_pixel_mask,
+    hot_pixels_from_counts,
+    synthetic_windows,
+)
+
+os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+SENSOR = (1024, 1024)  # IBISCape's DVS resolution
+
+
+def best_of(fn: Callable[[], object], repeat: int) -> float:
+    """Best CPU time (process_time: this process only, robust on a shared machine)."""
+    fn()  # warm-up (numba compile / page faults)
+    times = []
+    for _ in range(repeat):
+        t0 = time.process_time()
+        fn()
+        times.append(time.process_time() - t0)
+    return min(times)
+
+
+def make_stream(n_events: int, seed: int = 0) -> tuple[Events, np.ndarray]:
+    rate = 1e7  # events per second, as in the paper's recordings
+    hot, windows = synthetic_windows(
+        sensor_size=SENSOR, duration_s=n_events / rate, window_s=0.05, edge_rate_hz=0.9 * rate,
+        noise_rate_hz=0.02 * rate / (SENSOR[0] * SENSOR[1]), n_hot=200,
+        hot_rate_hz=0.08 * rate / 200, seed=seed,
+    )
+    parts = [e for _, _, e in windows]
+    return Events.concatenate(parts), hot
+
+
+def in_memory(n_events: int, repeat: int) -> None:
+    t0 = time.process_time()
+    ev, planted = make_stream(n_events)
+    n = len(ev)
+    print(f"in memory: {n:,} events on a {SENSOR[0]}x{SENSOR[1]} sensor "
+          f"(generated in {time.process_time() - t0:.1f} s), best of {repeat}, one core")
+    w, h = SENSOR
+    x, y, t, p = ev.x, ev.y, ev.t_ns, ev.p
+    hot = hot_pixels_from_counts(count_events(x, y, sensor_size=SENSOR), top_n=200).pixels
+
+    def np_count() -> np.ndarray:
+        return np.bincount(y.astype(np.int64) * w + x, minlength=w * h)
+
+    hot_bool = np.zeros(w * h, bool)
+    hot_bool[hot[:, 1] * w + hot[:, 0]] = True
+
+    def np_mask() -> np.ndarray:
+        return ~hot_bool[y.astype(np.int64) * w + x]
+
+    def np_filter() -> tuple[np.ndarray, ...]:
+        m = np_mask()
+        return t[m], x[m], y[m], p[m]
+
+    def np_both() -> object:
+        np_count()
+        return np_filter()
+
+    def ib_count() -> np.ndarray:
+        return count_events(x, y, sensor_size=SENSOR)
+
+    def ib_mask() -> np.ndarray:
+        return hot_pixel_mask(x, y, hot, sensor_size=SENSOR)
+
+    def ib_filter() -> Events:
+        return filter_events(ev, hot, sensor_size=SENSOR)
+
+    def ib_both() -> object:
+        ib_count()
+        return ib_filter()
+
+    # same answers
+    assert np.array_equal(np_count(), ib_count().ravel())
+    assert np.array_equal(np_mask(), ib_mask())
+    fe = ib_filter()
+    tn, xn, yn, pn = np_filter()
+    assert np.array_equal(fe.t_ns, tn) and np.array_equal(fe.x, xn) and np.array_equal(fe.p, pn)
+    print(f"  planted hot pixels found by top-200: {len({tuple(r) for r in planted} & {tuple(r) for r in hot})}/200; "
+          f"discarded {100 * (1 - len(fe) / n):.2f} %")
+    rows = [
+        ("count (per-pixel histogram)", np_count, ib_count),
+        ("keep-mask", np_mask, ib_mask),
+        ("filter (t, x, y, p compaction)", np_filter, ib_filter),
+        ("count + filter", np_both, ib_both),
+    ]
+    print(f"  {'step':32s} {'numpy Mev/s':>12s} {'ibiscape Mev/s':>15s} {'RATIO':>7s}")
+    for name, a, b in rows:
+        ta, tb = best_of(a, repeat), best_of(b, repeat)
+        print(f"  {name:32s} {n / ta / 1e6:12.0f} {n / tb / 1e6:15.0f} {ta / tb:6.1f}x")
+
+
+def streamed(n_events: int, tmp_root: Path) -> None:
+    from ibiscape_eval.io.events import _Writer
+
+    usage = shutil.disk_usage(tmp_root)
+    need = int(n_events * 13 * 2.1)
+    if usage.free < need:
+        n_fit = int(usage.free / (13 * 2.2))
+        print(f"streaming: only {usage.free / 1e9:.1f} GB free under {tmp_root}, {need / 1e9:.1f} GB "
+              f"needed; using {n_fit:,} events instead of {n_events:,}")
+        n_events = n_fit
+    work = Path(tempfile.mkdtemp(prefix="bench_hotpix_", dir=tmp_root))
+    try:
+        src = work / "davisL"
+        t0 = time.perf_counter()
+        rate = 1e7
+        _, windows = synthetic_windows(
+            sensor_size=SENSOR, duration_s=n_events / rate, window_s=0.05, edge_rate_hz=0.9 * rate,
+            noise_rate_hz=0.02 * rate / (SENSOR[0] * SENSOR[1]), n_hot=200,
+            hot_rate_hz=0.08 * rate / 200, seed=1,
+        )
+        wr = _Writer(src, "ibiscape", None)
+        for a, b, e in windows:
+            wr.add(e, (a, b, Path(f"{a}.npz")))
+        wr.commit()
+        size_gb = sum(f.stat().st_size for f in (src / "events").iterdir()) / 1e9
+        print(f"streaming: {wr.n:,} events in {len(list((src / 'events').iterdir()))} windows, "
+              f"{size_gb:.1f} GB (written in {time.perf_counter() - t0:.0f} s)")
+        exe = str(Path(sys.executable).with_name("ibiscape-eval"))
+        r = run([exe, "hotpix", str(src), "--sensor-size", f"{SENSOR[0]}x{SENSOR[1]}",
+                 "--n-sigma", "5", "--filtered-out", str(work / "davisL_filtered"), "--json"])
+        if not r.ok:
+            print(f"  hotpix failed with exit {r.returncode}")
+            return
+        import json
+
+        doc = json.loads(r.stdout)
+        print(f"  {'command':40s} {'wall s':>8s} {'Mev/s':>7s} {'peak RSS MB':>12s} {'data GB':>8s}")
+        print(f"  {'hotpix (count + filtered folder)':40s} {r.wall_s:8.1f} "
+              f"{wr.n / r.wall_s / 1e6:7.1f} {r.peak_mb:12.0f} {size_gb:8.1f}")
+        print(f"  hot pixels {doc['n_hot_pixels']}, discarded {100 * doc['fraction_discarded']:.2f} %; "
+              f"peak memory / data size = {r.peak_mb / 1e3 / size_gb:.3f}")
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--n-events", type=float, default=5e7, help="in-memory stream size")
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--stream-events", type=float, default=1e7, help="streamed folder size (0: skip)")
+    ap.add_argument("--tmp", type=Path, default=Path(tempfile.gettempdir()))
+    a = ap.parse_args()
+    in_memory(int(a.n_events), a.repeat)
+    if a.stream_events > 0:
+        streamed(int(a.stream_events), a.tmp)
+
+
+if __name__ == "__main__":
+    main()
