@@ -11,9 +11,9 @@ calibration tool reported (its table ``imuvalues``), so that we can see whether 
 import math
 
 import numpy as np
+from ibiscape_eval.sim.noise import imu_noise
 
 from ibiscape_eval import allan_deviation, fit_noise_model
-from ibiscape_eval.sim.noise import imu_noise
 
 rate_hz = 100.0
 hours = 3.0
@@ -37,10 +37,10 @@ for a, n, k in zip(model.axes, N_true, K_true, strict=True):
           if a.white_range_s and a.walk_range_s else f"{a.name}: {a.notes}")
 
 # %% plot: curves, one-sigma bands, the two fitted lines and their read-off points
-import matplotlib  # noqa: E402
+import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.pyplot as plt
 
 fig, axs = plt.subplots(1, 2, figsize=(11, 4.5), constrained_layout=True)
 for j, a in enumerate(model.axes):
