@@ -18,7 +18,11 @@ def _msgs(ts, msgtype, stamps_ns, pos, quat_xyzw, frame="map", child="base_link"
     Transform = ts.types["geometry_msgs/msg/Transform"]
     TransformStamped = ts.types["geometry_msgs/msg/TransformStamped"]
     for t, p, q in zip(stamps_ns, pos, quat_xyzw, strict=True):
-        hdr = Header(stamp=Time(sec=int(t) // 10**9, nanosec=int(t) % 10**9), frame_id=frame)
+        stamp = Time(sec=int(t) // 10**9, nanosec=int(t) % 10**9)
+        if "seq" in Header.__dataclass_fields__:  # ROS 1
+            hdr = Header(seq=0, stamp=stamp, frame_id=frame)
+        else:
+            hdr = Header(stamp=stamp, frame_id=frame)
         pose = Pose(position=Point(x=float(p[0]), y=float(p[1]), z=float(p[2])),
                     orientation=Quaternion(x=float(q[0]), y=float(q[1]), z=float(q[2]),
                                            w=float(q[3])))
@@ -55,6 +59,11 @@ def write_bag(path: Path, ros: int, topics: dict[str, tuple[str, np.ndarray, np.
         from rosbags.rosbag1 import Writer as W1
 
         ts = get_typestore(Stores.ROS1_NOETIC)
+        if "tf2_msgs/msg/TFMessage" not in ts.types:
+            from rosbags.typesys import get_types_from_msg
+
+            ts.register(get_types_from_msg("geometry_msgs/TransformStamped[] transforms",
+                                           "tf2_msgs/msg/TFMessage"))
         with W1(path) as w:
             for topic, (msgtype, st, pos, q) in topics.items():
                 conn = w.add_connection(topic, msgtype, typestore=ts)
