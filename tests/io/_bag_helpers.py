@@ -56,7 +56,7 @@ def write_bag(path: Path, ros: int, topics: dict[str, tuple[str, np.ndarray, np.
               np.ndarray]]) -> Path:
     """Write ``{topic: (msgtype, stamps_ns, pos, quat_xyzw)}``; receive time = stamp + 1 ms."""
     if ros == 1:
-        from rosbags.rosbag1 import Writer as W1
+        from rosbags.rosbag1 import Writer as Writer1
 
         ts = get_typestore(Stores.ROS1_NOETIC)
         if "tf2_msgs/msg/TFMessage" not in ts.types:
@@ -64,16 +64,16 @@ def write_bag(path: Path, ros: int, topics: dict[str, tuple[str, np.ndarray, np.
 
             ts.register(get_types_from_msg("geometry_msgs/TransformStamped[] transforms",
                                            "tf2_msgs/msg/TFMessage"))
-        with W1(path) as w:
+        with Writer1(path) as w:
             for topic, (msgtype, st, pos, q) in topics.items():
                 conn = w.add_connection(topic, msgtype, typestore=ts)
                 for t, msg in _msgs(ts, msgtype, st, pos, q):
                     w.write(conn, int(t) + 1_000_000, ts.serialize_ros1(msg, msgtype))
     else:
-        from rosbags.rosbag2 import Writer as W2
+        from rosbags.rosbag2 import Writer as Writer2
 
         ts = get_typestore(Stores.ROS2_HUMBLE)
-        with W2(path, version=8) as w:
+        with Writer2(path, version=8) as w:
             for topic, (msgtype, st, pos, q) in topics.items():
                 conn = w.add_connection(topic, msgtype, typestore=ts)
                 for t, msg in _msgs(ts, msgtype, st, pos, q):

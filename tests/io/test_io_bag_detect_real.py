@@ -7,14 +7,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _bag_helpers import write_bag
+from _io_helpers import assert_same_poses, require_data, trajectories
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from ibiscape_eval.core.errors import FormatError
 from ibiscape_eval.io import detect_trajectory_format, read_trajectory, write_trajectory
-
-from _bag_helpers import write_bag
-from _io_helpers import assert_same_poses, require_data, trajectories
 
 MSGTYPES = ["geometry_msgs/msg/PoseStamped", "geometry_msgs/msg/PoseWithCovarianceStamped",
             "geometry_msgs/msg/TransformStamped", "nav_msgs/msg/Odometry"]

@@ -53,7 +53,7 @@ def write_like_scripts(path, t_s, pos, vel, acc, ypr_deg, angvel_deg_s):
                                          strict=True):
         q = scripts_quaternion(np.radians(y), np.radians(pi), np.radians(r))
         vals = [*p, *v, *a, *q, *np.radians(w)]
-        rows.append("%f," % (t * 1e9) + ",".join("%21.21f" % x for x in vals) + " \n")
+        rows.append("%f," % (t * 1e9) + ",".join("%21.21f" % x for x in vals) + " \n")  # noqa: UP031 (the scripts' own format)
     path.write_text("".join(rows))
 
 

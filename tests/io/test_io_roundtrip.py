@@ -5,6 +5,7 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
+from _io_helpers import assert_same_poses, trajectories
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -18,8 +19,6 @@ from ibiscape_eval.io import (
     write_ibiscape_groundtruth,
     write_trajectory,
 )
-
-from _io_helpers import assert_same_poses, trajectories
 
 SETTINGS = settings(max_examples=40, deadline=None,
                     suppress_health_check=[HealthCheck.function_scoped_fixture])
