@@ -409,12 +409,6 @@ def read_events(path: str | os.PathLike[str], *, fmt: str | None = None) -> Even
 # ------------------------------------------------------------------------------------------
 
 
-def _save_npz(path: Path, ev: Events) -> None:
-    with atomic_output_path(path) as tmp, open(tmp, "wb") as f:
-        np.savez(f, t=np.asarray(ev.t_ns, np.int64), x=np.asarray(ev.x, np.uint16),
-                 y=np.asarray(ev.y, np.uint16), p=np.asarray(ev.p, np.bool_))
-
-
 def _text_bytes(ev: Events) -> bytes:
     from ibiscape_eval.events import _kernels
 
@@ -697,16 +691,22 @@ def write_frames_png(
     import cv2
 
     out = Path(out_dir)
+    created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     rows = []
-    for a, b, frame in frames:
-        name = f"{b}.png"
-        with atomic_output_path(out / name) as tmp:
-            if not cv2.imwrite(str(tmp), to_uint8(frame)):
-                raise IbiscapeError(f"{out / name}: could not write the PNG image")
-        rows.append(f"{a}, {b}, {name} \n")
-        if progress is not None:
-            progress(1)
+    try:
+        for a, b, frame in frames:
+            name = f"{b}.png"
+            with atomic_output_path(out / name) as tmp:
+                if not cv2.imwrite(str(tmp), to_uint8(frame)):
+                    raise IbiscapeError(f"{out / name}: could not write the PNG image")
+            rows.append(f"{a}, {b}, {name} \n")
+            if progress is not None:
+                progress(1)
+    except BaseException:
+        if created and not any(out.iterdir()):
+            out.rmdir()  # a failure before the first frame leaves nothing behind
+        raise
     with atomic_write(out / "timestamps.csv") as f:
         f.write("#timestamp_start [ns], timestamp_end [ns], filename\n")
         f.writelines(rows)
