@@ -245,7 +245,7 @@ def test_text_syntax_errors_name_the_line(tmp_path):
 def test_not_a_zip_npz(tmp_path):
     path = tmp_path / "a.npz"
     path.write_bytes(b"garbage")
-    with pytest.raises(FormatError, match="not a readable .npz"):
+    with pytest.raises(FormatError, match=r"not a readable \.npz"):
         read_events(path)
     assert not zipfile.is_zipfile(path)
 
