@@ -108,5 +108,8 @@ def finish_trajectory(
     """Apply the shared rules and build the :class:`Trajectory`."""
     finite = finite & np.isfinite(pos_m).all(axis=1) & np.isfinite(quat_xyzw).all(axis=1)
     keep = check_rows(path, stamps_ns, finite, lines, where=where, stacklevel=5)
+    if keep.size == stamps_ns.size:  # the usual case: no copies of the whole table
+        return Trajectory(stamps_ns, pos_m, check_quaternions(path, quat_xyzw, lines, where=where),
+                          name)
     quat = check_quaternions(path, quat_xyzw[keep], lines[keep], where=where)
     return Trajectory(stamps_ns[keep], pos_m[keep], quat, name)
