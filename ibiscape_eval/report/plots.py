@@ -126,14 +126,17 @@ def plot_drift(path: str | os.PathLike[str], doc: dict[str, Any], *, title: str)
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     labels = [f"{v:.0f}" for v in lengths]
     axes[0].bar(labels, np.asarray(doc["translation_pct"], dtype=float), color="tab:red")
-    axes[0].axhline(doc["mean_translation_pct"], color="k", ls="--", lw=1, label="average")
+    means = (doc["mean_translation_pct"], doc["mean_rotation_deg_per_m"])
+    for ax, mean in zip(axes, means, strict=True):
+        if mean is not None and np.isfinite(mean):  # no segment fits: nothing to average
+            ax.axhline(mean, color="k", ls="--", lw=1, label="average")
     axes[0].set_ylabel("translation error [%]")
     axes[1].bar(labels, np.asarray(doc["rotation_deg_per_m"], dtype=float), color="tab:purple")
-    axes[1].axhline(doc["mean_rotation_deg_per_m"], color="k", ls="--", lw=1, label="average")
     axes[1].set_ylabel("rotation error [deg/m]")
     for ax in axes:
         ax.set_xlabel("segment length [m]")
-        ax.legend(fontsize=8)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=8)
         ax.grid(alpha=0.3, axis="y")
     fig.suptitle(title)
     fig.tight_layout()

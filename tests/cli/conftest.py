@@ -7,12 +7,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _cli_data import write_tum
 from click.testing import CliRunner, Result
-
 from ibiscape_eval.cli.main import cli
-
-SHARED = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "trajectories"
-EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "data"
 
 
 @pytest.fixture
@@ -21,12 +18,6 @@ def run_cli() -> Callable[..., Result]:
         return CliRunner().invoke(cli, [str(a) for a in args], catch_exceptions=False)
 
     return run
-
-
-def write_tum(path: Path, stamps_s: np.ndarray, pos: np.ndarray, quat: np.ndarray) -> Path:
-    rows = np.column_stack([stamps_s, pos, quat])
-    np.savetxt(path, rows, fmt="%.9f")
-    return path
 
 
 @pytest.fixture
