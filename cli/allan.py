@@ -122,7 +122,9 @@ def allan(imu: str, fmt: str | None, columns: str | None, units: str | None, ros
         with atomic_write(csv_path) as fh:
             res.to_frame().to_csv(fh, index=False, float_format="%.10g", lineterminator="\n")
     if plot_path:
-        _plot(res, model, plot_path, title=imu)
+        from ibiscape_eval.report.plots import plot_allan
+
+        plot_allan(plot_path, res, model, title=str(imu))
 
     gyro = [model[n] for n in rec.names[:3]]
     acc = [model[n] for n in rec.names[3:]]
@@ -203,43 +205,3 @@ def _table(model: Any, rate_hz: float) -> None:
     click.echo(f"(uncertainties one sigma; sigma/sample = N*sqrt({rate_hz:.6g} Hz))")
 
 
-def _plot(res: Any, model: Any, path: str, *, title: str) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    import numpy as np
-
-    from ibiscape_eval.imu import BIAS_INSTABILITY_FACTOR
-    from ibiscape_eval.io._atomic import atomic_output_path
-
-    fig, axs = plt.subplots(1, 2, figsize=(12, 5), constrained_layout=True)
-    t = res.taus_s
-    for g, (ax, unit) in enumerate(zip(axs, ("rad/s", "m/s^2"), strict=True)):
-        for j in range(3 * g, min(3 * g + 3, len(res.names))):
-            a = model.axes[j]
-            (line,) = ax.loglog(t, res.adev[:, j], lw=1.5, label=a.name)
-            c = line.get_color()
-            ax.fill_between(t, res.adev_lo[:, j], res.adev_hi[:, j], color=c, alpha=0.15, lw=0)
-            if math.isfinite(a.noise_density):
-                ax.loglog(t, a.noise_density / np.sqrt(t), "--", color=c, lw=0.8)
-                ax.plot([1.0], [a.noise_density], "o", color=c, ms=6)
-            if math.isfinite(a.random_walk):
-                ax.loglog(t, a.random_walk * np.sqrt(t / 3.0), ":", color=c, lw=1.0)
-                ax.plot([3.0], [a.random_walk], "s", color=c, ms=6)
-            if math.isfinite(a.bias_instability):
-                ax.plot([a.bias_tau_s], [a.bias_instability * BIAS_INSTABILITY_FACTOR], "^",
-                        color=c, ms=7)
-        lo = np.nanmin(res.adev_lo[:, 3 * g : 3 * g + 3])
-        hi = np.nanmax(res.adev_hi[:, 3 * g : 3 * g + 3])
-        ax.set_ylim(lo / 2, hi * 2)
-        ax.set_xlabel("tau [s]")
-        ax.set_ylabel(f"Allan deviation [{unit}]")
-        ax.set_title(("gyroscope", "accelerometer")[g])
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(title="-- N line (o at 1 s), : K line (s at 3 s), ^ 0.664 B", fontsize=8,
-                  title_fontsize=8)
-    fig.suptitle(f"Overlapping Allan deviation: {title}")
-    with atomic_output_path(path) as tmp:
-        fig.savefig(tmp)
-    plt.close(fig)

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import shlex
+import shutil
 import subprocess
 import sys
 import time
@@ -105,8 +106,104 @@ def trajectories(out: Path) -> None:
     sh("ate", DATA / "V102.txt", DATA / "V102_groundtruth.csv", "--align", "sim3", "--json")
 
 
+def imu(out: Path) -> None:
+    banner(
+        "2. IMU noise from the Allan deviation (generated still IMU, 2 h at 200 Hz, known truth)"
+    )
+    import numpy as np
+
+    from ibiscape_eval.io.imu import write_imu_csv
+    from ibiscape_eval.sim.noise import imu_noise
+
+    rate_hz, hours = 200.0, 2.0
+    # Continuous-time densities (Kalibr's convention): gyro N [rad/s/sqrt(Hz)], K [rad/s^2/sqrt(Hz)],
+    # accel N [m/s^2/sqrt(Hz)], K [m/s^3/sqrt(Hz)]. The gyro N is CARLA's per-sample 0.004 rad/s.
+    n_true = np.array([2.83e-4] * 3 + [4.95e-3] * 3)
+    k_true = np.array([7.0e-5] * 3 + [1.26e-3] * 3)
+    n = int(hours * 3600 * rate_hz)
+    samples = imu_noise(
+        n,
+        rate_hz,
+        noise_density=n_true,
+        random_walk=k_true,
+        bias0=[0.001, -0.002, 0.0005, 0.05, -0.03, 9.81],
+        seed=7,
+    )
+    stamps_ns = 1_600_000_000_000_000_000 + np.arange(n, dtype=np.int64) * int(1e9 / rate_hz)
+    path = out / "imu_still.csv"
+    write_imu_csv(path, stamps_ns, samples[:, :3], samples[:, 3:])
+    print(
+        f"generated {path} ({n:,} samples); truth: gyro N {n_true[0]:.3g} K {k_true[0]:.3g}, "
+        f"accel N {n_true[3]:.3g} K {k_true[3]:.3g}"
+    )
+    sh(
+        "allan",
+        path,
+        "--yaml",
+        out / "imu.yaml",
+        "--plot",
+        out / "allan.png",
+        "--csv",
+        out / "allan_curves.csv",
+    )
+    print((out / "imu.yaml").read_text())
+
+
+def events(out: Path) -> None:
+    banner(
+        "3. DVS hot pixels (generated 1024x1024 stream with 40 planted hot pixels, IBISCape layout)"
+    )
+    from ibiscape_eval.events import synthetic_events
+    from ibiscape_eval.io.events import write_events, write_hot_pixels
+
+    # The IBISCape DVS resolution; a moving edge, background activity, and hot pixels firing at
+    # rates that rain and fog produce in CARLA's DVS.
+    s = synthetic_events(
+        sensor_size=(1024, 1024),
+        duration_s=2.0,
+        edge_rate_hz=5_000_000,
+        noise_rate_hz=1.0,
+        n_hot=40,
+        hot_rate_hz=3000.0,
+        seed=3,
+    )
+    write_events(out / "davisL", s.events, fmt="ibiscape")
+    write_hot_pixels(out / "planted_hot_pixels.txt", s.hot_pixels)
+    print(
+        f"generated {out / 'davisL'}: {len(s.events):,} events, 40 planted hot pixels "
+        f"(listed in {out / 'planted_hot_pixels.txt'})"
+    )
+    sh(
+        "hotpix",
+        out / "davisL",
+        "--n-sigma",
+        "5",
+        "--hot-out",
+        out / "hot_pixels.txt",
+        "--filtered-out",
+        out / "davisL_filtered",
+        "--plot",
+        out / "hotpix.png",
+    )
+    found = (out / "hot_pixels.txt").read_text().split("\n")
+    planted = (out / "planted_hot_pixels.txt").read_text().split("\n")
+    same = sorted(filter(None, found)) == sorted(filter(None, planted))
+    print(f"detected set equals the planted set: {same}")
+    sh(
+        "events",
+        "frames",
+        out / "davisL_filtered",
+        "--out",
+        out / "event_frames",
+        "--rate-hz",
+        "10",
+    )
+
+
 STEPS: list[tuple[str, Callable[[Path], None]]] = [
     ("trajectories", trajectories),
+    ("imu", imu),
+    ("events", events),
 ]
 
 
@@ -117,15 +214,23 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=Path("demo-output"))
     ap.add_argument("--only", choices=[name for name, _ in STEPS], default=None)
     args = ap.parse_args()
+    marker = args.out / ".ibiscape-demo"
+    if args.out.exists() and any(args.out.iterdir()):
+        if not marker.exists():
+            raise SystemExit(f"{args.out} exists and is not a demo output folder; choose another --out")
+        shutil.rmtree(args.out)  # a previous demo run: start afresh
     args.out.mkdir(parents=True, exist_ok=True)
+    marker.touch()
     t0 = time.perf_counter()
     for name, step in STEPS:
         if args.only in (None, name):
             step(args.out)
     banner(f"demo finished in {time.perf_counter() - t0:.1f} s; figures and files in {args.out}/")
-    for p in sorted(args.out.rglob("*")):
-        if p.is_file():
-            print(f"  {p}")
+    for p in sorted(args.out.iterdir()):
+        if p.is_dir():
+            print(f"  {p}/  ({sum(1 for q in p.rglob('*') if q.is_file())} files)")
+        else:
+            print(f"  {p}  ({p.stat().st_size / 1e3:,.0f} kB)")
 
 
 if __name__ == "__main__":

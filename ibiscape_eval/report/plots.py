@@ -16,7 +16,7 @@ from ibiscape_eval.io._atomic import atomic_output_path
 if TYPE_CHECKING:
     from ibiscape_eval.core.trajectory import Trajectory
 
-__all__ = ["plot_drift", "plot_trajectory_errors"]
+__all__ = ["plot_allan", "plot_drift", "plot_trajectory_errors"]
 
 
 def _pyplot() -> Any:
@@ -140,4 +140,63 @@ def plot_drift(path: str | os.PathLike[str], doc: dict[str, Any], *, title: str)
         ax.grid(alpha=0.3, axis="y")
     fig.suptitle(title)
     fig.tight_layout()
+    _save(fig, path)
+
+
+def plot_allan(path: str | os.PathLike[str], res: Any, model: Any, *, title: str) -> None:
+    """Log-log Allan deviation of the gyro and accelerometer axes with one-sigma bands, the fitted
+    slope -1/2 (N) and +1/2 (K) lines and their read-off points (N at 1 s, K at 3 s, and the bias
+    instability B at the curve minimum, drawn as 0.664 B).
+
+    ``res`` is an :class:`~ibiscape_eval.imu.AllanResult`, ``model`` its
+    :class:`~ibiscape_eval.imu.NoiseModel`.
+    """
+    import math
+
+    from ibiscape_eval.imu import BIAS_INSTABILITY_FACTOR
+
+    plt = _pyplot()
+
+    fig, axs = plt.subplots(1, 2, figsize=(12, 5), constrained_layout=True)
+    t = res.taus_s
+    for g, (ax, unit) in enumerate(zip(axs, ("rad/s", "m/s^2"), strict=True)):
+        for j in range(3 * g, min(3 * g + 3, len(res.names))):
+            a = model.axes[j]
+            (line,) = ax.loglog(t, res.adev[:, j], lw=1.5, label=a.name)
+            c = line.get_color()
+            ax.fill_between(t, res.adev_lo[:, j], res.adev_hi[:, j], color=c, alpha=0.15, lw=0)
+            if math.isfinite(a.noise_density):
+                ax.loglog(t, a.noise_density / np.sqrt(t), "--", color=c, lw=0.8)
+                ax.plot([1.0], [a.noise_density], "o", color=c, ms=6)
+            if math.isfinite(a.random_walk):
+                ax.loglog(t, a.random_walk * np.sqrt(t / 3.0), ":", color=c, lw=1.0)
+                ax.plot([3.0], [a.random_walk], "s", color=c, ms=6)
+            if math.isfinite(a.bias_instability):
+                ax.plot(
+                    [a.bias_tau_s],
+                    [a.bias_instability * BIAS_INSTABILITY_FACTOR],
+                    "^",
+                    color=c,
+                    ms=7,
+                )
+        # y range: the curves with their bands and every read-off point, so none is clipped
+        marks = [
+            v
+            for a in model.axes[3 * g : 3 * g + 3]
+            for v in (a.noise_density, a.random_walk)
+            if math.isfinite(v) and v > 0
+        ]
+        lo = min([float(np.nanmin(res.adev_lo[:, 3 * g : 3 * g + 3])), *marks])
+        hi = max([float(np.nanmax(res.adev_hi[:, 3 * g : 3 * g + 3])), *marks])
+        ax.set_ylim(lo / 2, hi * 2)
+        ax.set_xlabel("tau [s]")
+        ax.set_ylabel(f"Allan deviation [{unit}]")
+        ax.set_title(("gyroscope", "accelerometer")[g])
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(
+            title="-- N line (o at 1 s), : K line (s at 3 s), ^ 0.664 B",
+            fontsize=8,
+            title_fontsize=8,
+        )
+    fig.suptitle(f"Overlapping Allan deviation: {title}")
     _save(fig, path)
