@@ -29,9 +29,9 @@ from _runner import run
 
 def part1(n: int = 10_000_000, rate: float = 200.0) -> None:
     import allantools
-    from ibiscape_eval.sim.noise import imu_noise
 
     from ibiscape_eval.imu import allan_deviation
+    from ibiscape_eval.sim.noise import imu_noise
 
     y = imu_noise(n, rate, noise_density=0.004 / np.sqrt(rate), random_walk=1e-4, seed=1)[:, 0]
     taus = np.logspace(0, np.log10(n / 4), 100) / rate
@@ -55,9 +55,8 @@ def part1(n: int = 10_000_000, rate: float = 200.0) -> None:
 
 
 def part2(hours: float = 168.0, rate: float = 200.0) -> None:
-    from ibiscape_eval.sim.noise import imu_noise_chunks
-
     from ibiscape_eval.io.imu import write_imu_npy
+    from ibiscape_eval.sim.noise import imu_noise_chunks
 
     n = int(hours * 3600 * rate)
     N = [2.8e-4, 2.8e-4, 2.8e-4, 5e-3, 5e-3, 5e-3]

@@ -11,9 +11,9 @@ calibration tool reported (its table ``imuvalues``), so that we can see whether 
 import math
 
 import numpy as np
-from ibiscape_eval.sim.noise import imu_noise
 
 from ibiscape_eval import allan_deviation, fit_noise_model
+from ibiscape_eval.sim.noise import imu_noise
 
 rate_hz = 100.0
 hours = 3.0

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from _cli_data import write_tum
 from click.testing import CliRunner, Result
+
 from ibiscape_eval.cli.main import cli
 
 

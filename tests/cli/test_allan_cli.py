@@ -7,9 +7,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from ibiscape_eval.sim.noise import imu_noise
 
 from ibiscape_eval.io.imu import read_kalibr_imu_yaml, write_imu_csv
+from ibiscape_eval.sim.noise import imu_noise
 
 N_TRUE = [1e-3, 1e-3, 1e-3, 2e-2, 2e-2, 2e-2]
 K_TRUE = [2e-4, 2e-4, 2e-4, 4e-3, 4e-3, 4e-3]

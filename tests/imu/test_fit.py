@@ -6,10 +6,10 @@ import math
 
 import numpy as np
 import pytest
-from ibiscape_eval.sim.noise import imu_noise
 
 from ibiscape_eval.core.errors import IbiscapeError
 from ibiscape_eval.imu import BIAS_INSTABILITY_FACTOR, allan_deviation, fit_noise_model
+from ibiscape_eval.sim.noise import imu_noise
 
 NAMES = ("w_x", "w_y", "w_z", "a_x", "a_y", "a_z")
 N_TRUE = np.array([1.0e-3, 2.0e-3, 5.0e-4, 2.0e-2, 3.0e-2, 5.0e-2])

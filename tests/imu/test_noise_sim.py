@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from ibiscape_eval.sim.noise import imu_noise, imu_noise_chunks
 
 
