@@ -42,7 +42,7 @@ def convert(
     """Convert the trajectory SRC into DST (written atomically).
 
     IBISCape files are converted between CARLA's left-handed frame and the right-handed frame used
-    everywhere else; a KITTI DST gets a times file beside it (DST with suffix .times.txt).
+    everywhere else; a KITTI DST gets its stamps in a times file beside it (``gt.txt`` -> ``gt.times.txt``).
 
     \b
     Examples:
@@ -57,5 +57,6 @@ def convert(
     traj = read_trajectory(
         src, src_fmt, topic=topic, times_path=None if times is None else str(times)
     )
-    write_trajectory(dst, traj, dst_fmt)
-    info(f"wrote {len(traj)} poses to {dst} ({dst_fmt})")
+    times = dst.with_name(dst.stem + ".times.txt") if dst_fmt == "kitti" else None
+    write_trajectory(dst, traj, dst_fmt, times_path=times)
+    info(f"wrote {len(traj)} poses to {dst} ({dst_fmt})" + (f" and their stamps to {times}" if times else ""))
