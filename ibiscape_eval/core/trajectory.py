@@ -19,12 +19,24 @@ if TYPE_CHECKING:
 __all__ = ["Trajectory"]
 
 
-def _frozen(a: np.ndarray) -> np.ndarray:
-    """A read-only contiguous array; copies writeable input so the caller's array stays untouched."""
-    if a.flags.writeable or not a.flags.c_contiguous:
+def _frozen(a: np.ndarray, *, owned: bool = False) -> np.ndarray:
+    """A read-only contiguous array; copies writeable input so the caller's array stays untouched
+    (``owned``: ``a`` was made here, nobody else holds it, so no copy is needed)."""
+    if owned and a.flags.c_contiguous:
+        a.flags.writeable = False
+    elif a.flags.writeable or not a.flags.c_contiguous:
         a = np.array(a, order="C", copy=True)
         a.flags.writeable = False
     return a
+
+
+def _finite_sum(a: np.ndarray) -> bool:
+    with np.errstate(over="ignore", invalid="ignore"):
+        return bool(np.isfinite(a.sum()))
+
+
+#: Quaternions whose norm is this close to 1 (and with w >= 0) are not normalised again.
+_UNIT_TOL = 1e-12
 
 
 @dataclass(frozen=True, eq=False)
@@ -67,7 +79,11 @@ class Trajectory:
                 f"trajectory {self.name!r}: expected stamps (N,), pos (N, 3), quat (N, 4); got "
                 f"{stamps.shape}, {pos.shape}, {quat.shape}"
             )
-        if not (np.isfinite(pos).all() and np.isfinite(quat).all()):
+        # A finite sum proves every value finite (one pass, no temporary); only an overflow or
+        # a real NaN/inf takes the exact test.
+        if not (_finite_sum(pos) or np.isfinite(pos).all()) or not (
+            _finite_sum(quat) or np.isfinite(quat).all()
+        ):
             bad = int(np.flatnonzero(~(np.isfinite(pos).all(1) & np.isfinite(quat).all(1)))[0])
             raise IbiscapeError(f"trajectory {self.name!r}: pose {bad} is not finite")
         if n > 1:
@@ -78,17 +94,22 @@ class Trajectory:
                     f"trajectory {self.name!r}: timestamps must increase strictly, "
                     f"pose {i + 1} ({stamps[i + 1]} ns) follows {stamps[i]} ns"
                 )
-        norms = np.linalg.norm(quat, axis=1)
-        if n and (np.abs(norms - 1.0) > 1e-3).any():
-            i = int(np.flatnonzero(np.abs(norms - 1.0) > 1e-3)[0])
+        norms = np.sqrt(np.einsum("ij,ij->i", quat, quat))
+        off = np.abs(norms - 1.0)
+        if n and (off > 1e-3).any():
+            i = int(np.flatnonzero(off > 1e-3)[0])
             raise IbiscapeError(
                 f"trajectory {self.name!r}: quaternion {i} has norm {norms[i]:.6g}, "
                 "expected a unit quaternion"
             )
-        quat = quat_normalize(quat) if n else quat
+        # Already unit with w >= 0 (e.g. from a reader): kept as given, not divided again.
+        owned = False
+        if n and not ((off <= _UNIT_TOL).all() and not (quat[:, 3] < 0.0).any()):
+            quat = quat_normalize(quat)
+            owned = True
         object.__setattr__(self, "stamps_ns", _frozen(stamps))
         object.__setattr__(self, "pos_m", _frozen(pos))
-        object.__setattr__(self, "quat_xyzw", _frozen(quat))
+        object.__setattr__(self, "quat_xyzw", _frozen(quat, owned=owned))
 
     # -- construction -----------------------------------------------------------------------
     @classmethod

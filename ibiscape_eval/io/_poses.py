@@ -26,6 +26,7 @@ from ._text import format_lines
 __all__ = ["QUAT_NORM_TOL", "check_rows", "finish_trajectory"]
 
 QUAT_NORM_TOL = 1e-3
+_FUSED_MIN_ROWS = 10_000  # from this size on the usual case is checked by one numba pass
 
 
 def check_rows(
@@ -41,7 +42,12 @@ def check_rows(
 
     Warns about skipped non-finite rows and duplicates; raises on decreasing timestamps.
     """
-    keep = np.flatnonzero(finite)
+    if finite.all():
+        keep = np.arange(finite.size)
+        st = stamps_ns
+    else:
+        keep = np.flatnonzero(finite)
+        st = stamps_ns[keep]
     if keep.size < finite.size:
         bad = lines[~finite]
         warnings.warn(
@@ -51,7 +57,6 @@ def check_rows(
         )
     if keep.size == 0:
         raise FormatError(path, "no valid rows: every row has NaN/inf values")
-    st = stamps_ns[keep]
     d = np.diff(st)
     if (d < 0).any():
         i = int(np.flatnonzero(d < 0)[0])
@@ -80,8 +85,13 @@ def check_quaternions(
     lines: npt.NDArray[np.int64],
     *,
     where: str = "line",
+    canonical: bool = False,
 ) -> npt.NDArray[np.float64]:
-    """Unit quaternions (any layout, one per row); raises for a norm further than 1e-3 from 1."""
+    """Unit quaternions (any layout, one per row); raises for a norm further than 1e-3 from 1.
+
+    With ``canonical`` the layout must be x, y, z, w and the sign is chosen so that w >= 0 (the
+    :class:`Trajectory` convention), in the same single division.
+    """
     norms = np.sqrt(np.einsum("ij,ij->i", quat, quat))
     bad = np.abs(norms - 1.0) > QUAT_NORM_TOL
     if bad.any():
@@ -91,7 +101,24 @@ def check_quaternions(
         if where == "line":
             raise FormatError(path, msg, line=int(lines[i]))
         raise FormatError(path, f"{where} {lines[i]}: {msg}")
+    if canonical:
+        np.negative(norms, out=norms, where=quat[:, 3] < 0.0)
     return quat / norms[:, None]
+
+
+def _all_finite(a: npt.NDArray[np.float64]) -> bool:
+    """Whether every value is finite; a finite sum (one pass, no temporary) proves it."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        if np.isfinite(a.sum()):
+            return True
+    return bool(np.isfinite(a).all())
+
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    """A read-only view of an array this module made: the :class:`Trajectory` keeps it as is."""
+    v = a.view()
+    v.flags.writeable = False
+    return v
 
 
 def finish_trajectory(
@@ -106,10 +133,24 @@ def finish_trajectory(
     where: str = "line",
 ) -> Trajectory:
     """Apply the shared rules and build the :class:`Trajectory`."""
-    finite = finite & np.isfinite(pos_m).all(axis=1) & np.isfinite(quat_xyzw).all(axis=1)
+    if stamps_ns.size > _FUSED_MIN_ROWS:
+        from ._text_kernels import pose_rows
+
+        pos, quat, all_finite, increasing, bad = pose_rows(
+            stamps_ns, pos_m, quat_xyzw, finite, QUAT_NORM_TOL)
+        if all_finite and increasing and bad < 0:
+            # The usual file, checked in one pass: every row kept, nothing to report.
+            return Trajectory(_read_only(stamps_ns), _read_only(pos), _read_only(quat), name)
+        del pos, quat  # otherwise the checks below give the warning or the error
+    if not (finite.all() and _all_finite(pos_m) and _all_finite(quat_xyzw)):
+        finite = finite & np.isfinite(pos_m).all(axis=1) & np.isfinite(quat_xyzw).all(axis=1)
     keep = check_rows(path, stamps_ns, finite, lines, where=where, stacklevel=5)
     if keep.size == stamps_ns.size:  # the usual case: no copies of the whole table
-        return Trajectory(stamps_ns, pos_m, check_quaternions(path, quat_xyzw, lines, where=where),
-                          name)
-    quat = check_quaternions(path, quat_xyzw[keep], lines[keep], where=where)
-    return Trajectory(stamps_ns[keep], pos_m[keep], quat, name)
+        quat = check_quaternions(path, quat_xyzw, lines, where=where, canonical=True)
+        pos = pos_m if pos_m.flags.c_contiguous else np.ascontiguousarray(pos_m)
+    else:
+        quat = check_quaternions(path, quat_xyzw[keep], lines[keep], where=where, canonical=True)
+        stamps_ns, pos = stamps_ns[keep], pos_m[keep]
+    # Read-only arrays are taken over by the Trajectory without another copy; the quaternions
+    # are already unit with w >= 0, so it does not normalise them again.
+    return Trajectory(_read_only(stamps_ns), _read_only(pos), _read_only(quat), name)

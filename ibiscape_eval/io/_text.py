@@ -15,10 +15,12 @@ to int64 nanoseconds without passing through float64 (which cannot hold 1.3e9 s 
 
 from __future__ import annotations
 
+import itertools
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO
+from typing import IO, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -28,6 +30,10 @@ from ibiscape_eval.core.errors import FormatError
 __all__ = ["Table", "decimal_to_ns", "format_lines", "parse_table", "read_bytes", "write_table"]
 
 _NCOLS, _NOTNUM, _NUL = 1, 2, 3  # status codes of the tokenizer
+_NOT_BLANK = re.compile(rb"[^ \t\n\r\x0b\x0c]")  # what bytes.strip() would keep
+_HEAD_BYTES = 1 << 16  # parsed first, alone: the header lines of a file
+_PARALLEL_BYTES = 4 << 20  # inputs above this are tokenized in parallel threads
+_MAX_THREADS = 4
 _POW10_INT = np.array([10**k for k in range(19)], dtype=np.int64)
 _INT64_MAX = np.iinfo(np.int64).max
 
@@ -57,6 +63,80 @@ def read_bytes(path: str | os.PathLike[str]) -> bytes:
         return f.read()
 
 
+def _is_blank(data: bytes) -> bool:
+    """True when ``data`` holds nothing but ASCII whitespace (stops at the first other byte)."""
+    return _NOT_BLANK.search(data) is None
+
+
+def _workers() -> int:
+    try:
+        n = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):  # pragma: no cover (not Linux)
+        n = os.cpu_count() or 1
+    return max(1, min(n, _MAX_THREADS))
+
+
+class _Pool:
+    """Runs one call per piece: the first in the calling thread, the others in worker threads."""
+
+    def __init__(self, n: int) -> None:
+        self._ex = None
+        if n > 1:
+            from concurrent.futures import ThreadPoolExecutor
+
+            self._ex = ThreadPoolExecutor(n - 1)
+
+    def __enter__(self) -> _Pool:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._ex is not None:
+            self._ex.shutdown()
+
+    def map(self, func: Any, args: list[tuple[Any, ...]]) -> list[Any]:
+        if self._ex is None:
+            return [func(*a) for a in args]
+        futures = [self._ex.submit(func, *a) for a in args[1:]]
+        first = func(*args[0])
+        return [first, *(f.result() for f in futures)]
+
+
+def _split(data: bytes, start: int, stop: int, parts: int) -> list[int]:
+    """Boundaries ``start = b0 < b1 < ... = stop``, each just after a newline (``data[stop - 1]``
+    is one), cutting ``data[start:stop]`` into at most ``parts`` pieces of similar size."""
+    bounds = [start]
+    for k in range(1, parts):
+        cut = data.find(b"\n", start + (stop - start) * k // parts, stop) + 1
+        if cut > bounds[-1] and cut < stop:
+            bounds.append(cut)
+    bounds.append(stop)
+    return bounds
+
+
+def _status_error(
+    path: str | os.PathLike[str], status: npt.NDArray[np.int64], text: bytes, expected: str
+) -> FormatError:
+    """The :class:`FormatError` described by a tokenizer ``status`` (``text``: its buffer)."""
+    code, line = int(status[0]), int(status[1])
+    if code == _NUL:
+        return FormatError(path, "binary data (NUL byte); expected a text file", line=line)
+    if code == _NOTNUM:
+        col = int(status[2])
+        raw = text[int(status[3]):int(status[4])]
+        token = raw.decode("utf-8", errors="backslashreplace")
+        printable = all(32 <= b < 127 for b in raw)
+        if not printable:
+            return FormatError(
+                path, f"column {col}: binary or non-text data {token[:20]!r}; expected a text "
+                f"file with {expected}", line=line)
+        if len(token) > 40:
+            token = token[:37] + "..."
+        return FormatError(path, f"column {col}: {token!r} is not a number", line=line)
+    got = int(status[5])
+    return FormatError(path, f"expected {expected}, got {got} column{'s' * (got != 1)}",
+                       line=line)
+
+
 def parse_table(
     path: str | os.PathLike[str],
     data: bytes,
@@ -67,6 +147,9 @@ def parse_table(
     expected: str,
 ) -> Table:
     """Tokenize ``data`` (the content of ``path``) into a :class:`Table`.
+
+    Large inputs are cut at line boundaries and the pieces are tokenized in parallel threads
+    (the numba kernels release the GIL); the first error in file order is reported.
 
     Parameters
     ----------
@@ -83,35 +166,49 @@ def parse_table(
     FormatError
         Empty file, header only, wrong column count, a non-numeric field, binary content.
     """
-    if not data.strip():
+    if _is_blank(data):
         raise FormatError(path, f"file is empty; expected {expected}")
-    from ._text_kernels import scan
+    from ._text_kernels import count_newlines, move_rows, scan_lines
 
     buf = np.frombuffer(data, dtype=np.uint8)
-    nrows, vals, mant, exps, finite, lines, status = scan(buf, nkeep, ncols_min, ncols_max)
-    code, line = int(status[0]), int(status[1])
-    if code == _NUL:
-        raise FormatError(path, "binary data (NUL byte); expected a text file", line=line)
-    if code == _NOTNUM:
-        col = int(status[2])
-        raw = data[int(status[3]):int(status[4])]
-        token = raw.decode("utf-8", errors="backslashreplace")
-        printable = all(32 <= b < 127 for b in raw)
-        if not printable:
-            raise FormatError(
-                path, f"column {col}: binary or non-text data {token[:20]!r}; expected a text file "
-                f"with {expected}", line=line)
-        if len(token) > 40:
-            token = token[:37] + "..."
-        raise FormatError(path, f"column {col}: {token!r} is not a number", line=line)
-    if code == _NCOLS:
-        got = int(status[5])
-        raise FormatError(path, f"expected {expected}, got {got} column{'s' * (got != 1)}",
-                          line=line)
-    if nrows == 0:
+    body = data.rfind(b"\n") + 1  # the kernels need each piece to end with a newline
+    # The small head (a header, usually) is parsed first, so that the parallel pieces after it
+    # can be written in place: they only move when a comment or blank line sits between them.
+    head = data.find(b"\n", min(_HEAD_BYTES, body - 1)) + 1 if body else 0
+    workers = _workers() if body - head >= _PARALLEL_BYTES else 1
+    pieces = list(itertools.pairwise(_split(data, head, body, workers)))
+    with _Pool(len(pieces)) as pool:
+        counts = pool.map(count_newlines, [(buf, a, b) for a, b in pieces])
+        n_head = count_newlines(buf, 0, head)
+        cap = n_head + sum(counts) + (body < len(data))
+        out = (np.empty((cap, nkeep)), np.empty(cap, dtype=np.int64),
+               np.empty(cap, dtype=np.int32), np.empty(cap, dtype=np.bool_),
+               np.empty(cap, dtype=np.int64))  # values, mantissa, exponent, finite, line
+        status = np.zeros((len(pieces) + 2, 6), dtype=np.int64)
+        rows = scan_lines(buf, 0, head, nkeep, ncols_min, ncols_max, 0, 0, *out, status[0])
+        if status[0, 0]:
+            raise _status_error(path, status[0], data, expected)
+        line0 = np.cumsum([n_head, *counts])  # lines before each piece
+        row0 = rows + line0 - n_head  # where each piece writes its rows
+        ends = pool.map(scan_lines, [
+            (buf, a, b, nkeep, ncols_min, ncols_max, int(line0[k]), int(row0[k]), *out,
+             status[k + 1]) for k, (a, b) in enumerate(pieces)])
+    for k, end in enumerate(ends):
+        if status[k + 1, 0]:
+            raise _status_error(path, status[k + 1], data, expected)
+        if row0[k] > rows:  # a comment or blank line left a gap before this piece
+            move_rows(*out, int(row0[k]), rows, end - int(row0[k]))
+        rows += end - int(row0[k])
+    if body < len(data):  # a last line without a newline
+        tail = data[body:] + b"\n"
+        rows = scan_lines(np.frombuffer(tail, dtype=np.uint8), 0, len(tail), nkeep, ncols_min,
+                          ncols_max, int(line0[-1]), rows, *out, status[-1])
+        if status[-1, 0]:
+            raise _status_error(path, status[-1], tail, expected)
+    if rows == 0:
         raise FormatError(path, f"no data rows (only comments or a header); expected {expected}")
-    return Table(vals[:nrows], mant[:nrows], exps[:nrows], finite[:nrows].copy(),
-                 lines[:nrows])
+    vals, mant, exps, finite, lines = (a[:rows] for a in out)
+    return Table(vals, mant, exps, finite, lines)
 
 
 def decimal_to_ns(
@@ -123,6 +220,16 @@ def decimal_to_ns(
     rounded half away from zero.  Non-finite stamps give 0 (their rows are dropped later).
     """
     mant = table.stamp_mant
+    if mant.size and 0 <= int(table.stamp_exp[0]) + unit_exp <= 18:
+        # The usual file: every stamp written with the same number of decimals.
+        e0 = int(table.stamp_exp[0])
+        if bool((table.stamp_exp == e0).all()):
+            p0 = int(_POW10_INT[e0 + unit_exp])
+            if p0 == 1:
+                return mant.copy()
+            lim = _INT64_MAX // p0
+            if int(mant.max()) <= lim and int(mant.min()) >= -lim:
+                return mant * p0
     shift = table.stamp_exp.astype(np.int64) + unit_exp
     out = np.zeros(mant.shape, dtype=np.int64)
     up = shift >= 0

@@ -112,62 +112,153 @@ def parse_number(buf, s, e):
     return True, v, mant, exp10, np.isfinite(v)
 
 
+_NL8 = np.uint64(0x0A0A0A0A0A0A0A0A)
+_LOW7 = np.uint64(0x7F7F7F7F7F7F7F7F)
+_EVEN = np.uint64(0x00FF00FF00FF00FF)
+_SUM16 = np.uint64(0x0001000100010001)
+_U7, _U8, _U48 = np.uint64(7), np.uint64(8), np.uint64(48)
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
-def scan(buf, nkeep, ncols_min, ncols_max):
-    n = buf.shape[0]
-    nmax = 1
-    for k in range(n):
-        if buf[k] == 10:
-            nmax += 1
-    vals = np.empty((nmax, nkeep))
-    mant = np.zeros(nmax, dtype=np.int64)
-    exps = np.zeros(nmax, dtype=np.int32)
-    finite = np.ones(nmax, dtype=np.bool_)
-    lines = np.empty(nmax, dtype=np.int64)
-    status = np.zeros(6, dtype=np.int64)  # code, line, column, token start, token end, ncols
-    i = 0
-    line = 0
-    row = 0
-    while i < n:
+def count_newlines(buf, start, stop):
+    """Number of ``\\n`` bytes in ``buf[start:stop]``, eight bytes per step."""
+    k = 0
+    i = start
+    while i < stop and i & 7:
+        k += buf[i] == 10
+        i += 1
+    nw = (stop - i) >> 3
+    if nw > 0:
+        words = buf[i:i + 8 * nw].view(np.uint64)
+        acc = np.uint64(0)  # eight byte-wide counters
+        for j in range(nw):
+            x = words[j] ^ _NL8  # a zero byte where there was a newline
+            acc += ~(((x & _LOW7) + _LOW7) | x | _LOW7) >> _U7
+            if (j & 127) == 127:  # flush before a byte counter can overflow
+                acc = (acc & _EVEN) + ((acc >> _U8) & _EVEN)
+                k += np.int64((acc * _SUM16) >> _U48)
+                acc = np.uint64(0)
+        acc = (acc & _EVEN) + ((acc >> _U8) & _EVEN)
+        k += np.int64((acc * _SUM16) >> _U48)
+    for j in range(i + 8 * nw, stop):
+        k += buf[j] == 10
+    return k
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def token_end(buf, i, status, line):
+    """End of the token starting at ``i`` (a separator, newline or ``#``); -1 on a NUL byte."""
+    c = buf[i]
+    while not (c == 32 or c == 44 or c == 10 or c == 9 or c == 13 or c == 35):
+        if c == 0:
+            status[0] = _NUL
+            status[1] = line
+            return -1
+        i += 1
+        c = buf[i]
+    return i
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def scan_lines(buf, start, stop, nkeep, ncols_min, ncols_max, line0, row0,
+               vals, mant, exps, finite, lines, status):
+    """Parse the lines of ``buf[start:stop]`` into rows ``row0, row0 + 1, ...`` of the outputs.
+
+    ``buf[stop - 1]`` must be a newline (so no loop needs a bounds check: every loop stops at
+    it).  Lines are numbered from ``line0 + 1``.  Returns the index after the last row written;
+    on an error ``status`` holds code, line, column, token start, token end, column count.
+
+    Tokens of the form ``[+-]digits[.digits]`` (at most 19 significant digits, the usual case)
+    are converted while they are scanned; anything else goes through :func:`parse_number`, and
+    both give the same bits.
+    """
+    if start < 0 or stop > buf.shape[0]:  # (also lets the compiler drop index wraparound)
+        return row0
+    i = start
+    line = line0
+    row = row0
+    while i < stop:
         line += 1
         col = 0
-        while i < n:  # one line, single pass over its bytes
-            c = buf[i]
+        fin = True
+        m1 = np.int64(0)
+        e1 = 0
+        c = buf[i]
+        while True:
+            while c == 32 or c == 9 or c == 44 or c == 13:
+                i += 1
+                c = buf[i]
             if c == 10:
                 break
             if c == 35:  # '#': comment to the end of the line
-                while i < n and buf[i] != 10:
+                while c != 10:
                     i += 1
+                    c = buf[i]
                 break
-            if c == 32 or c == 44 or c == 9 or c == 13:
-                i += 1
-                continue
-            s = i
-            while i < n:
-                c = buf[i]
-                if c == 32 or c == 44 or c == 10 or c == 9 or c == 13 or c == 35:
-                    break
-                if c == 0:
-                    status[0] = _NUL
-                    status[1] = line
-                    return 0, vals, mant, exps, finite, lines, status
-                i += 1
             col += 1
-            if col <= nkeep:
-                ok, v, m, ex, fin = parse_number(buf, s, i)
+            s = i
+            if col > nkeep:  # counted, not converted
+                i = token_end(buf, i, status, line)
+                if i < 0:
+                    return row
+                c = buf[i]
+                continue
+            # fast path: [+-]digits[.digits] ended by a separator
+            neg = c == 45
+            if c == 45 or c == 43:
+                i += 1
+                c = buf[i]
+            m = np.int64(0)
+            big = False
+            d0 = i
+            while 48 <= c <= 57:
+                if m <= MANT_LIMIT:
+                    m = m * 10 + (c - 48)
+                else:
+                    big = True
+                i += 1
+                c = buf[i]
+            ndig = i - d0
+            nfrac = 0
+            if c == 46:  # '.'
+                i += 1
+                c = buf[i]
+                d0 = i
+                while 48 <= c <= 57:
+                    if m <= MANT_LIMIT:
+                        m = m * 10 + (c - 48)
+                    else:
+                        big = True
+                    i += 1
+                    c = buf[i]
+                nfrac = i - d0
+                ndig += nfrac
+            if (ndig > 0 and not big and nfrac <= 22
+                    and (c == 32 or c == 9 or c == 44 or c == 10 or c == 13 or c == 35)):
+                v = m / EXACT_POW[nfrac]
+                if neg:
+                    v = -v
+                    m = -m
+                ex = -nfrac
+            else:  # exponent, nan/inf, a long mantissa or not a number: the general parser
+                i = token_end(buf, s, status, line)
+                if i < 0:
+                    return row
+                c = buf[i]
+                ok, v, m, ex, vfin = parse_number(buf, s, i)
                 if not ok:
                     status[0] = _NOTNUM
                     status[1] = line
                     status[2] = col
                     status[3] = s
                     status[4] = i
-                    return 0, vals, mant, exps, finite, lines, status
-                vals[row, col - 1] = v
-                if not fin:
-                    finite[row] = False
-                if col == 1:
-                    mant[row] = m
-                    exps[row] = ex
+                    return row
+                if not vfin:
+                    fin = False
+            vals[row, col - 1] = v
+            if col == 1:
+                m1 = m
+                e1 = ex
         i += 1  # past the newline
         if col == 0:
             continue
@@ -175,10 +266,65 @@ def scan(buf, nkeep, ncols_min, ncols_max):
             status[0] = _NCOLS
             status[1] = line
             status[5] = col
-            return 0, vals, mant, exps, finite, lines, status
+            return row
+        mant[row] = m1
+        exps[row] = e1
+        finite[row] = fin
         lines[row] = line
         row += 1
-    return row, vals, mant, exps, finite, lines, status
+    return row
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def move_rows(vals, mant, exps, finite, lines, src, dst, count):
+    """Move ``count`` rows from ``src`` down to ``dst <= src`` (in place, front to back)."""
+    k = vals.shape[1]
+    for r in range(count):
+        a = src + r
+        b = dst + r
+        for j in range(k):
+            vals[b, j] = vals[a, j]
+        mant[b] = mant[a]
+        exps[b] = exps[a]
+        finite[b] = finite[a]
+        lines[b] = lines[a]
+
+
+# -- poses ------------------------------------------------------------------------------------
+@njit(cache=True, nogil=True, error_model="numpy")
+def pose_rows(stamps, pos, quat, finite, tol):
+    """One pass over the poses of a table (see ``_poses.finish_trajectory``).
+
+    Returns contiguous positions, unit quaternions with w >= 0 (the :class:`Trajectory`
+    convention), and whether every row is finite, whether the stamps increase strictly, and the
+    first row whose quaternion norm is further than ``tol`` from 1 (-1: none).
+    """
+    n = stamps.shape[0]
+    pos_out = np.empty((n, 3))
+    quat_out = np.empty((n, 4))
+    all_finite = True
+    increasing = True
+    bad = -1
+    for r in range(n):
+        if r > 0 and stamps[r] <= stamps[r - 1]:
+            increasing = False
+        x, y, z = pos[r, 0], pos[r, 1], pos[r, 2]
+        qx, qy, qz, qw = quat[r, 0], quat[r, 1], quat[r, 2], quat[r, 3]
+        if not (finite[r] and np.isfinite(x) and np.isfinite(y) and np.isfinite(z)
+                and np.isfinite(qx) and np.isfinite(qy) and np.isfinite(qz) and np.isfinite(qw)):
+            all_finite = False
+        norm = np.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
+        if bad < 0 and not abs(norm - 1.0) <= tol:
+            bad = r
+        d = -norm if qw < 0.0 else norm
+        pos_out[r, 0] = x
+        pos_out[r, 1] = y
+        pos_out[r, 2] = z
+        quat_out[r, 0] = qx / d
+        quat_out[r, 1] = qy / d
+        quat_out[r, 2] = qz / d
+        quat_out[r, 3] = qw / d
+    return pos_out, quat_out, all_finite, increasing, bad
 
 
 # -- writing -----------------------------------------------------------------------------------

@@ -60,7 +60,9 @@ def read_tum(path: str | os.PathLike[str], *, name: str | None = None) -> Trajec
     data = read_bytes(path)
     tb = parse_table(path, data, nkeep=8, ncols_min=8, ncols_max=8, expected=_EXPECTED)
     del data  # the raw bytes are no longer needed: lower peak memory
-    first = tb.values[np.flatnonzero(np.isfinite(tb.values[:, 0]))[:1], 0]
+    first = tb.values[:1, 0]
+    if not np.isfinite(first).all():
+        first = tb.values[np.flatnonzero(np.isfinite(tb.values[:, 0]))[:1], 0]
     unit_exp = 0 if first.size and abs(first[0]) > NS_STAMP_THRESHOLD else 9
     stamps = decimal_to_ns(path, tb, unit_exp=unit_exp)
     finite = tb.finite
