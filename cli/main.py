@@ -33,6 +33,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
         "Detect and remove DVS hot pixels (top-N and n-sigma criteria).",
     ),
     "events": ("events", "events", "Event-camera utilities: accumulation frames, time surfaces."),
+    "sim": ("sim", "sim", "Generate a synthetic IBISCape-layout sequence with exact ground truth."),
 }
 
 
