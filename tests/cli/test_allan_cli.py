@@ -28,7 +28,7 @@ def long_csv(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return _imu(tmp_path_factory.mktemp("allan") / "imu.csv", hours=6)
 
 
-def _one_error_line(res, *needles: str) -> None:  # type: ignore[no-untyped-def]
+def _one_error_line(res, *needles: str) -> None:
     assert res.exit_code == 2, res.output
     lines = [s for s in res.stderr.splitlines() if s.startswith("error:")]
     assert len(lines) == 1, res.stderr
@@ -37,7 +37,7 @@ def _one_error_line(res, *needles: str) -> None:  # type: ignore[no-untyped-def]
     assert "Traceback" not in res.output
 
 
-def test_all_outputs(run_cli, long_csv: Path, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+def test_all_outputs(run_cli, long_csv: Path, tmp_path: Path) -> None:
     out = tmp_path / "out"
     res = run_cli("allan", long_csv, "--yaml", out / "imu.yaml", "--csv", out / "c.csv",
                   "--plot", out / "adev.png", "--rostopic", "/imu0")
@@ -53,7 +53,7 @@ def test_all_outputs(run_cli, long_csv: Path, tmp_path: Path) -> None:  # type: 
     assert head.startswith("tau_s,m,n_terms,edf,adev_w_x,adev_lo_w_x,adev_hi_w_x")
 
 
-def test_json(run_cli, long_csv: Path) -> None:  # type: ignore[no-untyped-def]
+def test_json(run_cli, long_csv: Path) -> None:
     res = run_cli("allan", long_csv, "--json")
     assert res.exit_code == 0
     doc = json.loads(res.stdout)
@@ -66,7 +66,7 @@ def test_json(run_cli, long_csv: Path) -> None:  # type: ignore[no-untyped-def]
     assert doc["kalibr"]["gyroscope_random_walk"] == gyro_max
 
 
-def test_short_record_writes_curve_but_refuses_yaml(run_cli, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+def test_short_record_writes_curve_but_refuses_yaml(run_cli, tmp_path: Path) -> None:
     p = _imu(tmp_path / "short.csv", hours=0.1, rw=False)
     res = run_cli("allan", p, "--csv", tmp_path / "c.csv", "--yaml", tmp_path / "imu.yaml")
     _one_error_line(res, "imu.yaml not written", "random_walk")
@@ -92,7 +92,7 @@ def _broken(tmp_path: Path, line: int, text: str) -> Path:
         (14, "1600000000000000000,0.1,0.2,0.3,0.4,0.5,0.6", "not strictly increasing"),
     ],
 )
-def test_bad_rows(run_cli, tmp_path: Path, line: int, text: str, needle: str) -> None:  # type: ignore[no-untyped-def]
+def test_bad_rows(run_cli, tmp_path: Path, line: int, text: str, needle: str) -> None:
     p = _broken(tmp_path, line, text)
     res = run_cli("allan", p, "--yaml", tmp_path / "imu.yaml", "--csv", tmp_path / "c.csv",
                   "--plot", tmp_path / "a.png")
@@ -100,7 +100,7 @@ def test_bad_rows(run_cli, tmp_path: Path, line: int, text: str, needle: str) ->
     assert sorted(x.name for x in tmp_path.iterdir()) == ["imu.csv"]
 
 
-def test_large_gap_refused_unless_allowed(run_cli, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+def test_large_gap_refused_unless_allowed(run_cli, tmp_path: Path) -> None:
     n, rate = 20_000, 20.0
     y = imu_noise(n, rate, noise_density=N_TRUE, random_walk=K_TRUE, seed=3)
     t = np.arange(n, dtype=np.int64) * 50_000_000
@@ -113,7 +113,7 @@ def test_large_gap_refused_unless_allowed(run_cli, tmp_path: Path) -> None:  # t
     assert res.exit_code == 0 and (tmp_path / "c.csv").exists()
 
 
-def test_constant_axis(run_cli, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+def test_constant_axis(run_cli, tmp_path: Path) -> None:
     n = 5000
     y = imu_noise(n, 20.0, noise_density=N_TRUE, random_walk=0.0, seed=4)
     y[:, 4] = 0.0
@@ -123,14 +123,14 @@ def test_constant_axis(run_cli, tmp_path: Path) -> None:  # type: ignore[no-unty
     assert not (tmp_path / "a.png").exists()
 
 
-def test_unknown_units_missing_file_and_bad_range(run_cli, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+def test_unknown_units_missing_file_and_bad_range(run_cli, tmp_path: Path) -> None:
     p = _imu(tmp_path / "imu.csv", hours=0.05)
     _one_error_line(run_cli("allan", p, "--units", "gyro=rpm"), "unknown gyro unit 'rpm'")
     _one_error_line(run_cli("allan", tmp_path / "nope.csv"), "nope.csv", "no such file")
     _one_error_line(run_cli("allan", p, "--walk-range", "5"), "--walk-range")
 
 
-def test_npy_without_stamps_needs_rate(run_cli, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+def test_npy_without_stamps_needs_rate(run_cli, tmp_path: Path) -> None:
     np.save(tmp_path / "y.npy", imu_noise(5000, 20.0, noise_density=N_TRUE, random_walk=0.0, seed=5))
     _one_error_line(run_cli("allan", tmp_path / "y.npy"), "y.npy", "--rate-hz")
     res = run_cli("allan", tmp_path / "y.npy", "--rate-hz", "20", "--json")
@@ -138,6 +138,6 @@ def test_npy_without_stamps_needs_rate(run_cli, tmp_path: Path) -> None:  # type
     assert json.loads(res.stdout)["rate_hz"] == 20.0
 
 
-def test_help_has_an_example(run_cli) -> None:  # type: ignore[no-untyped-def]
+def test_help_has_an_example(run_cli) -> None:
     res = run_cli("allan", "--help")
     assert res.exit_code == 0 and "ibiscape-eval allan imu.csv" in res.output
