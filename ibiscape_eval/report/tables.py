@@ -11,9 +11,11 @@ _STAT_KEYS = ("rmse", "mean", "median", "std", "min", "max", "sse")
 
 
 def _fmt(v: float, width: int = 10) -> str:
+    # one separating blank, then the number in width - 1 characters (4 decimals while they fit)
+    w = width - 1
     if v is None or (isinstance(v, float) and math.isnan(v)):
-        return f"{'nan':>{width}}"
-    return f"{v:>{width}.4f}" if abs(v) < 1e5 else f"{v:>{width}.4g}"
+        return f" {'nan':>{w}}"
+    return f" {v:>{w}.4f}" if abs(v) < 10 ** (w - 5) else f" {v:>{w}.4g}"
 
 
 def format_header(doc: dict[str, Any], est_name: str, ref_name: str) -> str:
