@@ -1,0 +1,270 @@
+"""Calibration targets as Kalibr describes them: a 7x7 checkerboard and a 6x6 tag36h11 AprilGrid.
+
+Target frames (``T_world_target`` maps target coordinates to the world):
+
+- checkerboard: origin at inner corner 0, x along the columns, y along the rows, corners numbered
+  row-major (``index = row * targetCols + col``), OpenCV's object-point convention.  Seen from the
+  observer the x axis points right, y down, so the board normal z points *away* from the observer.
+- AprilGrid: Kalibr's numbering (``../shared/FORMATS.md``): corner (r, c) at
+  ``x = floor(c / 2) (1 + tagSpacing) tagSize + (c mod 2) tagSize`` (y likewise with r), numbered
+  row-major from the bottom-left corner of tag 0.  Kalibr prints the grid with y pointing *up* on the
+  page (tag 0 at the bottom left), so for a readable (non-mirrored) print z = x cross y points
+  *toward* the observer.  (A frame with z away from the observer would need a mirrored print, on
+  which no AprilTag detector finds a tag.)
+
+``texture(px_per_m)`` draws the printed face as seen by the observer (image row 0 at the top), and
+``texture_px_from_target`` maps target coordinates to texture pixels (OpenCV convention: pixel
+centres at integer coordinates), so a renderer can map the image onto the board.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ibiscape_eval.core.errors import IbiscapeError
+
+__all__ = ["Target", "make_target", "TARGET_KINDS"]
+
+FloatArray = npt.NDArray[np.float64]
+TARGET_KINDS = ("checkerboard", "aprilgrid")
+
+# Realistic sizes for a board seen from a car at 5-20 m with f = 512 px (a 0.5 m square is 13 px
+# wide at 20 m; a 0.4 m tag is 10 px = 1 px per code cell at 20 m and 4 px per cell at 5 m).
+CHECKER_SQUARE_M = 0.5
+CHECKER_INNER = 7
+APRIL_TAG_SIZE_M = 0.4
+APRIL_TAG_SPACING = 0.3
+APRIL_TAGS = 6
+_MARGIN_M = 0.3  # white quiet zone around the pattern
+
+
+@dataclass(frozen=True, eq=False)
+class Target:
+    """A planar calibration target placed in the world.
+
+    Attributes
+    ----------
+    target_type : str
+        ``"checkerboard"`` or ``"aprilgrid"``.
+    kalibr : dict
+        Kalibr's target yaml keys (``target_type`` included).
+    T_world_target : ndarray, shape (4, 4)
+    corners_target_m : ndarray, shape (M, 3)
+        Corner points in Kalibr's numbering, target frame, metres (z = 0).
+    board_min_m, board_max_m : ndarray, shape (2,)
+        Extent of the printed board (pattern plus white margin) in target x, y, metres.
+    z_toward_observer : bool
+        Whether the target z axis points toward the side the board is seen from.
+    """
+
+    target_type: str
+    kalibr: dict[str, Any]
+    T_world_target: FloatArray
+    corners_target_m: FloatArray
+    board_min_m: FloatArray
+    board_max_m: FloatArray
+    z_toward_observer: bool
+
+    @property
+    def board_size_m(self) -> FloatArray:
+        """Width and height of the printed board, metres."""
+        return self.board_max_m - self.board_min_m
+
+    @property
+    def centre_world_m(self) -> FloatArray:
+        """Centre of the corner pattern in the world, shape (3,)."""
+        c = self.corners_target_m.mean(axis=0)
+        return self.T_world_target[:3, :3] @ c + self.T_world_target[:3, 3]
+
+    @property
+    def observer_normal_world(self) -> FloatArray:
+        """Unit board normal pointing toward the side the printed face is seen from, shape (3,)."""
+        z = self.T_world_target[:3, 2]
+        return z if self.z_toward_observer else -z
+
+    def corners_world_m(self) -> FloatArray:
+        """Corner points in the world frame, shape (M, 3), metres."""
+        R, t = self.T_world_target[:3, :3], self.T_world_target[:3, 3]
+        return self.corners_target_m @ R.T + t
+
+    def texture_px_from_target(self, xy_m: npt.ArrayLike, px_per_m: float) -> FloatArray:
+        """Texture pixel coordinates ``(N, 2)`` (column, row) of target points ``(N, 2)``."""
+        xy = np.asarray(xy_m, dtype=np.float64).reshape(-1, 2)
+        col = (xy[:, 0] - self.board_min_m[0]) * px_per_m - 0.5
+        if self.z_toward_observer:  # y up as seen: rows grow with decreasing y
+            row = (self.board_max_m[1] - xy[:, 1]) * px_per_m - 0.5
+        else:
+            row = (xy[:, 1] - self.board_min_m[1]) * px_per_m - 0.5
+        return np.stack((col, row), -1)
+
+    def _target_xy_of_pixels(self, px_per_m: float) -> tuple[FloatArray, FloatArray]:
+        w, h = np.round(self.board_size_m * px_per_m).astype(int)
+        x = self.board_min_m[0] + (np.arange(w) + 0.5) / px_per_m
+        if self.z_toward_observer:
+            y = self.board_max_m[1] - (np.arange(h) + 0.5) / px_per_m
+        else:
+            y = self.board_min_m[1] + (np.arange(h) + 0.5) / px_per_m
+        return x, y
+
+    def texture(self, px_per_m: float) -> npt.NDArray[np.uint8]:
+        """The printed board as seen from the front, black (0) and white (255).
+
+        Parameters
+        ----------
+        px_per_m : float
+            Resolution; the AprilGrid needs at least 2 px per code cell (``tagSize / 10``).
+
+        Returns
+        -------
+        ndarray, shape (H, W), uint8
+        """
+        if not (px_per_m > 0.0 and np.isfinite(px_per_m)):
+            raise IbiscapeError(f"px_per_m must be > 0, got {px_per_m}")
+        x, y = self._target_xy_of_pixels(px_per_m)
+        X, Y = np.meshgrid(x, y)
+        if self.target_type == "checkerboard":
+            sx = self.kalibr["colSpacingMeters"]
+            sy = self.kalibr["rowSpacingMeters"]
+            i = np.floor(X / sx).astype(int)  # square index, -1 .. cols
+            j = np.floor(Y / sy).astype(int)
+            cols, rows = self.kalibr["targetCols"], self.kalibr["targetRows"]
+            on = (i >= -1) & (i <= cols - 1) & (j >= -1) & (j <= rows - 1)
+            black = on & ((i + j) % 2 == 0)
+            return np.where(black, 0, 255).astype(np.uint8)
+        return self._april_texture(X, Y, px_per_m)
+
+    def _april_texture(self, X: FloatArray, Y: FloatArray, px_per_m: float) -> npt.NDArray[np.uint8]:
+        import cv2
+
+        ts = self.kalibr["tagSize"]
+        gap = self.kalibr["tagSpacing"] * ts
+        pitch = ts + gap
+        n_r, n_c = self.kalibr["tagRows"], self.kalibr["tagCols"]
+        img = np.full(X.shape, 255, dtype=np.uint8)
+        # position inside the tag lattice
+        tc = np.floor((X + gap) / pitch).astype(int)
+        tr = np.floor((Y + gap) / pitch).astype(int)
+        ux = X - tc * pitch  # in [-gap, ts) : < 0 is the gap before the tag
+        uy = Y - tr * pitch
+        in_grid_x = (tc >= 0) & (tc <= n_c)
+        in_grid_y = (tr >= 0) & (tr <= n_r)
+        # black squares at every tag corner: gap x gap squares where both coordinates are in a gap
+        corner_sq = in_grid_x & in_grid_y & (ux < 0.0) & (uy < 0.0)
+        img[corner_sq] = 0
+        in_tag = (tc < n_c) & (tr < n_r) & (tc >= 0) & (tr >= 0) & (ux >= 0.0) & (uy >= 0.0)
+        dictionary = cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_APRILTAG_36h11)
+        codes = np.stack(
+            [
+                # 10 x 10 cells: 2-cell black border around the 6x6 code, drawn rotated by 180 deg
+                np.rot90(cv2.aruco.generateImageMarker(dictionary, k, 10, borderBits=2), 2)
+                for k in range(n_r * n_c)
+            ]
+        )
+        ids = tr * n_c + tc
+        # cell indices in the tag as seen (row 0 at the top = high y)
+        cell_c = np.clip(np.floor(ux / ts * 10.0).astype(int), 0, 9)
+        cell_r = np.clip(9 - np.floor(uy / ts * 10.0).astype(int), 0, 9)
+        if not self.z_toward_observer:  # pragma: no cover - the AprilGrid is always y-up
+            cell_r = 9 - cell_r
+        img[in_tag] = codes[ids[in_tag], cell_r[in_tag], cell_c[in_tag]]
+        return img
+
+    def to_dict(self) -> dict[str, Any]:
+        """Kalibr keys plus pose and board size, for ``sequence.yaml``."""
+        doc = dict(self.kalibr)
+        doc["T_world_target"] = self.T_world_target.tolist()
+        doc["board_size_m"] = [float(v) for v in self.board_size_m]
+        doc["corner_count"] = int(len(self.corners_target_m))
+        doc["z_toward_observer"] = bool(self.z_toward_observer)
+        return doc
+
+
+def _checker_corners(rows: int, cols: int, sy: float, sx: float) -> FloatArray:
+    r, c = np.divmod(np.arange(rows * cols), cols)
+    return np.stack((c * sx, r * sy, np.zeros(rows * cols)), -1)
+
+
+def aprilgrid_corners(tag_rows: int, tag_cols: int, tag_size_m: float, tag_spacing: float) -> FloatArray:
+    """Kalibr AprilGrid corner points ``(4 rows cols, 3)``, row-major from the bottom left."""
+    n_r, n_c = 2 * tag_rows, 2 * tag_cols
+    r, c = np.divmod(np.arange(n_r * n_c), n_c)
+    step = (1.0 + tag_spacing) * tag_size_m
+    x = (c // 2) * step + (c % 2) * tag_size_m
+    y = (r // 2) * step + (r % 2) * tag_size_m
+    return np.stack((x, y, np.zeros_like(x, dtype=np.float64)), -1).astype(np.float64)
+
+
+def make_target(kind: str, *, T_world_target: npt.ArrayLike) -> Target:
+    """A Kalibr target of the paper's layout (checkerboard 7x7 inner corners, AprilGrid 6x6).
+
+    Parameters
+    ----------
+    kind : str
+        ``"checkerboard"`` or ``"aprilgrid"``.
+    T_world_target : array_like, shape (4, 4)
+        Pose of the target frame (see the module docstring for the frame of each kind).
+
+    Returns
+    -------
+    Target
+    """
+    T = np.array(T_world_target, dtype=np.float64)
+    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+        raise IbiscapeError(f"T_world_target must be a finite 4x4 matrix, got shape {T.shape}")
+    R = T[:3, :3]
+    if not np.allclose(R @ R.T, np.eye(3), atol=1e-9) or np.linalg.det(R) < 0:
+        raise IbiscapeError("T_world_target's rotation is not a proper rotation matrix")
+    if kind == "checkerboard":
+        s, n = CHECKER_SQUARE_M, CHECKER_INNER
+        kalibr: dict[str, Any] = {
+            "target_type": "checkerboard",
+            "targetRows": n,
+            "targetCols": n,
+            "rowSpacingMeters": s,
+            "colSpacingMeters": s,
+        }
+        corners = _checker_corners(n, n, s, s)
+        lo = np.array([-s - _MARGIN_M, -s - _MARGIN_M])
+        hi = np.array([n * s + _MARGIN_M, n * s + _MARGIN_M])
+        return Target("checkerboard", kalibr, T, corners, lo, hi, False)
+    if kind == "aprilgrid":
+        ts, sp, n = APRIL_TAG_SIZE_M, APRIL_TAG_SPACING, APRIL_TAGS
+        kalibr = {
+            "target_type": "aprilgrid",
+            "tagRows": n,
+            "tagCols": n,
+            "tagSize": ts,
+            "tagSpacing": sp,
+        }
+        corners = aprilgrid_corners(n, n, ts, sp)
+        span = n * ts + (n - 1) * sp * ts
+        lo = np.full(2, -sp * ts - _MARGIN_M)
+        hi = np.full(2, span + sp * ts + _MARGIN_M)
+        return Target("aprilgrid", kalibr, T, corners, lo, hi, True)
+    raise IbiscapeError(f"target kind {kind!r} is unknown; use one of {TARGET_KINDS}")
+
+
+def board_pose(kind: str, centre_world_m: npt.ArrayLike, facing_yaw_rad: float) -> FloatArray:
+    """``T_world_target`` of an upright board whose printed face looks along ``facing_yaw_rad``.
+
+    The pattern's centre lands on ``centre_world_m``; ``facing_yaw_rad`` is the horizontal direction
+    from the board toward its observers.
+    """
+    f = np.array([np.cos(facing_yaw_rad), np.sin(facing_yaw_rad), 0.0])  # toward the observer
+    right = np.array([-np.sin(facing_yaw_rad), np.cos(facing_yaw_rad), 0.0])  # observer's right
+    up = np.array([0.0, 0.0, 1.0])
+    if kind == "checkerboard":
+        R = np.stack((right, -up, -f), axis=1)  # x right, y down, z away
+        centre_t = np.array([3.0, 3.0, 0.0]) * CHECKER_SQUARE_M
+    else:
+        R = np.stack((right, up, f), axis=1)  # x right, y up, z toward
+        span = APRIL_TAGS * APRIL_TAG_SIZE_M + (APRIL_TAGS - 1) * APRIL_TAG_SPACING * APRIL_TAG_SIZE_M
+        centre_t = np.array([0.5 * span, 0.5 * span, 0.0])
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = np.asarray(centre_world_m, dtype=np.float64) - R @ centre_t
+    return T
