@@ -1,0 +1,588 @@
+"""Simulator configuration: typed frozen dataclasses, presets mirroring the paper, YAML load/dump.
+
+Presets mirror the IBISCape paper's ``table:ibiscape_sequences``: a *setup* (``imu`` still IMU,
+``svi`` 2x RGB + IMU, ``esvi`` 2x DVS + 2x IMU (+ IMU0), ``rgbd``, ``full``), a *kind*
+(``calibration`` or ``slam``), a *weather* (``clear``, ``moderate``, ``dynamic``) and a *scenario*
+(``default`` or the SVI ``accident``: a short SLAM run ending in a hard stop behind an obstacle).
+
+Mounting (paper ``table:extrinsics``)
+-------------------------------------
+The paper lists "X, Y, Z translation to IMU0" as ``left RGB [0, 0.2, -2.8]``, ``GPS [0.2, 0, -2.8]``
+... .  Read in CARLA's frame (y right) as "IMU0 minus sensor" the GPS would sit behind the IMU,
+read as "sensor minus IMU0" the left camera would be on the right and 2.8 m below the car.  The only
+reading consistent with the labels (left/right), with cameras on the roof and with the GPS ahead is
+a frame x forward, y LEFT, z DOWN, so we map ``(x, y, z)_paper -> (x, y, -z)`` in our body frame
+(x forward, y left, z up): cameras 2.8 m above IMU0, left RGB at y = +0.2 m, GPS at x = +0.2 m.
+
+Cameras are pinhole, 1024 x 1024, 90 deg horizontal FOV: ``f = (w / 2) / tan(fov / 2) = 512`` px
+and, in OpenCV's convention where pixel centres sit at integer coordinates, the principal point
+at the image centre is ``c = ((w - 1) / 2, (h - 1) / 2) = (511.5, 511.5)``.  Camera frames are
+OpenCV's (z forward along body x, x right, y down); ``rpy_deg`` rotates that mount in the body.
+
+YAML
+----
+``load_config(path)`` reads a mapping: optional ``setup``/``kind``/``weather``/``scenario`` pick
+the preset, then every other key overrides it (``cameras`` and ``imus`` map a sensor name to the
+fields to change; a new name adds a sensor, ``null`` removes one).  Unknown keys are errors that
+name the key and the allowed ones.  ``dump_config(cfg)`` writes the full description with a comment
+per key; it loads back to the same config.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+from dataclasses import dataclass, field, fields, replace
+from typing import Any
+
+from ibiscape_eval.core.errors import FormatError, IbiscapeError
+
+__all__ = [
+    "KINDS",
+    "SCENARIOS",
+    "SETUPS",
+    "WEATHERS",
+    "CameraSpec",
+    "GnssSpec",
+    "ImuNoise",
+    "ImuSpec",
+    "MotionSpec",
+    "SimConfig",
+    "WeatherSpec",
+    "dump_config",
+    "load_config",
+    "preset",
+]
+
+SETUPS = ("imu", "svi", "esvi", "rgbd", "full")
+KINDS = ("calibration", "slam")
+WEATHERS = ("clear", "moderate", "dynamic")
+SCENARIOS = ("default", "accident")
+CAMERA_KINDS = ("rgb", "depth", "semantic", "dvs")
+TARGETS = ("checkerboard", "aprilgrid")
+CAM_HEIGHT_M = 2.8
+
+
+def _doc(text: str) -> Any:
+    return {"doc": text}
+
+
+@dataclass(frozen=True)
+class ImuNoise:
+    """IMU noise.  ``model: continuous`` uses Kalibr's continuous-time densities (white noise,
+    bias random walk) plus a constant turn-on bias drawn once per axis; ``model: carla`` uses
+    CARLA's per-sample sigmas (white only) and its constant gyro bias."""
+
+    model: str = field(default="continuous", metadata=_doc("continuous | carla"))
+    gyro_noise_density_rad_s_sqrt_hz: float = field(default=1.6968e-4, metadata=_doc(
+        "gyro white noise density N [rad/s/sqrt(Hz)] (Kalibr gyroscope_noise_density)"))
+    gyro_random_walk_rad_s2_sqrt_hz: float = field(default=1.9393e-5, metadata=_doc(
+        "gyro bias random walk K [rad/s^2/sqrt(Hz)] (Kalibr gyroscope_random_walk)"))
+    accel_noise_density_m_s2_sqrt_hz: float = field(default=2.0e-3, metadata=_doc(
+        "accelerometer white noise density [m/s^2/sqrt(Hz)]"))
+    accel_random_walk_m_s3_sqrt_hz: float = field(default=3.0e-3, metadata=_doc(
+        "accelerometer bias random walk [m/s^3/sqrt(Hz)]"))
+    gyro_turn_on_bias_sigma_rad_s: float = field(default=5.0e-4, metadata=_doc(
+        "sigma of the constant gyro turn-on bias, drawn once per axis [rad/s]"))
+    accel_turn_on_bias_sigma_m_s2: float = field(default=2.0e-2, metadata=_doc(
+        "sigma of the constant accelerometer turn-on bias [m/s^2]"))
+    carla_gyro_sigma_rad_s: float = field(default=0.004, metadata=_doc(
+        "carla model: gyro sigma per sample [rad/s]"))
+    carla_accel_sigma_m_s2: float = field(default=0.07, metadata=_doc(
+        "carla model: accelerometer sigma per sample [m/s^2]"))
+    carla_gyro_bias_rad_s: float = field(default=0.0, metadata=_doc(
+        "carla model: constant gyro bias on every axis [rad/s]"))
+
+
+@dataclass(frozen=True)
+class ImuSpec:
+    """One IMU: name (file ``other_sensors/<file>.csv``), mounting and rate."""
+
+    name: str = field(default="imu0", metadata=_doc("IMU name (imu0, imu1, ...)"))
+    position_m: tuple[float, float, float] = field(default=(0.0, 0.0, 0.0), metadata=_doc(
+        "position in the body frame (x fwd, y left, z up) [m]"))
+    rpy_deg: tuple[float, float, float] = field(default=(0.0, 0.0, 0.0), metadata=_doc(
+        "roll, pitch, yaw of the IMU axes in the body frame (ZYX) [deg]"))
+    rate_hz: float = field(default=200.0, metadata=_doc("sample rate [Hz]"))
+    mount: str = field(default="", metadata=_doc(
+        "housing name: sensors sharing a non-empty mount may coincide"))
+
+
+@dataclass(frozen=True)
+class CameraSpec:
+    """One camera (folder name = ``name``): pinhole, OpenCV frame, forward-looking mount."""
+
+    name: str = field(default="rgbL", metadata=_doc("folder name (rgbL, rgbR, depth, davisL ...)"))
+    kind: str = field(default="rgb", metadata=_doc("rgb | depth | semantic | dvs"))
+    position_m: tuple[float, float, float] = field(default=(0.0, 0.2, CAM_HEIGHT_M), metadata=_doc(
+        "optical centre in the body frame (x fwd, y left, z up) [m]"))
+    rpy_deg: tuple[float, float, float] = field(default=(0.0, 0.0, 0.0), metadata=_doc(
+        "extra roll, pitch, yaw (ZYX, body axes) of the forward-looking mount [deg]"))
+    width_px: int = field(default=1024, metadata=_doc("image width [px]"))
+    height_px: int = field(default=1024, metadata=_doc("image height [px]"))
+    fov_deg: float = field(default=90.0, metadata=_doc("horizontal field of view [deg]"))
+    rate_hz: float = field(default=20.0, metadata=_doc("frame rate [Hz]"))
+    mount: str = field(default="", metadata=_doc(
+        "housing name: sensors sharing a non-empty mount may coincide (RGB-D pair)"))
+
+    @property
+    def focal_px(self) -> float:
+        """``(w / 2) / tan(fov / 2)``; 512 px for 1024 px and 90 deg."""
+        return (self.width_px / 2.0) / math.tan(math.radians(self.fov_deg) / 2.0)
+
+    @property
+    def intrinsics(self) -> list[float]:
+        """Kalibr ``[fu, fv, pu, pv]``, pixel centres at integer coordinates."""
+        f = self.focal_px
+        return [f, f, (self.width_px - 1) / 2.0, (self.height_px - 1) / 2.0]
+
+
+@dataclass(frozen=True)
+class GnssSpec:
+    """GNSS receiver: antenna position, rate, noise and the WGS84 reference of the world origin.
+
+    The world frame is the local east-north-up frame at the reference (x east, y north, z up)."""
+
+    position_m: tuple[float, float, float] = field(default=(0.2, 0.0, CAM_HEIGHT_M), metadata=_doc(
+        "antenna position in the body frame [m]"))
+    rate_hz: float = field(default=1.0, metadata=_doc("fix rate [Hz] (1 slam, 10 calibration)"))
+    sigma_horizontal_m: float = field(default=0.5, metadata=_doc(
+        "white noise on east and north [m]"))
+    sigma_vertical_m: float = field(default=1.0, metadata=_doc("white noise on up [m]"))
+    ref_lat_deg: float = field(default=48.6270, metadata=_doc(
+        "latitude of the world origin (near the IBISC lab, Evry, France) [deg]"))
+    ref_lon_deg: float = field(default=2.4440, metadata=_doc("longitude of the world origin [deg]"))
+    ref_alt_m: float = field(default=80.0, metadata=_doc("WGS84 altitude of the world origin [m]"))
+    mount: str = field(default="", metadata=_doc("housing name"))
+
+
+@dataclass(frozen=True)
+class WeatherSpec:
+    """CARLA weather evolving in time: smooth seeded processes around the preset's means (the
+    process is centred over the sequence, so the means ARE the sequence averages before clipping
+    to 0..100), a shared "storm" component that couples clouds, rain, wind and fog, wetness and
+    puddles that lag the rain, and the sun along ``altitude = 70 sin(phase) - 20``."""
+
+    cloudiness: tuple[float, float] = field(default=(10.0, 5.0), metadata=_doc(
+        "mean, std of cloudiness [0..100]"))
+    precipitation: tuple[float, float] = field(default=(0.0, 0.0), metadata=_doc(
+        "mean, std of rain [0..100]"))
+    wind_intensity: tuple[float, float] = field(default=(10.0, 5.0), metadata=_doc(
+        "mean, std of wind [0..100]"))
+    fog_density: tuple[float, float] = field(default=(0.0, 0.0), metadata=_doc(
+        "mean, std of fog density [0..100]"))
+    storm_coupling: float = field(default=0.7, metadata=_doc(
+        "0..1 share of the common storm component in each parameter's fluctuation"))
+    correlation_time_s: float = field(default=20.0, metadata=_doc(
+        "time scale of the fluctuations [s]"))
+    deposit_lag_s: float = field(default=30.0, metadata=_doc(
+        "time constant of wetness and puddles following the rain [s]"))
+    sun_phase0_rad: float = field(default=1.5708, metadata=_doc(
+        "initial phase of the sun (altitude = 70 sin(phase) - 20) [rad]"))
+    sun_phase_rate_rad_s: float = field(default=0.002, metadata=_doc("phase speed [rad/s]"))
+    sun_azimuth0_deg: float = field(default=120.0, metadata=_doc("initial sun azimuth [deg]"))
+    sun_azimuth_rate_deg_s: float = field(default=0.25, metadata=_doc("azimuth speed [deg/s]"))
+
+
+@dataclass(frozen=True)
+class MotionSpec:
+    """What the world/motion planner gets."""
+
+    max_speed_m_s: float = field(default=10.0, metadata=_doc("speed limit of the route [m/s]"))
+    town_blocks: int = field(default=4, metadata=_doc("slam town: blocks per side"))
+    bumps: bool = field(default=True, metadata=_doc("bubbles and waves on the road"))
+    accident_decel_m_s2: float = field(default=6.0, metadata=_doc(
+        "accident scenario: mean deceleration of the hard stop [m/s^2]"))
+    accident_obstacle_gap_m: float = field(default=2.0, metadata=_doc(
+        "accident scenario: gap between the stopped car's front and the obstacle [m]"))
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Everything :func:`ibiscape_eval.sim.generate` needs (see the module docstring)."""
+
+    setup: str = field(default="svi", metadata=_doc("imu | svi | esvi | rgbd | full"))
+    kind: str = field(default="slam", metadata=_doc("calibration | slam"))
+    weather: str = field(default="clear", metadata=_doc("clear | moderate | dynamic"))
+    scenario: str = field(default="default", metadata=_doc("default | accident (svi slam)"))
+    duration_s: float = field(default=60.0, metadata=_doc("sequence duration [s]"))
+    seed: int = field(default=0, metadata=_doc("seed of every random process"))
+    target: str = field(default="checkerboard", metadata=_doc(
+        "calibration target driven toward: checkerboard | aprilgrid"))
+    ideal: bool = field(default=False, metadata=_doc("turn every sensor noise off"))
+    start_ns: int = field(default=1_000_000_000_000, metadata=_doc("first timestamp [ns]"))
+    gt_rate_hz: float = field(default=200.0, metadata=_doc("ground-truth rate [Hz]"))
+    housing_m: float = field(default=0.05, metadata=_doc(
+        "minimum distance between sensors in different housings [m]"))
+    still_format: str = field(default="csv", metadata=_doc(
+        "imu setup: IMU file format csv | npy (streamed in chunks)"))
+    chunk_samples: int = field(default=1 << 18, metadata=_doc(
+        "imu setup: samples per streamed chunk (bounded memory)"))
+    imu_noise: ImuNoise = field(default_factory=ImuNoise, metadata=_doc("IMU noise (all IMUs)"))
+    imus: tuple[ImuSpec, ...] = field(default=(ImuSpec(),), metadata=_doc("IMUs by name"))
+    cameras: tuple[CameraSpec, ...] = field(default=(), metadata=_doc("cameras by folder name"))
+    gnss: GnssSpec = field(default_factory=GnssSpec, metadata=_doc("GNSS receiver"))
+    weather_model: WeatherSpec = field(default_factory=WeatherSpec, metadata=_doc(
+        "weather process (set by the weather preset)"))
+    motion: MotionSpec = field(default_factory=MotionSpec, metadata=_doc("route and motion"))
+
+    def __post_init__(self) -> None:
+        validate(self)
+
+    @property
+    def setup_label(self) -> str:
+        """Folder prefix as the dataset names it (``SVI``, ``ESVI``, ``RGBD``, ``Full``, ``IMU``)."""
+        return {"imu": "IMU", "svi": "SVI", "esvi": "ESVI", "rgbd": "RGBD", "full": "Full"}[self.setup]
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain YAML-able description (sensors as name -> fields mappings)."""
+        return _to_plain(self)
+
+
+# ---------------------------------------------------------------------------------------------
+# validation
+
+
+def _positive(value: float, key: str) -> None:
+    if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+        raise IbiscapeError(f"config: {key} must be a positive number, got {value!r}")
+
+
+def _nonneg(value: float, key: str) -> None:
+    if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
+        raise IbiscapeError(f"config: {key} must be >= 0, got {value!r}")
+
+
+def _choice(value: str, allowed: tuple[str, ...], key: str) -> None:
+    if value not in allowed:
+        raise IbiscapeError(f"config: unknown {key} {value!r}; use one of {', '.join(allowed)}")
+
+
+def validate(cfg: SimConfig) -> None:
+    """Raise :class:`IbiscapeError` naming the key for any impossible value."""
+    _choice(cfg.setup, SETUPS, "setup")
+    _choice(cfg.kind, KINDS, "kind")
+    _choice(cfg.weather, WEATHERS, "weather")
+    _choice(cfg.scenario, SCENARIOS, "scenario")
+    _choice(cfg.target, TARGETS, "target")
+    _choice(cfg.still_format, ("csv", "npy"), "still_format")
+    _choice(cfg.imu_noise.model, ("continuous", "carla"), "imu_noise.model")
+    if cfg.scenario == "accident" and cfg.kind != "slam":
+        raise IbiscapeError("config: scenario accident needs kind slam")
+    _positive(cfg.duration_s, "duration_s")
+    _positive(cfg.gt_rate_hz, "gt_rate_hz")
+    _nonneg(cfg.housing_m, "housing_m")
+    if not isinstance(cfg.seed, int) or cfg.seed < 0:
+        raise IbiscapeError(f"config: seed must be an integer >= 0, got {cfg.seed!r}")
+    if not isinstance(cfg.start_ns, int) or cfg.start_ns < 0:
+        raise IbiscapeError(f"config: start_ns must be an integer >= 0, got {cfg.start_ns!r}")
+    if not isinstance(cfg.chunk_samples, int) or cfg.chunk_samples < 1:
+        raise IbiscapeError(f"config: chunk_samples must be an integer >= 1, got {cfg.chunk_samples!r}")
+    for f in fields(ImuNoise):
+        if f.name != "model":
+            _nonneg(getattr(cfg.imu_noise, f.name), f"imu_noise.{f.name}")
+    if not cfg.imus:
+        raise IbiscapeError("config: at least one IMU is needed (imus is empty)")
+    names = [s.name for s in cfg.imus] + [c.name for c in cfg.cameras]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise IbiscapeError(f"config: sensor names must be unique, repeated: {', '.join(dup)}")
+    for s in cfg.imus:
+        _positive(s.rate_hz, f"imus.{s.name}.rate_hz")
+        _vec3(s.position_m, f"imus.{s.name}.position_m")
+        _vec3(s.rpy_deg, f"imus.{s.name}.rpy_deg")
+    for c in cfg.cameras:
+        _choice(c.kind, CAMERA_KINDS, f"cameras.{c.name}.kind")
+        _positive(c.rate_hz, f"cameras.{c.name}.rate_hz")
+        _positive(c.width_px, f"cameras.{c.name}.width_px")
+        _positive(c.height_px, f"cameras.{c.name}.height_px")
+        if not 0 < c.fov_deg < 180:
+            raise IbiscapeError(f"config: cameras.{c.name}.fov_deg must be in (0, 180), got {c.fov_deg!r}")
+        _vec3(c.position_m, f"cameras.{c.name}.position_m")
+        _vec3(c.rpy_deg, f"cameras.{c.name}.rpy_deg")
+    g = cfg.gnss
+    _positive(g.rate_hz, "gnss.rate_hz")
+    _nonneg(g.sigma_horizontal_m, "gnss.sigma_horizontal_m")
+    _nonneg(g.sigma_vertical_m, "gnss.sigma_vertical_m")
+    _vec3(g.position_m, "gnss.position_m")
+    if not -90 < g.ref_lat_deg < 90 or not -180 <= g.ref_lon_deg <= 180:
+        raise IbiscapeError(f"config: gnss reference ({g.ref_lat_deg}, {g.ref_lon_deg}) is not a "
+                            "valid latitude/longitude in degrees")
+    w = cfg.weather_model
+    for k in ("cloudiness", "precipitation", "wind_intensity", "fog_density"):
+        m, s = getattr(w, k)
+        if not (0 <= m <= 100 and 0 <= s <= 100):
+            raise IbiscapeError(f"config: weather_model.{k} must be (mean, std) in 0..100, got {(m, s)}")
+    _positive(w.correlation_time_s, "weather_model.correlation_time_s")
+    _positive(w.deposit_lag_s, "weather_model.deposit_lag_s")
+    if not 0 <= w.storm_coupling <= 1:
+        raise IbiscapeError(f"config: weather_model.storm_coupling must be in 0..1, got {w.storm_coupling}")
+    _positive(cfg.motion.max_speed_m_s, "motion.max_speed_m_s")
+    _positive(cfg.motion.accident_decel_m_s2, "motion.accident_decel_m_s2")
+    _nonneg(cfg.motion.accident_obstacle_gap_m, "motion.accident_obstacle_gap_m")
+    if not isinstance(cfg.motion.town_blocks, int) or cfg.motion.town_blocks < 1:
+        raise IbiscapeError(f"config: motion.town_blocks must be an integer >= 1, got {cfg.motion.town_blocks!r}")
+    from .rig import check_housings
+
+    check_housings(cfg)
+
+
+def _vec3(v: Any, key: str) -> None:
+    if not (isinstance(v, tuple) and len(v) == 3 and all(isinstance(x, int | float) and math.isfinite(x) for x in v)):
+        raise IbiscapeError(f"config: {key} must be three finite numbers, got {v!r}")
+
+
+# ---------------------------------------------------------------------------------------------
+# presets
+
+_WEATHER_PRESETS: dict[str, WeatherSpec] = {
+    "clear": WeatherSpec(),
+    "moderate": WeatherSpec(cloudiness=(50.0, 15.0), precipitation=(20.0, 10.0),
+                            wind_intensity=(35.0, 12.0), fog_density=(25.0, 10.0),
+                            correlation_time_s=15.0, sun_phase0_rad=0.9),
+    # the paper's fig:weather: dynamic sequences average fog ~70 %, rain ~45 %, wind ~70 %
+    "dynamic": WeatherSpec(cloudiness=(80.0, 12.0), precipitation=(45.0, 18.0),
+                           wind_intensity=(70.0, 14.0), fog_density=(70.0, 12.0),
+                           correlation_time_s=8.0, sun_phase0_rad=0.5,
+                           sun_phase_rate_rad_s=0.008),
+}
+
+
+def _cam(name: str, kind: str, y: float, mount: str = "") -> CameraSpec:
+    return CameraSpec(name=name, kind=kind, position_m=(0.0, y, CAM_HEIGHT_M), mount=mount)
+
+
+def _rig(setup: str) -> tuple[tuple[ImuSpec, ...], tuple[CameraSpec, ...]]:
+    imu0 = ImuSpec("imu0")
+    imu1 = ImuSpec("imu1", (0.0, 0.1, CAM_HEIGHT_M), mount="davisL")
+    imu2 = ImuSpec("imu2", (0.0, -0.1, CAM_HEIGHT_M), mount="davisR")
+    rgb = (_cam("rgbL", "rgb", 0.2), _cam("rgbR", "rgb", -0.2))
+    dvs = (_cam("davisL", "dvs", 0.1, "davisL"), _cam("davisR", "dvs", -0.1, "davisR"))
+    rgbd = (_cam("rgb", "rgb", 0.0, "rgbd"), _cam("depth", "depth", 0.0, "rgbd"))
+    if setup == "imu":
+        return (imu0,), ()
+    if setup == "svi":
+        return (imu0,), rgb
+    if setup == "esvi":
+        return (imu0, imu1, imu2), dvs
+    if setup == "rgbd":
+        return (imu0,), rgbd
+    return (imu0, imu1, imu2), (*rgb, *dvs, *rgbd, _cam("semantic", "semantic", 0.0, "rgbd"))
+
+
+def preset(setup: str = "svi", kind: str = "slam", weather: str = "clear", *,
+           scenario: str = "default", **overrides: Any) -> SimConfig:
+    """The configuration of one row of the paper's sequence table.
+
+    Parameters
+    ----------
+    setup : {"imu", "svi", "esvi", "rgbd", "full"}
+    kind : {"calibration", "slam"}
+        ``imu`` is always a still calibration.
+    weather : {"clear", "moderate", "dynamic"}
+    scenario : {"default", "accident"}
+        ``accident``: SVI SLAM, 6.13 s (the paper's sequence) ending in a hard stop.
+    **overrides
+        Top-level :class:`SimConfig` fields (``duration_s``, ``seed``, ``ideal`` ...).
+
+    Raises
+    ------
+    IbiscapeError
+        Unknown preset name or impossible value, naming the key.
+    """
+    _choice(setup, SETUPS, "setup")
+    _choice(kind, KINDS, "kind")
+    _choice(weather, WEATHERS, "weather")
+    _choice(scenario, SCENARIOS, "scenario")
+    if setup == "imu":
+        kind = "calibration"
+    imus, cams = _rig(setup)
+    base: dict[str, Any] = {
+        "setup": setup, "kind": kind, "weather": weather, "scenario": scenario,
+        "imus": imus, "cameras": cams,
+        "gnss": GnssSpec(rate_hz=10.0 if kind == "calibration" else 1.0),
+        "weather_model": _WEATHER_PRESETS[weather],
+        "duration_s": {"imu": 3600.0}.get(setup, 60.0),
+    }
+    if scenario == "accident":
+        base["duration_s"] = 6.13
+        base["motion"] = MotionSpec(max_speed_m_s=8.0)
+    if setup == "imu":
+        base["motion"] = MotionSpec(bumps=False)
+    base.update(overrides)
+    try:
+        return SimConfig(**base)
+    except TypeError as e:
+        raise IbiscapeError(f"config: {e}") from None
+
+
+# ---------------------------------------------------------------------------------------------
+# YAML
+
+
+def _to_plain(obj: Any) -> Any:
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        out: dict[str, Any] = {}
+        for f in fields(obj):
+            v = getattr(obj, f.name)
+            if f.name in ("imus", "cameras"):
+                out[f.name] = {s.name: {k: _to_plain(x) for k, x in _to_plain(s).items() if k != "name"}
+                               for s in v}
+            else:
+                out[f.name] = _to_plain(v)
+        return out
+    if isinstance(obj, tuple):
+        return [_to_plain(v) for v in obj]
+    return obj
+
+
+def _coerce(value: Any, default: Any, key: str, where: str) -> Any:
+    """Convert a YAML scalar/list to the type of the field's current value."""
+    if isinstance(default, bool):
+        if not isinstance(value, bool):
+            raise FormatError(where, f"{key} must be true or false, got {value!r}")
+        return value
+    if isinstance(default, int):
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise FormatError(where, f"{key} must be an integer, got {value!r}")
+        return value
+    if isinstance(default, float):
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise FormatError(where, f"{key} must be a number, got {value!r}")
+        return float(value)
+    if isinstance(default, str):
+        if not isinstance(value, str):
+            raise FormatError(where, f"{key} must be a string, got {value!r}")
+        return value
+    if isinstance(default, tuple):
+        if not isinstance(value, list | tuple) or len(value) != len(default):
+            raise FormatError(where, f"{key} must be a list of {len(default)} numbers, got {value!r}")
+        return tuple(_coerce(v, d, key, where) for v, d in zip(value, default, strict=True))
+    return value
+
+
+def _override(obj: Any, doc: Any, prefix: str, where: str) -> Any:
+    if not isinstance(doc, dict):
+        raise FormatError(where, f"{prefix or 'the file'} must be a mapping, got {doc!r}")
+    allowed = {f.name: f for f in fields(obj)}
+    changes: dict[str, Any] = {}
+    for key, value in doc.items():
+        name = f"{prefix}{key}"
+        if key not in allowed:
+            raise FormatError(where, f"unknown key {name!r}; allowed: {', '.join(allowed)}")
+        cur = getattr(obj, key)
+        if key in ("imus", "cameras"):
+            changes[key] = _override_sensors(cur, value, name, where,
+                                             ImuSpec if key == "imus" else CameraSpec)
+        elif dataclasses.is_dataclass(cur):
+            changes[key] = _override(cur, value, name + ".", where)
+        else:
+            changes[key] = _coerce(value, cur, name, where)
+    return replace(obj, **changes) if not isinstance(obj, SimConfig) else changes
+
+
+def _override_sensors(cur: tuple[Any, ...], doc: Any, prefix: str, where: str,
+                      cls: type) -> tuple[Any, ...]:
+    if doc is None:
+        return cur
+    if not isinstance(doc, dict):
+        raise FormatError(where, f"{prefix} must map sensor names to their fields, got {doc!r}")
+    out = {s.name: s for s in cur}
+    for name, spec in doc.items():
+        if spec is None:
+            out.pop(str(name), None)
+            continue
+        base = out.get(str(name), cls(name=str(name)))
+        if isinstance(spec, dict) and "name" in spec:
+            raise FormatError(where, f"{prefix}.{name}: the name is the key; remove 'name'")
+        out[str(name)] = _override(base, spec, f"{prefix}.{name}.", where)
+    return tuple(out.values())
+
+
+def load_config(path: str | os.PathLike[str], **cli_overrides: Any) -> SimConfig:
+    """Read a simulator YAML file (``yaml.safe_load``) onto its preset.
+
+    Parameters
+    ----------
+    path
+        YAML mapping; see the module docstring.
+    **cli_overrides
+        Values that win over the file (``None`` values are ignored), e.g. from the command line.
+
+    Raises
+    ------
+    FormatError
+        Not YAML, not a mapping, unknown key (naming it and the allowed keys), wrong type.
+    IbiscapeError
+        Impossible values (from :func:`validate`).
+    """
+    import yaml
+
+    where = os.fspath(path)
+    with open(path, encoding="utf-8") as fh:
+        try:
+            doc = yaml.safe_load(fh)
+        except yaml.YAMLError as e:
+            line = getattr(getattr(e, "problem_mark", None), "line", None)
+            raise FormatError(where, f"not valid YAML ({' '.join(str(e).split())})",
+                              line=None if line is None else line + 1) from None
+    if doc is None:
+        doc = {}
+    if not isinstance(doc, dict):
+        raise FormatError(where, "expected a mapping of config keys at the top level")
+    picks = {k: doc.pop(k) for k in ("setup", "kind", "weather", "scenario") if k in doc}
+    picks.update({k: v for k, v in cli_overrides.items()
+                  if k in ("setup", "kind", "weather", "scenario") and v is not None})
+    for k, v in picks.items():
+        if not isinstance(v, str):
+            raise FormatError(where, f"{k} must be a string, got {v!r}")
+    base = preset(picks.get("setup", "svi"), picks.get("kind", "slam"),
+                  picks.get("weather", "clear"), scenario=picks.get("scenario", "default"))
+    changes = _override(base, doc, "", where)
+    changes.update({k: v for k, v in cli_overrides.items()
+                    if v is not None and k not in ("setup", "kind", "weather", "scenario")})
+    try:
+        return replace(base, **changes)
+    except IbiscapeError as e:
+        raise IbiscapeError(f"{where}: {e}") from None
+
+
+def dump_config(cfg: SimConfig) -> str:
+    """The full configuration as commented YAML (loads back to ``cfg`` with :func:`load_config`)."""
+    import yaml
+
+    lines = ["# ibiscape-eval sim configuration (every key; units in the names and comments).",
+             "# Frames: body x forward, y left, z up (IMU0); world = local ENU at the gnss reference.",
+             "# cameras/imus map a sensor name to its fields; a new name adds a sensor, null removes one."]
+
+    def emit(obj: Any, indent: str) -> None:
+        for f in fields(obj):
+            v = getattr(obj, f.name)
+            doc = f.metadata.get("doc", "")
+            if f.name in ("imus", "cameras"):
+                lines.append(f"{indent}# {doc}")
+                present = {s.name for s in v}
+                removed = [s.name for s in getattr(base, f.name) if s.name not in present]
+                lines.append(f"{indent}{f.name}:" + ("" if v or removed else " {}"))
+                lines.extend(f"{indent}  {n}: null  # removed from the preset" for n in removed)
+                for s in v:
+                    lines.append(f"{indent}  {s.name}:")
+                    for sf in fields(s):
+                        if sf.name != "name":
+                            _scalar(sf.name, getattr(s, sf.name), sf.metadata.get("doc", ""),
+                                    indent + "    ")
+            elif dataclasses.is_dataclass(v):
+                lines.append(f"{indent}{f.name}:  # {doc}")
+                emit(v, indent + "  ")
+            else:
+                _scalar(f.name, v, doc, indent)
+
+    def _scalar(name: str, v: Any, doc: str, indent: str) -> None:
+        text = yaml.safe_dump(_to_plain(v), default_flow_style=True, width=1000).strip()
+        text = text.removesuffix("\n...").removesuffix("...").strip()
+        lines.append(f"{indent}{name}: {text}  # {doc}")
+
+    base = preset(cfg.setup, cfg.kind, cfg.weather, scenario=cfg.scenario)
+    emit(cfg, "")
+    return "\n".join(lines) + "\n"
