@@ -30,7 +30,7 @@ def _omega(t: np.ndarray) -> np.ndarray:
 def rot_zyx(roll, pitch, yaw) -> np.ndarray:
     cr, sr, cp, sp, cy, sy = (np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch),
                               np.cos(yaw), np.sin(yaw))
-    R = np.empty(roll.shape + (3, 3))
+    R = np.empty((*roll.shape, 3, 3))
     R[..., 0, 0] = cy * cp
     R[..., 0, 1] = cy * sp * sr - sy * cr
     R[..., 0, 2] = cy * sp * cr + sy * sr
