@@ -128,8 +128,8 @@ class CameraSpec:
 
     @property
     def focal_px(self) -> float:
-        """``(w / 2) / tan(fov / 2)``; 512 px for 1024 px and 90 deg."""
-        return (self.width_px / 2.0) / math.tan(math.radians(self.fov_deg) / 2.0)
+        """``(w / 2) / tan(fov / 2)`` rounded to 1e-9 px (exactly 512 for 1024 px and 90 deg)."""
+        return round((self.width_px / 2.0) / math.tan(math.radians(self.fov_deg) / 2.0), 9)
 
     @property
     def intrinsics(self) -> list[float]:
