@@ -213,7 +213,7 @@ def _loop_bumps(loop: FloatArray, rng: np.random.Generator) -> list[Bump]:
     path = smooth_path(wrap, cuts)
     s_a0, s_a4, s_end = path.vertex_s_m[1], path.vertex_s_m[5], path.vertex_s_m[n + 1]
     s_cand = np.concatenate(
-        (np.arange(s_a0 + 6.0, s_a4 - 8.0, 6.0), np.arange(s_a4 + 20.0, s_end - 6.0, 11.0))
+        (np.arange(s_a0 + 6.0, s_a4 - 8.0, 5.0), np.arange(s_a4 + 20.0, s_end - 6.0, 9.0))
     )
     s_cand = s_cand[np.abs(path.curvature_1_m(s_cand)) < 0.03]
     xy = path.xy_m(s_cand)

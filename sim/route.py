@@ -1,0 +1,118 @@
+"""Routes: polylines the vehicle drives, with corner cuts, stops and speed caps.
+
+- SLAM: a seeded random walk over the town's intersections (no U-turns), on the lane centrelines
+  for right-hand traffic; the polyline turns at the intersection of the incoming and outgoing lane
+  centrelines; some intersections get a stop line 8 m before the crossing.
+- Calibration: laps of the world's approach loop toward the chosen target (slow on the approach).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from ibiscape_eval.core.errors import IbiscapeError
+
+from .world import LANE_OFFSET_M, ROAD_HALF_WIDTH_M, World, loop_cuts
+
+__all__ = ["Route", "town_route", "calibration_route"]
+
+FloatArray = npt.NDArray[np.float64]
+
+_DIRS = np.array([[1, 0], [0, 1], [-1, 0], [0, -1]])  # E, N, W, S
+STOP_PROBABILITY = 0.3
+APPROACH_SPEED_M_S = 4.0
+RIGHT_TURN_CUT_M = 6.0
+LEFT_TURN_CUT_M = 9.0
+
+
+@dataclass(frozen=True, eq=False)
+class Route:
+    """A drivable polyline.
+
+    Attributes
+    ----------
+    waypoints_m : ndarray, shape (K, 2)
+    cut_m : ndarray, shape (K,)
+        Wanted corner cut at each vertex, metres.
+    stop_s : ndarray, shape (K,)
+        Seconds to stand still at each vertex (0 = drive through).
+    speed_cap_m_s : ndarray, shape (K - 1,)
+        Speed cap on each segment.
+    """
+
+    waypoints_m: FloatArray
+    cut_m: FloatArray
+    stop_s: FloatArray
+    speed_cap_m_s: FloatArray
+
+
+def _right(d: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
+    return np.array([d[1], -d[0]])
+
+
+def town_route(world: World, *, length_m: float, rng: np.random.Generator, max_speed_m_s: float) -> Route:
+    """Random traffic-aligned route of at least ``length_m`` through the town grid."""
+    n = world.town_blocks
+    if world.kind != "slam" or n < 1 or not world.lanes:
+        raise IbiscapeError("a town route needs a 'slam' world with lanes (build_world(kind='slam'))")
+    B = world.block_m
+    node = rng.integers(0, n + 1, size=2)
+    # a first direction that stays inside the grid
+    valid = [k for k in range(4) if np.all((node + _DIRS[k] >= 0) & (node + _DIRS[k] <= n))]
+    d = _DIRS[valid[int(rng.integers(len(valid)))]]
+    start = node * B + 0.5 * B * d + LANE_OFFSET_M * _right(d)
+    node = node + d
+    pts: list[FloatArray] = [start.astype(np.float64)]
+    cut: list[float] = [0.0]
+    stop: list[float] = [0.0]
+    total = 0.5 * B
+    while total < length_m:
+        options, weights = [], []
+        for k, w in ((0, 0.5), (1, 0.25), (3, 0.25)):  # straight, left, right (relative)
+            nd = _DIRS[(int(np.flatnonzero((_DIRS == d).all(1))[0]) + k) % 4]
+            if np.all((node + nd >= 0) & (node + nd <= n)):
+                options.append(nd)
+                weights.append(w)
+        p = np.asarray(weights) / np.sum(weights)
+        nd = options[int(rng.choice(len(options), p=p))]
+        centre = node * B
+        if rng.random() < STOP_PROBABILITY:
+            pts.append(centre - (ROAD_HALF_WIDTH_M + 2.0) * d + LANE_OFFSET_M * _right(d))
+            cut.append(0.0)
+            stop.append(float(rng.uniform(1.5, 4.0)))
+        if not np.array_equal(nd, d):
+            left = d[0] * nd[1] - d[1] * nd[0] > 0
+            pts.append(centre + LANE_OFFSET_M * (_right(d) + _right(nd)))
+            cut.append(LEFT_TURN_CUT_M if left else RIGHT_TURN_CUT_M)
+            stop.append(0.0)
+        d = nd
+        node = node + d
+        total += B
+    pts.append(node * B - (ROAD_HALF_WIDTH_M + 2.0) * d + LANE_OFFSET_M * _right(d))
+    cut.append(0.0)
+    stop.append(0.0)
+    wp = np.asarray(pts, dtype=np.float64)
+    return Route(wp, np.asarray(cut), np.asarray(stop), np.full(len(wp) - 1, max_speed_m_s))
+
+
+def calibration_route(world: World, *, target: str, length_m: float, max_speed_m_s: float) -> Route:
+    """Laps of the approach loop toward ``target`` until at least ``length_m``."""
+    if world.kind != "calibration" or target not in world.routes:
+        raise IbiscapeError(
+            f"a calibration route toward {target!r} needs a 'calibration' world "
+            f"(build_world(kind='calibration')); this world is {world.kind!r}"
+        )
+    world.target_named(target)
+    loop = world.routes[target]
+    seg = np.diff(loop, axis=0)
+    lap_len = float(np.hypot(seg[:, 0], seg[:, 1]).sum())
+    laps = max(1, int(np.ceil(length_m / lap_len)))
+    wp = np.vstack([loop[:1]] + [loop[1:]] * laps)
+    cuts = np.concatenate([[0.0]] + [loop_cuts(loop)[1:]] * laps)
+    cuts[-1] = 0.0
+    caps_lap = np.full(len(loop) - 1, max_speed_m_s)
+    caps_lap[:4] = min(max_speed_m_s, APPROACH_SPEED_M_S)  # the approach leg toward the board
+    return Route(wp, cuts, np.zeros(len(wp)), np.tile(caps_lap, laps))
