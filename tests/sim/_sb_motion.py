@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ibiscape_eval.core.rotations import quat_from_matrix
+from ibiscape_eval.core.rotations import matrix_from_quat, quat_from_matrix
 from ibiscape_eval.sim.types import Controls, MotionState
 
 START_NS = 1_000_000_000_000
@@ -76,3 +76,36 @@ class HelixMotion:
         n = len(stamps_ns)
         return Controls(np.asarray(stamps_ns, dtype=np.int64), np.full(n, 0.3), np.full(n, -0.1),
                         np.zeros(n))
+
+
+def integrate_imu(t_s: np.ndarray, gyro: np.ndarray, acc: np.ndarray, p0, v0, R0):
+    """RK4 on (R, v, p) with the samples interpolated by 4-point cubics at the half steps."""
+    def mid(x: np.ndarray) -> np.ndarray:
+        xp = np.concatenate((2 * x[:1] - x[1:2], x, 2 * x[-1:] - x[-2:-1]))
+        return (-xp[:-3] + 9 * xp[1:-2] + 9 * xp[2:-1] - xp[3:]) / 16
+
+    gm, am = mid(gyro), mid(acc)
+    q = quat_from_matrix(R0[None])[0]
+    p, v = p0.copy(), v0.copy()
+
+    def qdot(qq, w):
+        x, y, z, s = qq
+        wx, wy, wz = w
+        return 0.5 * np.array([s * wx + y * wz - z * wy, s * wy + z * wx - x * wz,
+                               s * wz + x * wy - y * wx, -x * wx - y * wy - z * wz])
+
+    def f(qq, vv, w, a):
+        R = matrix_from_quat(qq[None] / np.linalg.norm(qq))[0]
+        return qdot(qq, w), R @ a + np.array([0.0, 0.0, -9.81]), vv
+
+    for k in range(len(t_s) - 1):
+        h = t_s[k + 1] - t_s[k]
+        k1 = f(q, v, gyro[k], acc[k])
+        k2 = f(q + h / 2 * k1[0], v + h / 2 * k1[1], gm[k], am[k])
+        k3 = f(q + h / 2 * k2[0], v + h / 2 * k2[1], gm[k], am[k])
+        k4 = f(q + h * k3[0], v + h * k3[1], gyro[k + 1], acc[k + 1])
+        q = q + h / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
+        q /= np.linalg.norm(q)
+        p = p + h / 6 * (k1[2] + 2 * k2[2] + 2 * k3[2] + k4[2])
+        v = v + h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
+    return p, matrix_from_quat(q[None])[0]

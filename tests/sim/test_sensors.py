@@ -7,9 +7,9 @@ import math
 
 import numpy as np
 import pytest
-from _sb_motion import START_NS, HelixMotion, pose_at
+from _sb_motion import START_NS, HelixMotion, integrate_imu, pose_at
 
-from ibiscape_eval.core.rotations import matrix_from_quat, quat_from_matrix
+from ibiscape_eval.core.rotations import matrix_from_quat
 from ibiscape_eval.io import read_gnss, read_ibiscape_groundtruth
 from ibiscape_eval.io.imu import read_imu
 from ibiscape_eval.sim import generate, preset
@@ -151,39 +151,6 @@ def test_weather_presets_averages_and_sun() -> None:
 # physics through the written files
 
 
-def _integrate(t_s: np.ndarray, gyro: np.ndarray, acc: np.ndarray, p0, v0, R0):
-    """RK4 on (R, v, p) with the samples interpolated by 4-point cubics at the half steps."""
-    def mid(x: np.ndarray) -> np.ndarray:
-        xp = np.concatenate((2 * x[:1] - x[1:2], x, 2 * x[-1:] - x[-2:-1]))
-        return (-xp[:-3] + 9 * xp[1:-2] + 9 * xp[2:-1] - xp[3:]) / 16
-
-    gm, am = mid(gyro), mid(acc)
-    q = quat_from_matrix(R0[None])[0]
-    p, v = p0.copy(), v0.copy()
-
-    def qdot(qq, w):
-        x, y, z, s = qq
-        wx, wy, wz = w
-        return 0.5 * np.array([s * wx + y * wz - z * wy, s * wy + z * wx - x * wz,
-                               s * wz + x * wy - y * wx, -x * wx - y * wy - z * wz])
-
-    def f(qq, vv, w, a):
-        R = matrix_from_quat(qq[None] / np.linalg.norm(qq))[0]
-        return qdot(qq, w), R @ a + G, vv
-
-    for k in range(len(t_s) - 1):
-        h = t_s[k + 1] - t_s[k]
-        k1 = f(q, v, gyro[k], acc[k])
-        k2 = f(q + h / 2 * k1[0], v + h / 2 * k1[1], gm[k], am[k])
-        k3 = f(q + h / 2 * k2[0], v + h / 2 * k2[1], gm[k], am[k])
-        k4 = f(q + h * k3[0], v + h * k3[1], gyro[k + 1], acc[k + 1])
-        q = q + h / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
-        q /= np.linalg.norm(q)
-        p = p + h / 6 * (k1[2] + 2 * k2[2] + 2 * k3[2] + k4[2])
-        v = v + h / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
-    return p, matrix_from_quat(q[None])[0]
-
-
 @pytest.fixture(scope="module")
 def ideal_seq(tmp_path_factory: pytest.TempPathFactory):
     out = tmp_path_factory.mktemp("phys") / "seq"
@@ -200,7 +167,7 @@ def test_integrating_ideal_imu0_reproduces_groundtruth(ideal_seq) -> None:
     tr = gt.trajectory
     t = (tr.stamps_ns - tr.stamps_ns[0]) * 1e-9
     R_gt = matrix_from_quat(tr.quat_xyzw)
-    p, R = _integrate(t, samples[:, :3], samples[:, 3:], tr.pos_m[0], gt.vel_m_s[0], R_gt[0])
+    p, R = integrate_imu(t, samples[:, :3], samples[:, 3:], tr.pos_m[0], gt.vel_m_s[0], R_gt[0])
     assert t[-1] == pytest.approx(10.0)
     assert np.linalg.norm(p - tr.pos_m[-1]) < 0.01
     ang = math.degrees(math.acos(np.clip((np.trace(R.T @ R_gt[-1]) - 1) / 2, -1, 1)))
