@@ -537,8 +537,11 @@ def load_config(path: str | os.PathLike[str], **cli_overrides: Any) -> SimConfig
     for k, v in picks.items():
         if not isinstance(v, str):
             raise FormatError(where, f"{k} must be a string, got {v!r}")
-    base = preset(picks.get("setup", "svi"), picks.get("kind", "slam"),
-                  picks.get("weather", "clear"), scenario=picks.get("scenario", "default"))
+    try:
+        base = preset(picks.get("setup", "svi"), picks.get("kind", "slam"),
+                      picks.get("weather", "clear"), scenario=picks.get("scenario", "default"))
+    except IbiscapeError as e:
+        raise IbiscapeError(f"{where}: {e}") from None
     changes = _override(base, doc, "", where)
     changes.update({k: v for k, v in cli_overrides.items()
                     if v is not None and k not in ("setup", "kind", "weather", "scenario")})
