@@ -75,7 +75,7 @@ class SmoothPath:
     is_corner: npt.NDArray[np.bool_]
     total_length_m: float
 
-    def _piece(self, s: FloatArray) -> tuple[npt.NDArray[np.intp], FloatArray]:
+    def _piece(self, s: npt.NDArray[np.floating]) -> tuple[npt.NDArray[np.intp], FloatArray]:
         idx = np.clip(np.searchsorted(self.s0_m, s, side="right") - 1, 0, len(self.s0_m) - 1)
         return idx, s - self.s0_m[idx]
 
@@ -164,7 +164,8 @@ def smooth_path(waypoints_m: npt.ArrayLike, cut_m: npt.ArrayLike) -> SmoothPath:
     length = np.where(turning, cut / np.where(turning, corner_distance_per_length(delta), 1.0), 0.0)
     theta_seg = ang[0] + np.concatenate(([0.0], np.cumsum(delta[1:-1])))  # unwrapped, per segment
 
-    s0, lens, th0, dl, sxy, segs, corner_flags = [], [], [], [], [], [], []
+    # one row per piece: s0, length, theta0, delta, start xy, segment, is corner
+    rows: list[tuple[float, float, float, float, FloatArray, int, bool]] = []
     vertex_s = np.zeros(K)
     s = 0.0
     for i in range(K - 1):
@@ -172,25 +173,24 @@ def smooth_path(waypoints_m: npt.ArrayLike, cut_m: npt.ArrayLike) -> SmoothPath:
         a = pts[i] + cut[i] * direction
         straight = seg_len[i] - cut[i] - cut[i + 1]
         if straight > 1e-9 or i == K - 2:
-            s0.append(s), lens.append(max(straight, 1e-9)), th0.append(theta_seg[i])
-            dl.append(0.0), sxy.append(a), segs.append(i), corner_flags.append(False)
+            rows.append((s, max(straight, 1e-9), float(theta_seg[i]), 0.0, a, i, False))
             s += max(straight, 0.0)
         if i + 1 < K - 1 and turning[i + 1]:
             b = pts[i + 1] - cut[i + 1] * direction
             vertex_s[i + 1] = s + 0.5 * length[i + 1]
-            s0.append(s), lens.append(length[i + 1]), th0.append(theta_seg[i])
-            dl.append(delta[i + 1]), sxy.append(b), segs.append(i), corner_flags.append(True)
+            rows.append((s, float(length[i + 1]), float(theta_seg[i]), float(delta[i + 1]), b, i, True))
             s += length[i + 1]
         elif i + 1 <= K - 1:
             vertex_s[i + 1] = s
+    cols = list(zip(*rows, strict=True))
     return SmoothPath(
-        s0_m=np.asarray(s0),
-        length_m=np.asarray(lens),
-        theta0_rad=np.asarray(th0),
-        delta_rad=np.asarray(dl),
-        start_xy_m=np.asarray(sxy),
+        s0_m=np.asarray(cols[0], dtype=np.float64),
+        length_m=np.asarray(cols[1], dtype=np.float64),
+        theta0_rad=np.asarray(cols[2], dtype=np.float64),
+        delta_rad=np.asarray(cols[3], dtype=np.float64),
+        start_xy_m=np.asarray(cols[4], dtype=np.float64),
         vertex_s_m=vertex_s,
-        piece_segment=np.asarray(segs, dtype=np.int64),
-        is_corner=np.asarray(corner_flags, dtype=bool),
+        piece_segment=np.asarray(cols[5], dtype=np.int64),
+        is_corner=np.asarray(cols[6], dtype=bool),
         total_length_m=float(s),
     )

@@ -21,7 +21,7 @@ Pipeline (all vectorised):
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -33,6 +33,9 @@ from .route import Route, calibration_route, town_route
 from .targets import TARGET_KINDS
 from .types import Controls, MotionState
 from .world import World
+
+if TYPE_CHECKING:
+    from scipy.interpolate import BSpline
 
 __all__ = ["VehicleMotion", "plan_motion"]
 
@@ -76,7 +79,7 @@ class VehicleMotion:
         kind: str,
         start_ns: int,
         end_ns: int,
-        spline: Any = None,
+        spline: BSpline | None = None,
         path: SmoothPath | None = None,
     ) -> None:
         self.kind = kind
@@ -88,6 +91,7 @@ class VehicleMotion:
         self._spl = spline
         self._d1 = spline.derivative(1) if spline is not None else None
         self._d2 = spline.derivative(2) if spline is not None else None
+        self._still = spline is None
         self._path = path
 
     def _times(self, stamps_ns: npt.ArrayLike) -> tuple[npt.NDArray[np.int64], FloatArray]:
@@ -106,7 +110,7 @@ class VehicleMotion:
         """Exact kinematics of the body frame at ``stamps_ns`` (int64, shape (N,))."""
         st, t = self._times(stamps_ns)
         n = len(st)
-        if self._spl is None:  # still: constant pose, every derivative exactly zero
+        if self._spl is None or self._d1 is None or self._d2 is None:  # still: all zero
             z3 = np.zeros((n, 3))
             quat = np.zeros((n, 4))
             quat[:, 3] = 1.0
@@ -157,7 +161,7 @@ class VehicleMotion:
         """
         st, t = self._times(stamps_ns)
         n = len(st)
-        if self._spl is None:
+        if self._spl is None or self._d1 is None or self._d2 is None:
             return Controls(st, np.zeros(n), np.zeros(n), np.ones(n))
         assert self._path is not None
         s = self._spl(t)[:, 6]
@@ -183,7 +187,7 @@ class VehicleMotion:
         return float(s[1] - s[0])
 
 
-def _speed_limits(path: SmoothPath, route: Route, s: FloatArray) -> FloatArray:
+def _speed_limits(path: SmoothPath, route: Route, s: npt.NDArray[np.floating]) -> FloatArray:
     idx, _ = path._piece(s)
     seg = path.piece_segment[idx]
     caps = route.speed_cap_m_s
@@ -289,7 +293,7 @@ def plan_motion(
         raise IbiscapeError(f"seed must be a non-negative integer, got {seed!r}")
     if target not in TARGET_KINDS:
         raise IbiscapeError(f"target {target!r} is unknown; use one of {TARGET_KINDS}")
-    end_ns = int(start_ns) + int(round(duration_s * 1e9))
+    end_ns = int(start_ns) + round(duration_s * 1e9)
     if world.kind == "still":
         return VehicleMotion(kind="still", start_ns=start_ns, end_ns=end_ns)
     if max_speed_m_s < 1.0:
@@ -310,7 +314,7 @@ def plan_motion(
     t_knots, s_knots = _time_profile(path, route)
 
     # s(t) on the grid, smoothed by a Hann window (monotone; stops stay exactly still inside)
-    n = int(math.ceil(duration_s * GRID_HZ))
+    n = math.ceil(duration_s * GRID_HZ)
     margin = 100  # 0.1 s of fitted spline beyond both ends
     half = int(SMOOTH_WINDOW_S * GRID_HZ) // 2
     k = np.arange(-margin - half, n + margin + half + 1)

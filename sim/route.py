@@ -17,7 +17,7 @@ from ibiscape_eval.core.errors import IbiscapeError
 
 from .world import LANE_OFFSET_M, ROAD_HALF_WIDTH_M, World, loop_cuts
 
-__all__ = ["Route", "town_route", "calibration_route"]
+__all__ = ["Route", "calibration_route", "town_route"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -72,7 +72,7 @@ def town_route(world: World, *, length_m: float, rng: np.random.Generator, max_s
     while total < length_m:
         options, weights = [], []
         for k, w in ((0, 0.5), (1, 0.25), (3, 0.25)):  # straight, left, right (relative)
-            nd = _DIRS[(int(np.flatnonzero((_DIRS == d).all(1))[0]) + k) % 4]
+            nd = _DIRS[(int(np.flatnonzero((d == _DIRS).all(1))[0]) + k) % 4]
             if np.all((node + nd >= 0) & (node + nd <= n)):
                 options.append(nd)
                 weights.append(w)

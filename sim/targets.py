@@ -27,7 +27,7 @@ import numpy.typing as npt
 
 from ibiscape_eval.core.errors import IbiscapeError
 
-__all__ = ["Target", "make_target", "TARGET_KINDS"]
+__all__ = ["TARGET_KINDS", "Target", "make_target"]
 
 FloatArray = npt.NDArray[np.float64]
 TARGET_KINDS = ("checkerboard", "aprilgrid")
@@ -178,7 +178,7 @@ class Target:
         doc = dict(self.kalibr)
         doc["T_world_target"] = self.T_world_target.tolist()
         doc["board_size_m"] = [float(v) for v in self.board_size_m]
-        doc["corner_count"] = int(len(self.corners_target_m))
+        doc["corner_count"] = len(self.corners_target_m)
         doc["z_toward_observer"] = bool(self.z_toward_observer)
         return doc
 

@@ -30,7 +30,7 @@ from .agents import AGENT_CAR, AGENT_PEDESTRIAN, Agents
 from .targets import TARGET_KINDS, Target, board_pose, make_target
 from .terrain import Bump, Terrain
 
-__all__ = ["Boxes", "World", "build_world", "WORLD_KINDS", "SCENES"]
+__all__ = ["SCENES", "WORLD_KINDS", "Boxes", "World", "build_world"]
 
 FloatArray = npt.NDArray[np.float64]
 WORLD_KINDS = ("slam", "calibration", "still")
