@@ -87,7 +87,7 @@ class _Chunks:
         self.data = data
         self.n_samples, self.n_columns = data.shape
 
-    def iter_chunks(self, columns):  # type: ignore[no-untyped-def]
+    def iter_chunks(self, columns):
         i = 0
         for size in [1, 7, 1000, 333] * 1000:
             if i >= self.n_samples:

@@ -18,7 +18,7 @@ RATE = 20.0
 
 
 @pytest.fixture(scope="module")
-def model_8h():  # type: ignore[no-untyped-def]
+def model_8h():
     """8 hours at 20 Hz (576k samples x 6 axes): hours of data in a fast test."""
     y = imu_noise(int(8 * 3600 * RATE), RATE, noise_density=N_TRUE, random_walk=K_TRUE,
                   bias0=[0.01, -0.02, 0.0, 0.1, -0.2, 9.81], seed=2024)
@@ -26,19 +26,19 @@ def model_8h():  # type: ignore[no-untyped-def]
     return res, fit_noise_model(res)
 
 
-def test_white_noise_density_within_3_percent(model_8h) -> None:  # type: ignore[no-untyped-def]
+def test_white_noise_density_within_3_percent(model_8h) -> None:
     _, model = model_8h
     got = np.array([model[n].noise_density for n in NAMES])
     np.testing.assert_allclose(got, N_TRUE, rtol=0.03)
 
 
-def test_random_walk_within_30_percent(model_8h) -> None:  # type: ignore[no-untyped-def]
+def test_random_walk_within_30_percent(model_8h) -> None:
     _, model = model_8h
     got = np.array([model[n].random_walk for n in NAMES])
     np.testing.assert_allclose(got, K_TRUE, rtol=0.30)
 
 
-def test_uncertainties_ranges_and_discrete_values(model_8h) -> None:  # type: ignore[no-untyped-def]
+def test_uncertainties_ranges_and_discrete_values(model_8h) -> None:
     res, model = model_8h
     for n in NAMES:
         a = model[n]
@@ -66,7 +66,7 @@ def test_short_record_gives_nan_random_walk_with_reason() -> None:
         assert a.noise_density == pytest.approx(N_TRUE[model.names.index(a.name)], rel=0.05)
 
 
-def test_ranges_can_be_forced(model_8h) -> None:  # type: ignore[no-untyped-def]
+def test_ranges_can_be_forced(model_8h) -> None:
     res, _ = model_8h
     model = fit_noise_model(res, white_range_s=(0.05, 0.5), walk_range_s=(500.0, 3000.0))
     a = model["w_x"]
