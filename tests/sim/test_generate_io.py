@@ -38,7 +38,7 @@ def test_controls_round_trip(n: int, data: hs.DataObject) -> None:
         c = read_controls(p)
     np.testing.assert_array_equal(c.stamps_ns, st)
     for a, b in ((c.throttle, thr), (c.steer, steer), (c.brake, brk)):
-        np.testing.assert_allclose(a, b, rtol=1e-14, atol=1e-300)
+        np.testing.assert_allclose(a, b, rtol=1e-14, atol=1e-15)
 
 
 @settings(max_examples=30, deadline=None)
@@ -52,7 +52,7 @@ def test_weather_round_trip(n: int, k: int, data: hs.DataObject) -> None:
         write_weather_csv(p, st, v, cols)
         st2, v2, cols2 = read_weather_csv(p)
     np.testing.assert_array_equal(st2, st)
-    np.testing.assert_allclose(v2, v, rtol=1e-14, atol=1e-300)
+    np.testing.assert_allclose(v2, v, rtol=1e-14, atol=1e-15)
     assert cols2 == cols
 
 
