@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ibiscape_eval.core.errors import IbiscapeError
+from ibiscape_eval.io._atomic import publish_permissions
 
 from .imu import noise_parameters
 from .rig import T_body_camera, T_body_imu
@@ -185,6 +186,7 @@ def staging_folder(out: Path, *, overwrite: bool) -> Iterator[Path]:
             raise IbiscapeError(f"{out}: output folder exists and is not empty; use --overwrite")
         old = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".old", dir=out.parent))
         os.replace(out, old / "x")
+    publish_permissions(tmp, folder=True)
     os.replace(tmp, out)
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)

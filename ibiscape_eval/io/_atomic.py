@@ -13,7 +13,19 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import IO, Any
 
-__all__ = ["atomic_output_path", "atomic_write"]
+__all__ = ["atomic_output_path", "atomic_write", "publish_permissions"]
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def publish_permissions(path: str | os.PathLike[str], *, folder: bool = False) -> None:
+    """Give a file made by ``mkstemp`` (mode 0600) or a folder made by ``mkdtemp`` (0700) the
+    permissions an ordinary ``open``/``mkdir`` would have had under the current umask."""
+    os.chmod(path, (0o777 if folder else 0o666) & ~_umask())
 
 
 def atomic_write(
@@ -44,6 +56,7 @@ def _atomic_write(path: Path, mode: str) -> Iterator[IO[Any]]:
             f = os.fdopen(fd, "w", encoding="utf-8", newline="\n")
         with f:
             yield f
+        publish_permissions(tmp)
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
@@ -62,6 +75,7 @@ def atomic_output_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     os.close(fd)
     try:
         yield Path(tmp)
+        publish_permissions(tmp)
         os.replace(tmp, target)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):

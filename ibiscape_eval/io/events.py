@@ -41,7 +41,7 @@ import numpy.typing as npt
 from ibiscape_eval.core.errors import FormatError, IbiscapeError
 from ibiscape_eval.core.events import EventChunk, Events
 
-from ._atomic import atomic_output_path, atomic_write
+from ._atomic import atomic_output_path, atomic_write, publish_permissions
 
 __all__ = [
     "EventSource",
@@ -506,6 +506,7 @@ class _Writer:
                 f.writelines(self.rows)
             if self.dst.is_dir():
                 self.dst.rmdir()
+            publish_permissions(self.tmp, folder=True)
             os.replace(self.tmp, self.dst)
             return
         if self.fmt == "npz":
@@ -525,6 +526,7 @@ class _Writer:
                 idx = np.concatenate([[0], np.cumsum(self._ms)]).astype(np.uint64)
                 self._h5.create_dataset("ms_to_idx", data=idx)
             self._h5.close()
+        publish_permissions(self.tmp)
         os.replace(self.tmp, self.dst)
 
     def abort(self) -> None:

@@ -55,3 +55,21 @@ def test_seconds_conversion_exact_at_epoch_scale() -> None:
     ns = np.array([1_305_031_102_175_304_000, 1_403_715_273_262_142_976], dtype=np.int64)
     assert (ns_from_s(np.array([0.5, 1.25])) == [500_000_000, 1_250_000_000]).all()
     np.testing.assert_allclose(s_from_ns(ns), ns / 1e9, rtol=1e-15)
+
+
+def test_atomic_outputs_get_umask_permissions(tmp_path) -> None:
+    """mkstemp creates 0600 files; published outputs must be readable like any other file."""
+    import os
+
+    from ibiscape_eval.io._atomic import atomic_output_path, atomic_write
+
+    old = os.umask(0o022)
+    try:
+        with atomic_write(tmp_path / "a.txt") as f:
+            f.write("x")
+        with atomic_output_path(tmp_path / "b.png") as p:
+            p.write_bytes(b"x")
+    finally:
+        os.umask(old)
+    assert (tmp_path / "a.txt").stat().st_mode & 0o777 == 0o644
+    assert (tmp_path / "b.png").stat().st_mode & 0o777 == 0o644
