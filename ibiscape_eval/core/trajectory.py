@@ -86,27 +86,30 @@ class Trajectory:
         ):
             bad = int(np.flatnonzero(~(np.isfinite(pos).all(1) & np.isfinite(quat).all(1)))[0])
             raise IbiscapeError(f"trajectory {self.name!r}: pose {bad} is not finite")
-        if n > 1:
-            d = np.diff(stamps)
-            if (d <= 0).any():
-                i = int(np.flatnonzero(d <= 0)[0])
-                raise IbiscapeError(
-                    f"trajectory {self.name!r}: timestamps must increase strictly, "
-                    f"pose {i + 1} ({stamps[i + 1]} ns) follows {stamps[i]} ns"
-                )
-        norms = np.sqrt(np.einsum("ij,ij->i", quat, quat))
-        off = np.abs(norms - 1.0)
-        if n and (off > 1e-3).any():
-            i = int(np.flatnonzero(off > 1e-3)[0])
+        if n > 1 and (stamps[1:] <= stamps[:-1]).any():
+            i = int(np.flatnonzero(stamps[1:] <= stamps[:-1])[0])
             raise IbiscapeError(
-                f"trajectory {self.name!r}: quaternion {i} has norm {norms[i]:.6g}, "
-                "expected a unit quaternion"
+                f"trajectory {self.name!r}: timestamps must increase strictly, "
+                f"pose {i + 1} ({stamps[i + 1]} ns) follows {stamps[i]} ns"
             )
-        # Already unit with w >= 0 (e.g. from a reader): kept as given, not divided again.
+        # |norm - 1| computed in place (large trajectories: few full-size temporaries).
+        off = np.einsum("ij,ij->i", quat, quat)
+        np.sqrt(off, out=off)
+        np.subtract(off, 1.0, out=off)
+        np.abs(off, out=off)
         owned = False
-        if n and not ((off <= _UNIT_TOL).all() and not (quat[:, 3] < 0.0).any()):
-            quat = quat_normalize(quat)
-            owned = True
+        if n:
+            if off.max() > 1e-3:
+                i = int(np.flatnonzero(off > 1e-3)[0])
+                norm = float(np.sqrt(np.einsum("j,j->", quat[i], quat[i])))
+                raise IbiscapeError(
+                    f"trajectory {self.name!r}: quaternion {i} has norm {norm:.6g}, "
+                    "expected a unit quaternion"
+                )
+            # Already unit with w >= 0 (e.g. from a reader): kept as given, not divided again.
+            if off.max() > _UNIT_TOL or quat[:, 3].min() < 0.0:
+                quat = quat_normalize(quat)
+                owned = True
         object.__setattr__(self, "stamps_ns", _frozen(stamps))
         object.__setattr__(self, "pos_m", _frozen(pos))
         object.__setattr__(self, "quat_xyzw", _frozen(quat, owned=owned))
@@ -150,12 +153,11 @@ class Trajectory:
     def take(self, index: npt.ArrayLike, name: str | None = None) -> Trajectory:
         """A new trajectory of the rows selected by an index array or boolean mask."""
         idx = np.asarray(index)
-        return Trajectory(
-            self.stamps_ns[idx],
-            self.pos_m[idx],
-            self.quat_xyzw[idx],
-            self.name if name is None else name,
-        )
+        stamps, pos, quat = (a[idx] for a in (self.stamps_ns, self.pos_m, self.quat_xyzw))
+        for part in (stamps, pos, quat):  # fresh gathers: read-only, the constructor keeps them
+            if isinstance(part, np.ndarray):
+                part.flags.writeable = False
+        return Trajectory(stamps, pos, quat, self.name if name is None else name)
 
     def with_name(self, name: str) -> Trajectory:
         """The same poses under another label."""

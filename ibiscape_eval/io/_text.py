@@ -16,8 +16,10 @@ to int64 nanoseconds without passing through float64 (which cannot hold 1.3e9 s 
 from __future__ import annotations
 
 import itertools
+import mmap
 import os
 import re
+import stat
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
@@ -27,13 +29,15 @@ import numpy.typing as npt
 
 from ibiscape_eval.core.errors import FormatError
 
-__all__ = ["Table", "decimal_to_ns", "format_lines", "parse_table", "read_bytes", "write_table"]
+__all__ = ["Table", "decimal_to_ns", "format_lines", "map_bytes", "parse_table", "read_bytes",
+           "write_table"]
 
 _NCOLS, _NOTNUM, _NUL = 1, 2, 3  # status codes of the tokenizer
 _NOT_BLANK = re.compile(rb"[^ \t\n\r\x0b\x0c]")  # what bytes.strip() would keep
 _HEAD_BYTES = 1 << 16  # parsed first, alone: the header lines of a file
 _PARALLEL_BYTES = 4 << 20  # inputs above this are tokenized in parallel threads
 _MAX_THREADS = 4
+_MMAP_BYTES = 1 << 20  # files from this size on are memory-mapped instead of read
 _POW10_INT = np.array([10**k for k in range(19)], dtype=np.int64)
 _INT64_MAX = np.iinfo(np.int64).max
 
@@ -63,7 +67,26 @@ def read_bytes(path: str | os.PathLike[str]) -> bytes:
         return f.read()
 
 
-def _is_blank(data: bytes) -> bool:
+def map_bytes(path: str | os.PathLike[str]) -> bytes | mmap.mmap:
+    """The content of a file for :func:`parse_table`: a large regular file is memory-mapped
+    read-only (no copy: the tokenizer reads the page cache directly), anything else is read.
+
+    The mapping is released when the returned object is no longer referenced.
+    """
+    p = Path(path)
+    if p.is_dir():
+        raise FormatError(p, "is a folder, expected a text file (a ROS 2 bag? use --format bag)")
+    with open(p, "rb") as f:
+        st = os.fstat(f.fileno())
+        if stat.S_ISREG(st.st_mode) and st.st_size >= _MMAP_BYTES:
+            try:
+                return mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
+            except (OSError, ValueError):  # pragma: no cover (a file system without mmap)
+                pass
+        return f.read()
+
+
+def _is_blank(data: bytes | mmap.mmap) -> bool:
     """True when ``data`` holds nothing but ASCII whitespace (stops at the first other byte)."""
     return _NOT_BLANK.search(data) is None
 
@@ -101,7 +124,7 @@ class _Pool:
         return [first, *(f.result() for f in futures)]
 
 
-def _split(data: bytes, start: int, stop: int, parts: int) -> list[int]:
+def _split(data: bytes | mmap.mmap, start: int, stop: int, parts: int) -> list[int]:
     """Boundaries ``start = b0 < b1 < ... = stop``, each just after a newline (``data[stop - 1]``
     is one), cutting ``data[start:stop]`` into at most ``parts`` pieces of similar size."""
     bounds = [start]
@@ -114,7 +137,10 @@ def _split(data: bytes, start: int, stop: int, parts: int) -> list[int]:
 
 
 def _status_error(
-    path: str | os.PathLike[str], status: npt.NDArray[np.int64], text: bytes, expected: str
+    path: str | os.PathLike[str],
+    status: npt.NDArray[np.int64],
+    text: bytes | mmap.mmap,
+    expected: str,
 ) -> FormatError:
     """The :class:`FormatError` described by a tokenizer ``status`` (``text``: its buffer)."""
     code, line = int(status[0]), int(status[1])
@@ -139,7 +165,7 @@ def _status_error(
 
 def parse_table(
     path: str | os.PathLike[str],
-    data: bytes,
+    data: bytes | mmap.mmap,
     *,
     nkeep: int,
     ncols_min: int,

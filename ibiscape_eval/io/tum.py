@@ -16,7 +16,7 @@ from ibiscape_eval.core.trajectory import Trajectory
 
 from ._atomic import atomic_write
 from ._poses import finish_trajectory
-from ._text import decimal_to_ns, parse_table, read_bytes, write_table
+from ._text import decimal_to_ns, map_bytes, parse_table, write_table
 
 __all__ = ["NS_STAMP_THRESHOLD", "read_tum", "write_tum"]
 
@@ -57,9 +57,9 @@ def read_tum(path: str | os.PathLike[str], *, name: str | None = None) -> Trajec
     Rows with NaN/inf are skipped with one :class:`~ibiscape_eval.core.IbiscapeWarning`;
     repeated timestamps keep the first row, also with a warning.
     """
-    data = read_bytes(path)
+    data = map_bytes(path)
     tb = parse_table(path, data, nkeep=8, ncols_min=8, ncols_max=8, expected=_EXPECTED)
-    del data  # the raw bytes are no longer needed: lower peak memory
+    del data  # the raw bytes are no longer needed (unmaps the file): lower peak memory
     first = tb.values[:1, 0]
     if not np.isfinite(first).all():
         first = tb.values[np.flatnonzero(np.isfinite(tb.values[:, 0]))[:1], 0]

@@ -9,27 +9,23 @@ import numpy as np
 import numpy.typing as npt
 
 from ibiscape_eval.core import IbiscapeError, Trajectory
-from ibiscape_eval.core.rotations import (
-    angle_rad_from_quat,
-    quat_conjugate,
-    quat_multiply,
-    quat_rotate,
-)
 
-from ._fast import take, trusted
+from ._fast import run_rows, take, trusted
+from .alignment import AlignmentResult
 from .association import Matched, associate, associate_by_index
 
-__all__ = ["absolute_errors", "common_dict", "frozen", "match", "relative_errors", "take",
-           "trusted"]
+__all__ = ["absolute_errors", "aligned_errors", "common_dict", "frozen", "match",
+           "relative_errors", "take", "trusted"]
 
 FloatArray = npt.NDArray[np.float64]
 
 MATCH_MODES = ("time", "index")
 
 
-def frozen(a: npt.ArrayLike, dtype: Any = None) -> np.ndarray:
-    """A read-only copy of ``a`` (results are immutable)."""
-    out = np.array(a, dtype=dtype)
+def frozen(a: npt.ArrayLike, dtype: Any = None, *, owned: bool = False) -> np.ndarray:
+    """A read-only copy of ``a`` (results are immutable); ``owned``: ``a`` is a new array that
+    nothing else holds, so it is made read-only in place instead of copied."""
+    out = np.asarray(a, dtype=dtype) if owned else np.array(a, dtype=dtype)
     out.flags.writeable = False
     return out
 
@@ -61,33 +57,52 @@ def match(
     return associate(est, ref, max_diff_s=max_diff_s, offset_s=offset_s, interpolate=interpolate)
 
 
+def _indices(index: npt.ArrayLike, n: int) -> npt.NDArray[np.intp]:
+    """Row indices for the kernels, which do not check bounds: checked here, like numpy would."""
+    idx = np.ascontiguousarray(index, dtype=np.intp)
+    if idx.size and (int(idx.min()) < -n or int(idx.max()) >= n):
+        raise IndexError(f"pose index out of range for {n} poses")
+    return idx
+
+
 def relative_errors(
     est: Trajectory, ref: Trajectory, first: npt.ArrayLike, second: npt.ArrayLike
 ) -> tuple[FloatArray, FloatArray]:
     """Translation (m) and rotation angle (rad) of ``E = (Q_i^-1 Q_j)^-1 (P_i^-1 P_j)``.
 
     ``Q`` are reference poses, ``P`` estimated poses, ``i = first``, ``j = second`` (evo's RPE
-    and the KITTI devkit's segment error, which has the same norms).  Vectorised over pairs.
+    and the KITTI devkit's segment error, which has the same norms).  One fused pass over the
+    pairs (``_fast.relative_errors``).
     """
-    i = np.asarray(first, dtype=np.intp)
-    j = np.asarray(second, dtype=np.intp)
-    qi_ref_inv = quat_conjugate(ref.quat_xyzw[i])
-    qi_est_inv = quat_conjugate(est.quat_xyzw[i])
-    # Relative motions expressed in the start frame.
-    t_ref = quat_rotate(qi_ref_inv, ref.pos_m[j] - ref.pos_m[i])
-    t_est = quat_rotate(qi_est_inv, est.pos_m[j] - est.pos_m[i])
-    q_ref = quat_multiply(qi_ref_inv, ref.quat_xyzw[j])
-    q_est = quat_multiply(qi_est_inv, est.quat_xyzw[j])
-    # E = Q_rel^-1 P_rel: translation R_Qrel^T (t_P - t_Q), rotation q_Q^-1 q_P.
-    trans = np.linalg.norm(t_est - t_ref, axis=1)
-    rot = angle_rad_from_quat(quat_multiply(quat_conjugate(q_ref), q_est))
+    n = min(len(est), len(ref))
+    i, j = _indices(first, n), _indices(second, n)
+    if i.shape != j.shape:
+        raise IbiscapeError(f"got {i.shape[0]} first and {j.shape[0]} second pose indices")
+    trans, rot = np.empty(i.shape[0]), np.empty(i.shape[0])
+    run_rows("relative_errors", i.shape[0],
+             (est.pos_m, est.quat_xyzw, ref.pos_m, ref.quat_xyzw, i, j), (trans, rot))
     return trans, rot
+
+
+def aligned_errors(
+    al: AlignmentResult, est: Trajectory, ref: Trajectory
+) -> tuple[Trajectory, FloatArray, FloatArray]:
+    """``al.apply(est)`` and, row by row, the translation (m) and rotation angle (rad) of
+    ``E_i = P_i^-1 Q_i`` against ``ref``, in one fused pass (``_fast.aligned_errors``)."""
+    if len(est) != len(ref):
+        raise IbiscapeError(f"expected matched trajectories, got {len(est)} and {len(ref)} poses")
+    n = len(est)
+    pos, quat, trans, rot = np.empty((n, 3)), np.empty((n, 4)), np.empty(n), np.empty(n)
+    run_rows("aligned_errors", n,
+             (est.pos_m, est.quat_xyzw, ref.pos_m, ref.quat_xyzw, *al._coefficients()),
+             (pos, quat, trans, rot))
+    return trusted(est.stamps_ns, pos, quat, est.name), trans, rot
 
 
 def absolute_errors(est: Trajectory, ref: Trajectory) -> tuple[FloatArray, FloatArray]:
     """Translation (m) and rotation angle (rad) of ``E_i = P_i^-1 Q_i`` row by row."""
-    trans = np.linalg.norm(ref.pos_m - est.pos_m, axis=1)
-    rot = angle_rad_from_quat(quat_multiply(quat_conjugate(est.quat_xyzw), ref.quat_xyzw))
+    identity = AlignmentResult("none", np.eye(4), 1.0, 0)
+    _, trans, rot = aligned_errors(identity, est, ref)
     return trans, rot
 
 

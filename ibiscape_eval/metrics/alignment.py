@@ -6,6 +6,7 @@ import math
 import warnings
 from dataclasses import dataclass
 from enum import Enum
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -14,13 +15,14 @@ from ibiscape_eval.core import DegenerateInputError, IbiscapeError, IbiscapeWarn
 from ibiscape_eval.core.rotations import quat_from_matrix
 from ibiscape_eval.core.transforms import invert_transforms
 
-from ._fast import trusted
+from ._fast import kernel, trusted
 
 __all__ = ["Alignment", "AlignmentResult", "align", "parse_alignment"]
 
 FloatArray = npt.NDArray[np.float64]
 
 _DEGENERATE_HINT = "use --align yaw or --align origin"
+_EYE4 = np.eye(4)
 
 
 class Alignment(str, Enum):
@@ -81,16 +83,16 @@ class AlignmentResult:
 
     def apply(self, traj: Trajectory) -> Trajectory:
         """A new trajectory with ``p' = s R p + t`` and ``q' = q_R * q`` (stamps unchanged)."""
-        R = self.transform[:3, :3]
-        # einsum rather than a BLAS product: faster for (N, 3) x (3, 3), no thread start-up.
-        pos = np.einsum("ij,nj->ni", self.scale * R, traj.pos_m) + self.transform[:3, 3]
-        # q_R * q is linear in q: one (N, 4) @ (4, 4) product instead of a batched Hamilton
-        # product; the sign is then made canonical (w >= 0) as the constructor does.
-        x, y, z, w = quat_from_matrix(R)
-        left = np.array([[w, -z, y, x], [z, w, -x, y], [-y, x, w, z], [-x, -y, -z, w]])
-        quat = np.einsum("ij,nj->ni", left, traj.quat_xyzw)
-        quat *= np.where(quat[:, 3:4] < 0.0, -1.0, 1.0)
+        if self.scale == 1.0 and np.array_equal(self.transform, _EYE4):
+            return trusted(traj.stamps_ns, traj.pos_m, traj.quat_xyzw, traj.name)
+        pos, quat = kernel("transform_poses")(traj.pos_m, traj.quat_xyzw, *self._coefficients())
         return trusted(traj.stamps_ns, pos, quat, traj.name)
+
+    def _coefficients(self) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """``s R``, ``t`` and the quaternion of ``R``: ``p' = (s R) p + t``, ``q' = q_R * q``."""
+        R = self.transform[:3, :3]
+        return (np.ascontiguousarray(self.scale * R), np.ascontiguousarray(self.transform[:3, 3]),
+                quat_from_matrix(R))
 
     def inverse(self) -> AlignmentResult:
         """The transform taking the reference to the estimate (``p_est = R^T (p_ref - t) / s``)."""
@@ -106,29 +108,47 @@ def _se3(R: FloatArray, t: FloatArray) -> FloatArray:
     return T
 
 
-def _check_spread(pts: FloatArray, who: str, method: str, *, planar: bool = False) -> None:
+class _Moments(NamedTuple):
+    """First and second moments of the matched positions (see ``_fast.moments``)."""
+
+    n: int
+    mean_x: FloatArray
+    mean_y: FloatArray
+    sxx: FloatArray  # scatter of the centred estimate, X^T X
+    syy: FloatArray
+    syx: FloatArray  # Y^T X
+    size_x: float  # largest absolute coordinate
+    size_y: float
+
+
+def _moments(x: FloatArray, y: FloatArray) -> _Moments:
+    mx, my, sxx, syy, syx, big_x, big_y = kernel("moments")(x, y)
+    return _Moments(x.shape[0], mx, my, sxx, syy, syx, float(big_x), float(big_y))
+
+
+def _check_scatter(
+    scatter: FloatArray, size: float, n: int, who: str, method: str, *, planar: bool = False
+) -> None:
     """Raise when positions are all equal or (for 3-D alignment) collinear.
 
-    The spread is read from the eigenvalues of the 3x3 scatter matrix of the centred points
-    (their squared singular values): one pass over the data instead of an (N, 3) SVD.
+    The spread is read from the eigenvalues of the 3x3 scatter matrix ``C^T C`` of the centred
+    points (their squared singular values): one pass over the data instead of an (N, 3) SVD.
     """
-    c = pts - pts.mean(axis=0)
     if planar:
-        c = c[:, :2]
-    ev = np.linalg.eigvalsh(np.einsum("ni,nj->ij", c, c))[::-1]
+        scatter = scatter[:2, :2]
+    ev = np.linalg.eigvalsh(scatter)[::-1]
     sv = np.sqrt(np.maximum(ev, 0.0))
-    size = float(np.max(np.abs(pts))) if pts.size else 0.0
-    tiny = 1e-12 * max(size, 1.0) * math.sqrt(pts.shape[0])
+    tiny = 1e-12 * max(size, 1.0) * math.sqrt(n)
     what = "horizontal positions" if planar else "positions"
     if sv[0] <= tiny:
         raise DegenerateInputError(
-            f"cannot align with {method}: all {pts.shape[0]} {what} of the {who} are equal; "
+            f"cannot align with {method}: all {n} {what} of the {who} are equal; "
             f"{_DEGENERATE_HINT}"
         )
     # Squared values resolve a ratio down to ~1e-8; 1e-6 is a micrometre per metre.
-    if not planar and (pts.shape[0] < 3 or sv[1] <= 1e-6 * sv[0]):
+    if not planar and (n < 3 or sv[1] <= 1e-6 * sv[0]):
         raise DegenerateInputError(
-            f"cannot align with {method}: the {pts.shape[0]} positions of the {who} are "
+            f"cannot align with {method}: the {n} positions of the {who} are "
             f"collinear, so the rotation about that line is undetermined; {_DEGENERATE_HINT}"
         )
 
@@ -141,39 +161,35 @@ def umeyama(
     Computed on centred coordinates; the reflection is removed with the sign matrix of
     eq. 39-40.  The caller checks the geometry first.
     """
-    mean_x = x.mean(axis=0)
-    mean_y = y.mean(axis=0)
-    xc = x - mean_x
-    yc = y - mean_y
-    n = x.shape[0]
-    sigma_x = float(np.sum(xc * xc)) / n  # variance, eq. 36
-    cov = np.einsum("ni,nj->ij", yc, xc) / n  # covariance matrix, eq. 38
+    return _umeyama(_moments(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)),
+                    with_scale=with_scale)
+
+
+def _umeyama(m: _Moments, *, with_scale: bool) -> tuple[FloatArray, FloatArray, float]:
+    sigma_x = float(np.trace(m.sxx)) / m.n  # variance, eq. 36
+    cov = m.syx / m.n  # covariance matrix, eq. 38
     U, d, Vt = np.linalg.svd(cov)
     S = np.eye(3)
     if np.linalg.det(U) * np.linalg.det(Vt) < 0.0:  # eq. 39-40
         S[2, 2] = -1.0
     R = U @ S @ Vt  # eq. 40
     c = float(np.trace(np.diag(d) @ S)) / sigma_x if with_scale else 1.0  # eq. 42
-    t = mean_y - c * (R @ mean_x)  # eq. 41
+    t = m.mean_y - c * (R @ m.mean_x)  # eq. 41
     return R, t, c
 
 
-def _yaw(x: FloatArray, y: FloatArray) -> tuple[FloatArray, FloatArray]:
+def _yaw(m: _Moments) -> tuple[FloatArray, FloatArray]:
     """Closed-form 4-DoF alignment: rotation about world z plus translation, ``y ≈ Rz x + t``.
 
     With centred points the optimal angle maximises ``sum(yc_xy · Rz xc_xy)``, which gives
     ``atan2(sum(xc × yc)_z, sum(xc · yc)_xy)``; z only enters the translation.
     """
-    mean_x = x.mean(axis=0)
-    mean_y = y.mean(axis=0)
-    xc = x - mean_x
-    yc = y - mean_y
-    s = float(np.sum(xc[:, 0] * yc[:, 1] - xc[:, 1] * yc[:, 0]))
-    c = float(np.sum(xc[:, 0] * yc[:, 0] + xc[:, 1] * yc[:, 1]))
+    s = float(m.syx[1, 0] - m.syx[0, 1])
+    c = float(m.syx[0, 0] + m.syx[1, 1])
     theta = math.atan2(s, c)
     cz, sz = math.cos(theta), math.sin(theta)
     R = np.array([[cz, -sz, 0.0], [sz, cz, 0.0], [0.0, 0.0, 1.0]])
-    return R, mean_y - R @ mean_x
+    return R, m.mean_y - R @ m.mean_x
 
 
 def align(
@@ -240,16 +256,14 @@ def align(
     if m is Alignment.ORIGIN:
         T = ref.matrices()[0] @ invert_transforms(est.matrices()[0])
         return AlignmentResult(m.value, T, 1.0, 1)
-    x = est.pos_m[:n_used]
-    y = ref.pos_m[:n_used]
-    if m is Alignment.YAW:
-        _check_spread(x, "estimate", m.value, planar=True)
-        _check_spread(y, "reference", m.value, planar=True)
-        R, t = _yaw(x, y)
+    mo = _moments(est.pos_m[:n_used], ref.pos_m[:n_used])  # one pass serves every check
+    planar = m is Alignment.YAW
+    _check_scatter(mo.sxx, mo.size_x, n_used, "estimate", m.value, planar=planar)
+    _check_scatter(mo.syy, mo.size_y, n_used, "reference", m.value, planar=planar)
+    if planar:
+        R, t = _yaw(mo)
         return AlignmentResult(m.value, _se3(R, t), 1.0, n_used)
-    _check_spread(x, "estimate", m.value)
-    _check_spread(y, "reference", m.value)
-    R, t, c = umeyama(x, y, with_scale=m is Alignment.SIM3)
+    R, t, c = _umeyama(mo, with_scale=m is Alignment.SIM3)
     if not (math.isfinite(c) and c > 0.0):
         raise DegenerateInputError(
             f"sim3 alignment gave an invalid scale {c!r}; {_DEGENERATE_HINT}"

@@ -11,7 +11,7 @@ import numpy.typing as npt
 from ibiscape_eval.core import DegenerateInputError, IbiscapeError, Trajectory
 from ibiscape_eval.core.rotations import quat_slerp
 
-from ._fast import take, trusted
+from ._fast import kernel, take, trusted
 
 __all__ = ["MIN_MATCHES", "Matched", "associate", "associate_by_index"]
 
@@ -73,17 +73,9 @@ def _nearest(
     Ties between the neighbour below and above go to the one below, as in evo's
     ``matching_time_indices``.  Returns (short indices, long indices, |difference| ns).
     """
-    n_long = long_ns.shape[0]
-    k = np.searchsorted(long_ns, short_ns, side="right")
-    hi = np.minimum(k, n_long - 1)
-    lo = np.maximum(k - 1, 0)
-    d_hi = np.abs(long_ns[hi] - short_ns)
-    d_lo = np.where(k > 0, np.abs(short_ns - long_ns[lo]), np.iinfo(np.int64).max)
-    take_hi = d_hi < d_lo
-    best = np.where(take_hi, hi, lo)
-    diff = np.where(take_hi, d_hi, d_lo)
-    ok = diff <= max_diff_ns
-    return np.flatnonzero(ok), best[ok], diff[ok]
+    limit = np.int64(min(max_diff_ns, np.iinfo(np.int64).max))
+    rows_s, rows_l, diff = kernel("nearest")(short_ns, long_ns, limit)
+    return rows_s, rows_l, diff
 
 
 def _one_to_one(

@@ -11,7 +11,7 @@ import numpy.typing as npt
 from ibiscape_eval.core import Trajectory
 from ibiscape_eval.core.time import s_from_ns
 
-from ._common import absolute_errors, common_dict, frozen
+from ._common import aligned_errors, common_dict, frozen
 from ._common import match as _match
 from ._stats import ErrorStats
 from .alignment import Alignment, AlignmentResult
@@ -130,13 +130,12 @@ def ate(
     m = _match(est, ref, match=match, max_diff_s=max_diff_s, offset_s=offset_s,
                estimate_offset=estimate_offset, interpolate=interpolate)
     al = _align(m.est, m.ref, method=align, n_align=n_align)
-    est_al = al.apply(m.est)
-    trans, rot = absolute_errors(est_al, m.ref)
-    rot_deg = np.degrees(rot)
+    est_al, trans, rot = aligned_errors(al, m.est, m.ref)
+    rot_deg = np.degrees(rot, out=rot)
     return AteResult(
         stamps_ns=frozen(m.ref.stamps_ns),
-        errors_m=frozen(trans),
-        errors_deg=frozen(rot_deg),
+        errors_m=frozen(trans, owned=True),
+        errors_deg=frozen(rot_deg, owned=True),
         translation_m=ErrorStats.from_errors(trans),
         rotation_deg=ErrorStats.from_errors(rot_deg),
         alignment=al,

@@ -223,13 +223,13 @@ def rpe(
             f"({extent}); use a smaller --delta"
         )
     trans, rot = relative_errors(est_al, m.ref, i, j)
-    rot_deg = np.degrees(rot)
+    rot_deg = np.degrees(rot, out=rot)
     return RpeResult(
-        stamps_ns=frozen(m.ref.stamps_ns[i]),
+        stamps_ns=frozen(m.ref.stamps_ns[i], owned=True),
         first_index=frozen(i),
         second_index=frozen(j),
-        errors_m=frozen(trans),
-        errors_deg=frozen(rot_deg),
+        errors_m=frozen(trans, owned=True),
+        errors_deg=frozen(rot_deg, owned=True),
         translation_m=ErrorStats.from_errors(trans),
         rotation_deg=ErrorStats.from_errors(rot_deg),
         n_pairs=int(i.shape[0]),
