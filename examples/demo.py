@@ -6,8 +6,10 @@ the command and its output, and writes figures and files into ``--out`` (default
 Steps:
   1. trajectory metrics on the real trajectories in ``examples/data`` (TUM RGB-D fr1/xyz, EuRoC V1_02,
      an ORB-SLAM monocular run that needs Sim(3)): ATE with every alignment, RPE, KITTI-style drift;
-  2. IMU noise from the Allan deviation of a generated still-IMU record with known densities;
-  3. DVS hot-pixel detection and filtering on a generated event stream with planted hot pixels.
+  2. the simulator: an SVI calibration sequence over bumps toward an AprilGrid, a FULL SLAM sequence
+     in dynamic weather and a 2-hour still IMU, all in the IBISCape layout with exact ground truth;
+  3. IMU noise from the Allan deviation of the simulated still IMU, compared with the simulated truth;
+  4. DVS hot-pixel detection and filtering on a generated event stream with planted hot pixels.
 """
 
 from __future__ import annotations
@@ -106,39 +108,57 @@ def trajectories(out: Path) -> None:
     sh("ate", DATA / "V102.txt", DATA / "V102_groundtruth.csv", "--align", "sim3", "--json")
 
 
-def imu(out: Path) -> None:
-    banner(
-        "2. IMU noise from the Allan deviation (generated still IMU, 2 h at 200 Hz, known truth)"
-    )
-    import numpy as np
-
-    from ibiscape_eval.io.imu import write_imu_csv
-    from ibiscape_eval.sim.noise import imu_noise
-
-    rate_hz, hours = 200.0, 2.0
-    # Continuous-time densities (Kalibr's convention): gyro N [rad/s/sqrt(Hz)], K [rad/s^2/sqrt(Hz)],
-    # accel N [m/s^2/sqrt(Hz)], K [m/s^3/sqrt(Hz)]. The gyro N is CARLA's per-sample 0.004 rad/s.
-    n_true = np.array([2.83e-4] * 3 + [4.95e-3] * 3)
-    k_true = np.array([7.0e-5] * 3 + [1.26e-3] * 3)
-    n = int(hours * 3600 * rate_hz)
-    samples = imu_noise(
-        n,
-        rate_hz,
-        noise_density=n_true,
-        random_walk=k_true,
-        bias0=[0.001, -0.002, 0.0005, 0.05, -0.03, 9.81],
-        seed=7,
-    )
-    stamps_ns = 1_600_000_000_000_000_000 + np.arange(n, dtype=np.int64) * int(1e9 / rate_hz)
-    path = out / "imu_still.csv"
-    write_imu_csv(path, stamps_ns, samples[:, :3], samples[:, 3:])
-    print(
-        f"generated {path} ({n:,} samples); truth: gyro N {n_true[0]:.3g} K {k_true[0]:.3g}, "
-        f"accel N {n_true[3]:.3g} K {k_true[3]:.3g}"
+def simulate(out: Path) -> None:
+    banner("2. Synthetic sequences with exact ground truth (IBISCape layout, CPU only, seeded)")
+    # A calibration run toward the AprilGrid over bubbles and waves (pitch/roll excitation), a SLAM run
+    # through the town in dynamic weather, and a still IMU for the noise calibration of step 3.
+    sh(
+        "sim",
+        "--setup",
+        "svi",
+        "--kind",
+        "calibration",
+        "--target",
+        "aprilgrid",
+        "--duration-s",
+        "40",
+        "--seed",
+        "1",
+        "--out",
+        out / "SVI_calib",
     )
     sh(
+        "sim",
+        "--setup",
+        "full",
+        "--kind",
+        "slam",
+        "--weather",
+        "dynamic",
+        "--duration-s",
+        "60",
+        "--seed",
+        "2",
+        "--out",
+        out / "FULL_dynamic",
+    )
+    sh("sim", "--setup", "imu", "--duration-s", "7200", "--seed", "3", "--out", out / "IMU_still")
+    # The ground truth is in CARLA's left-handed frame like the real dataset; our readers convert it.
+    sh(
+        "convert",
+        out / "FULL_dynamic" / "vehicle_gt" / "groundtruth_sync.csv",
+        out / "full_gt_tum.txt",
+    )
+
+
+def imu(out: Path) -> None:
+    banner("3. IMU noise from the Allan deviation of the simulated still IMU (2 h at 200 Hz)")
+    import yaml
+
+    seq = out / "IMU_still"
+    sh(
         "allan",
-        path,
+        seq / "other_sensors" / "imu.csv",
         "--yaml",
         out / "imu.yaml",
         "--plot",
@@ -146,7 +166,17 @@ def imu(out: Path) -> None:
         "--csv",
         out / "allan_curves.csv",
     )
-    print((out / "imu.yaml").read_text())
+    truth = yaml.safe_load((seq / "sequence.yaml").read_text())["imus"]["imu0"]
+    est = yaml.safe_load((out / "imu.yaml").read_text())
+    print(f"{'Kalibr key':<30}{'simulated':>14}{'estimated':>14}{'error':>9}")
+    for key in (
+        "gyroscope_noise_density",
+        "gyroscope_random_walk",
+        "accelerometer_noise_density",
+        "accelerometer_random_walk",
+    ):
+        t, e = float(truth[key]), float(est[key])
+        print(f"{key:<30}{t:>14.4g}{e:>14.4g}{100 * (e / t - 1):>+8.1f}%")
 
 
 def events(out: Path) -> None:
@@ -202,6 +232,7 @@ def events(out: Path) -> None:
 
 STEPS: list[tuple[str, Callable[[Path], None]]] = [
     ("trajectories", trajectories),
+    ("sim", simulate),
     ("imu", imu),
     ("events", events),
 ]
@@ -212,18 +243,21 @@ def main() -> None:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     ap.add_argument("--out", type=Path, default=Path("demo-output"))
-    ap.add_argument("--only", choices=[name for name, _ in STEPS], default=None)
+    ap.add_argument("--only", choices=[name for name, _ in STEPS], action="append", default=None,
+                    help="run only these steps (repeatable; 'imu' needs 'sim')")
     args = ap.parse_args()
     marker = args.out / ".ibiscape-demo"
     if args.out.exists() and any(args.out.iterdir()):
         if not marker.exists():
-            raise SystemExit(f"{args.out} exists and is not a demo output folder; choose another --out")
+            raise SystemExit(
+                f"{args.out} exists and is not a demo output folder; choose another --out"
+            )
         shutil.rmtree(args.out)  # a previous demo run: start afresh
     args.out.mkdir(parents=True, exist_ok=True)
     marker.touch()
     t0 = time.perf_counter()
     for name, step in STEPS:
-        if args.only in (None, name):
+        if args.only is None or name in args.only:
             step(args.out)
     banner(f"demo finished in {time.perf_counter() - t0:.1f} s; figures and files in {args.out}/")
     for p in sorted(args.out.iterdir()):
