@@ -113,27 +113,38 @@ def _input_options(func: Callable[..., Any]) -> Callable[..., Any]:
 
 def _read_pair(est: Path, ref: Path, o: dict[str, Any]) -> tuple[Any, Any, str]:
     """Read both trajectories, say which formats were used, and choose time or index pairing."""
+    import gc
+
     from ibiscape_eval.io import detect_trajectory_format, read_trajectory
 
-    trajs = []
-    kitti_untimed = False
-    for path, side in ((est, "est"), (ref, "ref")):
-        fmt = o[f"format_{side}"] or o["fmt"]
-        if fmt == "auto":
-            fmt = detect_trajectory_format(path)
-            info(f"{path}: format {fmt} (detected; force another with --format-{side})")
-        times = o[f"times_{side}"]
-        topic = o[f"topic_{side}"] or o["topic"]
-        trajs.append(
-            read_trajectory(
-                path,
-                fmt,
-                topic=topic,
-                times_path=None if times is None else str(times),
-                name=path.name,
+    # numba's start-up (on the first read) creates some 10^5 long-lived objects: without the
+    # cyclic collector running over them meanwhile, and frozen afterwards, that costs nothing.
+    collecting = gc.isenabled()
+    gc.disable()
+    try:
+        trajs = []
+        kitti_untimed = False
+        for path, side in ((est, "est"), (ref, "ref")):
+            fmt = o[f"format_{side}"] or o["fmt"]
+            if fmt == "auto":
+                fmt = detect_trajectory_format(path)
+                info(f"{path}: format {fmt} (detected; force another with --format-{side})")
+            times = o[f"times_{side}"]
+            topic = o[f"topic_{side}"] or o["topic"]
+            trajs.append(
+                read_trajectory(
+                    path,
+                    fmt,
+                    topic=topic,
+                    times_path=None if times is None else str(times),
+                    name=path.name,
+                )
             )
-        )
-        kitti_untimed |= fmt == "kitti" and times is None
+            kitti_untimed |= fmt == "kitti" and times is None
+    finally:
+        gc.freeze()
+        if collecting:
+            gc.enable()
     match = "index" if kitti_untimed else "time"
     if kitti_untimed:
         info("KITTI poses without a times file: pairing poses by index")

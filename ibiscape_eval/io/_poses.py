@@ -114,6 +114,23 @@ def _all_finite(a: npt.NDArray[np.float64]) -> bool:
     return bool(np.isfinite(a).all())
 
 
+def _checked_trajectory(
+    stamps_ns: npt.NDArray[np.int64],
+    pos_m: npt.NDArray[np.float64],
+    quat_xyzw: npt.NDArray[np.float64],
+    name: str,
+) -> Trajectory:
+    """A :class:`Trajectory` from arrays ``pose_rows`` has just checked (finite, strictly
+    increasing int64 stamps, unit quaternions with w >= 0, contiguous): the constructor's own
+    checks would repeat four full passes over a million-pose file for nothing."""
+    traj = object.__new__(Trajectory)
+    for field, arr, dtype in (("stamps_ns", stamps_ns, np.int64), ("pos_m", pos_m, np.float64),
+                              ("quat_xyzw", quat_xyzw, np.float64)):
+        object.__setattr__(traj, field, _read_only(np.ascontiguousarray(arr, dtype=dtype)))
+    object.__setattr__(traj, "name", name)
+    return traj
+
+
 def _read_only(a: np.ndarray) -> np.ndarray:
     """A read-only view of an array this module made: the :class:`Trajectory` keeps it as is."""
     v = a.view()
@@ -140,7 +157,7 @@ def finish_trajectory(
             stamps_ns, pos_m, quat_xyzw, finite, QUAT_NORM_TOL)
         if all_finite and increasing and bad < 0:
             # The usual file, checked in one pass: every row kept, nothing to report.
-            return Trajectory(_read_only(stamps_ns), _read_only(pos), _read_only(quat), name)
+            return _checked_trajectory(stamps_ns, pos, quat, name)
         del pos, quat  # otherwise the checks below give the warning or the error
     if not (finite.all() and _all_finite(pos_m) and _all_finite(quat_xyzw)):
         finite = finite & np.isfinite(pos_m).all(axis=1) & np.isfinite(quat_xyzw).all(axis=1)

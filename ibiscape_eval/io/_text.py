@@ -20,6 +20,7 @@ import mmap
 import os
 import re
 import stat
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
@@ -84,6 +85,30 @@ def map_bytes(path: str | os.PathLike[str]) -> bytes | mmap.mmap:
             except (OSError, ValueError):  # pragma: no cover (a file system without mmap)
                 pass
         return f.read()
+
+
+def _kernels() -> Any:
+    """The numba kernels (:mod:`._text_kernels`), imported on first use.
+
+    numba's import and the start of its runtime (on the first call) create some 10^5 Python
+    objects; the cyclic garbage collector is paused meanwhile, which spares several full
+    collections over them (about 0.1 s of start-up).
+    """
+    mod = sys.modules.get(f"{__package__}._text_kernels")
+    if mod is not None:
+        return mod
+    import gc
+
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        from . import _text_kernels as mod
+
+        mod.count_newlines(np.frombuffer(b"\n" * 8, dtype=np.uint8), 0, 8)
+    finally:
+        if enabled:
+            gc.enable()
+    return mod
 
 
 def _is_blank(data: bytes | mmap.mmap) -> bool:
@@ -194,7 +219,9 @@ def parse_table(
     """
     if _is_blank(data):
         raise FormatError(path, f"file is empty; expected {expected}")
-    from ._text_kernels import count_newlines, move_rows, scan_lines
+    kernels = _kernels()
+    count_newlines, move_rows, scan_lines = (kernels.count_newlines, kernels.move_rows,
+                                             kernels.scan_lines)
 
     buf = np.frombuffer(data, dtype=np.uint8)
     body = data.rfind(b"\n") + 1  # the kernels need each piece to end with a newline
@@ -302,8 +329,7 @@ def write_table(
     (integer ns followed by ``.000000`` like the IBISCape scripts' ``%f``).  Floats are written
     with 15 significant digits (relative error below 5e-15).
     """
-    from ._text_kernels import format_rows
-
+    format_rows = _kernels().format_rows
     vals = np.ascontiguousarray(values, dtype=np.float64)
     mode = {"none": 0, "ns": 1, "s": 2, "ns_f": 3}[stamp]
     st = (np.zeros(len(vals), dtype=np.int64) if stamps_ns is None
