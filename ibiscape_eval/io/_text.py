@@ -94,21 +94,21 @@ def _kernels() -> Any:
     objects; the cyclic garbage collector is paused meanwhile, which spares several full
     collections over them (about 0.1 s of start-up).
     """
-    mod = sys.modules.get(f"{__package__}._text_kernels")
-    if mod is not None:
-        return mod
+    loaded = sys.modules.get(f"{__package__}._text_kernels")
+    if loaded is not None:
+        return loaded
     import gc
 
     enabled = gc.isenabled()
     gc.disable()
     try:
-        from . import _text_kernels as mod
+        from . import _text_kernels
 
-        mod.count_newlines(np.frombuffer(b"\n" * 8, dtype=np.uint8), 0, 8)
+        _text_kernels.count_newlines(np.frombuffer(b"\n" * 8, dtype=np.uint8), 0, 8)
     finally:
         if enabled:
             gc.enable()
-    return mod
+    return _text_kernels
 
 
 def _is_blank(data: bytes | mmap.mmap) -> bool:
