@@ -38,6 +38,7 @@ _NOT_BLANK = re.compile(rb"[^ \t\n\r\x0b\x0c]")  # what bytes.strip() would keep
 _HEAD_BYTES = 1 << 16  # parsed first, alone: the header lines of a file
 _PARALLEL_BYTES = 4 << 20  # inputs above this are tokenized in parallel threads
 _MAX_THREADS = 4
+_PIECES_PER_THREAD = 4  # smaller pieces balance threads that other processes slow down
 _MMAP_BYTES = 1 << 20  # files from this size on are memory-mapped instead of read
 _POW10_INT = np.array([10**k for k in range(19)], dtype=np.int64)
 _INT64_MAX = np.iinfo(np.int64).max
@@ -125,14 +126,14 @@ def _workers() -> int:
 
 
 class _Pool:
-    """Runs one call per piece: the first in the calling thread, the others in worker threads."""
+    """Runs calls in ``threads`` worker threads, or inline when there is one."""
 
-    def __init__(self, n: int) -> None:
+    def __init__(self, threads: int) -> None:
         self._ex = None
-        if n > 1:
+        if threads > 1:
             from concurrent.futures import ThreadPoolExecutor
 
-            self._ex = ThreadPoolExecutor(n - 1)
+            self._ex = ThreadPoolExecutor(threads)
 
     def __enter__(self) -> _Pool:
         return self
@@ -142,11 +143,12 @@ class _Pool:
             self._ex.shutdown()
 
     def map(self, func: Any, args: list[tuple[Any, ...]]) -> list[Any]:
+        """``[func(*a) for a in args]``, in parallel; a free thread takes the next call, so a
+        thread slowed down by other processes gets fewer pieces."""
         if self._ex is None:
             return [func(*a) for a in args]
-        futures = [self._ex.submit(func, *a) for a in args[1:]]
-        first = func(*args[0])
-        return [first, *(f.result() for f in futures)]
+        futures = [self._ex.submit(func, *a) for a in args]
+        return [f.result() for f in futures]
 
 
 def _split(data: bytes | mmap.mmap, start: int, stop: int, parts: int) -> list[int]:
@@ -229,8 +231,9 @@ def parse_table(
     # can be written in place: they only move when a comment or blank line sits between them.
     head = data.find(b"\n", min(_HEAD_BYTES, body - 1)) + 1 if body else 0
     workers = _workers() if body - head >= _PARALLEL_BYTES else 1
-    pieces = list(itertools.pairwise(_split(data, head, body, workers)))
-    with _Pool(len(pieces)) as pool:
+    parts = 1 if workers == 1 else _PIECES_PER_THREAD * workers
+    pieces = list(itertools.pairwise(_split(data, head, body, parts)))
+    with _Pool(workers) as pool:
         counts = pool.map(count_newlines, [(buf, a, b) for a, b in pieces])
         n_head = count_newlines(buf, 0, head)
         cap = n_head + sum(counts) + (body < len(data))
