@@ -226,8 +226,8 @@ def rpe(
     rot_deg = np.degrees(rot, out=rot)
     return RpeResult(
         stamps_ns=frozen(m.ref.stamps_ns[i], owned=True),
-        first_index=frozen(i),
-        second_index=frozen(j),
+        first_index=frozen(i, owned=True),
+        second_index=frozen(j, owned=True),
         errors_m=frozen(trans, owned=True),
         errors_deg=frozen(rot_deg, owned=True),
         translation_m=ErrorStats.from_errors(trans),
