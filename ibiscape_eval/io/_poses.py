@@ -12,6 +12,7 @@ Rules (the same for every format, so a user learns them once):
 
 from __future__ import annotations
 
+import itertools
 import os
 import warnings
 
@@ -21,12 +22,13 @@ import numpy.typing as npt
 from ibiscape_eval.core.errors import FormatError, IbiscapeWarning
 from ibiscape_eval.core.trajectory import Trajectory
 
-from ._text import format_lines
+from ._text import _kernels, _Pool, _workers, format_lines
 
 __all__ = ["QUAT_NORM_TOL", "check_rows", "finish_trajectory"]
 
 QUAT_NORM_TOL = 1e-3
 _FUSED_MIN_ROWS = 10_000  # from this size on the usual case is checked by one numba pass
+_PARALLEL_ROWS = 200_000  # ... in parallel threads from this size on
 
 
 def check_rows(
@@ -150,12 +152,16 @@ def finish_trajectory(
     where: str = "line",
 ) -> Trajectory:
     """Apply the shared rules and build the :class:`Trajectory`."""
-    if stamps_ns.size > _FUSED_MIN_ROWS:
-        from ._text_kernels import pose_rows
-
-        pos, quat, all_finite, increasing, bad = pose_rows(
-            stamps_ns, pos_m, quat_xyzw, finite, QUAT_NORM_TOL)
-        if all_finite and increasing and bad < 0:
+    n = stamps_ns.size
+    if n > _FUSED_MIN_ROWS:
+        pos, quat = np.empty((n, 3)), np.empty((n, 4))
+        threads = _workers() if n >= _PARALLEL_ROWS else 1
+        cuts = [n * k // threads for k in range(threads + 1)]
+        with _Pool(threads) as pool:
+            parts = pool.map(_kernels().pose_rows, [
+                (stamps_ns, pos_m, quat_xyzw, finite, QUAT_NORM_TOL, a, b, pos, quat)
+                for a, b in itertools.pairwise(cuts)])
+        if all(p[0] and p[1] and p[2] < 0 for p in parts):
             # The usual file, checked in one pass: every row kept, nothing to report.
             return _checked_trajectory(stamps_ns, pos, quat, name)
         del pos, quat  # otherwise the checks below give the warning or the error

@@ -292,20 +292,18 @@ def move_rows(vals, mant, exps, finite, lines, src, dst, count):
 
 # -- poses ------------------------------------------------------------------------------------
 @njit(cache=True, nogil=True, error_model="numpy")
-def pose_rows(stamps, pos, quat, finite, tol):
-    """One pass over the poses of a table (see ``_poses.finish_trajectory``).
+def pose_rows(stamps, pos, quat, finite, tol, start, stop, pos_out, quat_out):
+    """Rows ``start:stop`` of the poses of a table (see ``_poses.finish_trajectory``).
 
-    Returns contiguous positions, unit quaternions with w >= 0 (the :class:`Trajectory`
-    convention), and whether every row is finite, whether the stamps increase strictly, and the
-    first row whose quaternion norm is further than ``tol`` from 1 (-1: none).
+    Writes contiguous positions and unit quaternions with w >= 0 (the :class:`Trajectory`
+    convention) to the outputs; returns whether every row is finite, whether the stamps
+    increase strictly (including from the row before ``start``), and the first row whose
+    quaternion norm is further than ``tol`` from 1 (-1: none).
     """
-    n = stamps.shape[0]
-    pos_out = np.empty((n, 3))
-    quat_out = np.empty((n, 4))
     all_finite = True
     increasing = True
     bad = -1
-    for r in range(n):
+    for r in range(start, stop):
         if r > 0 and stamps[r] <= stamps[r - 1]:
             increasing = False
         x, y, z = pos[r, 0], pos[r, 1], pos[r, 2]
@@ -324,7 +322,7 @@ def pose_rows(stamps, pos, quat, finite, tol):
         quat_out[r, 1] = qy / d
         quat_out[r, 2] = qz / d
         quat_out[r, 3] = qw / d
-    return pos_out, quat_out, all_finite, increasing, bad
+    return all_finite, increasing, bad
 
 
 # -- writing -----------------------------------------------------------------------------------
