@@ -150,11 +150,19 @@ def finish_trajectory(
     name: str,
     *,
     where: str = "line",
+    owned: bool = False,
 ) -> Trajectory:
-    """Apply the shared rules and build the :class:`Trajectory`."""
+    """Apply the shared rules and build the :class:`Trajectory`.
+
+    ``owned``: ``pos_m`` and ``quat_xyzw`` are contiguous arrays the caller made for this call
+    alone; they are normalised in place and adopted instead of copied.
+    """
     n = stamps_ns.size
     if n > _FUSED_MIN_ROWS:
-        pos, quat = np.empty((n, 3)), np.empty((n, 4))
+        if owned and pos_m.flags.c_contiguous and quat_xyzw.flags.c_contiguous:
+            pos, quat = pos_m, quat_xyzw
+        else:
+            pos, quat = np.empty((n, 3)), np.empty((n, 4))
         threads = _workers() if n >= _PARALLEL_ROWS else 1
         cuts = [n * k // threads for k in range(threads + 1)]
         with _Pool(threads) as pool:
@@ -164,7 +172,9 @@ def finish_trajectory(
         if all(p[0] and p[1] and p[2] < 0 for p in parts):
             # The usual file, checked in one pass: every row kept, nothing to report.
             return _checked_trajectory(stamps_ns, pos, quat, name)
-        del pos, quat  # otherwise the checks below give the warning or the error
+        # Otherwise the checks below give the warning or the error (the rows they quote were
+        # left untouched; the others may have been normalised already, which is harmless).
+        del pos, quat
     if not (finite.all() and _all_finite(pos_m) and _all_finite(quat_xyzw)):
         finite = finite & np.isfinite(pos_m).all(axis=1) & np.isfinite(quat_xyzw).all(axis=1)
     keep = check_rows(path, stamps_ns, finite, lines, where=where, stacklevel=5)

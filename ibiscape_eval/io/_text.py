@@ -50,7 +50,9 @@ class Table:
 
     ``values`` is ``(N, K)`` float64 (the first K columns), ``stamp_mant``/``stamp_exp`` hold the
     first column as the exact decimal ``mant * 10**exp``, ``finite`` flags rows whose kept
-    columns are all finite, ``lines`` the 1-based line number of each row.
+    columns are all finite, ``lines`` the 1-based line number of each row.  When
+    :func:`parse_table` was given column ``widths``, ``groups`` holds the kept columns as one
+    contiguous ``(N, width)`` array per group and ``values`` is the first group.
     """
 
     values: npt.NDArray[np.float64]
@@ -58,6 +60,7 @@ class Table:
     stamp_exp: npt.NDArray[np.int32]
     finite: npt.NDArray[np.bool_]
     lines: npt.NDArray[np.int64]
+    groups: tuple[npt.NDArray[np.float64], ...] = ()
 
 
 def read_bytes(path: str | os.PathLike[str]) -> bytes:
@@ -198,6 +201,7 @@ def parse_table(
     ncols_min: int,
     ncols_max: int,
     expected: str,
+    widths: tuple[int, ...] | None = None,
 ) -> Table:
     """Tokenize ``data`` (the content of ``path``) into a :class:`Table`.
 
@@ -213,12 +217,20 @@ def parse_table(
     expected
         Human description of the columns for error messages, e.g. ``"8 columns (t x y z qx qy qz
         qw)"``.
+    widths
+        Up to three group widths adding up to ``nkeep``, e.g. ``(1, 3, 4)``: the kept columns
+        are written straight into one contiguous array per group (``Table.groups``), which a
+        reader can adopt without copying.
 
     Raises
     ------
     FormatError
         Empty file, header only, wrong column count, a non-numeric field, binary content.
     """
+    if widths is None:
+        widths = (nkeep,)
+    if not 1 <= len(widths) <= 3 or sum(widths) != nkeep or min(widths) < 0:
+        raise ValueError(f"column widths {widths} do not split {nkeep} columns in 1 to 3 groups")
     if _is_blank(data):
         raise FormatError(path, f"file is empty; expected {expected}")
     kernels = _kernels()
@@ -237,9 +249,11 @@ def parse_table(
         counts = pool.map(count_newlines, [(buf, a, b) for a, b in pieces])
         n_head = count_newlines(buf, 0, head)
         cap = n_head + sum(counts) + (body < len(data))
-        out = (np.empty((cap, nkeep)), np.empty(cap, dtype=np.int64),
-               np.empty(cap, dtype=np.int32), np.empty(cap, dtype=np.bool_),
-               np.empty(cap, dtype=np.int64))  # values, mantissa, exponent, finite, line
+        groups = tuple(np.empty((cap, w)) for w in widths)
+        groups += tuple(np.empty((0, 0)) for _ in range(3 - len(widths)))
+        out = (*groups, np.empty(cap, dtype=np.int64), np.empty(cap, dtype=np.int32),
+               np.empty(cap, dtype=np.bool_), np.empty(cap, dtype=np.int64))
+        # out: three value groups, mantissa, exponent, finite, line
         status = np.zeros((len(pieces) + 2, 6), dtype=np.int64)
         rows = scan_lines(buf, 0, head, nkeep, ncols_min, ncols_max, 0, 0, *out, status[0])
         if status[0, 0]:
@@ -263,8 +277,9 @@ def parse_table(
             raise _status_error(path, status[-1], tail, expected)
     if rows == 0:
         raise FormatError(path, f"no data rows (only comments or a header); expected {expected}")
-    vals, mant, exps, finite, lines = (a[:rows] for a in out)
-    return Table(vals, mant, exps, finite, lines)
+    kept = tuple(g[:rows] for g in out[:len(widths)])
+    mant, exps, finite, lines = (a[:rows] for a in out[3:])
+    return Table(kept[0], mant, exps, finite, lines, kept if len(widths) > 1 else ())
 
 
 def decimal_to_ns(

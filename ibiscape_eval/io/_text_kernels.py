@@ -161,8 +161,12 @@ def token_end(buf, i, status, line):
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def scan_lines(buf, start, stop, nkeep, ncols_min, ncols_max, line0, row0,
-               vals, mant, exps, finite, lines, status):
+               vals, vals2, vals3, mant, exps, finite, lines, status):
     """Parse the lines of ``buf[start:stop]`` into rows ``row0, row0 + 1, ...`` of the outputs.
+
+    The kept columns go to three 2-D arrays one after the other: the first ``vals.shape[1]``
+    to ``vals``, the next ``vals2.shape[1]`` to ``vals2``, the rest to ``vals3`` (so that, e.g.,
+    positions and quaternions land in their own contiguous arrays).
 
     ``buf[stop - 1]`` must be a newline (so no loop needs a bounds check: every loop stops at
     it).  Lines are numbered from ``line0 + 1``.  Returns the index after the last row written;
@@ -174,6 +178,8 @@ def scan_lines(buf, start, stop, nkeep, ncols_min, ncols_max, line0, row0,
     """
     if start < 0 or stop > buf.shape[0]:  # (also lets the compiler drop index wraparound)
         return row0
+    w1 = vals.shape[1]
+    w12 = w1 + vals2.shape[1]
     i = start
     line = line0
     row = row0
@@ -255,7 +261,12 @@ def scan_lines(buf, start, stop, nkeep, ncols_min, ncols_max, line0, row0,
                     return row
                 if not vfin:
                     fin = False
-            vals[row, col - 1] = v
+            if col <= w1:
+                vals[row, col - 1] = v
+            elif col <= w12:
+                vals2[row, col - 1 - w1] = v
+            else:
+                vals3[row, col - 1 - w12] = v
             if col == 1:
                 m1 = m
                 e1 = ex
@@ -276,14 +287,17 @@ def scan_lines(buf, start, stop, nkeep, ncols_min, ncols_max, line0, row0,
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def move_rows(vals, mant, exps, finite, lines, src, dst, count):
+def move_rows(vals, vals2, vals3, mant, exps, finite, lines, src, dst, count):
     """Move ``count`` rows from ``src`` down to ``dst <= src`` (in place, front to back)."""
-    k = vals.shape[1]
     for r in range(count):
         a = src + r
         b = dst + r
-        for j in range(k):
+        for j in range(vals.shape[1]):
             vals[b, j] = vals[a, j]
+        for j in range(vals2.shape[1]):
+            vals2[b, j] = vals2[a, j]
+        for j in range(vals3.shape[1]):
+            vals3[b, j] = vals3[a, j]
         mant[b] = mant[a]
         exps[b] = exps[a]
         finite[b] = finite[a]
@@ -298,7 +312,9 @@ def pose_rows(stamps, pos, quat, finite, tol, start, stop, pos_out, quat_out):
     Writes contiguous positions and unit quaternions with w >= 0 (the :class:`Trajectory`
     convention) to the outputs; returns whether every row is finite, whether the stamps
     increase strictly (including from the row before ``start``), and the first row whose
-    quaternion norm is further than ``tol`` from 1 (-1: none).
+    quaternion norm is further than ``tol`` from 1 (-1: none).  Rows that are not finite or
+    not unit are not written, so the outputs may be the inputs (normalised in place: the rows
+    an error message quotes keep their values).
     """
     all_finite = True
     increasing = True
@@ -311,9 +327,12 @@ def pose_rows(stamps, pos, quat, finite, tol, start, stop, pos_out, quat_out):
         if not (finite[r] and np.isfinite(x) and np.isfinite(y) and np.isfinite(z)
                 and np.isfinite(qx) and np.isfinite(qy) and np.isfinite(qz) and np.isfinite(qw)):
             all_finite = False
+            continue
         norm = np.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
-        if bad < 0 and not abs(norm - 1.0) <= tol:
-            bad = r
+        if not abs(norm - 1.0) <= tol:
+            if bad < 0:
+                bad = r
+            continue
         d = -norm if qw < 0.0 else norm
         pos_out[r, 0] = x
         pos_out[r, 1] = y

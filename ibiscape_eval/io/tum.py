@@ -58,17 +58,18 @@ def read_tum(path: str | os.PathLike[str], *, name: str | None = None) -> Trajec
     repeated timestamps keep the first row, also with a warning.
     """
     data = map_bytes(path)
-    tb = parse_table(path, data, nkeep=8, ncols_min=8, ncols_max=8, expected=_EXPECTED)
+    tb = parse_table(path, data, nkeep=8, ncols_min=8, ncols_max=8, expected=_EXPECTED,
+                     widths=(1, 3, 4))
     del data  # the raw bytes are no longer needed (unmaps the file): lower peak memory
-    first = tb.values[:1, 0]
+    t_col, pos, quat = tb.groups  # contiguous (N, 1), (N, 3), (N, 4), adopted without a copy
+    first = t_col[:1, 0]
     if not np.isfinite(first).all():
-        first = tb.values[np.flatnonzero(np.isfinite(tb.values[:, 0]))[:1], 0]
+        first = t_col[np.flatnonzero(np.isfinite(t_col[:, 0]))[:1], 0]
     unit_exp = 0 if first.size and abs(first[0]) > NS_STAMP_THRESHOLD else 9
     stamps = decimal_to_ns(path, tb, unit_exp=unit_exp)
-    finite = tb.finite
     return finish_trajectory(
-        path, stamps, tb.values[:, 1:4], tb.values[:, 4:8], finite, tb.lines,
-        Path(path).name if name is None else name,
+        path, stamps, pos, quat, tb.finite, tb.lines,
+        Path(path).name if name is None else name, owned=True,
     )
 
 
