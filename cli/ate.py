@@ -114,13 +114,20 @@ def _input_options(func: Callable[..., Any]) -> Callable[..., Any]:
 def _read_pair(est: Path, ref: Path, o: dict[str, Any]) -> tuple[Any, Any, str]:
     """Read both trajectories, say which formats were used, and choose time or index pairing."""
     import gc
+    import os
 
     from ibiscape_eval.io import detect_trajectory_format, read_trajectory
 
     # numba's start-up (on the first read) creates some 10^5 long-lived objects: without the
     # cyclic collector running over them meanwhile, and frozen afterwards, that costs nothing.
+    # It also loads scipy's OpenBLAS, whose idle worker threads would spin for a while on the
+    # cores the parallel tokenizer is using; this command only does 3x3 linear algebra, so that
+    # BLAS is loaded single-threaded (the variable is read at load time only, then restored).
     collecting = gc.isenabled()
+    blas_threads = os.environ.get("OPENBLAS_NUM_THREADS")
     gc.disable()
+    if blas_threads is None:
+        os.environ["OPENBLAS_NUM_THREADS"] = "1"
     try:
         trajs = []
         kitti_untimed = False
@@ -142,6 +149,8 @@ def _read_pair(est: Path, ref: Path, o: dict[str, Any]) -> tuple[Any, Any, str]:
             )
             kitti_untimed |= fmt == "kitti" and times is None
     finally:
+        if blas_threads is None:
+            del os.environ["OPENBLAS_NUM_THREADS"]
         gc.freeze()
         if collecting:
             gc.enable()
