@@ -53,6 +53,18 @@ def make_pair(n: int, seed: int = 0) -> tuple[Trajectory, Trajectory]:
     return Trajectory(stamps, est_pos, est_q, "est"), gt
 
 
+def write_pair(n: int, seed: int, est_path: Path, ref_path: Path) -> None:
+    """Write :func:`make_pair` as two TUM files from a child process.
+
+    Peak memory is read from ``wait4``, and a child started with ``vfork`` (what subprocess
+    uses) inherits its parent's peak RSS: the generated poses must never live in this process.
+    """
+    import subprocess
+
+    subprocess.run([sys.executable, __file__, "--write-pair", str(n), str(seed), str(est_path),
+                    str(ref_path)], check=True)
+
+
 def evo_rmse(out: str) -> float:
     m = re.search(r"^\s*rmse\s+([0-9.eE+-]+)", out, re.M)
     return float(m.group(1)) if m else float("nan")
@@ -106,7 +118,14 @@ def main() -> None:
     )
     ap.add_argument("--timeout-s", type=float, default=600)
     ap.add_argument("--repeat", type=int, default=3, help="runs of our commands (best is kept)")
+    ap.add_argument("--write-pair", nargs=4, help=argparse.SUPPRESS)  # N SEED EST REF (child)
     args = ap.parse_args()
+    if args.write_pair:
+        n, seed, est_path, ref_path = args.write_pair
+        est, gt = make_pair(int(n), seed=int(seed))
+        write_trajectory(est_path, est, "tum")
+        write_trajectory(ref_path, gt, "tum")
+        return
     ours_bin, evo_ape, evo_rpe = (
         str(BIN / "ibiscape-eval"),
         str(BIN / "evo_ape"),
@@ -125,10 +144,8 @@ def main() -> None:
             f"{'--help start-up':<34}{help_ours:>9.3f}{help_evo:>9.3f}{help_evo / help_ours:>8.1f}x"
         )
         for n in (int(s) for s in args.sizes.split(",")):
-            est, gt = make_pair(n)
             fe, fg = tmp / f"est_{n}.txt", tmp / f"gt_{n}.txt"
-            write_trajectory(fe, est, "tum")
-            write_trajectory(fg, gt, "tum")
+            write_pair(n, 0, fe, fg)
             ate_cmd = [ours_bin, "ate", str(fe), str(fg), "--format", "tum", "--align", "se3",
                        "--json"]
             run(ate_cmd)  # warm-up: numba's kernels compiled and cached if they were not
@@ -166,10 +183,8 @@ def main() -> None:
                 )
                 print(row(f"rpe 1 m all pairs, {n:,} poses", o, None, ours_rmse(o.stdout), 0))
         n = args.allpairs_evo_size
-        est, gt = make_pair(n, seed=1)
         fe, fg = tmp / f"est_{n}.txt", tmp / f"gt_{n}.txt"
-        write_trajectory(fe, est, "tum")
-        write_trajectory(fg, gt, "tum")
+        write_pair(n, 1, fe, fg)
         o = best_of(
             [
                 ours_bin,
