@@ -111,8 +111,12 @@ def allan(imu: str, fmt: str | None, columns: str | None, units: str | None, ros
 
     with tqdm(total=total, disable=not show, unit="sample",
               unit_scale=True, file=sys.stderr, desc="allan") as bar:
+
+        def advance(n: int) -> None:
+            bar.update(n)
+
         res = allan_deviation(rec, rec.rate_hz, points_per_decade=points_per_decade,
-                              names=rec.names, progress=bar.update)
+                              names=rec.names, progress=advance)
     model = fit_noise_model(res, white_range_s=wr, walk_range_s=kr)
 
     # outputs that are always meaningful first: the curves
