@@ -20,7 +20,6 @@ import mmap
 import os
 import re
 import stat
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
@@ -91,6 +90,9 @@ def map_bytes(path: str | os.PathLike[str]) -> bytes | mmap.mmap:
         return f.read()
 
 
+_kernel_module: Any = None  # set once the kernels are imported and numba's runtime started
+
+
 def _kernels() -> Any:
     """The numba kernels (:mod:`._text_kernels`), imported on first use.
 
@@ -98,9 +100,9 @@ def _kernels() -> Any:
     objects; the cyclic garbage collector is paused meanwhile, which spares several full
     collections over them (about 0.1 s of start-up).
     """
-    loaded = sys.modules.get(f"{__package__}._text_kernels")
-    if loaded is not None:
-        return loaded
+    global _kernel_module
+    if _kernel_module is not None:
+        return _kernel_module
     import gc
 
     enabled = gc.isenabled()
@@ -112,6 +114,7 @@ def _kernels() -> Any:
     finally:
         if enabled:
             gc.enable()
+    _kernel_module = _text_kernels
     return _text_kernels
 
 
