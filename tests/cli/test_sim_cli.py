@@ -39,7 +39,6 @@ def test_still_imu_with_json_summary(run_cli, tmp_path: Path) -> None:
 
 
 def test_summary_text_with_planner(run_cli, tmp_path: Path) -> None:
-    pytest.importorskip("ibiscape_eval.sim.motion", reason="sim.motion not available yet")
     res = run_cli("sim", "--setup", "svi", "--kind", "calibration", "--duration-s", "5",
                   "--target", "aprilgrid", "--ideal", "--out", tmp_path / "s")
     assert res.exit_code == 0, res.output
@@ -106,7 +105,6 @@ def test_non_empty_out_needs_overwrite(run_cli, tmp_path: Path) -> None:
 
 
 def test_impossible_route(run_cli, tmp_path: Path) -> None:
-    pytest.importorskip("ibiscape_eval.sim.motion", reason="sim.motion not available yet")
     cfg = tmp_path / "slow.yaml"
     cfg.write_text("motion: {max_speed_m_s: 0.000001}\n")
     out = tmp_path / "out"

@@ -4,14 +4,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import allantools
 import numpy as np
 import pytest
+from allantools import ci as at_ci
 
 from ibiscape_eval.core.errors import DegenerateInputError, IbiscapeError, IbiscapeWarning
 from ibiscape_eval.imu import allan_deviation, edf_white_fm
-
-allantools = pytest.importorskip("allantools")
-from allantools import ci as at_ci  # noqa: E402
 
 REAL = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "trajectories" / "V102_groundtruth.csv"
 

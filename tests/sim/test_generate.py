@@ -139,7 +139,9 @@ def test_allan_recovers_imu_preset_noise(tmp_path: Path) -> None:
 
 @pytest.fixture(scope="module")
 def planner():
-    return pytest.importorskip("ibiscape_eval.sim.motion", reason="sim.motion not available yet")
+    import ibiscape_eval.sim.motion as motion
+
+    return motion
 
 
 def _roll_pitch_std_deg(folder: Path) -> tuple[float, float]:

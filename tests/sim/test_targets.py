@@ -4,13 +4,12 @@ from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
 import pytest
 
 from ibiscape_eval.core.errors import IbiscapeError
 from ibiscape_eval.sim.targets import aprilgrid_corners, board_pose, make_target
-
-cv2 = pytest.importorskip("cv2")
 
 
 def test_checkerboard_geometry_and_detection():
