@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _cli_data import assert_one_error_line
 
 from ibiscape_eval.io.imu import read_kalibr_imu_yaml, write_imu_csv
 from ibiscape_eval.sim.noise import imu_noise
@@ -28,13 +29,6 @@ def long_csv(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return _imu(tmp_path_factory.mktemp("allan") / "imu.csv", hours=6)
 
 
-def _one_error_line(res, *needles: str) -> None:
-    assert res.exit_code == 2, res.output
-    lines = [s for s in res.stderr.splitlines() if s.startswith("error:")]
-    assert len(lines) == 1, res.stderr
-    for n in needles:
-        assert n in lines[0], lines[0]
-    assert "Traceback" not in res.output
 
 
 def test_all_outputs(run_cli, long_csv: Path, tmp_path: Path) -> None:
@@ -69,7 +63,7 @@ def test_json(run_cli, long_csv: Path) -> None:
 def test_short_record_writes_curve_but_refuses_yaml(run_cli, tmp_path: Path) -> None:
     p = _imu(tmp_path / "short.csv", hours=0.1, rw=False)
     res = run_cli("allan", p, "--csv", tmp_path / "c.csv", "--yaml", tmp_path / "imu.yaml")
-    _one_error_line(res, "imu.yaml not written", "random_walk")
+    assert_one_error_line(res, "imu.yaml not written", "random_walk", stdout_empty=False)
     assert "too short to see the rate random walk" in res.stderr
     assert (tmp_path / "c.csv").exists()
     assert not (tmp_path / "imu.yaml").exists()
@@ -96,7 +90,7 @@ def test_bad_rows(run_cli, tmp_path: Path, line: int, text: str, needle: str) ->
     p = _broken(tmp_path, line, text)
     res = run_cli("allan", p, "--yaml", tmp_path / "imu.yaml", "--csv", tmp_path / "c.csv",
                   "--plot", tmp_path / "a.png")
-    _one_error_line(res, f"imu.csv:{line}:", needle)
+    assert_one_error_line(res, f"imu.csv:{line}:", needle)
     assert sorted(x.name for x in tmp_path.iterdir()) == ["imu.csv"]
 
 
@@ -107,7 +101,7 @@ def test_large_gap_refused_unless_allowed(run_cli, tmp_path: Path) -> None:
     t[5000:] += 600 * 10**9  # ten minutes missing
     write_imu_csv(tmp_path / "imu.csv", t, y[:, :3], y[:, 3:])
     res = run_cli("allan", tmp_path / "imu.csv", "--csv", tmp_path / "c.csv")
-    _one_error_line(res, "imu.csv:5002:", "gap", "--allow-gaps")
+    assert_one_error_line(res, "imu.csv:5002:", "gap", "--allow-gaps")
     assert not (tmp_path / "c.csv").exists()
     res = run_cli("allan", tmp_path / "imu.csv", "--allow-gaps", "--csv", tmp_path / "c.csv")
     assert res.exit_code == 0 and (tmp_path / "c.csv").exists()
@@ -119,20 +113,20 @@ def test_constant_axis(run_cli, tmp_path: Path) -> None:
     y[:, 4] = 0.0
     write_imu_csv(tmp_path / "imu.csv", np.arange(n, dtype=np.int64) * 50_000_000, y[:, :3], y[:, 3:])
     res = run_cli("allan", tmp_path / "imu.csv", "--plot", tmp_path / "a.png")
-    _one_error_line(res, "'a_y' is constant")
+    assert_one_error_line(res, "'a_y' is constant")
     assert not (tmp_path / "a.png").exists()
 
 
 def test_unknown_units_missing_file_and_bad_range(run_cli, tmp_path: Path) -> None:
     p = _imu(tmp_path / "imu.csv", hours=0.05)
-    _one_error_line(run_cli("allan", p, "--units", "gyro=rpm"), "unknown gyro unit 'rpm'")
-    _one_error_line(run_cli("allan", tmp_path / "nope.csv"), "nope.csv", "no such file")
-    _one_error_line(run_cli("allan", p, "--walk-range", "5"), "--walk-range")
+    assert_one_error_line(run_cli("allan", p, "--units", "gyro=rpm"), "unknown gyro unit 'rpm'")
+    assert_one_error_line(run_cli("allan", tmp_path / "nope.csv"), "nope.csv", "no such file")
+    assert_one_error_line(run_cli("allan", p, "--walk-range", "5"), "--walk-range")
 
 
 def test_npy_without_stamps_needs_rate(run_cli, tmp_path: Path) -> None:
     np.save(tmp_path / "y.npy", imu_noise(5000, 20.0, noise_density=N_TRUE, random_walk=0.0, seed=5))
-    _one_error_line(run_cli("allan", tmp_path / "y.npy"), "y.npy", "--rate-hz")
+    assert_one_error_line(run_cli("allan", tmp_path / "y.npy"), "y.npy", "--rate-hz")
     res = run_cli("allan", tmp_path / "y.npy", "--rate-hz", "20", "--json")
     assert res.exit_code == 0
     assert json.loads(res.stdout)["rate_hz"] == 20.0

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _cli_data import assert_one_error_line
 
 from ibiscape_eval.core.events import Events
 from ibiscape_eval.events import filter_events, synthetic_events
@@ -97,21 +98,13 @@ def test_events_frames_cli(run_cli, tmp_path, stream):
 # ------------------------------------------------------------------------------ bad input
 
 
-def expect_user_error(res, *needles: str) -> None:
-    assert res.exit_code == 2, res.output
-    lines = res.stderr.strip().splitlines()
-    assert len(lines) == 1, res.stderr
-    assert lines[0].startswith("error: ")
-    for n in needles:
-        assert n in lines[0], lines[0]
-    assert res.stdout == ""
 
 
 def run_bad(run_cli, tmp_path: Path, src: Path, *needles: str) -> None:
     hot, out, plot = tmp_path / "hot.txt", tmp_path / "out_events", tmp_path / "p.png"
     before = set(tmp_path.rglob("*"))
     res = run_cli("hotpix", src, "--hot-out", hot, "--filtered-out", out, "--plot", plot)
-    expect_user_error(res, *needles)
+    assert_one_error_line(res, *needles)
     assert set(tmp_path.rglob("*")) == before  # nothing written, no temp files left
 
 
@@ -132,12 +125,12 @@ def test_bad_coordinates_outside_the_sensor(run_cli, tmp_path):
     hot = tmp_path / "hot.txt"
     before = set(tmp_path.rglob("*"))
     res = run_cli("hotpix", tmp_path / "a.npz", "--sensor-size", "4x4", "--hot-out", hot)
-    expect_user_error(res, "a.npz", "event 4", "x=4", "outside the 4x4 sensor", "--sensor-size")
+    assert_one_error_line(res, "a.npz", "event 4", "x=4", "outside the 4x4 sensor", "--sensor-size")
     assert set(tmp_path.rglob("*")) == before
     txt = tmp_path / "e.txt"
     txt.write_text("0.1 1 1 1\n0.2 9 1 0\n")
     res = run_cli("hotpix", txt, "--sensor-size", "4x4")
-    expect_user_error(res, "e.txt:2", "outside")
+    assert_one_error_line(res, "e.txt:2", "outside")
 
 
 def test_bad_unsorted_timestamps(run_cli, tmp_path):
@@ -183,11 +176,11 @@ def test_bad_missing_file_listed_in_timestamps_csv(run_cli, tmp_path):
 
 def test_bad_options(run_cli, tmp_path):
     np.savez(tmp_path / "a.npz", **good())
-    expect_user_error(run_cli("hotpix", tmp_path / "a.npz", "--sensor-size", "big"), "WIDTHxHEIGHT")
+    assert_one_error_line(run_cli("hotpix", tmp_path / "a.npz", "--sensor-size", "big"), "WIDTHxHEIGHT")
     hot = tmp_path / "hot.txt"
     hot.write_text("1, 1\n99, 0\n")
-    expect_user_error(run_cli("hotpix", tmp_path / "a.npz", "--apply", hot), "hot.txt", "outside")
-    expect_user_error(run_cli("hotpix", tmp_path / "missing.npz"), "missing.npz")
-    expect_user_error(run_cli("events", "frames", tmp_path / "a.npz", "--out", tmp_path / "f",
+    assert_one_error_line(run_cli("hotpix", tmp_path / "a.npz", "--apply", hot), "hot.txt", "outside")
+    assert_one_error_line(run_cli("hotpix", tmp_path / "missing.npz"), "missing.npz")
+    assert_one_error_line(run_cli("events", "frames", tmp_path / "a.npz", "--out", tmp_path / "f",
                               "--sensor-size", "2x2"), "outside")
     assert not (tmp_path / "f").exists()

@@ -8,17 +8,9 @@ from pathlib import Path
 
 import pytest
 import yaml
+from _cli_data import assert_one_error_line
 
 from ibiscape_eval.io.sequence import read_sequence_yaml
-
-
-def _one_error_line(res, *needles: str) -> None:
-    assert res.exit_code == 2, res.output
-    lines = [s for s in res.stderr.splitlines() if s.startswith("error:")]
-    assert len(lines) == 1, res.stderr
-    for n in needles:
-        assert n in lines[0], lines[0]
-    assert "Traceback" not in res.output
 
 
 def test_help_has_example_and_no_render_note(run_cli) -> None:
@@ -68,7 +60,7 @@ def test_bad_config_file(run_cli, tmp_path: Path, yaml_text: str, needles: tuple
     cfg = tmp_path / "bad.yaml"
     cfg.write_text(yaml_text)
     out = tmp_path / "out"
-    _one_error_line(run_cli("sim", "--config", cfg, "--out", out), *needles, "bad.yaml")
+    assert_one_error_line(run_cli("sim", "--config", cfg, "--out", out), *needles, "bad.yaml")
     assert not out.exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.yaml"]
 
@@ -81,7 +73,7 @@ def test_bad_config_file(run_cli, tmp_path: Path, yaml_text: str, needles: tuple
 ])
 def test_bad_options(run_cli, tmp_path: Path, args: tuple[str, ...], needles: list[str]) -> None:
     out = tmp_path / "out"
-    _one_error_line(run_cli("sim", "--setup", "svi", *args, "--out", out), *needles)
+    assert_one_error_line(run_cli("sim", "--setup", "svi", *args, "--out", out), *needles)
     assert not out.exists() and not list(tmp_path.iterdir())
 
 
@@ -96,7 +88,7 @@ def test_non_empty_out_needs_overwrite(run_cli, tmp_path: Path) -> None:
     out.mkdir()
     (out / "old.txt").write_text("old")
     args = ("sim", "--setup", "imu", "--duration-s", "1", "--out", out)
-    _one_error_line(run_cli(*args), "not empty", "--overwrite", str(out))
+    assert_one_error_line(run_cli(*args), "not empty", "--overwrite", str(out))
     assert [p.name for p in out.iterdir()] == ["old.txt"]
     res = run_cli(*args, "--overwrite")
     assert res.exit_code == 0, res.output
