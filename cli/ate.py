@@ -252,7 +252,8 @@ def ate(est: Path, ref: Path, alignment: str, save_aligned: Path | None, **o: An
     est_t, ref_t, match = _read_pair(est, ref, o)
     result = ate_fn(est_t, ref_t, align=alignment, **_assoc_kwargs(o, match))
     doc = result.to_dict()
-    _report_counts(doc)
+    if o["as_json"]:  # the table's header line says the same on stdout
+        _report_counts(doc)
     if o["save_csv"]:
         _write_csv(o["save_csv"], result.to_frame())
     if save_aligned:
@@ -329,7 +330,8 @@ def rpe(
         **_assoc_kwargs(o, match),
     )
     doc = result.to_dict()
-    _report_counts(doc)
+    if o["as_json"]:  # the table's header line says the same on stdout
+        _report_counts(doc)
     if o["save_csv"]:
         _write_csv(o["save_csv"], result.to_frame())
     if o["plot"]:
@@ -421,7 +423,8 @@ def drift(
         **_assoc_kwargs(o, match),
     )
     doc = result.to_dict()
-    _report_counts(doc)
+    if o["as_json"]:  # the table's header line says the same on stdout
+        _report_counts(doc)
     if o["save_csv"]:
         _write_csv(o["save_csv"], result.to_frame())
     if o["plot"]:

@@ -53,7 +53,7 @@ def test_ate_table_and_outputs(run_cli, tum_pair, tmp_path: Path) -> None:
     )
     assert res.exit_code == 0, res.output
     assert "mean ± std" in res.stdout and "translation [m]" in res.stdout
-    assert "matched 300 poses" in res.stderr
+    assert "300 poses matched, dropped 0 est / 0 ref" in res.stdout
     assert (tmp_path / "e.png").stat().st_size > 10_000
     assert len((tmp_path / "e.csv").read_text().splitlines()) == 301
     aligned = (tmp_path / "aligned.txt").read_text().splitlines()
