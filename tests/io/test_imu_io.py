@@ -137,27 +137,45 @@ def test_npz_with_pickled_objects_is_refused(tmp_path: Path) -> None:
         read_imu(tmp_path / "bad.npz")
 
 
-def test_ros2_bag(tmp_path: Path) -> None:
-    from rosbags.rosbag2 import Writer
+@pytest.mark.parametrize("ros", [1, 2])
+def test_ros_bags(tmp_path: Path, ros: int) -> None:
     from rosbags.typesys import Stores, get_typestore
 
-    ts = get_typestore(Stores.ROS2_HUMBLE)
+    ts = get_typestore(Stores.ROS1_NOETIC if ros == 1 else Stores.ROS2_HUMBLE)
     Imu = ts.types["sensor_msgs/msg/Imu"]
     Header = ts.types["std_msgs/msg/Header"]
     Time = ts.types["builtin_interfaces/msg/Time"]
     V3 = ts.types["geometry_msgs/msg/Vector3"]
     Q = ts.types["geometry_msgs/msg/Quaternion"]
     t, y = _data(60)
-    bag = tmp_path / "bag"
-    with Writer(bag, version=8) as w:
-        conn = w.add_connection("/imu0", Imu.__msgtype__, typestore=ts)
-        for ti, row in zip(t, y, strict=True):
-            msg = Imu(header=Header(stamp=Time(sec=int(ti // 10**9), nanosec=int(ti % 10**9)), frame_id="imu"),
-                      orientation=Q(x=0.0, y=0.0, z=0.0, w=1.0), orientation_covariance=np.zeros(9),
-                      angular_velocity=V3(x=row[0], y=row[1], z=row[2]), angular_velocity_covariance=np.zeros(9),
-                      linear_acceleration=V3(x=row[3], y=row[4], z=row[5]),
-                      linear_acceleration_covariance=np.zeros(9))
-            w.write(conn, int(ti), ts.serialize_cdr(msg, Imu.__msgtype__))
+
+    def message(ti: int, row: np.ndarray) -> object:
+        stamp = Time(sec=int(ti // 10**9), nanosec=int(ti % 10**9))
+        header = (Header(seq=0, stamp=stamp, frame_id="imu") if ros == 1
+                  else Header(stamp=stamp, frame_id="imu"))
+        return Imu(header=header, orientation=Q(x=0.0, y=0.0, z=0.0, w=1.0),
+                   orientation_covariance=np.zeros(9),
+                   angular_velocity=V3(x=row[0], y=row[1], z=row[2]),
+                   angular_velocity_covariance=np.zeros(9),
+                   linear_acceleration=V3(x=row[3], y=row[4], z=row[5]),
+                   linear_acceleration_covariance=np.zeros(9))
+
+    if ros == 1:
+        from rosbags.rosbag1 import Writer as Writer1
+
+        bag = tmp_path / "imu.bag"
+        with Writer1(bag) as w1:
+            conn = w1.add_connection("/imu0", Imu.__msgtype__, typestore=ts)
+            for ti, row in zip(t, y, strict=True):
+                w1.write(conn, int(ti), ts.serialize_ros1(message(ti, row), Imu.__msgtype__))
+    else:
+        from rosbags.rosbag2 import Writer as Writer2
+
+        bag = tmp_path / "bag"
+        with Writer2(bag, version=8) as w2:
+            conn = w2.add_connection("/imu0", Imu.__msgtype__, typestore=ts)
+            for ti, row in zip(t, y, strict=True):
+                w2.write(conn, int(ti), ts.serialize_cdr(message(ti, row), Imu.__msgtype__))
     rec = read_imu(bag)
     np.testing.assert_array_equal(rec.samples, y)
     assert rec.rostopic == "/imu0"
