@@ -32,10 +32,19 @@ def banner(text: str) -> None:
     print(f"\n{'=' * 100}\n{text}\n{'=' * 100}", flush=True)
 
 
+def _relative(arg: str) -> str:
+    """Paths under the working folder are shown relative to it, so commands can be copied."""
+    p = Path(arg)
+    if p.is_absolute() and p.is_relative_to(Path.cwd()):
+        return str(p.relative_to(Path.cwd()))
+    return arg
+
+
 def sh(*args: str | Path) -> None:
     """Run one ibiscape-eval command, echoing it; stop the demo if it fails."""
     argv = [EXE, *map(str, args)]
-    print(f"\n$ ibiscape-eval {shlex.join(argv[1:])}", flush=True)
+    shown = [_relative(a) for a in argv[1:]]
+    print(f"\n$ ibiscape-eval {shlex.join(shown)}", flush=True)
     t0 = time.perf_counter()
     proc = subprocess.run(argv, check=False)
     print(f"  [{time.perf_counter() - t0:.2f} s, exit {proc.returncode}]", flush=True)
