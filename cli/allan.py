@@ -48,8 +48,11 @@ Examples:
 """,
 )
 @click.argument("imu", type=click.Path(dir_okay=True, path_type=str))
-@click.option("--format", "fmt", type=click.Choice(["euroc", "csv", "npy", "npz", "parquet", "rosbag"]),
-              help="Input format (default: from the file name).")
+@click.option("--format", "fmt",
+              type=click.Choice(["euroc", "ibiscape", "csv", "npy", "npz", "parquet", "rosbag"]),
+              help="Input format (default: from the file name). 'ibiscape' is the EuRoC csv in "
+              "CARLA's left-handed frame, converted to right-handed (w_x, w_z, a_y negated); "
+              "chosen by itself for <seq>/other_sensors/imu*.csv next to <seq>/vehicle_gt/.")
 @click.option("--columns", help="Generic CSV/parquet column mapping: t=0 (ns) or t_s=NAME (s), "
               "w_x..a_z = index or header name.")
 @click.option("--units", help="Units of the file, e.g. gyro=deg/s,accel=g (default rad/s, m/s^2).")

@@ -299,7 +299,7 @@ def _generate_moving(cfg: SimConfig, tmp: Path, step: Callable[[float, str], Non
         m = simulate_imu(st, T_body_imu(spec), cfg.imu_noise, rate_hz=spec.rate_hz,
                          seed=sub_seed(cfg.seed, "imu", i), ideal=cfg.ideal, name=spec.name)
         write_imu_csv_chunks(tmp / "other_sensors" / names[spec.name],
-                             [(m.stamps_ns, m.gyro_rad_s, m.accel_m_s2)])
+                             [(m.stamps_ns, m.gyro_rad_s, m.accel_m_s2)], frame="ibiscape")
         n_imu += len(m)
         step(0.35 + 0.35 * (i + 1) / len(cfg.imus), "imu")
     n_fix = n_samples(cfg.duration_s, cfg.gnss.rate_hz)
@@ -364,7 +364,7 @@ def _generate_still(cfg: SimConfig, tmp: Path, step: Callable[[float, str], None
             n_imu += write_imu_npy(path, (np.column_stack((st.astype(np.float64), g, a))
                                           for st, g, a in chunks))
         else:
-            n_imu += write_imu_csv_chunks(path, chunks)
+            n_imu += write_imu_csv_chunks(path, chunks, frame="ibiscape")  # CARLA's frame
     n_gt = n_samples(cfg.duration_s, cfg.gt_rate_hz)
 
     def gt_chunks() -> Any:

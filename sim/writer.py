@@ -5,7 +5,8 @@ Layout (``../shared/FORMATS.md``)::
     <out>/                                      (e.g. SVI_1_town)
       sequence.yaml                              everything a tool may check against
       weather.csv                                weather per camera frame (for the renderer)
-      other_sensors/imu.csv | imu0.csv imu1.csv imu2.csv   (one IMU: imu.csv, like the scripts)
+      other_sensors/imu.csv | imu0.csv imu1.csv imu2.csv   (one IMU: imu.csv, like the scripts;
+                                                 CARLA's left-handed frame, converted by io/)
       other_sensors/gnss.csv
       vehicle_gt/groundtruth_sync.csv            CARLA's left-handed frame (converted by io/)
       vehicle_gt/Tesla_simulation.txt            t_ns, throttle, steer, brake
@@ -55,8 +56,13 @@ CONVENTIONS: dict[str, Any] = {
                         "rate in CARLA's frame; ibiscape_eval.io.read_ibiscape_groundtruth "
                         "converts back",
     "imu_files": "other_sensors/imu*.csv: #timestamp [ns], w_x, w_y, w_z [rad/s], a_x, a_y, a_z "
-                 "[m/s^2] in each IMU's own RIGHT-handed frame (imus.<name>.T_body_imu); a_* is "
-                 "the specific force R^T (a - g)",
+                 "[m/s^2] in CARLA's LEFT-handed sensor frame (x forward, y right, z up) exactly "
+                 "like IBISCape: the mirror of each IMU's right-handed frame (imus.<name>."
+                 "T_body_imu), i.e. w_x, w_z and a_y negated; a_* is the specific force "
+                 "R^T (a - g); ibiscape_eval.io.read_imu converts back (format ibiscape, "
+                 "auto-detected in this layout). A still IMU written as other_sensors/imu*.npy "
+                 "(still_format: npy; [t_ns, w_xyz, a_xyz] float64) stays in the IMU's RIGHT-handed "
+                 "frame",
     "gnss_file": "other_sensors/gnss.csv: #timestamp [ns], latitude [deg], longitude [deg], "
                  "altitude [m] (WGS84) of the antenna",
     "controls_file": "vehicle_gt/<Vehicle>_simulation.txt: t [ns], throttle [0..1], steer "

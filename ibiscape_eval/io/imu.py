@@ -11,6 +11,35 @@ The EuRoC/IBISCape layout (gyro first, trailing spaces allowed)::
 
     #timestamp [ns],w_x [rad s^-1],w_y [rad s^-1],w_z [rad s^-1],a_x [m s^-2],a_y [m s^-2],a_z [m s^-2]
     1403636579758555392,-0.099134701513277898,0.14730578886832138,0.02722713633111154,8.1476917083333333,-0.37592158333333331,-2.4026292499999999
+
+IBISCape's IMU frame (format ``"ibiscape"``)
+--------------------------------------------
+Real IBISCape sequences store ``other_sensors/imu*.csv`` with the same columns, but in CARLA's
+LEFT-handed sensor frame (x forward, y right, z up), like ``vehicle_gt/groundtruth_sync.csv``
+(see :mod:`ibiscape_eval.io.ibiscape`).  Our frames are right-handed (x forward, y LEFT, z up);
+the two are related by the mirror ``S = diag(1, -1, 1)`` (``det S = -1``, ``S = S^-1 = S^T``).
+
+*Specific force* is an ordinary (polar) vector, so its coordinates mirror like a position::
+
+    a = S a_c = (a_x, -a_y, a_z).
+
+*Angular rate.*  With the sensor orientation ``R = S R_c S`` (world and sensor both mirrored),
+the gyro reads the body rate ``w_c`` of ``dR_c/dt = R_c [w_c]x``.  Then::
+
+    dR/dt = S R_c [w_c]x S = (S R_c S) (S [w_c]x S) = R [det(S) S w_c]x = R [-S w_c]x
+
+using ``M [w]x M^T = det(M) [M w]x`` for any orthogonal ``M``; hence::
+
+    w = -S w_c = (-w_x, w_y, -w_z).
+
+(CARLA's ROS bridge converts its IMU the same way: ``linear_acceleration.y`` and
+``angular_velocity.x``/``.z`` negated.)  Checks: a car turning LEFT (counter-clockwise seen from
+above) has ``w_z > 0`` in our frame and ``w_z < 0`` in the file; accelerating toward its left
+gives ``a_y > 0`` in ours and ``a_y < 0`` in the file.  Both maps are sign flips and involutions,
+so the writer (``write_imu_csv(..., frame="ibiscape")``) applies the same flips; an Allan
+deviation does not change under a sign flip.  ``read_imu`` picks ``"ibiscape"`` by itself for a
+file ``imu*.csv`` in a folder ``other_sensors`` whose parent holds ``vehicle_gt/`` (the IBISCape
+sequence layout); everywhere else a csv is read as it stands (EuRoC).
 """
 
 from __future__ import annotations
@@ -26,15 +55,20 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ibiscape_eval.core.errors import FormatError, IbiscapeError
 
 from ._atomic import atomic_write
+from .ibiscape import _S
 
 __all__ = [
     "AXES",
+    "IBISCAPE_IMU_SIGNS",
+    "IMU_FRAMES",
     "ImuRecord",
     "ImuTiming",
+    "mirror_ibiscape_imu",
     "parse_columns",
     "parse_units",
     "read_imu",
@@ -56,7 +90,13 @@ _ACCEL_UNITS = {"m/s^2": 1.0, "m/s2": 1.0, "g": STANDARD_GRAVITY_M_S2}
 _CHUNK_ROWS = 1 << 20
 #: CSV files larger than this are parsed into a temporary .npy instead of memory.
 SPILL_BYTES = 512 * 1024**2
-FORMATS = ("euroc", "csv", "npy", "npz", "parquet", "rosbag")
+FORMATS = ("euroc", "ibiscape", "csv", "npy", "npz", "parquet", "rosbag")
+#: Per-axis signs (w_x .. a_z) between CARLA's left-handed IMU frame and ours: gyro ``-S``,
+#: accel ``S`` with ``S = diag(1, -1, 1)``, i.e. ``(-1, 1, -1, 1, -1, 1)`` (an involution).
+IBISCAPE_IMU_SIGNS = np.concatenate((-_S, _S))
+IBISCAPE_IMU_SIGNS.flags.writeable = False
+#: ``frame`` values of the writers: as given (right-handed) or mirrored to CARLA's frame.
+IMU_FRAMES = ("right-handed", "ibiscape")
 
 
 @dataclass(frozen=True)
@@ -225,6 +265,37 @@ def _pairs(text: str, option: str) -> dict[str, str]:
     return out
 
 
+def mirror_ibiscape_imu(gyro_rad_s: npt.ArrayLike,
+                        accel_m_s2: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    """Convert IMU samples between CARLA's left-handed frame and our right-handed one.
+
+    The map is its own inverse: ``w -> -S w = (-w_x, w_y, -w_z)``, ``a -> S a = (a_x, -a_y,
+    a_z)`` with ``S = diag(1, -1, 1)`` (derivation in the module docstring).
+
+    Parameters
+    ----------
+    gyro_rad_s : array_like, shape (N, 3)
+        Angular rate, rad/s.
+    accel_m_s2 : array_like, shape (N, 3)
+        Specific force, m/s^2.
+
+    Returns
+    -------
+    gyro_rad_s, accel_m_s2 : ndarray, shape (N, 3)
+        New float64 arrays (the inputs are not modified).
+    """
+    g = np.asarray(gyro_rad_s, dtype=np.float64)
+    a = np.asarray(accel_m_s2, dtype=np.float64)
+    return g * IBISCAPE_IMU_SIGNS[:3], a * IBISCAPE_IMU_SIGNS[3:]
+
+
+def _check_frame(frame: str) -> bool:
+    """True when ``frame`` asks for CARLA's (IBISCape) frame."""
+    if frame not in IMU_FRAMES:
+        raise IbiscapeError(f"unknown IMU frame {frame!r}; use one of {', '.join(IMU_FRAMES)}")
+    return frame == "ibiscape"
+
+
 # ---------------------------------------------------------------------------------------------
 # timing
 
@@ -333,8 +404,11 @@ def read_imu(
         (N, 7) with ns stamps in column 0, or (N, 6) with ``rate_hz``), ``.npz`` (``stamps_ns``,
         ``gyro_rad_s``, ``accel_m_s2``, or ``data`` like .npy), ``.parquet`` (EuRoC column names or
         ``columns``), a ROS 1 ``.bag`` or a ROS 2 bag folder / ``.db3`` / ``.mcap``.
-    fmt : {"euroc", "csv", "npy", "npz", "parquet", "rosbag"}, optional
-        Format; guessed from the name by default.
+    fmt : {"euroc", "ibiscape", "csv", "npy", "npz", "parquet", "rosbag"}, optional
+        Format; guessed from the name by default.  ``"ibiscape"`` is the EuRoC layout in CARLA's
+        left-handed frame, converted to ours (``w_x, w_z, a_y`` negated, see the module
+        docstring); it is guessed for ``<seq>/other_sensors/imu*.csv`` when ``<seq>/vehicle_gt/``
+        exists.
     columns : str or mapping, optional
         Column mapping, see :func:`parse_columns`.
     units : str or mapping, optional
@@ -360,8 +434,9 @@ def read_imu(
     f = (fmt or _guess_format(p)).lower()
     gscale, ascale = parse_units(units)
     cols = parse_columns(columns)
-    if f in ("euroc", "csv"):
-        rec = _read_csv(p, cols, spill_bytes, rate_hz)
+    if f in ("euroc", "csv", "ibiscape"):
+        rec = _read_csv(p, cols, spill_bytes, rate_hz,
+                        signs=IBISCAPE_IMU_SIGNS if f == "ibiscape" else None)
     elif f == "npy":
         rec = _read_npy(p, rate_hz)
     elif f == "npz":
@@ -388,13 +463,19 @@ def _guess_format(p: Path) -> str:
     if p.is_dir() or suf in (".bag", ".db3", ".mcap"):
         return "rosbag"
     if suf in (".csv", ".txt"):
-        return "csv"
+        return "ibiscape" if _in_ibiscape_sequence(p) else "csv"
     if suf in (".npy", ".npz", ".parquet"):
         return suf[1:]
     if suf == ".pq":
         return "parquet"
     raise FormatError(p, f"cannot tell the format from the suffix {suf!r}; give --format "
                       f"({', '.join(FORMATS)})")
+
+
+def _in_ibiscape_sequence(p: Path) -> bool:
+    """``<seq>/other_sensors/imu*.csv`` next to ``<seq>/vehicle_gt/``: the IBISCape layout."""
+    return (p.suffix.lower() == ".csv" and p.name.lower().startswith("imu")
+            and p.parent.name == "other_sensors" and (p.parent.parent / "vehicle_gt").is_dir())
 
 
 def _header_lines(p: Path) -> tuple[int, list[str] | None]:
@@ -467,7 +548,7 @@ def _resolve(cols: Mapping[str, str | int], names: list[str] | None, n_fields: i
 
 
 def _read_csv(p: Path, cols: Mapping[str, str | int], spill_bytes: int,
-              rate_hz: float | None) -> ImuRecord:
+              rate_hz: float | None, *, signs: np.ndarray | None = None) -> ImuRecord:
     import pandas as pd
 
     skip, names = _header_lines(p)
@@ -518,6 +599,8 @@ def _read_csv(p: Path, cols: Mapping[str, str | int], spill_bytes: int,
                 tcol = np.asarray(chunk.iloc[:, t_col])  # type: ignore[index]
                 timing_acc.add(np.round(tcol * 1e9) if t_in_s else tcol)
             data = arr[:, axis_cols]
+            if signs is not None:
+                data = data * signs
             if writer is not None:
                 writer.write(data)
             else:
@@ -776,21 +859,28 @@ def write_imu_npy(path: str | os.PathLike[str], blocks: Iterable[np.ndarray], *,
 
 
 def write_imu_csv(path: str | os.PathLike[str], stamps_ns: np.ndarray, gyro_rad_s: np.ndarray,
-                  accel_m_s2: np.ndarray) -> None:
+                  accel_m_s2: np.ndarray, *, frame: str = "right-handed") -> None:
     """Write the EuRoC/IBISCape IMU csv (gyro first, 17 significant digits), atomically.
 
     Parameters
     ----------
     stamps_ns : ndarray of int64, shape (N,)
     gyro_rad_s, accel_m_s2 : ndarray, shape (N, 3)
+        Samples in OUR right-handed frame, rad/s and m/s^2.
+    frame : {"right-handed", "ibiscape"}
+        ``"ibiscape"`` writes CARLA's left-handed frame like the real dataset (``w_x, w_z, a_y``
+        negated; :func:`read_imu` with ``fmt="ibiscape"`` converts back).
     """
     import pandas as pd
 
+    mirror = _check_frame(frame)
     t = np.asarray(stamps_ns, dtype=np.int64)
     g = np.asarray(gyro_rad_s, dtype=np.float64)
     a = np.asarray(accel_m_s2, dtype=np.float64)
     if g.shape != (t.size, 3) or a.shape != (t.size, 3):
         raise IbiscapeError(f"expected (N,) stamps and (N, 3) gyro/accel, got {t.shape}, {g.shape}, {a.shape}")
+    if mirror:
+        g, a = mirror_ibiscape_imu(g, a)
     df = pd.DataFrame(np.concatenate([g, a], axis=1))
     df.insert(0, "t", t)
     with atomic_write(path) as fh:

@@ -9,7 +9,7 @@ r"""Files of a (synthetic) IBISCape sequence besides ground truth and GNSS.
 - ``weather.csv``: ``#timestamp [ns],cloudiness,...`` per camera frame; :func:`write_weather_csv` /
   :func:`read_weather_csv`.
 - Streaming writers (bounded memory, atomic): :func:`write_imu_csv_chunks` (the IBISCape/EuRoC IMU
-  csv, gyro first), :func:`write_groundtruth_chunks` (``groundtruth_sync.csv`` in CARLA's frame,
+  csv, gyro first; ``frame="ibiscape"`` mirrors to CARLA's left-handed frame like the real data), :func:`write_groundtruth_chunks` (``groundtruth_sync.csv`` in CARLA's frame,
   same conversion as :func:`ibiscape_eval.io.write_ibiscape_groundtruth`) and
   :func:`write_gnss_chunks`.
 """
@@ -31,6 +31,7 @@ from ._poses import check_rows
 from ._text import decimal_to_ns, parse_table, read_bytes, write_table
 from .gnss import GNSS_HEADER, GnssFixes
 from .ibiscape import _S, IBISCAPE_HEADER, IbiscapeGroundTruth, _quat_file_from_ours
+from .imu import _check_frame, mirror_ibiscape_imu
 
 __all__ = [
     "IMU_CSV_HEADER",
@@ -136,13 +137,22 @@ def read_weather_csv(path: str | os.PathLike[str]) -> tuple[npt.NDArray[np.int64
 
 
 def write_imu_csv_chunks(path: str | os.PathLike[str],
-                         chunks: Iterable[tuple[npt.ArrayLike, npt.ArrayLike, npt.ArrayLike]]) -> int:
+                         chunks: Iterable[tuple[npt.ArrayLike, npt.ArrayLike, npt.ArrayLike]], *,
+                         frame: str = "right-handed") -> int:
     """Stream ``(stamps_ns, gyro_rad_s (n, 3), accel_m_s2 (n, 3))`` chunks into one IMU csv
-    (IBISCape/EuRoC layout, gyro first, rows ending in a space), atomically.  Returns the rows."""
+    (IBISCape/EuRoC layout, gyro first, rows ending in a space), atomically.  Returns the rows.
+
+    The chunks hold OUR right-handed frame.  ``frame="ibiscape"`` writes CARLA's left-handed
+    frame like the real dataset (``w_x, w_z, a_y`` negated, see :mod:`ibiscape_eval.io.imu`);
+    ``read_imu`` converts back (by itself inside a sequence folder).
+    """
+    mirror = _check_frame(frame)
     rows = 0
     with atomic_write(path, "wb") as f:
         f.write((IMU_CSV_HEADER + "\n").encode())
         for st, g, a in chunks:
+            if mirror:
+                g, a = mirror_ibiscape_imu(g, a)
             vals = np.concatenate((np.asarray(g, dtype=np.float64), np.asarray(a, dtype=np.float64)),
                                   axis=1)
             write_table(f, np.asarray(st, dtype=np.int64), vals, stamp="ns", sep=",", row_end=" \n")

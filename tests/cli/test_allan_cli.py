@@ -135,3 +135,24 @@ def test_npy_without_stamps_needs_rate(run_cli, tmp_path: Path) -> None:
 def test_help_has_an_example(run_cli) -> None:
     res = run_cli("allan", "--help")
     assert res.exit_code == 0 and "ibiscape-eval allan imu.csv" in res.output
+
+
+def test_format_ibiscape_gives_the_same_noise(run_cli, tmp_path: Path) -> None:
+    """CARLA's left-handed frame (sign flips) changes no Allan number; --help names the format."""
+    n, rate = 20_000, 20.0
+    y = imu_noise(n, rate, noise_density=N_TRUE, random_walk=K_TRUE, seed=6)
+    t = np.arange(n, dtype=np.int64) * 50_000_000
+    write_imu_csv(tmp_path / "carla.csv", t, y[:, :3], y[:, 3:], frame="ibiscape")
+    write_imu_csv(tmp_path / "ours.csv", t, y[:, :3], y[:, 3:])
+    a = run_cli("allan", tmp_path / "carla.csv", "--format", "ibiscape", "--json")
+    b = run_cli("allan", tmp_path / "ours.csv", "--json")
+    assert a.exit_code == 0 and b.exit_code == 0, a.output + b.output
+    da, db = json.loads(a.stdout)["axes"], json.loads(b.stdout)["axes"]
+    assert da.keys() == db.keys()
+    for name in da:
+        assert da[name].keys() == db[name].keys()
+        for key, va in da[name].items():
+            vb = db[name][key]
+            assert va == (pytest.approx(vb, rel=1e-12) if isinstance(vb, float) else vb), (name, key)
+    assert da["w_z"]["noise_density"] == pytest.approx(N_TRUE[2], rel=0.05)
+    assert "ibiscape" in run_cli("allan", "--help").stdout

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -248,3 +249,115 @@ def test_unknown_units_and_columns(tmp_path: Path) -> None:
 def test_missing_file(tmp_path: Path) -> None:
     with pytest.raises(FileNotFoundError):
         read_imu(tmp_path / "nope.csv")
+
+
+# ---------------------------------------------------------------------------------------------
+# IBISCape: CARLA's left-handed IMU frame (w_x, w_z, a_y negated)
+
+_FLIP = np.array([-1.0, 1.0, -1.0, 1.0, -1.0, 1.0])
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(rows=st.lists(st.lists(finite, min_size=6, max_size=6), min_size=3, max_size=40),
+       chunk=st.integers(min_value=1, max_value=50), spill=st.booleans())
+def test_ibiscape_frame_round_trip(tmp_path: Path, rows: list[list[float]], chunk: int,
+                                   spill: bool) -> None:
+    from ibiscape_eval.io.sequence import write_imu_csv_chunks
+
+    y = np.array(rows)
+    t = np.int64(10**9) + np.arange(len(rows), dtype=np.int64) * 5_000_000
+    a, b, c = tmp_path / "a.csv", tmp_path / "b.csv", tmp_path / "c.csv"
+
+    def chunks() -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        return ((t[i : i + chunk], y[i : i + chunk, :3], y[i : i + chunk, 3:])
+                for i in range(0, len(rows), chunk))
+
+    write_imu_csv(a, t, y[:, :3], y[:, 3:], frame="ibiscape")
+    assert write_imu_csv_chunks(b, chunks(), frame="ibiscape") == len(rows)
+    write_imu_csv_chunks(c, chunks())
+    spill_bytes = 1 if spill else 1 << 30
+
+    def read(path: Path, fmt: str) -> np.ndarray:
+        rec = read_imu(path, fmt=fmt, spill_bytes=spill_bytes)
+        return np.concatenate(list(rec.iter_chunks(range(6), 7)))
+
+    # write_imu_csv keeps 17 digits: exact round trip
+    np.testing.assert_array_equal(read(a, "ibiscape"), y)
+    # the streaming writer keeps 15 digits in either frame: mirroring adds no error
+    np.testing.assert_array_equal(read(b, "ibiscape"), read(c, "euroc"))
+    # (atol: the shared 15-digit formatter loses subnormal-range values, a separate issue)
+    np.testing.assert_allclose(read(b, "ibiscape"), y, rtol=5e-15, atol=1e-290)
+    # the files themselves hold the mirrored values
+    np.testing.assert_array_equal(read(a, "euroc"), y * _FLIP)
+    np.testing.assert_array_equal(read(b, "euroc"), read(c, "euroc") * _FLIP)
+
+
+def test_writers_refuse_unknown_frame(tmp_path: Path) -> None:
+    from ibiscape_eval.io.sequence import write_imu_csv_chunks
+
+    t, y = _data(5)
+    with pytest.raises(IbiscapeError, match="unknown IMU frame 'carla'"):
+        write_imu_csv(tmp_path / "x.csv", t, y[:, :3], y[:, 3:], frame="carla")
+    with pytest.raises(IbiscapeError, match="unknown IMU frame"):
+        write_imu_csv_chunks(tmp_path / "y.csv", [(t, y[:, :3], y[:, 3:])], frame="left")
+    assert not any(tmp_path.iterdir())
+
+
+def _carla_left_turn_file(path: Path, n: int = 400) -> None:
+    """A car driving at 10 m/s turning LEFT at 0.3 rad/s, as CARLA's IMU writes it: yaw rate
+    w_z < 0 (CARLA's yaw grows clockwise seen from above), centripetal a_y = -3 m/s^2 (left is -y)."""
+    lines = ["#timestamp [ns],w_x [rad s^-1],w_y [rad s^-1],w_z [rad s^-1],a_x [m s^-2],"
+             "a_y [m s^-2],a_z [m s^-2]"]
+    lines += [f"{T0 + i * 5_000_000},0.02,0.01,-0.3,0.5,-3.0,9.81 " for i in range(n)]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def test_hand_made_carla_left_turn_reads_with_our_signs(tmp_path: Path) -> None:
+    _carla_left_turn_file(tmp_path / "imu.csv")
+    rec = read_imu(tmp_path / "imu.csv", fmt="ibiscape")
+    assert rec.samples is not None
+    g, a = rec.gyro_rad_s, rec.accel_m_s2
+    np.testing.assert_array_equal(g[0], [-0.02, 0.01, 0.3])  # left turn: positive yaw rate in ours
+    np.testing.assert_array_equal(a[0], [0.5, 3.0, 9.81])  # toward the left: a_y > 0 in ours
+    # centripetal acceleration = speed x yaw rate, both positive for a left turn in our frame
+    assert a[0, 1] == pytest.approx(10.0 * g[0, 2])
+    # outside a sequence folder the same file is read as it stands
+    np.testing.assert_array_equal(read_imu(tmp_path / "imu.csv").gyro_rad_s[0], [0.02, 0.01, -0.3])
+
+
+def test_ibiscape_format_is_detected_inside_a_sequence(tmp_path: Path) -> None:
+    seq = tmp_path / "SVI_1_town"
+    (seq / "other_sensors").mkdir(parents=True)
+    for name in ("imu.csv", "imu0.csv", "imu_still.csv"):
+        _carla_left_turn_file(seq / "other_sensors" / name)
+    _carla_left_turn_file(seq / "other_sensors" / "log.csv")  # not imu*: read as it stands
+    # no vehicle_gt/ yet: not the IBISCape layout
+    assert read_imu(seq / "other_sensors" / "imu.csv").gyro_rad_s[0, 2] == -0.3
+    (seq / "vehicle_gt").mkdir()
+    for name in ("imu.csv", "imu0.csv", "imu_still.csv"):
+        rec = read_imu(seq / "other_sensors" / name)
+        np.testing.assert_array_equal(rec._all()[0], [-0.02, 0.01, 0.3, 0.5, 3.0, 9.81])
+    assert read_imu(seq / "other_sensors" / "log.csv").gyro_rad_s[0, 2] == -0.3
+    # an explicit format wins over the guess
+    assert read_imu(seq / "other_sensors" / "imu.csv", fmt="euroc").gyro_rad_s[0, 2] == -0.3
+    # a folder that is only named like it, elsewhere: no conversion
+    other = tmp_path / "x" / "other_sensors"
+    other.mkdir(parents=True)
+    _carla_left_turn_file(other / "imu.csv")
+    assert read_imu(other / "imu.csv").gyro_rad_s[0, 2] == -0.3
+
+
+def test_allan_deviation_is_unchanged_by_the_mirror(tmp_path: Path) -> None:
+    from ibiscape_eval.imu import allan_deviation
+
+    t, y = _data(4000, seed=7)
+    y[:, 5] += 9.81
+    write_imu_csv(tmp_path / "imu.csv", t, y[:, :3], y[:, 3:], frame="ibiscape")
+    ours = read_imu(tmp_path / "imu.csv", fmt="ibiscape")
+    raw = read_imu(tmp_path / "imu.csv", fmt="euroc")
+    np.testing.assert_array_equal(ours.gyro_rad_s, raw.gyro_rad_s * _FLIP[:3])
+    assert not np.array_equal(ours.accel_m_s2, raw.accel_m_s2)
+    ra, rb = allan_deviation(ours, ours.rate_hz), allan_deviation(raw, raw.rate_hz)
+    np.testing.assert_array_equal(ra.taus_s, rb.taus_s)
+    np.testing.assert_allclose(ra.adev, rb.adev, rtol=1e-12, atol=0)
+    assert ra.adev.shape[1] == 6 and np.all(ra.adev > 0)

@@ -175,6 +175,12 @@ def test_integrating_ideal_imu0_reproduces_groundtruth(ideal_seq) -> None:
     # gyro = GT angular rate (the file holds it in the world frame)
     w_body = np.einsum("nji,nj->ni", R_gt, gt.angvel_rad_s)
     np.testing.assert_allclose(samples[:, :3], w_body, atol=1e-12)
+    # the file itself holds CARLA's left-handed frame, like IBISCape: read as it stands (euroc),
+    # w_x, w_z and a_y come out negated
+    raw = read_imu(out / "other_sensors" / "imu0.csv", fmt="euroc").samples
+    assert imu.samples is not None and raw is not None
+    np.testing.assert_array_equal(raw, samples * np.array([-1, 1, -1, 1, -1, 1]))
+    assert np.abs(samples[:, [0, 2, 4]]).max() > 1e-3  # the flipped axes are not all zero
 
 
 def test_lever_arm_imus_in_files(ideal_seq) -> None:
