@@ -396,6 +396,8 @@ def write_float(out, pos, x):
             f = x * EXACT_POW[s]
         elif -22 <= s < 0:
             f = x / EXACT_POW[-s]
+        elif s > 300:  # tiny x: 10**s alone would overflow to inf, so scale in two steps
+            f = (x * 1e300) * 10.0 ** (s - 300)
         else:
             f = x * 10.0**s
         m = np.int64(np.rint(f))

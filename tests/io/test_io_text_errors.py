@@ -7,6 +7,8 @@ import warnings
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from ibiscape_eval.core.errors import FormatError, IbiscapeWarning
 from ibiscape_eval.io import read_gnss, read_trajectory
@@ -174,3 +176,18 @@ def test_unknown_format_and_misapplied_options(tmp_path):
         read_trajectory(p, "xyz")
     with pytest.raises(IbiscapeError, match="topic"):
         read_trajectory(p, "tum", topic="/x")
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.floats(allow_nan=False, allow_infinity=False, width=64))
+def test_number_writer_is_accurate_over_the_whole_float_range(x: float) -> None:
+    """15 significant digits for every finite double, tiny and subnormal ones included (their
+    scale factor 10**s overflows if applied in one step)."""
+    import io
+
+    from ibiscape_eval.io._text import write_table
+
+    buf = io.BytesIO()
+    write_table(buf, None, np.array([[x]]), stamp="none", sep=" ")
+    back = float(buf.getvalue().decode())
+    assert back == pytest.approx(x, rel=1e-14, abs=1e-323)
