@@ -107,6 +107,12 @@ def cold(cmd: list[str], tmp: Path) -> Run:
             os.environ["NUMBA_CACHE_DIR"] = old
 
 
+def allpairs_cmd(est: Path, ref: Path) -> list[str]:
+    """``ibiscape-eval rpe`` over 1 m, every start pose (the all-pairs case)."""
+    return [str(BIN / "ibiscape-eval"), "rpe", str(est), str(ref), "--format", "tum", "--delta", "1",
+            "--delta-unit", "metres", "--pairs", "all", "--json"]
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--sizes", default="100000,1000000")
@@ -163,46 +169,12 @@ def main() -> None:
             )
             print(row(f"rpe 1 frame, {n:,} poses", o, e, ours_rmse(o.stdout), evo_rmse(e.stdout)))
             if n <= 100_000:
-                o = best_of(
-                    [
-                        ours_bin,
-                        "rpe",
-                        str(fe),
-                        str(fg),
-                        "--format",
-                        "tum",
-                        "--delta",
-                        "1",
-                        "--delta-unit",
-                        "metres",
-                        "--pairs",
-                        "all",
-                        "--json",
-                    ],
-                    args.repeat,
-                )
+                o = best_of(allpairs_cmd(fe, fg), args.repeat)
                 print(row(f"rpe 1 m all pairs, {n:,} poses", o, None, ours_rmse(o.stdout), 0))
         n = args.allpairs_evo_size
         fe, fg = tmp / f"est_{n}.txt", tmp / f"gt_{n}.txt"
         write_pair(n, 1, fe, fg)
-        o = best_of(
-            [
-                ours_bin,
-                "rpe",
-                str(fe),
-                str(fg),
-                "--format",
-                "tum",
-                "--delta",
-                "1",
-                "--delta-unit",
-                "metres",
-                "--pairs",
-                "all",
-                "--json",
-            ],
-            args.repeat,
-        )
+        o = best_of(allpairs_cmd(fe, fg), args.repeat)
         e = run(
             [evo_rpe, "tum", str(fg), str(fe), "--delta", "1", "--delta_unit", "m", "--all_pairs"],
             timeout_s=args.timeout_s,
