@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -14,8 +15,17 @@ from ._fast import run_rows, take, trusted
 from .alignment import AlignmentResult
 from .association import Matched, associate, associate_by_index
 
-__all__ = ["absolute_errors", "aligned_errors", "common_dict", "frozen", "match",
-           "relative_errors", "take", "trusted"]
+__all__ = [
+    "MatchedResult",
+    "absolute_errors",
+    "aligned_errors",
+    "frozen",
+    "match",
+    "matched_fields",
+    "relative_errors",
+    "take",
+    "trusted",
+]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -111,16 +121,58 @@ def nan_to_none(x: float) -> float | None:
     return None if math.isnan(x) else float(x)
 
 
-def common_dict(res: Any, *, metric: str) -> dict[str, Any]:
-    """The keys every metric's ``to_dict`` starts with (the JSON contract)."""
+@dataclass(frozen=True, eq=False)
+class MatchedResult:
+    """What every metric result holds besides its errors: how the two trajectories were matched
+    and aligned.
+
+    Attributes
+    ----------
+    alignment : AlignmentResult
+        The transform applied to the estimate.
+    est_aligned, ref : Trajectory
+        The matched, aligned estimate and the matched reference (row by row).
+    n_matched, n_dropped_est, n_dropped_ref : int
+        Pose pairs used and poses without a partner.
+    t_offset_s : float
+        Offset added to the estimate's stamps, seconds (``t_ref = t_est + t_offset_s``).
+    interpolated : bool
+        Whether poses were interpolated during matching.
+    """
+
+    alignment: AlignmentResult
+    est_aligned: Trajectory
+    ref: Trajectory
+    n_matched: int
+    n_dropped_est: int
+    n_dropped_ref: int
+    t_offset_s: float
+    interpolated: bool
+
+    def _common_dict(self, metric: str) -> dict[str, Any]:
+        """The keys every metric's ``to_dict`` starts with (the JSON contract)."""
+        return {
+            "metric": metric,
+            "n_matched": int(self.n_matched),
+            "n_dropped_est": int(self.n_dropped_est),
+            "n_dropped_ref": int(self.n_dropped_ref),
+            "alignment": self.alignment.method,
+            "scale": float(self.alignment.scale),
+            "transform": self.alignment.transform.tolist(),
+            "t_offset_s": float(self.t_offset_s),
+            "interpolated": bool(self.interpolated),
+        }
+
+
+def matched_fields(m: Matched, al: AlignmentResult, est_aligned: Trajectory) -> dict[str, Any]:
+    """Keyword arguments of :class:`MatchedResult` from an association and an alignment."""
     return {
-        "metric": metric,
-        "n_matched": int(res.n_matched),
-        "n_dropped_est": int(res.n_dropped_est),
-        "n_dropped_ref": int(res.n_dropped_ref),
-        "alignment": res.alignment.method,
-        "scale": float(res.alignment.scale),
-        "transform": res.alignment.transform.tolist(),
-        "t_offset_s": float(res.t_offset_s),
-        "interpolated": bool(res.interpolated),
+        "alignment": al,
+        "est_aligned": est_aligned,
+        "ref": m.ref,
+        "n_matched": m.n_matched,
+        "n_dropped_est": m.n_dropped_est,
+        "n_dropped_ref": m.n_dropped_ref,
+        "t_offset_s": m.t_offset_s,
+        "interpolated": m.interpolated,
     }

@@ -11,10 +11,10 @@ import numpy.typing as npt
 from ibiscape_eval.core import Trajectory
 from ibiscape_eval.core.time import s_from_ns
 
-from ._common import aligned_errors, common_dict, frozen
+from ._common import MatchedResult, aligned_errors, frozen, matched_fields
 from ._common import match as _match
 from ._stats import ErrorStats
-from .alignment import Alignment, AlignmentResult
+from .alignment import Alignment
 from .alignment import align as _align
 
 if TYPE_CHECKING:
@@ -24,7 +24,7 @@ __all__ = ["AteResult", "ate"]
 
 
 @dataclass(frozen=True, eq=False)
-class AteResult:
+class AteResult(MatchedResult):
     """Per-pose absolute errors of an aligned estimate.
 
     Attributes
@@ -37,16 +37,9 @@ class AteResult:
         Rotation angle of ``E_i``, degrees.
     translation_m, rotation_deg : ErrorStats
         Statistics of the two error vectors.
-    alignment : AlignmentResult
-        The transform applied to the estimate.
-    est_aligned, ref : Trajectory
-        The matched, aligned estimate and the matched reference (row by row).
-    n_matched, n_dropped_est, n_dropped_ref : int
-        Pose pairs used and poses without a partner.
-    t_offset_s : float
-        Offset added to the estimate's stamps, seconds (``t_ref = t_est + t_offset_s``).
-    interpolated : bool
-        Whether poses were interpolated during matching.
+    alignment, est_aligned, ref, n_matched, n_dropped_est, n_dropped_ref, t_offset_s,
+    interpolated
+        How the trajectories were matched and aligned: see :class:`MatchedResult`.
     """
 
     stamps_ns: npt.NDArray[np.int64]
@@ -54,14 +47,6 @@ class AteResult:
     errors_deg: npt.NDArray[np.float64]
     translation_m: ErrorStats
     rotation_deg: ErrorStats
-    alignment: AlignmentResult
-    est_aligned: Trajectory
-    ref: Trajectory
-    n_matched: int
-    n_dropped_est: int
-    n_dropped_ref: int
-    t_offset_s: float
-    interpolated: bool
 
     def to_frame(self) -> pd.DataFrame:
         """Per-pose rows: ``stamp_ns, t_s, error_m, error_deg, est_{x,y,z}_m, ref_{x,y,z}_m``."""
@@ -81,7 +66,7 @@ class AteResult:
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON document the CLI prints (see the package docs for the contract)."""
-        doc = common_dict(self, metric="ate")
+        doc = self._common_dict("ate")
         doc["n_align"] = int(self.alignment.n_used)
         doc["translation_m"] = self.translation_m.to_dict()
         doc["rotation_deg"] = self.rotation_deg.to_dict()
@@ -138,13 +123,6 @@ def ate(
         errors_deg=frozen(rot_deg, owned=True),
         translation_m=ErrorStats.from_errors(trans),
         rotation_deg=ErrorStats.from_errors(rot_deg),
-        alignment=al,
-        est_aligned=est_al,
-        ref=m.ref,
-        n_matched=m.n_matched,
-        n_dropped_est=m.n_dropped_est,
-        n_dropped_ref=m.n_dropped_ref,
-        t_offset_s=m.t_offset_s,
-        interpolated=m.interpolated,
+        **matched_fields(m, al, est_al),
     )
 

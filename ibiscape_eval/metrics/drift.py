@@ -13,10 +13,10 @@ import numpy.typing as npt
 
 from ibiscape_eval.core import IbiscapeError, IbiscapeWarning, Trajectory
 
-from ._common import common_dict, frozen, nan_to_none, relative_errors
+from ._common import MatchedResult, frozen, matched_fields, nan_to_none, relative_errors
 from ._common import match as _match
 from ._stats import ErrorStats
-from .alignment import Alignment, AlignmentResult
+from .alignment import Alignment
 from .alignment import align as _align
 
 if TYPE_CHECKING:
@@ -29,7 +29,7 @@ KITTI_LENGTHS_M = (100.0, 200.0, 300.0, 400.0, 500.0, 600.0, 700.0, 800.0)
 
 
 @dataclass(frozen=True, eq=False)
-class DriftResult:
+class DriftResult(MatchedResult):
     """Drift per segment length (KITTI odometry devkit definition).
 
     Attributes
@@ -56,7 +56,7 @@ class DriftResult:
         Distance between segment start frames.
     alignment, est_aligned, ref, n_matched, n_dropped_est, n_dropped_ref, t_offset_s,
     interpolated
-        As in :class:`AteResult`.
+        How the trajectories were matched and aligned: see :class:`MatchedResult`.
     """
 
     lengths_m: npt.NDArray[np.float64]
@@ -73,14 +73,6 @@ class DriftResult:
     translation_m: ErrorStats
     rotation_deg: ErrorStats
     step_frames: int
-    alignment: AlignmentResult
-    est_aligned: Trajectory
-    ref: Trajectory
-    n_matched: int
-    n_dropped_est: int
-    n_dropped_ref: int
-    t_offset_s: float
-    interpolated: bool
 
     def to_frame(self) -> pd.DataFrame:
         """One row per length: ``length_m, n_segments, translation_pct, rotation_deg_per_m``."""
@@ -97,7 +89,7 @@ class DriftResult:
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON document: ATE's keys plus per-length lists and the averages (NaN -> null)."""
-        doc = common_dict(self, metric="drift")
+        doc = self._common_dict("drift")
         doc["step_frames"] = int(self.step_frames)
         doc["lengths_m"] = [float(x) for x in self.lengths_m]
         doc["n_segments"] = [int(x) for x in self.n_segments]
@@ -241,12 +233,5 @@ def drift(
         translation_m=ErrorStats.from_errors(trans),
         rotation_deg=ErrorStats.from_errors(rot_deg),
         step_frames=int(step_frames),
-        alignment=al,
-        est_aligned=est_al,
-        ref=m.ref,
-        n_matched=m.n_matched,
-        n_dropped_est=m.n_dropped_est,
-        n_dropped_ref=m.n_dropped_ref,
-        t_offset_s=m.t_offset_s,
-        interpolated=m.interpolated,
+        **matched_fields(m, al, est_al),
     )

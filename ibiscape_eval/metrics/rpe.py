@@ -13,11 +13,11 @@ from ibiscape_eval.core import DegenerateInputError, IbiscapeError, Trajectory
 from ibiscape_eval.core.rotations import angle_rad_from_quat, quat_conjugate, quat_multiply
 from ibiscape_eval.core.time import s_from_ns
 
-from ._common import common_dict, frozen, relative_errors
+from ._common import MatchedResult, frozen, matched_fields, relative_errors
 from ._common import match as _match
 from ._pairs import pairs_by_frames, pairs_by_steps
 from ._stats import ErrorStats
-from .alignment import Alignment, AlignmentResult
+from .alignment import Alignment
 from .alignment import align as _align
 
 if TYPE_CHECKING:
@@ -32,7 +32,7 @@ _UNIT_ALIASES = {"meters": "metres", "m": "metres", "s": "seconds", "deg": "degr
 
 
 @dataclass(frozen=True, eq=False)
-class RpeResult:
+class RpeResult(MatchedResult):
     """Relative errors over pose pairs ``(i, j)`` of the matched trajectories.
 
     Attributes
@@ -55,7 +55,7 @@ class RpeResult:
         ``"consecutive"`` (non-overlapping, like evo) or ``"all"``.
     alignment, est_aligned, ref, n_matched, n_dropped_est, n_dropped_ref, t_offset_s,
     interpolated
-        As in :class:`AteResult`.
+        How the trajectories were matched and aligned: see :class:`MatchedResult`.
     """
 
     stamps_ns: npt.NDArray[np.int64]
@@ -69,14 +69,6 @@ class RpeResult:
     delta: float
     delta_unit: str
     pairs: str
-    alignment: AlignmentResult
-    est_aligned: Trajectory
-    ref: Trajectory
-    n_matched: int
-    n_dropped_est: int
-    n_dropped_ref: int
-    t_offset_s: float
-    interpolated: bool
 
     def to_frame(self) -> pd.DataFrame:
         """Per-pair rows: ``stamp_ns, t_s, first_index, second_index, error_m, error_deg``."""
@@ -96,7 +88,7 @@ class RpeResult:
     def to_dict(self) -> dict[str, Any]:
         """The JSON document the CLI prints (ATE's keys plus ``n_pairs, delta, delta_unit,
         pairs``)."""
-        doc = common_dict(self, metric="rpe")
+        doc = self._common_dict("rpe")
         doc.update(n_pairs=int(self.n_pairs), delta=float(self.delta),
                    delta_unit=self.delta_unit, pairs=self.pairs)
         doc["translation_m"] = self.translation_m.to_dict()
@@ -236,12 +228,5 @@ def rpe(
         delta=d,
         delta_unit=unit,
         pairs=pairs,
-        alignment=al,
-        est_aligned=est_al,
-        ref=m.ref,
-        n_matched=m.n_matched,
-        n_dropped_est=m.n_dropped_est,
-        n_dropped_ref=m.n_dropped_ref,
-        t_offset_s=m.t_offset_s,
-        interpolated=m.interpolated,
+        **matched_fields(m, al, est_al),
     )
