@@ -29,6 +29,7 @@ import numpy.typing as npt
 from ibiscape_eval.core.errors import IbiscapeError
 from ibiscape_eval.core.rotations import quat_rotate
 from ibiscape_eval.core.trajectory import Trajectory
+from ibiscape_eval.io._atomic import atomic_output_dir
 from ibiscape_eval.io.gnss import write_gnss
 from ibiscape_eval.io.ibiscape import IbiscapeGroundTruth, write_ibiscape_groundtruth
 
@@ -39,7 +40,7 @@ from .rig import T_body_imu
 from .still import n_samples, still_imu_chunks, uniform_stamps
 from .types import Controls, MotionState
 from .weather import WEATHER_COLUMNS, WeatherLog, simulate_weather
-from .writer import VEHICLE, imu_file_names, prepare_output, sequence_document, staging_folder
+from .writer import VEHICLE, imu_file_names, prepare_output, sequence_document
 
 __all__ = ["Motion", "SequenceSummary", "generate", "plan", "sequence_name"]
 
@@ -237,7 +238,7 @@ def generate(config: SimConfig, out: str | os.PathLike[str], *, overwrite: bool 
             progress(frac, label)
 
     out_p = prepare_output(out, overwrite=overwrite)
-    with staging_folder(out_p, overwrite=overwrite) as tmp:
+    with atomic_output_dir(out_p, overwrite=overwrite) as tmp:
         if config.setup == "imu":
             summary = _generate_still(config, tmp, step)
         else:

@@ -18,18 +18,13 @@ failure or Ctrl-C never leaves a partial sequence; every file inside is written 
 
 from __future__ import annotations
 
-import contextlib
 import os
-import shutil
-import tempfile
-from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ibiscape_eval.core.errors import IbiscapeError
-from ibiscape_eval.io._atomic import publish_permissions
 
 from .imu import noise_parameters
 from .rig import T_body_camera, T_body_imu
@@ -37,7 +32,7 @@ from .rig import T_body_camera, T_body_imu
 if TYPE_CHECKING:
     from .config import SimConfig
 
-__all__ = ["VEHICLE", "imu_file_names", "sequence_document", "staging_folder"]
+__all__ = ["VEHICLE", "imu_file_names", "sequence_document"]
 
 #: Vehicle name used in ``vehicle_gt/<Vehicle>_simulation.txt``.
 VEHICLE = "Tesla"
@@ -174,25 +169,3 @@ def prepare_output(out: str | os.PathLike[str], *, overwrite: bool) -> Path:
     return p
 
 
-@contextlib.contextmanager
-def staging_folder(out: Path, *, overwrite: bool) -> Iterator[Path]:
-    """Yield a hidden temporary sibling of ``out``; on success it replaces ``out`` (the old
-    content is removed only after the new folder is in place); on failure it is deleted."""
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=out.parent))
-    try:
-        yield tmp
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-    old: Path | None = None
-    if out.exists():
-        if any(out.iterdir()) and not overwrite:  # appeared while we were generating
-            shutil.rmtree(tmp, ignore_errors=True)
-            raise IbiscapeError(f"{out}: output folder exists and is not empty; use --overwrite")
-        old = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".old", dir=out.parent))
-        os.replace(out, old / "x")
-    publish_permissions(tmp, folder=True)
-    os.replace(tmp, out)
-    if old is not None:
-        shutil.rmtree(old, ignore_errors=True)

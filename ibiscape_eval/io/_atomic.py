@@ -1,19 +1,31 @@
-"""Atomic file output: write to a temporary file beside the target, then rename.
+"""Atomic output: build a file or folder under a hidden temporary name beside the target, then
+rename it into place.
 
-A reader never sees a half-written file, and a failure (bad input found late, Ctrl-C, disk full)
-leaves no partial output behind.
+A reader never sees a half-written output, and a failure (bad input found late, Ctrl-C, disk
+full) leaves nothing behind.  Every writer of the project goes through these functions.
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
+import shutil
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 from typing import IO, Any
 
-__all__ = ["atomic_output_path", "atomic_write", "publish_permissions"]
+from ibiscape_eval.core.errors import IbiscapeError
+
+__all__ = [
+    "atomic_output_dir",
+    "atomic_output_path",
+    "atomic_write",
+    "discard",
+    "publish",
+    "publish_permissions",
+    "staging_path",
+]
 
 
 def _umask() -> int:
@@ -26,6 +38,81 @@ def publish_permissions(path: str | os.PathLike[str], *, folder: bool = False) -
     """Give a file made by ``mkstemp`` (mode 0600) or a folder made by ``mkdtemp`` (0700) the
     permissions an ordinary ``open``/``mkdir`` would have had under the current umask."""
     os.chmod(path, (0o777 if folder else 0o666) & ~_umask())
+
+
+def staging_path(target: str | os.PathLike[str], *, folder: bool = False) -> Path:
+    """Create and return a hidden temporary sibling of ``target``: an empty file that keeps the
+    target's suffix (so format detection by extension still works), or an empty folder."""
+    t = Path(target)
+    t.parent.mkdir(parents=True, exist_ok=True)
+    if folder:
+        return Path(tempfile.mkdtemp(prefix=f".{t.name}.", suffix=".partial", dir=t.parent))
+    fd, tmp = tempfile.mkstemp(prefix=f".{t.stem}.", suffix=t.suffix, dir=t.parent)
+    os.close(fd)
+    return Path(tmp)
+
+
+def publish(
+    tmp: str | os.PathLike[str], target: str | os.PathLike[str], *, overwrite: bool = False
+) -> None:
+    """Rename the staged ``tmp`` onto ``target`` with ordinary permissions.
+
+    A folder target that already exists is replaced if it is empty, or if ``overwrite``; its old
+    content is removed only after the new folder is in place.  Otherwise ``tmp`` is discarded and
+    :class:`IbiscapeError` raised.
+    """
+    src, dst = Path(tmp), Path(target)
+    folder = src.is_dir()
+    publish_permissions(src, folder=folder)
+    if not folder or not dst.exists():
+        os.replace(src, dst)
+        return
+    if any(dst.iterdir()) and not overwrite:
+        discard(src)
+        raise IbiscapeError(
+            f"{dst}: output folder exists and is not empty (it appeared while "
+            "writing); remove it or choose another output folder"
+        )
+    old = Path(tempfile.mkdtemp(prefix=f".{dst.name}.", suffix=".old", dir=dst.parent))
+    os.replace(dst, old / "x")
+    os.replace(src, dst)
+    shutil.rmtree(old, ignore_errors=True)
+
+
+def discard(tmp: str | os.PathLike[str]) -> None:
+    """Remove a staged file or folder (nothing happens if it is already gone)."""
+    p = Path(tmp)
+    if p.is_dir():
+        shutil.rmtree(p, ignore_errors=True)
+    else:
+        with contextlib.suppress(FileNotFoundError):
+            p.unlink()
+
+
+@contextlib.contextmanager
+def atomic_output_path(path: str | os.PathLike[str]) -> Iterator[Path]:
+    """Yield a temporary path beside ``path`` for libraries that want a file name (matplotlib,
+    numpy, cv2); it is renamed onto ``path`` on success and removed on failure."""
+    tmp = staging_path(path)
+    try:
+        yield tmp
+    except BaseException:
+        discard(tmp)
+        raise
+    publish(tmp, path)
+
+
+@contextlib.contextmanager
+def atomic_output_dir(path: str | os.PathLike[str], *, overwrite: bool = False) -> Iterator[Path]:
+    """Yield an empty temporary folder beside ``path`` that replaces ``path`` when the block
+    finishes without error (see :func:`publish` for an existing ``path``)."""
+    tmp = staging_path(path, folder=True)
+    try:
+        yield tmp
+    except BaseException:
+        discard(tmp)
+        raise
+    publish(tmp, path, overwrite=overwrite)
 
 
 def atomic_write(
@@ -46,38 +133,7 @@ def atomic_write(
 
 @contextlib.contextmanager
 def _atomic_write(path: Path, mode: str) -> Iterator[IO[Any]]:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        f: IO[Any]
-        if mode == "wb":
-            f = os.fdopen(fd, "wb")
-        else:
-            f = os.fdopen(fd, "w", encoding="utf-8", newline="\n")
-        with f:
+    with atomic_output_path(path) as tmp:
+        text = {} if mode == "wb" else {"encoding": "utf-8", "newline": "\n"}
+        with open(tmp, mode, **text) as f:  # type: ignore[call-overload]
             yield f
-        publish_permissions(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        raise
-
-
-@contextlib.contextmanager
-def atomic_output_path(path: str | os.PathLike[str]) -> Iterator[Path]:
-    """Yield a temporary path beside ``path`` for libraries that want a file name (matplotlib,
-    numpy); it is renamed onto ``path`` on success and removed on failure.  The temporary name
-    keeps the target's suffix so that format detection by extension still works."""
-    target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.stem}.", suffix=target.suffix, dir=target.parent)
-    os.close(fd)
-    try:
-        yield Path(tmp)
-        publish_permissions(tmp)
-        os.replace(tmp, target)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        raise

@@ -27,6 +27,7 @@ from typing import IO, Any
 import numpy as np
 import numpy.typing as npt
 
+from ibiscape_eval.core._cpus import usable_cpus
 from ibiscape_eval.core.errors import FormatError
 
 __all__ = ["Table", "decimal_to_ns", "format_lines", "map_bytes", "parse_table", "read_bytes",
@@ -124,11 +125,7 @@ def _is_blank(data: bytes | mmap.mmap) -> bool:
 
 
 def _workers() -> int:
-    try:
-        n = len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):  # pragma: no cover (not Linux)
-        n = os.cpu_count() or 1
-    return max(1, min(n, _MAX_THREADS))
+    return min(usable_cpus(), _MAX_THREADS)
 
 
 class _Pool:

@@ -27,8 +27,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import shutil
-import tempfile
 import zipfile
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -41,7 +39,7 @@ import numpy.typing as npt
 from ibiscape_eval.core.errors import FormatError, IbiscapeError
 from ibiscape_eval.core.events import EventChunk, Events
 
-from ._atomic import atomic_output_path, atomic_write, publish_permissions
+from ._atomic import atomic_output_path, atomic_write, discard, publish, staging_path
 
 __all__ = [
     "EventSource",
@@ -429,13 +427,11 @@ class _Writer:
         if fmt == "ibiscape":
             if dst.exists() and (not dst.is_dir() or any(dst.iterdir())):
                 raise IbiscapeError(f"{dst}: already exists; choose a new output folder or remove it")
-            self.tmp = Path(tempfile.mkdtemp(prefix=f".{dst.name}.", dir=dst.parent))
+            self.tmp = staging_path(dst, folder=True)
             (self.tmp / "events").mkdir()
             self.rows: list[str] = []
         else:
-            fd, name = tempfile.mkstemp(prefix=f".{dst.stem}.", suffix=dst.suffix, dir=dst.parent)
-            os.close(fd)
-            self.tmp = Path(name)
+            self.tmp = staging_path(dst)
         self.parts: list[Events] = []
         self.n = 0
         self._fh: Any = None
@@ -504,10 +500,7 @@ class _Writer:
             with open(self.tmp / "timestamps.csv", "w", encoding="utf-8", newline="\n") as f:
                 f.write("#timestamp_start [ns], timestamp_end [ns], filename\n")
                 f.writelines(self.rows)
-            if self.dst.is_dir():
-                self.dst.rmdir()
-            publish_permissions(self.tmp, folder=True)
-            os.replace(self.tmp, self.dst)
+            publish(self.tmp, self.dst)
             return
         if self.fmt == "npz":
             ev = Events.concatenate(self.parts)
@@ -526,8 +519,7 @@ class _Writer:
                 idx = np.concatenate([[0], np.cumsum(self._ms)]).astype(np.uint64)
                 self._h5.create_dataset("ms_to_idx", data=idx)
             self._h5.close()
-        publish_permissions(self.tmp)
-        os.replace(self.tmp, self.dst)
+        publish(self.tmp, self.dst)
 
     def abort(self) -> None:
         with contextlib.suppress(Exception):
@@ -535,11 +527,7 @@ class _Writer:
                 self._fh.close()
             if self._h5 is not None:
                 self._h5.close()
-        if self.tmp.is_dir():
-            shutil.rmtree(self.tmp, ignore_errors=True)
-        else:
-            with contextlib.suppress(FileNotFoundError):
-                self.tmp.unlink()
+        discard(self.tmp)
 
 
 def _out_format(dst: Path, like: EventSource | None, fmt: str | None) -> str:

@@ -8,6 +8,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ibiscape_eval.core import Trajectory
+from ibiscape_eval.core._cpus import usable_cpus as _cpus
 
 __all__ = ["take", "trusted"]
 
@@ -81,15 +82,6 @@ def run_rows(name: str, n: int, inputs: tuple[Any, ...], outputs: tuple[Any, ...
         fn(*inputs, 0, half, *outputs)
     finally:
         worker.join()
-
-
-def _cpus() -> int:
-    import os
-
-    try:
-        return len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):  # pragma: no cover (not Linux)
-        return os.cpu_count() or 1
 
 
 _SPLIT_ROWS = 200_000
