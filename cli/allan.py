@@ -133,18 +133,8 @@ def allan(imu: str, fmt: str | None, columns: str | None, units: str | None, ros
 
         plot_allan(plot_path, res, model, title=str(imu))
 
-    gyro = [model[n] for n in rec.names[:3]]
-    acc = [model[n] for n in rec.names[3:]]
-
-    def worst(axes: list[Any], attr: str) -> float:
-        vals = [getattr(a, attr) for a in axes]
-        return math.nan if any(not math.isfinite(v) for v in vals) else max(vals)
-
     kalibr: dict[str, Any] = {
-        "accelerometer_noise_density": worst(acc, "noise_density"),
-        "accelerometer_random_walk": worst(acc, "random_walk"),
-        "gyroscope_noise_density": worst(gyro, "noise_density"),
-        "gyroscope_random_walk": worst(gyro, "random_walk"),
+        **model.kalibr(gyro=rec.names[:3], accel=rec.names[3:]),
         "rostopic": rostopic or rec.rostopic or "/imu0",
         "update_rate": rec.rate_hz,
     }

@@ -16,6 +16,7 @@ before the fixed-slope fit, alternating twice, so that a range near the cross-ov
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -93,6 +94,22 @@ class NoiseModel:
     @property
     def names(self) -> tuple[str, ...]:
         return tuple(a.name for a in self.axes)
+
+    def kalibr(self, gyro: Sequence[str], accel: Sequence[str]) -> dict[str, float]:
+        """Kalibr ``imu.yaml`` densities: the largest value over the given gyro and accelerometer
+        axes (continuous time); NaN where an axis lacks the parameter (e.g. a record too short
+        to show the random walk), so that a caller can refuse to write it."""
+
+        def largest(names: Sequence[str], attr: str) -> float:
+            vals = [getattr(self[n], attr) for n in names]
+            return math.nan if any(not math.isfinite(v) for v in vals) else float(max(vals))
+
+        return {
+            "accelerometer_noise_density": largest(accel, "noise_density"),
+            "accelerometer_random_walk": largest(accel, "random_walk"),
+            "gyroscope_noise_density": largest(gyro, "noise_density"),
+            "gyroscope_random_walk": largest(gyro, "random_walk"),
+        }
 
     def to_frame(self) -> pd.DataFrame:
         """One row per axis with every numeric field and the notes joined by '; '."""

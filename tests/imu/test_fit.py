@@ -75,3 +75,14 @@ def test_ranges_can_be_forced(model_8h) -> None:
     assert a.noise_density == pytest.approx(N_TRUE[0], rel=0.03)
     with pytest.raises(IbiscapeError, match="contains no tau"):
         fit_noise_model(res, walk_range_s=(1e6, 2e6))
+
+
+def test_kalibr_takes_the_largest_axis_and_keeps_nan(model_8h) -> None:
+    _, model = model_8h
+    k = model.kalibr(gyro=NAMES[:3], accel=NAMES[3:])
+    assert k["gyroscope_noise_density"] == max(model[n].noise_density for n in NAMES[:3])
+    assert k["accelerometer_random_walk"] == max(model[n].random_walk for n in NAMES[3:])
+    y = imu_noise(12_000, RATE, noise_density=N_TRUE, random_walk=0.0, seed=1)
+    short = fit_noise_model(allan_deviation(y, RATE, names=NAMES))
+    k = short.kalibr(gyro=NAMES[:3], accel=NAMES[3:])
+    assert math.isnan(k["gyroscope_random_walk"]) and math.isfinite(k["gyroscope_noise_density"])
