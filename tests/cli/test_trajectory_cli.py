@@ -193,8 +193,11 @@ def test_fewer_than_three_matches(run_cli, tmp_path: Path) -> None:
         np.random.default_rng(0).normal(size=(4, 3)),
         np.tile([0, 0, 0, 1.0], (4, 1)),
     )
-    res = run_cli("ate", est, _gt(tmp_path))
+    res = run_cli(
+        "ate", est, _gt(tmp_path), "--save-csv", tmp_path / "o.csv", "--plot", tmp_path / "o.png"
+    )
     assert res.exit_code == 2 and "2" in res.stderr and "--max-diff-s" in res.stderr
+    assert not (tmp_path / "o.csv").exists() and not (tmp_path / "o.png").exists()
 
 
 def test_degenerate_geometry(run_cli, tmp_path: Path) -> None:
@@ -203,8 +206,9 @@ def test_degenerate_geometry(run_cli, tmp_path: Path) -> None:
     q = np.tile([0, 0, 0, 1.0], (20, 1))
     est = write_tum(tmp_path / "est.txt", t, line, q)
     gt = write_tum(tmp_path / "gt.txt", t, line * 2, q)
-    res = run_cli("ate", est, gt, "--align", "se3")
+    res = run_cli("ate", est, gt, "--align", "se3", "--save-csv", tmp_path / "o.csv")
     assert res.exit_code == 2 and "collinear" in res.stderr.lower()
+    assert not (tmp_path / "o.csv").exists()
     res = run_cli("ate", est, gt, "--align", "yaw", "--json")
     assert res.exit_code == 0, res.output
 
