@@ -124,7 +124,7 @@ def allan(imu: str, fmt: str | None, columns: str | None, units: str | None, ros
 
     # outputs that are always meaningful first: the curves
     if csv_path:
-        from ibiscape_eval.io._atomic import atomic_write
+        from ibiscape_eval.io.atomic import atomic_write
 
         with atomic_write(csv_path) as fh:
             res.to_frame().to_csv(fh, index=False, float_format="%.10g", lineterminator="\n")

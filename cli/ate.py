@@ -180,7 +180,7 @@ def _report_counts(doc: dict[str, Any]) -> None:
 
 
 def _write_csv(path: Path, frame: Any) -> None:
-    from ibiscape_eval.io._atomic import atomic_write
+    from ibiscape_eval.io.atomic import atomic_write
 
     with atomic_write(path) as f:
         frame.to_csv(f, index=False, float_format="%.9g")

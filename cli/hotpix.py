@@ -96,7 +96,7 @@ def hotpix(
 
     from ibiscape_eval.core.errors import FormatError, IbiscapeError
     from ibiscape_eval.events.hotpix import PixelCounter, filter_events, hot_pixels_from_counts
-    from ibiscape_eval.io._atomic import atomic_output_path
+    from ibiscape_eval.io.atomic import atomic_output_path
     from ibiscape_eval.io.events import (
         iter_event_chunks,
         open_events,

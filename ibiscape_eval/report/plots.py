@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from ibiscape_eval.io._atomic import atomic_output_path
+from ibiscape_eval.io.atomic import atomic_output_path
 
 if TYPE_CHECKING:
     from ibiscape_eval.core.trajectory import Trajectory
