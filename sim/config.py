@@ -530,7 +530,8 @@ def load_config(path: str | os.PathLike[str], **cli_overrides: Any) -> SimConfig
 
     src = read_sim_config_yaml(path)
     where, doc = src.path, dict(src.data)
-    picks = {k: doc.pop(k) for k in ("setup", "kind", "weather", "scenario") if k in doc}
+    picks: dict[str, Any] = {k: doc.pop(k) for k in ("setup", "kind", "weather", "scenario")
+                             if k in doc}
     picks.update({k: v for k, v in cli_overrides.items()
                   if k in ("setup", "kind", "weather", "scenario") and v is not None})
     for k, v in picks.items():
