@@ -190,7 +190,7 @@ def _gps_positions(path: Path | None, ref: Any) -> Any:
     if path is None:
         return None
     from ibiscape_eval.io import read_gnss
-    from ibiscape_eval.report.gnss import gnss_in_reference_frame
+    from ibiscape_eval.metrics.gnss import gnss_in_reference_frame
 
     fixes = read_gnss(path)
     return gnss_in_reference_frame(fixes.stamps_ns, fixes.lat_deg, fixes.lon_deg, fixes.alt_m, ref)

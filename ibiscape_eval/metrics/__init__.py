@@ -15,6 +15,7 @@ from .alignment import Alignment, AlignmentResult, align
 from .association import Matched, associate, associate_by_index
 from .ate import AteResult, ate
 from .drift import KITTI_LENGTHS_M, DriftResult, drift
+from .gnss import gnss_in_reference_frame
 from .offset import estimate_time_offset
 from .rpe import RpeResult, rpe, select_pairs
 
@@ -33,6 +34,7 @@ __all__ = [
     "ate",
     "drift",
     "estimate_time_offset",
+    "gnss_in_reference_frame",
     "rpe",
     "select_pairs",
 ]
