@@ -7,7 +7,8 @@ from pathlib import Path
 import click
 
 from ._common import echo_json, user_errors
-from .hotpix import FORMAT_CHOICES, parse_sensor_size, progress_bar
+from .hotpix import FORMAT_CHOICES, parse_sensor_size
+from .progress import progress_bar
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -81,7 +82,7 @@ def frames(
         window_ns=None if window_ms is None else round(window_ms * 1e6),
         signed=signed, tau_ns=round(tau_ms * 1e6),
     )
-    with progress_bar(None, "frames") as bar:
+    with progress_bar(None, "frames", unit="ev") as bar:
         n = write_frames_png(out_dir, it, to_uint8=partial(frame_to_uint8, kind=kind, signed=signed),
                              progress=bar.update)
     doc = {"input": str(events_path), "format": src.fmt, "sensor_size": list(size),

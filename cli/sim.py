@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import sys
 from typing import Any
 
 import click
@@ -101,19 +100,11 @@ def sim(setup: str | None, kind: str | None, weather: str | None, scenario: str 
         return
     out_dir = out if out is not None else sequence_name(cfg)
 
-    from tqdm import tqdm
+    from .progress import fraction_callback, progress_bar
 
-    bar = tqdm(total=1000, file=sys.stderr, disable=not sys.stderr.isatty(), unit="‰",
-               desc="sim", leave=False)
-
-    def progress(frac: float, label: str) -> None:
-        bar.set_description(f"sim: {label}", refresh=False)
-        bar.update(max(0, int(frac * 1000) - bar.n))
-
-    try:
-        summary = generate(cfg, out_dir, overwrite=overwrite, progress=progress)
-    finally:
-        bar.close()
+    with progress_bar(1000, "sim", unit="‰", unit_scale=False, delay_s=0.0) as bar:
+        summary = generate(cfg, out_dir, overwrite=overwrite,
+                           progress=fraction_callback(bar, "sim"))
     if as_json:
         echo_json(summary.to_dict())
     else:
