@@ -6,6 +6,8 @@ from pathlib import Path
 
 import click
 
+from ibiscape_eval.events.frames import KINDS as FRAME_KINDS
+
 from ._common import echo_json, user_errors
 from .hotpix import FORMAT_CHOICES, parse_sensor_size
 from .progress import progress_bar
@@ -31,7 +33,7 @@ def events() -> None:
 @click.option("--window-ms", type=click.FloatRange(min=0.0, min_open=True), default=None,
               help="Events integrated per frame, ms (default one frame period); alone, frames "
               "follow each other window after window.")
-@click.option("--kind", type=click.Choice(["accumulate", "time-surface"]), default="accumulate",
+@click.option("--kind", type=click.Choice(FRAME_KINDS), default="accumulate",
               show_default=True, help="Accumulation frame or exponential-decay time surface.")
 @click.option("--unsigned", is_flag=True,
               help="Ignore polarity (count all events; time surface in [0, 1]).")

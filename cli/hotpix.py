@@ -8,10 +8,12 @@ from typing import Any
 
 import click
 
+from ibiscape_eval.io.events import FORMATS as EVENT_FORMATS
+
 from ._common import echo_json, info, user_errors
 from .progress import progress_bar
 
-FORMAT_CHOICES = ("auto", "ibiscape", "npz", "text", "hdf5")
+FORMAT_CHOICES = ("auto", *EVENT_FORMATS)
 
 
 def parse_sensor_size(text: str | None) -> tuple[int, int] | None:

@@ -6,11 +6,13 @@ from typing import Any
 
 import click
 
-from ._common import echo_json, fail, user_errors
+from ibiscape_eval.sim.config import KINDS as _KINDS
+from ibiscape_eval.sim.config import SCENARIOS as _SCENARIOS
+from ibiscape_eval.sim.config import SETUPS as _SETUPS
+from ibiscape_eval.sim.config import TARGETS as _TARGETS
+from ibiscape_eval.sim.config import WEATHERS as _WEATHERS
 
-_SETUPS = ("imu", "svi", "esvi", "rgbd", "full")
-_KINDS = ("calibration", "slam")
-_WEATHERS = ("clear", "moderate", "dynamic")
+from ._common import echo_json, fail, user_errors
 
 
 def _summary_text(s: Any) -> str:
@@ -49,11 +51,11 @@ Examples:
 @click.option("--kind", type=click.Choice(_KINDS), help="calibration or slam (default slam; imu is "
               "always a still calibration).")
 @click.option("--weather", type=click.Choice(_WEATHERS), help="Weather preset (default clear).")
-@click.option("--scenario", type=click.Choice(("default", "accident")),
+@click.option("--scenario", type=click.Choice(_SCENARIOS),
               help="accident: SVI SLAM run ending in a hard stop behind a car (6.13 s).")
 @click.option("--duration-s", type=float, help="Sequence duration [s] (default: the preset's).")
 @click.option("--seed", type=int, help="Seed of every random process (default 0).")
-@click.option("--target", type=click.Choice(("checkerboard", "aprilgrid")),
+@click.option("--target", type=click.Choice(_TARGETS),
               help="Calibration target the vehicle drives toward.")
 @click.option("--out", "out", type=click.Path(file_okay=False),
               help="Sequence folder (default ./<Setup>_1_<map>); must be absent or empty.")

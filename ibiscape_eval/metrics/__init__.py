@@ -12,7 +12,7 @@ Definitions follow evo (APE/RPE, Umeyama alignment) and the KITTI odometry devki
 
 from ._stats import ErrorStats
 from .alignment import Alignment, AlignmentResult, align
-from .association import Matched, associate, associate_by_index
+from .association import Matched, associate, associate_by_index, choose_match
 from .ate import AteResult, ate
 from .drift import KITTI_LENGTHS_M, DriftResult, drift
 from .gnss import gnss_in_reference_frame
@@ -31,6 +31,7 @@ __all__ = [
     "align",
     "associate",
     "associate_by_index",
+    "choose_match",
     "ate",
     "drift",
     "estimate_time_offset",
