@@ -11,7 +11,7 @@ import numpy.typing as npt
 from ibiscape_eval.core import DegenerateInputError, IbiscapeError, Trajectory
 from ibiscape_eval.core.rotations import quat_slerp
 
-from ._fast import kernel, take, trusted
+from ._fast import nearest, take, trusted
 
 __all__ = ["MIN_MATCHES", "Matched", "associate", "associate_by_index", "choose_match"]
 
@@ -82,7 +82,7 @@ def _nearest(
     ``matching_time_indices``.  Returns (short indices, long indices, |difference| ns).
     """
     limit = np.int64(min(max_diff_ns, np.iinfo(np.int64).max))
-    rows_s, rows_l, diff = kernel("nearest")(short_ns, long_ns, limit)
+    rows_s, rows_l, diff = nearest(short_ns, long_ns, limit)
     return rows_s, rows_l, diff
 
 
