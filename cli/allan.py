@@ -4,16 +4,17 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import sys
 from typing import Any
 
 import click
+
+from ibiscape_eval.imu.gaps import MAX_MISSING_FRACTION
+from ibiscape_eval.io.imu import FORMATS as IMU_FORMATS
 
 from ._common import echo_json, fail, info, user_errors
 
 _GYRO_U = ("rad/s/sqrt(Hz)", "rad/s^2/sqrt(Hz)", "rad/s")
 _ACCEL_U = ("m/s^2/sqrt(Hz)", "m/s^3/sqrt(Hz)", "m/s^2")
-_BIG = 5_000_000  # samples x axes above which a progress bar is worth showing
 
 
 def _range(text: str | None, option: str) -> tuple[float, float] | None:
@@ -48,8 +49,7 @@ Examples:
 """,
 )
 @click.argument("imu", type=click.Path(dir_okay=True, path_type=str))
-@click.option("--format", "fmt",
-              type=click.Choice(["euroc", "ibiscape", "csv", "npy", "npz", "parquet", "rosbag"]),
+@click.option("--format", "fmt", type=click.Choice(IMU_FORMATS),
               help="Input format (default: from the file name). 'ibiscape' is the EuRoC csv in "
               "CARLA's left-handed frame, converted to right-handed (w_x, w_z, a_y negated); "
               "chosen by itself for <seq>/other_sensors/imu*.csv next to <seq>/vehicle_gt/.")
@@ -59,7 +59,7 @@ Examples:
 @click.option("--rostopic", help="sensor_msgs/Imu topic in a bag (also written to --yaml).")
 @click.option("--rate-hz", type=float, help="Sample rate for files without timestamps (.npy (N, 6)).")
 @click.option("--allow-gaps", is_flag=True, help="Analyse records with gaps above the threshold.")
-@click.option("--max-missing", type=float, default=0.005, show_default=True,
+@click.option("--max-missing", type=float, default=MAX_MISSING_FRACTION, show_default=True,
               help="Largest fraction of missing samples (gaps) accepted without --allow-gaps.")
 @click.option("--points-per-decade", type=int, default=10, show_default=True,
               help="Density of the log-spaced taus.")
@@ -81,8 +81,8 @@ def allan(imu: str, fmt: str | None, columns: str | None, units: str | None, ros
     accelerometer axes, with one-sigma uncertainties, as continuous-time densities (Kalibr's
     convention) and as per-sample sigmas at the file's rate.
     """
-    from ibiscape_eval.core.errors import FormatError, IbiscapeError
-    from ibiscape_eval.imu import allan_deviation, fit_noise_model
+    from ibiscape_eval.core.errors import IbiscapeError
+    from ibiscape_eval.imu import allan_deviation, check_gaps, fit_noise_model
     from ibiscape_eval.io.imu import read_imu
 
     wr = _range(white_range, "--white-range")
@@ -96,35 +96,18 @@ def allan(imu: str, fmt: str | None, columns: str | None, units: str | None, ros
              f"{rec.n_samples / rec.rate_hz / 3600:.3g} h; {tm.n_gaps} gap(s), "
              f"{100 * tm.missing_fraction:.3g} % missing, largest interval {tm.largest_gap_s:.4g} s, "
              f"jitter {tm.jitter_s * 1e6:.3g} us")
-        too_big = tm.missing_fraction > max_missing or tm.largest_gap_s > 100 * tm.median_dt_s
-        if too_big and not allow_gaps:
-            raise FormatError(
-                imu,
-                f"{tm.n_gaps} gap(s) in the timestamps, {100 * tm.missing_fraction:.3g} % of the "
-                f"samples missing, longest {tm.largest_gap_s:.4g} s (first gap here): the Allan "
-                "deviation assumes equal spacing; cut the record or pass --allow-gaps",
-                line=tm.first_gap_line,
-            )
-        if tm.n_gaps and allow_gaps:
-            info("warning: gaps are ignored (samples treated as equally spaced)")
+    check_gaps(tm, imu, max_missing=max_missing, allow_gaps=allow_gaps)
 
-    total = rec.n_samples * rec.n_columns
-    show = total >= _BIG and sys.stderr.isatty()
-    from tqdm import tqdm
+    from .progress import progress_bar
 
-    with tqdm(total=total, disable=not show, unit="sample",
-              unit_scale=True, file=sys.stderr, desc="allan") as bar:
-
-        def advance(n: int) -> None:
-            bar.update(n)
-
+    with progress_bar(rec.n_samples * rec.n_columns, "allan", unit="sample") as bar:
         res = allan_deviation(rec, rec.rate_hz, points_per_decade=points_per_decade,
-                              names=rec.names, progress=advance)
+                              names=rec.names, progress=bar.update)
     model = fit_noise_model(res, white_range_s=wr, walk_range_s=kr)
 
     # outputs that are always meaningful first: the curves
     if csv_path:
-        from ibiscape_eval.io._atomic import atomic_write
+        from ibiscape_eval.io.atomic import atomic_write
 
         with atomic_write(csv_path) as fh:
             res.to_frame().to_csv(fh, index=False, float_format="%.10g", lineterminator="\n")
@@ -170,6 +153,7 @@ def allan(imu: str, fmt: str | None, columns: str | None, units: str | None, ros
                 "the random walk); record longer or give --walk-range"
             )
         rate = rec.rate_hz
+        sig = model.kalibr_discrete(gyro=rec.names[:3], accel=rec.names[3:])
         write_kalibr_imu_yaml(
             yaml_path,
             accelerometer_noise_density=kalibr["accelerometer_noise_density"],
@@ -181,10 +165,10 @@ def allan(imu: str, fmt: str | None, columns: str | None, units: str | None, ros
             comments=[
                 f"ibiscape-eval allan {imu}: largest value over the three axes, continuous time",
                 f"per-sample (discrete) sigmas at {rate:.6g} Hz:",
-                f"  gyroscope_noise_sigma: {kalibr['gyroscope_noise_density'] * math.sqrt(rate):.6g} rad/s",
-                f"  gyroscope_bias_step_sigma: {kalibr['gyroscope_random_walk'] / math.sqrt(rate):.6g} rad/s",
-                f"  accelerometer_noise_sigma: {kalibr['accelerometer_noise_density'] * math.sqrt(rate):.6g} m/s^2",
-                f"  accelerometer_bias_step_sigma: {kalibr['accelerometer_random_walk'] / math.sqrt(rate):.6g} m/s^2",
+                f"  gyroscope_noise_sigma: {sig['gyroscope_noise_sigma']:.6g} rad/s",
+                f"  gyroscope_bias_step_sigma: {sig['gyroscope_bias_step_sigma']:.6g} rad/s",
+                f"  accelerometer_noise_sigma: {sig['accelerometer_noise_sigma']:.6g} m/s^2",
+                f"  accelerometer_bias_step_sigma: {sig['accelerometer_bias_step_sigma']:.6g} m/s^2",
             ],
         )
 

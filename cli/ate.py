@@ -8,10 +8,14 @@ from typing import Any
 
 import click
 
+from ibiscape_eval.io.detect import TRAJECTORY_FORMATS
+from ibiscape_eval.metrics.alignment import Alignment
+from ibiscape_eval.metrics.rpe import DELTA_UNITS, PAIR_MODES
+
 from ._common import echo_json, info, user_errors
 
-ALIGNMENTS = ("none", "origin", "se3", "sim3", "yaw")
-FORMATS = ("auto", "tum", "kitti", "euroc", "ibiscape", "bag")
+ALIGNMENTS = tuple(a.value for a in Alignment)
+FORMATS = ("auto", *TRAJECTORY_FORMATS)
 
 
 def _input_options(func: Callable[..., Any]) -> Callable[..., Any]:
@@ -113,24 +117,13 @@ def _input_options(func: Callable[..., Any]) -> Callable[..., Any]:
 
 def _read_pair(est: Path, ref: Path, o: dict[str, Any]) -> tuple[Any, Any, str]:
     """Read both trajectories, say which formats were used, and choose time or index pairing."""
-    import gc
-    import os
+    from ibiscape_eval.io import detect_trajectory_format, has_timestamps, read_trajectory
+    from ibiscape_eval.metrics import choose_match
 
-    from ibiscape_eval.io import detect_trajectory_format, read_trajectory
+    from .startup import numba_startup
 
-    # numba's start-up (on the first read) creates some 10^5 long-lived objects: without the
-    # cyclic collector running over them meanwhile, and frozen afterwards, that costs nothing.
-    # It also loads scipy's OpenBLAS, whose idle worker threads would spin for a while on the
-    # cores the parallel tokenizer is using; this command only does 3x3 linear algebra, so that
-    # BLAS is loaded single-threaded (the variable is read at load time only, then restored).
-    collecting = gc.isenabled()
-    blas_threads = os.environ.get("OPENBLAS_NUM_THREADS")
-    gc.disable()
-    if blas_threads is None:
-        os.environ["OPENBLAS_NUM_THREADS"] = "1"
-    try:
-        trajs = []
-        kitti_untimed = False
+    trajs, timed = [], []
+    with numba_startup():
         for path, side in ((est, "est"), (ref, "ref")):
             fmt = o[f"format_{side}"] or o["fmt"]
             if fmt == "auto":
@@ -147,15 +140,9 @@ def _read_pair(est: Path, ref: Path, o: dict[str, Any]) -> tuple[Any, Any, str]:
                     name=path.name,
                 )
             )
-            kitti_untimed |= fmt == "kitti" and times is None
-    finally:
-        if blas_threads is None:
-            del os.environ["OPENBLAS_NUM_THREADS"]
-        gc.freeze()
-        if collecting:
-            gc.enable()
-    match = "index" if kitti_untimed else "time"
-    if kitti_untimed:
+            timed.append(has_timestamps(fmt, times))
+    match = choose_match(*timed)
+    if match == "index":
         info("KITTI poses without a times file: pairing poses by index")
     return trajs[0], trajs[1], match
 
@@ -180,17 +167,36 @@ def _report_counts(doc: dict[str, Any]) -> None:
 
 
 def _write_csv(path: Path, frame: Any) -> None:
-    from ibiscape_eval.io._atomic import atomic_write
+    from ibiscape_eval.io.atomic import atomic_write
 
     with atomic_write(path) as f:
         frame.to_csv(f, index=False, float_format="%.9g")
+
+
+def _finish(result: Any, est: Path, ref: Path, o: dict[str, Any], *,
+            plot: Callable[[Path], None], table: Callable[[dict[str, Any]], str]) -> None:
+    """The ending the three commands share: counts, --save-csv, --plot, then JSON or the table."""
+    from ibiscape_eval.report import format_header
+
+    doc = result.to_dict()
+    if o["as_json"]:  # the table's header line says the same on stdout
+        _report_counts(doc)
+    if o["save_csv"]:
+        _write_csv(o["save_csv"], result.to_frame())
+    if o["plot"]:
+        plot(o["plot"])
+    if o["as_json"]:
+        echo_json(doc)
+    else:
+        click.echo(format_header(doc, est.name, ref.name))
+        click.echo(table(doc))
 
 
 def _gps_positions(path: Path | None, ref: Any) -> Any:
     if path is None:
         return None
     from ibiscape_eval.io import read_gnss
-    from ibiscape_eval.report.gnss import gnss_in_reference_frame
+    from ibiscape_eval.metrics.gnss import gnss_in_reference_frame
 
     fixes = read_gnss(path)
     return gnss_in_reference_frame(fixes.stamps_ns, fixes.lat_deg, fixes.lon_deg, fixes.alt_m, ref)
@@ -247,28 +253,20 @@ def ate(est: Path, ref: Path, alignment: str, save_aligned: Path | None, **o: An
       ibiscape-eval ate vio.txt gt.csv --align yaw --estimate-offset --json
     """
     from ibiscape_eval.metrics import ate as ate_fn
-    from ibiscape_eval.report import format_error_table, format_header
+    from ibiscape_eval.report import format_error_table
 
     est_t, ref_t, match = _read_pair(est, ref, o)
     result = ate_fn(est_t, ref_t, align=alignment, **_assoc_kwargs(o, match))
-    doc = result.to_dict()
-    if o["as_json"]:  # the table's header line says the same on stdout
-        _report_counts(doc)
-    if o["save_csv"]:
-        _write_csv(o["save_csv"], result.to_frame())
     if save_aligned:
         from ibiscape_eval.io import write_trajectory
 
         write_trajectory(save_aligned, result.alignment.apply(est_t), "tum")
-    if o["plot"]:
-        _plot_errors(
-            o["plot"], result, ref_t, o["gps"], f"ATE {est.name} vs {ref.name} ({alignment})"
-        )
-    if o["as_json"]:
-        echo_json(doc)
-    else:
-        click.echo(format_header(doc, est.name, ref.name))
-        click.echo(format_error_table(doc, title="absolute trajectory error (ATE)"))
+    _finish(
+        result, est, ref, o,
+        plot=lambda p: _plot_errors(p, result, ref_t, o["gps"],
+                                    f"ATE {est.name} vs {ref.name} ({alignment})"),
+        table=lambda doc: format_error_table(doc, title="absolute trajectory error (ATE)"),
+    )
 
 
 @click.command()
@@ -282,13 +280,13 @@ def ate(est: Path, ref: Path, alignment: str, save_aligned: Path | None, **o: An
 )
 @click.option(
     "--delta-unit",
-    type=click.Choice(("frames", "seconds", "metres", "meters", "degrees")),
+    type=click.Choice((*DELTA_UNITS, "meters")),
     default="frames",
     show_default=True,
 )
 @click.option(
     "--pairs",
-    type=click.Choice(("consecutive", "all")),
+    type=click.Choice(PAIR_MODES),
     default="consecutive",
     show_default=True,
     help="consecutive: non-overlapping pairs (evo); all: every start pose.",
@@ -313,7 +311,7 @@ def rpe(
       ibiscape-eval rpe est.txt gt.txt --delta 10 --delta-unit metres --pairs all --json
     """
     from ibiscape_eval.metrics import rpe as rpe_fn
-    from ibiscape_eval.report import format_error_table, format_header
+    from ibiscape_eval.report import format_error_table
 
     if delta_unit == "meters":
         delta_unit = "metres"
@@ -329,30 +327,17 @@ def rpe(
         align=alignment,
         **_assoc_kwargs(o, match),
     )
-    doc = result.to_dict()
-    if o["as_json"]:  # the table's header line says the same on stdout
-        _report_counts(doc)
-    if o["save_csv"]:
-        _write_csv(o["save_csv"], result.to_frame())
-    if o["plot"]:
-        _plot_errors(
-            o["plot"],
-            result,
-            ref_t,
-            o["gps"],
-            f"RPE {est.name} vs {ref.name} (delta {delta:g} {delta_unit}, {pairs})",
-        )
-    if o["as_json"]:
-        echo_json(doc)
-    else:
-        click.echo(format_header(doc, est.name, ref.name))
-        click.echo(
-            format_error_table(
-                doc,
-                title=f"relative pose error (RPE), delta {delta:g} {delta_unit}, {pairs} pairs: "
-                f"{doc['n_pairs']} pairs",
-            )
-        )
+    _finish(
+        result, est, ref, o,
+        plot=lambda p: _plot_errors(
+            p, result, ref_t, o["gps"],
+            f"RPE {est.name} vs {ref.name} (delta {delta:g} {delta_unit}, {pairs})"),
+        table=lambda doc: format_error_table(
+            doc,
+            title=f"relative pose error (RPE), delta {delta:g} {delta_unit}, {pairs} pairs: "
+            f"{doc['n_pairs']} pairs",
+        ),
+    )
 
 
 def _float_list(text: str | None) -> tuple[float, ...] | None:
@@ -408,7 +393,7 @@ def drift(
       ibiscape-eval drift est.txt gt.txt --lengths-pct 10,20,30,40,50 --plot drift.png
     """
     from ibiscape_eval.metrics import drift as drift_fn
-    from ibiscape_eval.report import format_drift_table, format_header
+    from ibiscape_eval.report import format_drift_table
 
     lengths_m = _float_list(lengths)
     pct = _float_list(lengths_pct)
@@ -422,20 +407,12 @@ def drift(
         align=alignment,
         **_assoc_kwargs(o, match),
     )
-    doc = result.to_dict()
-    if o["as_json"]:  # the table's header line says the same on stdout
-        _report_counts(doc)
-    if o["save_csv"]:
-        _write_csv(o["save_csv"], result.to_frame())
-    if o["plot"]:
+    def plot(path: Path) -> None:
         from ibiscape_eval.report.plots import plot_drift
 
-        plot_drift(o["plot"], doc, title=f"drift {est.name} vs {ref.name}")
-    if o["as_json"]:
-        echo_json(doc)
-    else:
-        click.echo(format_header(doc, est.name, ref.name))
-        click.echo(format_drift_table(doc))
+        plot_drift(path, result.to_dict(), title=f"drift {est.name} vs {ref.name}")
+
+    _finish(result, est, ref, o, plot=plot, table=format_drift_table)
 
 
 __all__ = ["ate", "drift", "rpe"]

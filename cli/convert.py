@@ -6,6 +6,9 @@ from pathlib import Path
 
 import click
 
+from ibiscape_eval.io.detect import TRAJECTORY_FORMATS
+from ibiscape_eval.io.trajectory import WRITABLE_FORMATS
+
 from ._common import info, user_errors
 
 
@@ -15,7 +18,7 @@ from ._common import info, user_errors
 @click.option(
     "--from",
     "src_fmt",
-    type=click.Choice(("auto", "tum", "kitti", "euroc", "ibiscape", "bag")),
+    type=click.Choice(("auto", *TRAJECTORY_FORMATS)),
     default="auto",
     show_default=True,
     help="Format of SRC.",
@@ -23,7 +26,7 @@ from ._common import info, user_errors
 @click.option(
     "--to",
     "dst_fmt",
-    type=click.Choice(("tum", "kitti", "euroc", "ibiscape")),
+    type=click.Choice(WRITABLE_FORMATS),
     default="tum",
     show_default=True,
     help="Format of DST.",

@@ -6,8 +6,11 @@ from pathlib import Path
 
 import click
 
+from ibiscape_eval.events.frames import KINDS as FRAME_KINDS
+
 from ._common import echo_json, user_errors
-from .hotpix import FORMAT_CHOICES, parse_sensor_size, progress_bar
+from .hotpix import FORMAT_CHOICES, parse_sensor_size
+from .progress import progress_bar
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -30,7 +33,7 @@ def events() -> None:
 @click.option("--window-ms", type=click.FloatRange(min=0.0, min_open=True), default=None,
               help="Events integrated per frame, ms (default one frame period); alone, frames "
               "follow each other window after window.")
-@click.option("--kind", type=click.Choice(["accumulate", "time-surface"]), default="accumulate",
+@click.option("--kind", type=click.Choice(FRAME_KINDS), default="accumulate",
               show_default=True, help="Accumulation frame or exponential-decay time surface.")
 @click.option("--unsigned", is_flag=True,
               help="Ignore polarity (count all events; time surface in [0, 1]).")
@@ -81,7 +84,7 @@ def frames(
         window_ns=None if window_ms is None else round(window_ms * 1e6),
         signed=signed, tau_ns=round(tau_ms * 1e6),
     )
-    with progress_bar(None, "frames") as bar:
+    with progress_bar(None, "frames", unit="ev") as bar:
         n = write_frames_png(out_dir, it, to_uint8=partial(frame_to_uint8, kind=kind, signed=signed),
                              progress=bar.update)
     doc = {"input": str(events_path), "format": src.fmt, "sensor_size": list(size),

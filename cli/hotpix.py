@@ -3,15 +3,17 @@
 from __future__ import annotations
 
 import re
-import sys
 from pathlib import Path
 from typing import Any
 
 import click
 
-from ._common import echo_json, info, user_errors
+from ibiscape_eval.io.events import FORMATS as EVENT_FORMATS
 
-FORMAT_CHOICES = ("auto", "ibiscape", "npz", "text", "hdf5")
+from ._common import echo_json, info, user_errors
+from .progress import progress_bar
+
+FORMAT_CHOICES = ("auto", *EVENT_FORMATS)
 
 
 def parse_sensor_size(text: str | None) -> tuple[int, int] | None:
@@ -24,14 +26,6 @@ def parse_sensor_size(text: str | None) -> tuple[int, int] | None:
     if not m or int(m.group(1)) == 0 or int(m.group(2)) == 0:
         raise IbiscapeError(f"--sensor-size must look like WIDTHxHEIGHT (e.g. 346x260), got {text!r}")
     return int(m.group(1)), int(m.group(2))
-
-
-def progress_bar(total: int | None, desc: str) -> Any:
-    """A tqdm bar on stderr, hidden when stderr is not a terminal or the work ends within 2 s."""
-    from tqdm import tqdm
-
-    return tqdm(total=total, desc=desc, unit="ev", unit_scale=True, file=sys.stderr,
-                disable=not sys.stderr.isatty(), delay=2.0, leave=False)
 
 
 @click.command(context_settings={"help_option_names": ["-h", "--help"]})
@@ -96,7 +90,7 @@ def hotpix(
 
     from ibiscape_eval.core.errors import FormatError, IbiscapeError
     from ibiscape_eval.events.hotpix import PixelCounter, filter_events, hot_pixels_from_counts
-    from ibiscape_eval.io._atomic import atomic_output_path
+    from ibiscape_eval.io.atomic import atomic_output_path
     from ibiscape_eval.io.events import (
         iter_event_chunks,
         open_events,
@@ -120,7 +114,7 @@ def hotpix(
         rate_min_events=rate_min_events,
         rate_window_ns=None if rate_window_ms is None else round(rate_window_ms * 1e6),
     )
-    with progress_bar(src.n_events, "counting") as bar:
+    with progress_bar(src.n_events, "counting", unit="ev") as bar:
         for chunk in iter_event_chunks(src):
             counter.add(chunk.events, chunk)
             bar.update(len(chunk.events))
@@ -148,7 +142,7 @@ def hotpix(
         def keep(ev: Any) -> Any:
             return filter_events(ev, pixels, sensor_size=size)
 
-        with progress_bar(counter.n_events, "filtering") as bar:
+        with progress_bar(counter.n_events, "filtering", unit="ev") as bar:
             _, n_written = write_filtered_events(src, filtered_out, keep, progress=bar.update)
     if plot is not None:
         from ibiscape_eval.events.plots import hot_pixel_figure
@@ -157,36 +151,20 @@ def hotpix(
         with atomic_output_path(plot) as tmp:
             fig.savefig(tmp, dpi=110)
 
-    doc: dict[str, Any] = {
-        "input": str(events),
-        "format": src.fmt,
-        "sensor_size": list(size),
-        "n_events": result.n_events,
-        "n_pixels_fired": int((result.count_map > 0).sum()),
-        "n_hot_pixels": len(result.pixels),
-        "n_discarded": result.n_discarded,
-        "fraction_discarded": result.fraction_discarded,
-        "criteria": {
-            "applied_list": None if apply_path is None else str(apply_path),
-            "top_n": result.top_n,
-            "n_sigma": result.n_sigma,
-            "threshold": result.threshold,
-            "mean": result.mean,
-            "std": result.std,
-            "per_polarity": per_polarity,
-            "rate_min_events": rate_min_events,
-            "rate_window_ms": rate_window_ms,
-        },
-        "hot_pixels": [
-            {"x": int(x), "y": int(y), "count": int(c)}
-            for (x, y), c in zip(result.pixels, result.counts, strict=True)
-        ],
-        "outputs": {
-            "hot_pixels": None if hot_out is None else str(hot_out),
-            "filtered": None if filtered_out is None else str(filtered_out),
-            "n_written": n_written,
-            "plot": None if plot is None else str(plot),
-        },
+    doc: dict[str, Any] = {"input": str(events), "format": src.fmt, **result.to_dict()}
+    doc["sensor_size"] = list(size)
+    doc["criteria"] = {
+        "applied_list": None if apply_path is None else str(apply_path),
+        **doc["criteria"],
+        "per_polarity": per_polarity,
+        "rate_min_events": rate_min_events,
+        "rate_window_ms": rate_window_ms,
+    }
+    doc["outputs"] = {
+        "hot_pixels": None if hot_out is None else str(hot_out),
+        "filtered": None if filtered_out is None else str(filtered_out),
+        "n_written": n_written,
+        "plot": None if plot is None else str(plot),
     }
     if as_json:
         echo_json(doc)

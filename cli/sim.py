@@ -2,16 +2,17 @@
 
 from __future__ import annotations
 
-import sys
 from typing import Any
 
 import click
 
-from ._common import echo_json, fail, user_errors
+from ibiscape_eval.sim.config import KINDS as _KINDS
+from ibiscape_eval.sim.config import SCENARIOS as _SCENARIOS
+from ibiscape_eval.sim.config import SETUPS as _SETUPS
+from ibiscape_eval.sim.config import TARGETS as _TARGETS
+from ibiscape_eval.sim.config import WEATHERS as _WEATHERS
 
-_SETUPS = ("imu", "svi", "esvi", "rgbd", "full")
-_KINDS = ("calibration", "slam")
-_WEATHERS = ("clear", "moderate", "dynamic")
+from ._common import echo_json, fail, user_errors
 
 
 def _summary_text(s: Any) -> str:
@@ -50,11 +51,11 @@ Examples:
 @click.option("--kind", type=click.Choice(_KINDS), help="calibration or slam (default slam; imu is "
               "always a still calibration).")
 @click.option("--weather", type=click.Choice(_WEATHERS), help="Weather preset (default clear).")
-@click.option("--scenario", type=click.Choice(("default", "accident")),
+@click.option("--scenario", type=click.Choice(_SCENARIOS),
               help="accident: SVI SLAM run ending in a hard stop behind a car (6.13 s).")
 @click.option("--duration-s", type=float, help="Sequence duration [s] (default: the preset's).")
 @click.option("--seed", type=int, help="Seed of every random process (default 0).")
-@click.option("--target", type=click.Choice(("checkerboard", "aprilgrid")),
+@click.option("--target", type=click.Choice(_TARGETS),
               help="Calibration target the vehicle drives toward.")
 @click.option("--out", "out", type=click.Path(file_okay=False),
               help="Sequence folder (default ./<Setup>_1_<map>); must be absent or empty.")
@@ -101,19 +102,11 @@ def sim(setup: str | None, kind: str | None, weather: str | None, scenario: str 
         return
     out_dir = out if out is not None else sequence_name(cfg)
 
-    from tqdm import tqdm
+    from .progress import fraction_callback, progress_bar
 
-    bar = tqdm(total=1000, file=sys.stderr, disable=not sys.stderr.isatty(), unit="‰",
-               desc="sim", leave=False)
-
-    def progress(frac: float, label: str) -> None:
-        bar.set_description(f"sim: {label}", refresh=False)
-        bar.update(max(0, int(frac * 1000) - bar.n))
-
-    try:
-        summary = generate(cfg, out_dir, overwrite=overwrite, progress=progress)
-    finally:
-        bar.close()
+    with progress_bar(1000, "sim", unit="‰", unit_scale=False, delay_s=0.0) as bar:
+        summary = generate(cfg, out_dir, overwrite=overwrite,
+                           progress=fraction_callback(bar, "sim"))
     if as_json:
         echo_json(summary.to_dict())
     else:

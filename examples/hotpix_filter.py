@@ -23,7 +23,7 @@ import numpy as np
 from ibiscape_eval import detect_hot_pixels, hot_pixel_mask
 from ibiscape_eval.events import accumulate_frames, filter_events, synthetic_events
 from ibiscape_eval.events.plots import hot_pixel_figure
-from ibiscape_eval.io._atomic import atomic_output_path
+from ibiscape_eval.io.atomic import atomic_output_path
 from ibiscape_eval.io.events import read_events, write_events, write_hot_pixels
 
 ap = argparse.ArgumentParser(description=__doc__)

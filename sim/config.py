@@ -21,7 +21,8 @@ OpenCV's (z forward along body x, x right, y down); ``rpy_deg`` rotates that mou
 
 YAML
 ----
-``load_config(path)`` reads a mapping: optional ``setup``/``kind``/``weather``/``scenario`` pick
+The file itself is read and written by :mod:`ibiscape_eval.io.simconfig` (YAML, lines of keys);
+this module turns its plain mapping into the dataclasses.  ``load_config(path)`` reads a mapping: optional ``setup``/``kind``/``weather``/``scenario`` pick
 the preset, then every other key overrides it (``cameras`` and ``imus`` map a sensor name to the
 fields to change; a new name adds a sensor, ``null`` removes one).  Unknown keys are errors that
 name the key and the allowed ones.  ``dump_config(cfg)`` writes the full description with a comment
@@ -34,9 +35,12 @@ import dataclasses
 import math
 import os
 from dataclasses import dataclass, field, fields, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ibiscape_eval.core.errors import FormatError, IbiscapeError
+
+if TYPE_CHECKING:
+    from ibiscape_eval.io.simconfig import SimConfigDoc, YamlItem
 
 __all__ = [
     "KINDS",
@@ -437,40 +441,45 @@ def _to_plain(obj: Any) -> Any:
     return obj
 
 
-def _coerce(value: Any, default: Any, key: str, where: str) -> Any:
+def _err(src: SimConfigDoc, key: str, message: str) -> FormatError:
+    """A FormatError naming the file and the line of the dotted ``key``."""
+    return src.error([k for k in key.split(".") if k], message)
+
+
+def _coerce(value: Any, default: Any, key: str, where: SimConfigDoc) -> Any:
     """Convert a YAML scalar/list to the type of the field's current value."""
     if isinstance(default, bool):
         if not isinstance(value, bool):
-            raise FormatError(where, f"{key} must be true or false, got {value!r}")
+            raise _err(where, key, f"{key} must be true or false, got {value!r}")
         return value
     if isinstance(default, int):
         if isinstance(value, bool) or not isinstance(value, int):
-            raise FormatError(where, f"{key} must be an integer, got {value!r}")
+            raise _err(where, key, f"{key} must be an integer, got {value!r}")
         return value
     if isinstance(default, float):
         if isinstance(value, bool) or not isinstance(value, int | float):
-            raise FormatError(where, f"{key} must be a number, got {value!r}")
+            raise _err(where, key, f"{key} must be a number, got {value!r}")
         return float(value)
     if isinstance(default, str):
         if not isinstance(value, str):
-            raise FormatError(where, f"{key} must be a string, got {value!r}")
+            raise _err(where, key, f"{key} must be a string, got {value!r}")
         return value
     if isinstance(default, tuple):
         if not isinstance(value, list | tuple) or len(value) != len(default):
-            raise FormatError(where, f"{key} must be a list of {len(default)} numbers, got {value!r}")
+            raise _err(where, key, f"{key} must be a list of {len(default)} numbers, got {value!r}")
         return tuple(_coerce(v, d, key, where) for v, d in zip(value, default, strict=True))
     return value
 
 
-def _override(obj: Any, doc: Any, prefix: str, where: str) -> Any:
+def _override(obj: Any, doc: Any, prefix: str, where: SimConfigDoc) -> Any:
     if not isinstance(doc, dict):
-        raise FormatError(where, f"{prefix or 'the file'} must be a mapping, got {doc!r}")
+        raise _err(where, prefix, f"{prefix.rstrip('.') or 'the file'} must be a mapping, got {doc!r}")
     allowed = {f.name: f for f in fields(obj)}
     changes: dict[str, Any] = {}
     for key, value in doc.items():
         name = f"{prefix}{key}"
         if key not in allowed:
-            raise FormatError(where, f"unknown key {name!r}; allowed: {', '.join(allowed)}")
+            raise _err(where, name, f"unknown key {name!r}; allowed: {', '.join(allowed)}")
         cur = getattr(obj, key)
         if key in ("imus", "cameras"):
             changes[key] = _override_sensors(cur, value, name, where,
@@ -482,12 +491,12 @@ def _override(obj: Any, doc: Any, prefix: str, where: str) -> Any:
     return replace(obj, **changes) if not isinstance(obj, SimConfig) else changes
 
 
-def _override_sensors(cur: tuple[Any, ...], doc: Any, prefix: str, where: str,
+def _override_sensors(cur: tuple[Any, ...], doc: Any, prefix: str, where: SimConfigDoc,
                       cls: type) -> tuple[Any, ...]:
     if doc is None:
         return cur
     if not isinstance(doc, dict):
-        raise FormatError(where, f"{prefix} must map sensor names to their fields, got {doc!r}")
+        raise _err(where, prefix, f"{prefix} must map sensor names to their fields, got {doc!r}")
     out = {s.name: s for s in cur}
     for name, spec in doc.items():
         if spec is None:
@@ -495,7 +504,7 @@ def _override_sensors(cur: tuple[Any, ...], doc: Any, prefix: str, where: str,
             continue
         base = out.get(str(name), cls(name=str(name)))
         if isinstance(spec, dict) and "name" in spec:
-            raise FormatError(where, f"{prefix}.{name}: the name is the key; remove 'name'")
+            raise _err(where, f"{prefix}.{name}", f"{prefix}.{name}: the name is the key; remove 'name'")
         out[str(name)] = _override(base, spec, f"{prefix}.{name}.", where)
     return tuple(out.values())
 
@@ -517,32 +526,23 @@ def load_config(path: str | os.PathLike[str], **cli_overrides: Any) -> SimConfig
     IbiscapeError
         Impossible values (from :func:`validate`).
     """
-    import yaml
+    from ibiscape_eval.io.simconfig import read_sim_config_yaml
 
-    where = os.fspath(path)
-    with open(path, encoding="utf-8") as fh:
-        try:
-            doc = yaml.safe_load(fh)
-        except yaml.YAMLError as e:
-            line = getattr(getattr(e, "problem_mark", None), "line", None)
-            raise FormatError(where, f"not valid YAML ({' '.join(str(e).split())})",
-                              line=None if line is None else line + 1) from None
-    if doc is None:
-        doc = {}
-    if not isinstance(doc, dict):
-        raise FormatError(where, "expected a mapping of config keys at the top level")
-    picks = {k: doc.pop(k) for k in ("setup", "kind", "weather", "scenario") if k in doc}
+    src = read_sim_config_yaml(path)
+    where, doc = src.path, dict(src.data)
+    picks: dict[str, Any] = {k: doc.pop(k) for k in ("setup", "kind", "weather", "scenario")
+                             if k in doc}
     picks.update({k: v for k, v in cli_overrides.items()
                   if k in ("setup", "kind", "weather", "scenario") and v is not None})
     for k, v in picks.items():
         if not isinstance(v, str):
-            raise FormatError(where, f"{k} must be a string, got {v!r}")
+            raise src.error([k], f"{k} must be a string, got {v!r}")
     try:
         base = preset(picks.get("setup", "svi"), picks.get("kind", "slam"),
                       picks.get("weather", "clear"), scenario=picks.get("scenario", "default"))
     except IbiscapeError as e:
         raise IbiscapeError(f"{where}: {e}") from None
-    changes = _override(base, doc, "", where)
+    changes = _override(base, doc, "", src)
     changes.update({k: v for k, v in cli_overrides.items()
                     if v is not None and k not in ("setup", "kind", "weather", "scenario")})
     try:
@@ -553,39 +553,38 @@ def load_config(path: str | os.PathLike[str], **cli_overrides: Any) -> SimConfig
 
 def dump_config(cfg: SimConfig) -> str:
     """The full configuration as commented YAML (loads back to ``cfg`` with :func:`load_config`)."""
-    import yaml
+    from ibiscape_eval.io.simconfig import render_commented_yaml
 
-    lines = ["# ibiscape-eval sim configuration (every key; units in the names and comments).",
-             "# Frames: body x forward, y left, z up (IMU0); world = local ENU at the gnss reference.",
-             "# cameras/imus map a sensor name to its fields; a new name adds a sensor, null removes one."]
+    return render_commented_yaml(_DUMP_HEADER, _yaml_items(cfg, preset(cfg.setup, cfg.kind, cfg.weather,
+                                                                       scenario=cfg.scenario)))
 
-    def emit(obj: Any, indent: str) -> None:
-        for f in fields(obj):
-            v = getattr(obj, f.name)
-            doc = f.metadata.get("doc", "")
-            if f.name in ("imus", "cameras"):
-                lines.append(f"{indent}# {doc}")
-                present = {s.name for s in v}
-                removed = [s.name for s in getattr(base, f.name) if s.name not in present]
-                lines.append(f"{indent}{f.name}:" + ("" if v or removed else " {}"))
-                lines.extend(f"{indent}  {n}: null  # removed from the preset" for n in removed)
-                for s in v:
-                    lines.append(f"{indent}  {s.name}:")
-                    for sf in fields(s):
-                        if sf.name != "name":
-                            _scalar(sf.name, getattr(s, sf.name), sf.metadata.get("doc", ""),
-                                    indent + "    ")
-            elif dataclasses.is_dataclass(v):
-                lines.append(f"{indent}{f.name}:  # {doc}")
-                emit(v, indent + "  ")
-            else:
-                _scalar(f.name, v, doc, indent)
 
-    def _scalar(name: str, v: Any, doc: str, indent: str) -> None:
-        text = yaml.safe_dump(_to_plain(v), default_flow_style=True, width=1000).strip()
-        text = text.removesuffix("\n...").removesuffix("...").strip()
-        lines.append(f"{indent}{name}: {text}  # {doc}")
+_DUMP_HEADER = (
+    "ibiscape-eval sim configuration (every key; units in the names and comments).",
+    "Frames: body x forward, y left, z up (IMU0); world = local ENU at the gnss reference.",
+    "cameras/imus map a sensor name to its fields; a new name adds a sensor, null removes one.",
+)
 
-    base = preset(cfg.setup, cfg.kind, cfg.weather, scenario=cfg.scenario)
-    emit(cfg, "")
-    return "\n".join(lines) + "\n"
+
+def _yaml_items(obj: Any, base: SimConfig) -> list[YamlItem]:
+    """``obj``'s fields as commented YAML items (sensors removed from ``base`` written as null)."""
+    from ibiscape_eval.io.simconfig import YamlItem
+
+    items = []
+    for f in fields(obj):
+        v = getattr(obj, f.name)
+        doc = f.metadata.get("doc", "")
+        if f.name in ("imus", "cameras"):
+            present = {s.name for s in v}
+            children = [YamlItem(s.name, None, "removed from the preset")
+                        for s in getattr(base, f.name) if s.name not in present]
+            children += [YamlItem(s.name, [YamlItem(sf.name, _to_plain(getattr(s, sf.name)),
+                                                    sf.metadata.get("doc", ""))
+                                           for sf in fields(s) if sf.name != "name"],
+                                  is_mapping=True) for s in v]
+            items.append(YamlItem(f.name, children, doc, comment_above=True, is_mapping=True))
+        elif dataclasses.is_dataclass(v):
+            items.append(YamlItem(f.name, _yaml_items(v, base), doc, is_mapping=True))
+        else:
+            items.append(YamlItem(f.name, _to_plain(v), doc))
+    return items

@@ -29,7 +29,7 @@ import numpy.typing as npt
 from ibiscape_eval.core.errors import IbiscapeError
 from ibiscape_eval.core.rotations import quat_rotate
 from ibiscape_eval.core.trajectory import Trajectory
-from ibiscape_eval.io._atomic import atomic_output_dir
+from ibiscape_eval.io.atomic import atomic_output_dir
 from ibiscape_eval.io.gnss import write_gnss
 from ibiscape_eval.io.ibiscape import IbiscapeGroundTruth, write_ibiscape_groundtruth
 
@@ -289,7 +289,7 @@ def _generate_moving(cfg: SimConfig, tmp: Path, step: Callable[[float, str], Non
     step(0.35, "imu")
     names = imu_file_names(cfg)
     n_imu = 0
-    from ibiscape_eval.io.sequence import write_imu_csv_chunks
+    from ibiscape_eval.io.imu import write_imu_csv_chunks
 
     for i, spec in enumerate(cfg.imus):
         if spec.rate_hz == cfg.gt_rate_hz:

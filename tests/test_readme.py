@@ -1,12 +1,15 @@
-"""Every ``ibiscape-eval`` command in the README's bash blocks runs and exits 0.
+"""Every ``ibiscape-eval`` command in the README's bash blocks runs, exits 0 and produces output.
 
-Commands run in a scratch folder that holds ``examples/`` (linked) and a small ``demo-output/``
-made with the same generators as ``make demo``.  A command whose input files do not exist there
-(illustrations such as ``recording.bag``) is skipped; the test checks that most commands ran.
+Commands run in a scratch folder that holds ``examples/`` (linked), a small ``demo-output/`` made
+with the same generators as ``make demo``, and the illustrative inputs (``still.npy``, ``log.csv``,
+``events.txt``).  Each command must print numbers (or valid JSON with numbers) and write every file
+or folder its options name.  Only the commands listed in ``ILLUSTRATIVE`` (inputs that cannot be
+made here) are not run, and the test fails if any other command is skipped.
 """
 
 from __future__ import annotations
 
+import json
 import re
 import shlex
 from pathlib import Path
@@ -20,6 +23,12 @@ from ibiscape_eval.cli.main import cli
 ROOT = Path(__file__).resolve().parents[1]
 # subcommand -> how many leading positional arguments are inputs that must exist
 INPUTS = {"ate": 2, "rpe": 2, "drift": 2, "convert": 1, "allan": 1, "hotpix": 1, "frames": 1, "sim": 0}
+# inputs of README commands that are illustrations only (a ROS bag is not generated here)
+ILLUSTRATIVE = {"recording.bag"}
+# options whose value is a file or folder the command must create
+OUTPUT_OPTIONS = ("--plot", "--yaml", "--csv", "--save-csv", "--save-aligned", "--hot-out",
+                  "--filtered-out", "--out")
+NUMBER = re.compile(r"\d+\.\d+|\b\d+\b")
 
 
 def readme_commands() -> list[list[str]]:
@@ -62,6 +71,35 @@ def make_demo_output(root: Path) -> None:
     write_imu_csv(imu_csv, np.arange(n, dtype=np.int64) * 50_000_000, s[:, :3], s[:, 3:])
     ev = synthetic_events(sensor_size=(128, 96), duration_s=0.5, n_hot=40, seed=2)
     write_events(out / "davisL", ev.events, fmt="ibiscape")
+    # the README's illustrative inputs
+    m = 40_000
+    np.save(root / "still.npy", s[:m])  # (N, 6) gyro + accel, read with --rate-hz 200
+    deg, g = np.pi / 180.0, 9.80665
+    cols = np.column_stack((np.arange(m) / 200.0, s[:m, :3] / deg, s[:m, 3:] / g))
+    np.savetxt(root / "log.csv", cols, delimiter=",", header="time,gx,gy,gz,ax,ay,az", comments="",
+               fmt="%.12g")
+    write_events(root / "events.txt", ev.events, fmt="text")
+
+
+def outputs_of(args: list[str]) -> list[Path]:
+    """Files and folders the command must create (option values, convert's DST, a redirect)."""
+    outs = [Path(args[i + 1]) for i, a in enumerate(args[:-1]) if a in OUTPUT_OPTIONS or a == ">"]
+    if args[0] == "convert":
+        outs.append(Path([a for a in args if not a.startswith("-")][2]))
+    return outs
+
+
+def check_output(args: list[str], stdout: str) -> None:
+    """The command printed its result (numbers, or JSON holding numbers) and wrote its files."""
+    cmd = f"ibiscape-eval {shlex.join(args)}"
+    if "--json" in args:
+        doc = json.loads(stdout)
+        assert isinstance(doc, dict) and NUMBER.search(json.dumps(doc)), cmd
+    elif ">" not in args and args[0] != "convert":
+        assert NUMBER.search(stdout), f"{cmd}: no number on stdout:\n{stdout}"
+    for p in outputs_of(args):
+        assert p.exists(), f"{cmd}: {p} was not written"
+        assert (any(p.iterdir()) if p.is_dir() else p.stat().st_size > 0), f"{cmd}: {p} is empty"
 
 
 def test_readme_commands_run(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -70,8 +108,9 @@ def test_readme_commands_run(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) ->
     monkeypatch.chdir(tmp_path)
     ran, skipped = 0, []
     for args in readme_commands():
-        if not all(Path(p).exists() for p in inputs_of(args)):
-            skipped.append(shlex.join(args))
+        missing = [p for p in inputs_of(args) if not Path(p).exists()]
+        if missing:
+            skipped.append((shlex.join(args), missing))
             continue
         redirect = args[args.index(">") + 1] if ">" in args else None
         argv = args[: args.index(">")] if redirect else args
@@ -79,6 +118,8 @@ def test_readme_commands_run(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) ->
         assert res.exit_code == 0, f"ibiscape-eval {shlex.join(args)}\n{res.output}"
         if redirect:
             Path(redirect).write_text(res.stdout)
+        check_output(args, res.stdout)
         ran += 1
-    assert ran >= 20, f"only {ran} README commands ran; skipped: {skipped}"
-    assert len(skipped) <= 6, skipped
+    not_illustrative = [(c, m) for c, m in skipped if not set(m) <= ILLUSTRATIVE]
+    assert not not_illustrative, f"README commands skipped for missing inputs: {not_illustrative}"
+    assert ran >= 20, f"only {ran} README commands ran"

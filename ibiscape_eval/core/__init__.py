@@ -7,6 +7,8 @@ from .errors import (
     IbiscapeError,
     IbiscapeWarning,
 )
+from .gnss import GnssFixes
+from .imu import ImuRecord, ImuTiming
 from .time import NS_PER_S, ns_from_s, s_from_ns
 from .trajectory import Trajectory
 
@@ -15,8 +17,11 @@ __all__ = [
     "CalibrationError",
     "DegenerateInputError",
     "FormatError",
+    "GnssFixes",
     "IbiscapeError",
     "IbiscapeWarning",
+    "ImuRecord",
+    "ImuTiming",
     "Trajectory",
     "ns_from_s",
     "s_from_ns",

@@ -4,12 +4,17 @@ Every function takes arrays of shape ``(N, 4)`` (or ``(4,)``, broadcast) and wor
 once.  Rotation matrices are ``(N, 3, 3)``.  Quaternions are Hamilton quaternions: ``q1 * q2``
 applies ``q2`` first, and ``R(q) v`` rotates a vector of the body frame into the world frame when
 ``q`` is the orientation part of ``T_world_body``.
+
+These are thin wrappers over :class:`scipy.spatial.transform.Rotation` that keep the project's
+names and array conventions (rows of ``(N, 4)`` or a single ``(4,)``); the fused numba kernels of
+``metrics`` repeat the formulas where one pass over millions of poses matters.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import numpy.typing as npt
+from scipy.spatial.transform import Rotation
 
 __all__ = [
     "angle_rad_from_quat",
@@ -28,6 +33,20 @@ __all__ = [
 FloatArray = npt.NDArray[np.float64]
 
 
+def _rot(quat_xyzw: npt.ArrayLike) -> tuple[Rotation, tuple[int, ...]]:
+    """A scipy Rotation over all rows of ``quat_xyzw`` and its leading shape."""
+    q = np.asarray(quat_xyzw, dtype=np.float64)
+    return Rotation.from_quat(np.array(q.reshape(-1, 4))), q.shape[:-1]
+
+
+def _broadcast_rows(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple[int, ...]]:
+    """Both arrays as writable C-contiguous rows over their broadcast leading shape (scipy's
+    Cython code refuses read-only buffers, and :class:`Trajectory` arrays are read-only)."""
+    lead = np.broadcast_shapes(a.shape[:-1], b.shape[:-1])
+    return (np.array(np.broadcast_to(a, (*lead, a.shape[-1])).reshape(-1, a.shape[-1])),
+            np.array(np.broadcast_to(b, (*lead, b.shape[-1])).reshape(-1, b.shape[-1])), lead)
+
+
 def quat_normalize(quat_xyzw: npt.ArrayLike) -> FloatArray:
     """Return unit quaternions with a non-negative w (the same rotation, a canonical sign)."""
     q = np.asarray(quat_xyzw, dtype=np.float64)
@@ -43,7 +62,11 @@ def quat_conjugate(quat_xyzw: npt.ArrayLike) -> FloatArray:
 
 
 def quat_multiply(q1_xyzw: npt.ArrayLike, q2_xyzw: npt.ArrayLike) -> FloatArray:
-    """Hamilton product ``q1 * q2`` (rotation ``q2`` first, then ``q1``), broadcast over rows."""
+    """Hamilton product ``q1 * q2`` (rotation ``q2`` first, then ``q1``), broadcast over rows.
+
+    (numpy, not scipy: composing 1M rotations measured 175 ms here against 1230 ms with
+    ``Rotation.__mul__``, on RPE/offset/IBISCape-writer paths that see every pose.)
+    """
     a = np.asarray(q1_xyzw, dtype=np.float64)
     b = np.asarray(q2_xyzw, dtype=np.float64)
     x1, y1, z1, w1 = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
@@ -61,29 +84,17 @@ def quat_multiply(q1_xyzw: npt.ArrayLike, q2_xyzw: npt.ArrayLike) -> FloatArray:
 
 def matrix_from_quat(quat_xyzw: npt.ArrayLike) -> FloatArray:
     """Rotation matrices, shape ``(N, 3, 3)``, from unit quaternions ``(N, 4)``."""
-    q = np.asarray(quat_xyzw, dtype=np.float64)
-    x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    xx, yy, zz = x * x, y * y, z * z
-    xy, xz, yz = x * y, x * z, y * z
-    wx, wy, wz = w * x, w * y, w * z
-    R = np.empty((*q.shape[:-1], 3, 3))
-    R[..., 0, 0] = 1.0 - 2.0 * (yy + zz)
-    R[..., 0, 1] = 2.0 * (xy - wz)
-    R[..., 0, 2] = 2.0 * (xz + wy)
-    R[..., 1, 0] = 2.0 * (xy + wz)
-    R[..., 1, 1] = 1.0 - 2.0 * (xx + zz)
-    R[..., 1, 2] = 2.0 * (yz - wx)
-    R[..., 2, 0] = 2.0 * (xz - wy)
-    R[..., 2, 1] = 2.0 * (yz + wx)
-    R[..., 2, 2] = 1.0 - 2.0 * (xx + yy)
-    return R
+    r, lead = _rot(quat_xyzw)
+    return r.as_matrix().reshape(*lead, 3, 3)
 
 
 def quat_from_matrix(R: npt.ArrayLike) -> FloatArray:
     """Unit quaternions (w >= 0) from rotation matrices ``(N, 3, 3)``.
 
     Uses the numerically stable branch selection of Shepperd (1978): the largest of the four
-    candidate diagonal combinations is used as the divisor, row by row.
+    candidate diagonal combinations is used as the divisor, row by row.  (numpy, not scipy: 1M
+    matrices measured 630-730 ms here against 1080-1240 ms with ``Rotation.from_matrix``; KITTI
+    reading converts every pose.)
     """
     M = np.asarray(R, dtype=np.float64)
     m00, m11, m22 = M[..., 0, 0], M[..., 1, 1], M[..., 2, 2]
@@ -143,23 +154,23 @@ def quat_from_matrix(R: npt.ArrayLike) -> FloatArray:
 
 def quat_rotate(quat_xyzw: npt.ArrayLike, vec: npt.ArrayLike) -> FloatArray:
     """Rotate vectors ``(N, 3)`` by unit quaternions ``(N, 4)``: ``R(q) v``."""
-    q = np.asarray(quat_xyzw, dtype=np.float64)
-    v = np.asarray(vec, dtype=np.float64)
-    u = q[..., :3]
-    w = q[..., 3:4]
-    # v' = v + 2 w (u x v) + 2 u x (u x v)
-    uv = np.cross(u, v)
-    return v + 2.0 * (w * uv + np.cross(u, uv))
+    q, v, lead = _broadcast_rows(np.asarray(quat_xyzw, dtype=np.float64),
+                                 np.asarray(vec, dtype=np.float64))
+    return Rotation.from_quat(q).apply(v).reshape(*lead, 3)
 
 
 def angle_rad_from_quat(quat_xyzw: npt.ArrayLike) -> FloatArray:
     """Rotation angle in [0, pi] of unit quaternions, accurate for small and large angles."""
-    q = np.asarray(quat_xyzw, dtype=np.float64)
-    return 2.0 * np.arctan2(np.linalg.norm(q[..., :3], axis=-1), np.abs(q[..., 3]))
+    r, lead = _rot(quat_xyzw)
+    return r.magnitude().reshape(lead)
 
 
 def rotvec_from_quat(quat_xyzw: npt.ArrayLike) -> FloatArray:
-    """Rotation vectors (axis * angle, rad), shape ``(N, 3)``."""
+    """Rotation vectors (axis * angle, rad), shape ``(N, 3)``.
+
+    (numpy, not scipy: 1M rows measured 270 ms here against 570 ms with
+    ``Rotation.as_rotvec``, on the IBISCape ground-truth writer path.)
+    """
     q = quat_normalize(quat_xyzw)
     n = np.linalg.norm(q[..., :3], axis=-1)
     angle = 2.0 * np.arctan2(n, q[..., 3])
@@ -171,24 +182,22 @@ def rotvec_from_quat(quat_xyzw: npt.ArrayLike) -> FloatArray:
 
 def quat_from_rotvec(rotvec: npt.ArrayLike) -> FloatArray:
     """Unit quaternions from rotation vectors (axis * angle, rad) ``(N, 3)``."""
-    r = np.asarray(rotvec, dtype=np.float64)
-    angle = np.linalg.norm(r, axis=-1)
-    half = 0.5 * angle
-    # sin(half)/angle -> 1/2 as angle -> 0 (Taylor: 1/2 - angle^2/48)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        k = np.where(angle > 1e-8, np.sin(half) / angle, 0.5 - angle * angle / 48.0)
-    return np.concatenate((r * k[..., None], np.cos(half)[..., None]), axis=-1)
+    v = np.asarray(rotvec, dtype=np.float64)
+    return Rotation.from_rotvec(np.array(v.reshape(-1, 3))).as_quat().reshape(*v.shape[:-1], 4)
 
 
 def quat_from_yaw(yaw_rad: npt.ArrayLike) -> FloatArray:
     """Quaternions of rotations about +z by ``yaw_rad``."""
     y = np.asarray(yaw_rad, dtype=np.float64)
-    z = np.zeros_like(y)
-    return np.stack((z, z, np.sin(0.5 * y), np.cos(0.5 * y)), axis=-1)
+    return Rotation.from_euler("z", y.reshape(-1, 1)).as_quat().reshape(*y.shape, 4)
 
 
 def quat_slerp(q0_xyzw: npt.ArrayLike, q1_xyzw: npt.ArrayLike, t: npt.ArrayLike) -> FloatArray:
-    """Spherical linear interpolation, row by row, taking the shorter arc; ``t`` in [0, 1]."""
+    """Spherical linear interpolation, row by row, taking the shorter arc; ``t`` in [0, 1].
+
+    (numpy, not scipy: 1M rows measured 410 ms here against 3840 ms as
+    ``q0 * exp(t log(q0^-1 q1))`` with ``Rotation``; ``--interpolate`` sees every pose.)
+    """
     a = np.asarray(q0_xyzw, dtype=np.float64)
     b = np.asarray(q1_xyzw, dtype=np.float64)
     tt = np.asarray(t, dtype=np.float64)[..., None]

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -191,6 +191,42 @@ class HotPixelResult:
         """``n_discarded / n_events`` (0 for an empty recording)."""
         n = self.n_events
         return self.n_discarded / n if n else 0.0
+
+    @property
+    def n_pixels_fired(self) -> int:
+        """Pixels with at least one event."""
+        return int(np.count_nonzero(self.count_map))
+
+    def to_dict(self) -> dict[str, Any]:
+        """Strict JSON (NaN as None): counts, criteria and every hot pixel with its count."""
+
+        def num(v: float) -> float | None:
+            return float(v) if np.isfinite(v) else None
+
+        return {
+            "sensor_size": [int(v) for v in self.sensor_size],
+            "n_events": self.n_events,
+            "n_pixels_fired": self.n_pixels_fired,
+            "n_hot_pixels": len(self.pixels),
+            "n_discarded": self.n_discarded,
+            "fraction_discarded": self.fraction_discarded,
+            "criteria": {
+                "top_n": self.top_n,
+                "n_sigma": None if self.n_sigma is None else float(self.n_sigma),
+                "threshold": num(self.threshold),
+                "mean": num(self.mean),
+                "std": num(self.std),
+            },
+            "hot_pixels": [
+                {"x": int(x), "y": int(y), "count": int(c)}
+                for (x, y), c in zip(self.pixels, self.counts, strict=True)
+            ],
+        }
+
+    def __repr__(self) -> str:
+        w, h = self.sensor_size
+        return (f"HotPixelResult({len(self.pixels)} hot pixels on {w}x{h}, "
+                f"{100 * self.fraction_discarded:.2f} % of {self.n_events} events discarded)")
 
     def to_frame(self) -> pd.DataFrame:
         """The hot pixels as a table with columns ``x, y, count``."""

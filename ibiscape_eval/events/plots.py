@@ -17,10 +17,8 @@ __all__ = ["hot_pixel_figure"]
 
 def hot_pixel_figure(result: HotPixelResult, *, title: str = "") -> Figure:
     """Histograms of events per pixel before / after removing ``result.pixels`` and a log-scale
-    heat map of the sensor with the hot pixels circled.  Uses matplotlib's Agg backend."""
-    import matplotlib
-
-    matplotlib.use("Agg")
+    heat map of the sensor with the hot pixels circled, on a new
+    :class:`~matplotlib.figure.Figure` (pyplot's state and the backend are left alone)."""
     from matplotlib.colors import LogNorm
     from matplotlib.figure import Figure
 

@@ -111,6 +111,19 @@ class NoiseModel:
             "gyroscope_random_walk": largest(gyro, "random_walk"),
         }
 
+    def kalibr_discrete(self, gyro: Sequence[str], accel: Sequence[str]) -> dict[str, float]:
+        """Per-sample (discrete-time) sigmas of :meth:`kalibr` at the record's rate ``r``:
+        noise ``N sqrt(r)`` and bias step ``K / sqrt(r)`` (what a CARLA-style simulator or a
+        discrete filter takes); NaN where :meth:`kalibr` has NaN."""
+        k = self.kalibr(gyro, accel)
+        root = math.sqrt(self.rate_hz)
+        return {
+            "gyroscope_noise_sigma": k["gyroscope_noise_density"] * root,
+            "gyroscope_bias_step_sigma": k["gyroscope_random_walk"] / root,
+            "accelerometer_noise_sigma": k["accelerometer_noise_density"] * root,
+            "accelerometer_bias_step_sigma": k["accelerometer_random_walk"] / root,
+        }
+
     def to_frame(self) -> pd.DataFrame:
         """One row per axis with every numeric field and the notes joined by '; '."""
         import pandas as pd

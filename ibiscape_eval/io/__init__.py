@@ -18,7 +18,7 @@ from __future__ import annotations
 from .detect import TRAJECTORY_FORMATS, detect_trajectory_format
 from .gnss import GnssFixes, read_gnss, write_gnss
 from .ibiscape import IbiscapeGroundTruth, read_ibiscape_groundtruth, write_ibiscape_groundtruth
-from .trajectory import WRITABLE_FORMATS, read_trajectory, write_trajectory
+from .trajectory import WRITABLE_FORMATS, has_timestamps, read_trajectory, write_trajectory
 
 __all__ = [
     "TRAJECTORY_FORMATS",
@@ -26,6 +26,7 @@ __all__ = [
     "GnssFixes",
     "IbiscapeGroundTruth",
     "detect_trajectory_format",
+    "has_timestamps",
     "read_gnss",
     "read_ibiscape_groundtruth",
     "read_trajectory",

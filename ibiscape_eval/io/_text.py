@@ -95,26 +95,17 @@ _kernel_module: Any = None  # set once the kernels are imported and numba's runt
 
 
 def _kernels() -> Any:
-    """The numba kernels (:mod:`._text_kernels`), imported on first use.
+    """The numba kernels (:mod:`._text_kernels`), imported and started on first use.
 
-    numba's import and the start of its runtime (on the first call) create some 10^5 Python
-    objects; the cyclic garbage collector is paused meanwhile, which spares several full
-    collections over them (about 0.1 s of start-up).
+    (The command line pauses the garbage collector around this start-up: see
+    :mod:`ibiscape_eval.cli.startup`; the library leaves process-wide state alone.)
     """
     global _kernel_module
     if _kernel_module is not None:
         return _kernel_module
-    import gc
+    from . import _text_kernels
 
-    enabled = gc.isenabled()
-    gc.disable()
-    try:
-        from . import _text_kernels
-
-        _text_kernels.count_newlines(np.frombuffer(b"\n" * 8, dtype=np.uint8), 0, 8)
-    finally:
-        if enabled:
-            gc.enable()
+    _text_kernels.count_newlines(np.frombuffer(b"\n" * 8, dtype=np.uint8), 0, 8)
     _kernel_module = _text_kernels
     return _text_kernels
 

@@ -4,6 +4,7 @@
 """
 
 # mypy: ignore-errors
+# ruff: noqa: SIM109  (chained == on a byte compiles to plain compares in numba; keep them)
 from __future__ import annotations
 
 import numpy as np
@@ -16,17 +17,23 @@ INF_W = np.array([ord(c) for c in "inf"], dtype=np.uint8)
 INFTY_W = np.array([ord(c) for c in "infinity"], dtype=np.uint8)
 # the largest mantissa that can take one more digit without overflowing int64
 MANT_LIMIT = 922337203685477579
+# Bytes the tokenizer compares against (numba folds these module globals into constants).
+TAB, NEWLINE, CR, SPACE, HASH, PLUS, COMMA, MINUS, DOT = (ord(c) for c in "\t\n\r #+,-.")
+DIGIT_0, DIGIT_9 = ord("0"), ord("9")
+UPPER_A, UPPER_Z, UPPER_E, LOWER_A, LOWER_E = ord("A"), ord("Z"), ord("E"), ord("a"), ord("e")
+LOWER_I, LOWER_N = ord("i"), ord("n")
+
 EXACT_POW = np.array([10.0**k for k in range(23)])
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def is_sep(c):
-    return c == 32 or c == 9 or c == 44 or c == 13
+    return c == SPACE or c == TAB or c == COMMA or c == CR
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def lower(c):
-    return c + 32 if 65 <= c <= 90 else c
+    return c + (LOWER_A - UPPER_A) if UPPER_A <= c <= UPPER_Z else c
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -44,10 +51,10 @@ def parse_number(buf, s, e):
     """Return (ok, value, mantissa, exp10, finite) of the token buf[s:e]."""
     i = s
     neg = False
-    if i < e and (buf[i] == 45 or buf[i] == 43):
-        neg = buf[i] == 45
+    if i < e and (buf[i] == MINUS or buf[i] == PLUS):
+        neg = buf[i] == MINUS
         i += 1
-    if i < e and (lower(buf[i]) == 110 or lower(buf[i]) == 105):  # n / i
+    if i < e and (lower(buf[i]) == LOWER_N or lower(buf[i]) == LOWER_I):  # n / i
         if word_is(buf, i, e, NAN_W):
             return True, np.nan, 0, 0, False
         if word_is(buf, i, e, INF_W) or word_is(buf, i, e, INFTY_W):
@@ -57,41 +64,41 @@ def parse_number(buf, s, e):
     exp10 = 0
     dropped = -1
     d0 = i
-    while i < e and 48 <= buf[i] <= 57:
+    while i < e and DIGIT_0 <= buf[i] <= DIGIT_9:
         if mant <= MANT_LIMIT:
-            mant = mant * 10 + (buf[i] - 48)
+            mant = mant * 10 + (buf[i] - DIGIT_0)
         else:
             if dropped < 0:
-                dropped = buf[i] - 48
+                dropped = buf[i] - DIGIT_0
             exp10 += 1
         i += 1
     ndig = i - d0
-    if i < e and buf[i] == 46:  # '.'
+    if i < e and buf[i] == DOT:  # '.'
         i += 1
         d0 = i
-        while i < e and 48 <= buf[i] <= 57:
+        while i < e and DIGIT_0 <= buf[i] <= DIGIT_9:
             if mant <= MANT_LIMIT:
-                mant = mant * 10 + (buf[i] - 48)
+                mant = mant * 10 + (buf[i] - DIGIT_0)
                 exp10 -= 1
             elif dropped < 0:
-                dropped = buf[i] - 48
+                dropped = buf[i] - DIGIT_0
             i += 1
         ndig += i - d0
     seen = ndig > 0
     if not seen:
         return False, 0.0, 0, 0, False
-    if i < e and (buf[i] == 101 or buf[i] == 69):  # e / E
+    if i < e and (buf[i] == LOWER_E or buf[i] == UPPER_E):  # e / E
         i += 1
         eneg = False
-        if i < e and (buf[i] == 45 or buf[i] == 43):
-            eneg = buf[i] == 45
+        if i < e and (buf[i] == MINUS or buf[i] == PLUS):
+            eneg = buf[i] == MINUS
             i += 1
         if i >= e:
             return False, 0.0, 0, 0, False
         ev = 0
-        while i < e and 48 <= buf[i] <= 57:
+        while i < e and DIGIT_0 <= buf[i] <= DIGIT_9:
             if ev < 100000:
-                ev = ev * 10 + (buf[i] - 48)
+                ev = ev * 10 + (buf[i] - DIGIT_0)
             i += 1
         exp10 += -ev if eneg else ev
     if i != e:
@@ -125,7 +132,7 @@ def count_newlines(buf, start, stop):
     k = 0
     i = start
     while i < stop and i & 7:
-        k += buf[i] == 10
+        k += buf[i] == NEWLINE
         i += 1
     nw = (stop - i) >> 3
     if nw > 0:
@@ -141,7 +148,7 @@ def count_newlines(buf, start, stop):
         acc = (acc & _EVEN) + ((acc >> _U8) & _EVEN)
         k += np.int64((acc * _SUM16) >> _U48)
     for j in range(i + 8 * nw, stop):
-        k += buf[j] == 10
+        k += buf[j] == NEWLINE
     return k
 
 
@@ -149,7 +156,7 @@ def count_newlines(buf, start, stop):
 def token_end(buf, i, status, line):
     """End of the token starting at ``i`` (a separator, newline or ``#``); -1 on a NUL byte."""
     c = buf[i]
-    while not (c == 32 or c == 44 or c == 10 or c == 9 or c == 13 or c == 35):
+    while not (c == SPACE or c == COMMA or c == NEWLINE or c == TAB or c == CR or c == HASH):
         if c == 0:
             status[0] = _NUL
             status[1] = line
@@ -191,13 +198,13 @@ def scan_lines(buf, start, stop, nkeep, ncols_min, ncols_max, line0, row0,
         e1 = 0
         c = buf[i]
         while True:
-            while c == 32 or c == 9 or c == 44 or c == 13:
+            while c == SPACE or c == TAB or c == COMMA or c == CR:
                 i += 1
                 c = buf[i]
-            if c == 10:
+            if c == NEWLINE:
                 break
-            if c == 35:  # '#': comment to the end of the line
-                while c != 10:
+            if c == HASH:  # '#': comment to the end of the line
+                while c != NEWLINE:
                     i += 1
                     c = buf[i]
                 break
@@ -210,29 +217,29 @@ def scan_lines(buf, start, stop, nkeep, ncols_min, ncols_max, line0, row0,
                 c = buf[i]
                 continue
             # fast path: [+-]digits[.digits] ended by a separator
-            neg = c == 45
-            if c == 45 or c == 43:
+            neg = c == MINUS
+            if c == MINUS or c == PLUS:
                 i += 1
                 c = buf[i]
             m = np.int64(0)
             big = False
             d0 = i
-            while 48 <= c <= 57:
+            while DIGIT_0 <= c <= DIGIT_9:
                 if m <= MANT_LIMIT:
-                    m = m * 10 + (c - 48)
+                    m = m * 10 + (c - DIGIT_0)
                 else:
                     big = True
                 i += 1
                 c = buf[i]
             ndig = i - d0
             nfrac = 0
-            if c == 46:  # '.'
+            if c == DOT:  # '.'
                 i += 1
                 c = buf[i]
                 d0 = i
-                while 48 <= c <= 57:
+                while DIGIT_0 <= c <= DIGIT_9:
                     if m <= MANT_LIMIT:
-                        m = m * 10 + (c - 48)
+                        m = m * 10 + (c - DIGIT_0)
                     else:
                         big = True
                     i += 1
@@ -240,7 +247,7 @@ def scan_lines(buf, start, stop, nkeep, ncols_min, ncols_max, line0, row0,
                 nfrac = i - d0
                 ndig += nfrac
             if (ndig > 0 and not big and nfrac <= 22
-                    and (c == 32 or c == 9 or c == 44 or c == 10 or c == 13 or c == 35)):
+                    and (c == SPACE or c == TAB or c == COMMA or c == NEWLINE or c == CR or c == HASH)):
                 v = m / EXACT_POW[nfrac]
                 if neg:
                     v = -v
@@ -356,10 +363,10 @@ def write_uint(out, pos, v, width):
         nd += 1
     if nd < width:
         for _ in range(width - nd):
-            out[pos] = 48
+            out[pos] = DIGIT_0
             pos += 1
     for k in range(nd - 1, -1, -1):
-        out[pos] = 48 + (v // INT_POW[k]) % 10
+        out[pos] = DIGIT_0 + (v // INT_POW[k]) % 10
         pos += 1
     return pos
 
@@ -376,16 +383,16 @@ def write_float(out, pos, x):
             return pos + 3
         if np.isinf(x):
             if x < 0:
-                out[pos] = 45
+                out[pos] = MINUS
                 pos += 1
             out[pos] = 105
             out[pos + 1] = 110
             out[pos + 2] = 102
             return pos + 3
-        out[pos] = 48
+        out[pos] = DIGIT_0
         return pos + 1
     if x < 0.0:
-        out[pos] = 45
+        out[pos] = MINUS
         pos += 1
         x = -x
     e = int(np.floor(np.log10(x)))
@@ -420,36 +427,36 @@ def write_float(out, pos, x):
     if -5 <= e < 15:
         if e >= 0:
             for k in range(e + 1):
-                out[pos] = 48 + (digits[k] if k < nd else 0)
+                out[pos] = DIGIT_0 + (digits[k] if k < nd else 0)
                 pos += 1
             if nd > e + 1:
-                out[pos] = 46
+                out[pos] = DOT
                 pos += 1
                 for k in range(e + 1, nd):
-                    out[pos] = 48 + digits[k]
+                    out[pos] = DIGIT_0 + digits[k]
                     pos += 1
         else:
-            out[pos] = 48
-            out[pos + 1] = 46
+            out[pos] = DIGIT_0
+            out[pos + 1] = DOT
             pos += 2
             for _ in range(-e - 1):
-                out[pos] = 48
+                out[pos] = DIGIT_0
                 pos += 1
             for k in range(nd):
-                out[pos] = 48 + digits[k]
+                out[pos] = DIGIT_0 + digits[k]
                 pos += 1
     else:
-        out[pos] = 48 + digits[0]
+        out[pos] = DIGIT_0 + digits[0]
         pos += 1
         if nd > 1:
-            out[pos] = 46
+            out[pos] = DOT
             pos += 1
             for k in range(1, nd):
-                out[pos] = 48 + digits[k]
+                out[pos] = DIGIT_0 + digits[k]
                 pos += 1
-        out[pos] = 101
+        out[pos] = LOWER_E
         pos += 1
-        out[pos] = 45 if e < 0 else 43
+        out[pos] = MINUS if e < 0 else PLUS
         pos += 1
         pos = write_uint(out, pos, abs(e), 2)
     return pos
@@ -469,21 +476,21 @@ def format_rows(stamps_ns, values, stamp_mode, sep, row_end):
         if stamp_mode != 0:
             t = stamps_ns[i]
             if t < 0:
-                out[pos] = 45
+                out[pos] = MINUS
                 pos += 1
                 t = -t
             if stamp_mode == 2:
                 pos = write_uint(out, pos, t // 1000000000, 1)
-                out[pos] = 46
+                out[pos] = DOT
                 pos += 1
                 pos = write_uint(out, pos, t % 1000000000, 9)
             else:
                 pos = write_uint(out, pos, t, 1)
                 if stamp_mode == 3:
-                    out[pos] = 46
+                    out[pos] = DOT
                     pos += 1
                     for _ in range(6):
-                        out[pos] = 48
+                        out[pos] = DIGIT_0
                         pos += 1
         for j in range(k):
             if j > 0 or stamp_mode != 0:

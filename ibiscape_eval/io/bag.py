@@ -24,7 +24,8 @@ from ibiscape_eval.core.trajectory import Trajectory
 
 from ._poses import finish_trajectory
 
-__all__ = ["BAG_SUFFIXES", "POSE_MSGTYPES", "list_pose_topics", "read_bag"]
+__all__ = ["BAG_SUFFIXES", "IMU_MSGTYPE", "POSE_MSGTYPES", "list_pose_topics", "read_bag",
+           "read_imu_bag"]
 
 BAG_SUFFIXES = (".bag", ".db3", ".mcap")
 POSE_MSGTYPES = (
@@ -34,6 +35,7 @@ POSE_MSGTYPES = (
     "nav_msgs/msg/Odometry",
 )
 TF_MSGTYPE = "tf2_msgs/msg/TFMessage"
+IMU_MSGTYPE = "sensor_msgs/msg/Imu"
 
 
 def _bag_path(path: str | os.PathLike[str]) -> Path:
@@ -199,3 +201,49 @@ def _stamp_ns(stamp: Any) -> int:
 def _row_from_transform(tr: Any) -> tuple[int, float, float, float, float, float, float, float]:
     t, q = tr.transform.translation, tr.transform.rotation
     return (_stamp_ns(tr.header.stamp), t.x, t.y, t.z, q.x, q.y, q.z, q.w)
+
+
+def read_imu_bag(path: str | os.PathLike[str],
+                 rostopic: str | None = None) -> tuple[np.ndarray, np.ndarray, str]:
+    """``sensor_msgs/Imu`` messages of one topic: ``(stamps_ns (N,), samples (N, 6) gyro then
+    accel, topic)``; the topic defaults to the bag's only IMU topic.
+
+    :func:`ibiscape_eval.io.imu.read_imu` builds the record (timing checks) from these arrays.
+    """
+    from rosbags.highlevel import AnyReader
+
+    p = Path(path)
+    bag_path = p.parent if p.suffix.lower() in (".db3", ".mcap") else p
+    try:
+        reader_cm = AnyReader([bag_path])
+        reader = reader_cm.__enter__()
+    except Exception as e:
+        raise FormatError(p, f"not a readable ROS bag ({type(e).__name__}: {e})") from None
+    try:
+        imu_topics = sorted({c.topic for c in reader.connections if c.msgtype == IMU_MSGTYPE})
+        if rostopic is None:
+            if len(imu_topics) != 1:
+                raise FormatError(p, f"{len(imu_topics)} sensor_msgs/Imu topics "
+                                  f"({', '.join(imu_topics) or 'none'}); choose one with --rostopic")
+            rostopic = imu_topics[0]
+        conns = [c for c in reader.connections if c.topic == rostopic]
+        if not conns:
+            raise FormatError(p, f"topic {rostopic!r} not in the bag (IMU topics: "
+                              f"{', '.join(imu_topics) or 'none'})")
+        if conns[0].msgtype != IMU_MSGTYPE:
+            raise FormatError(p, f"topic {rostopic!r} carries {conns[0].msgtype}, not sensor_msgs/Imu")
+        n = sum(c.msgcount for c in conns)
+        stamps = np.empty(n, dtype=np.int64)
+        data = np.empty((n, 6))
+        i = 0
+        # one deserialisation per message is inherent to the bag format
+        for conn, _t, raw in reader.messages(connections=conns):
+            msg: Any = reader.deserialize(raw, conn.msgtype)
+            st = msg.header.stamp
+            stamps[i] = _stamp_ns(st)
+            w, a = msg.angular_velocity, msg.linear_acceleration
+            data[i] = (w.x, w.y, w.z, a.x, a.y, a.z)
+            i += 1
+    finally:
+        reader_cm.__exit__(None, None, None)
+    return stamps[:i], data[:i], rostopic

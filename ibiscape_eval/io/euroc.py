@@ -16,9 +16,9 @@ import numpy as np
 
 from ibiscape_eval.core.trajectory import Trajectory
 
-from ._atomic import atomic_write
 from ._poses import finish_trajectory
 from ._text import decimal_to_ns, parse_table, read_bytes, write_table
+from .atomic import atomic_write
 
 __all__ = ["EUROC_HEADER", "read_euroc", "write_euroc"]
 

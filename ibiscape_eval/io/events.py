@@ -39,7 +39,7 @@ import numpy.typing as npt
 from ibiscape_eval.core.errors import FormatError, IbiscapeError
 from ibiscape_eval.core.events import EventChunk, Events
 
-from ._atomic import atomic_output_path, atomic_write, discard, publish, staging_path
+from .atomic import atomic_output_path, atomic_write, discard, publish, staging_path
 
 __all__ = [
     "EventSource",
@@ -284,7 +284,7 @@ def _chunks_npz_files(files: list[Path]) -> Iterator[EventChunk]:
 
 
 def _chunks_text(src: EventSource, chunk_events: int) -> Iterator[EventChunk]:
-    from ibiscape_eval.events import _kernels
+    from . import _event_text_kernels as _kernels
 
     path = src.path
     line = 1
@@ -362,7 +362,7 @@ def iter_event_chunks(
     EventChunk
         Events with the file they come from and their position in it.
     """
-    from ibiscape_eval.events import _kernels
+    from . import _event_text_kernels as _kernels
 
     src = source if isinstance(source, EventSource) else open_events(source)
     if src.fmt == "ibiscape":
@@ -408,7 +408,7 @@ def read_events(path: str | os.PathLike[str], *, fmt: str | None = None) -> Even
 
 
 def _text_bytes(ev: Events) -> bytes:
-    from ibiscape_eval.events import _kernels
+    from . import _event_text_kernels as _kernels
 
     if len(ev) and int(ev.t_ns[0]) < 0:
         raise IbiscapeError("the text format cannot hold negative timestamps")

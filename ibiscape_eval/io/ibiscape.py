@@ -69,9 +69,9 @@ from ibiscape_eval.core.errors import IbiscapeError
 from ibiscape_eval.core.rotations import quat_conjugate, quat_multiply, rotvec_from_quat
 from ibiscape_eval.core.trajectory import Trajectory
 
-from ._atomic import atomic_write
 from ._poses import check_quaternions, check_rows
 from ._text import decimal_to_ns, parse_table, read_bytes, write_table
+from .atomic import atomic_write
 
 if TYPE_CHECKING:
     import pandas as pd

@@ -14,9 +14,9 @@ from ibiscape_eval.core.errors import FormatError
 from ibiscape_eval.core.rotations import quat_from_matrix
 from ibiscape_eval.core.trajectory import Trajectory
 
-from ._atomic import atomic_write
 from ._poses import check_rows
 from ._text import decimal_to_ns, parse_table, read_bytes, write_table
+from .atomic import atomic_write
 
 __all__ = ["KITTI_PERIOD_NS", "ORTHO_TOL", "read_kitti", "read_times", "write_kitti"]
 

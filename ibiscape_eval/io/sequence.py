@@ -8,10 +8,10 @@ r"""Files of a (synthetic) IBISCape sequence besides ground truth and GNSS.
   :func:`read_controls`.
 - ``weather.csv``: ``#timestamp [ns],cloudiness,...`` per camera frame; :func:`write_weather_csv` /
   :func:`read_weather_csv`.
-- Streaming writers (bounded memory, atomic): :func:`write_imu_csv_chunks` (the IBISCape/EuRoC IMU
-  csv, gyro first; ``frame="ibiscape"`` mirrors to CARLA's left-handed frame like the real data), :func:`write_groundtruth_chunks` (``groundtruth_sync.csv`` in CARLA's frame,
+- Streaming writers (bounded memory, atomic): :func:`write_groundtruth_chunks` (``groundtruth_sync.csv`` in CARLA's frame,
   same conversion as :func:`ibiscape_eval.io.write_ibiscape_groundtruth`) and
-  :func:`write_gnss_chunks`.
+  :func:`write_gnss_chunks`; the IMU csv's is :func:`ibiscape_eval.io.imu.write_imu_csv_chunks`
+  (re-exported here).
 """
 
 from __future__ import annotations
@@ -26,12 +26,14 @@ import numpy.typing as npt
 
 from ibiscape_eval.core.errors import FormatError, IbiscapeError
 
-from ._atomic import atomic_write
 from ._poses import check_rows
 from ._text import decimal_to_ns, parse_table, read_bytes, write_table
+from .atomic import atomic_write
 from .gnss import GNSS_HEADER, GnssFixes
 from .ibiscape import _S, IBISCAPE_HEADER, IbiscapeGroundTruth, _quat_file_from_ours
-from .imu import _check_frame, mirror_ibiscape_imu
+
+# The IMU csv writer lives in io.imu (one writer, one header); re-exported for callers of this module.
+from .imu import IMU_CSV_HEADER, write_imu_csv_chunks
 
 __all__ = [
     "IMU_CSV_HEADER",
@@ -48,8 +50,6 @@ __all__ = [
     "write_weather_csv",
 ]
 
-IMU_CSV_HEADER = ("#timestamp [ns],w_x [rad s^-1],w_y [rad s^-1],w_z [rad s^-1],"
-                  "a_x [m s^-2],a_y [m s^-2],a_z [m s^-2]")
 SEQUENCE_KEYS = ("cameras", "imus", "gnss", "conventions", "generator")
 
 
@@ -134,30 +134,6 @@ def read_weather_csv(path: str | os.PathLike[str]) -> tuple[npt.NDArray[np.int64
     stamps = decimal_to_ns(path, tb, unit_exp=0)
     keep = check_rows(path, stamps, tb.finite, tb.lines, stacklevel=3)
     return stamps[keep], tb.values[keep][:, 1:].copy(), names
-
-
-def write_imu_csv_chunks(path: str | os.PathLike[str],
-                         chunks: Iterable[tuple[npt.ArrayLike, npt.ArrayLike, npt.ArrayLike]], *,
-                         frame: str = "right-handed") -> int:
-    """Stream ``(stamps_ns, gyro_rad_s (n, 3), accel_m_s2 (n, 3))`` chunks into one IMU csv
-    (IBISCape/EuRoC layout, gyro first, rows ending in a space), atomically.  Returns the rows.
-
-    The chunks hold OUR right-handed frame.  ``frame="ibiscape"`` writes CARLA's left-handed
-    frame like the real dataset (``w_x, w_z, a_y`` negated, see :mod:`ibiscape_eval.io.imu`);
-    ``read_imu`` converts back (by itself inside a sequence folder).
-    """
-    mirror = _check_frame(frame)
-    rows = 0
-    with atomic_write(path, "wb") as f:
-        f.write((IMU_CSV_HEADER + "\n").encode())
-        for st, g, a in chunks:
-            if mirror:
-                g, a = mirror_ibiscape_imu(g, a)
-            vals = np.concatenate((np.asarray(g, dtype=np.float64), np.asarray(a, dtype=np.float64)),
-                                  axis=1)
-            write_table(f, np.asarray(st, dtype=np.int64), vals, stamp="ns", sep=",", row_end=" \n")
-            rows += vals.shape[0]
-    return rows
 
 
 def write_groundtruth_chunks(path: str | os.PathLike[str], chunks: Iterable[IbiscapeGroundTruth]) -> int:

@@ -9,9 +9,15 @@ from ibiscape_eval.core.trajectory import Trajectory
 
 from .detect import TRAJECTORY_FORMATS, detect_trajectory_format
 
-__all__ = ["WRITABLE_FORMATS", "read_trajectory", "write_trajectory"]
+__all__ = ["WRITABLE_FORMATS", "has_timestamps", "read_trajectory", "write_trajectory"]
 
 WRITABLE_FORMATS: tuple[str, ...] = ("tum", "kitti", "euroc", "ibiscape")
+
+
+def has_timestamps(fmt: str, times_path: str | os.PathLike[str] | None = None) -> bool:
+    """Whether :func:`read_trajectory` gives real timestamps for format ``fmt`` (not ``"auto"``):
+    False only for KITTI poses without a times file (stamped by index at 10 Hz)."""
+    return not (fmt.lower() == "kitti" and times_path is None)
 
 
 def read_trajectory(

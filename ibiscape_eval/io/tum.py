@@ -14,9 +14,9 @@ import numpy as np
 
 from ibiscape_eval.core.trajectory import Trajectory
 
-from ._atomic import atomic_write
 from ._poses import finish_trajectory
 from ._text import decimal_to_ns, map_bytes, parse_table, write_table
+from .atomic import atomic_write
 
 __all__ = ["NS_STAMP_THRESHOLD", "read_tum", "write_tum"]
 

@@ -12,9 +12,10 @@ Definitions follow evo (APE/RPE, Umeyama alignment) and the KITTI odometry devki
 
 from ._stats import ErrorStats
 from .alignment import Alignment, AlignmentResult, align
-from .association import Matched, associate, associate_by_index
+from .association import Matched, associate, associate_by_index, choose_match
 from .ate import AteResult, ate
 from .drift import KITTI_LENGTHS_M, DriftResult, drift
+from .gnss import gnss_in_reference_frame
 from .offset import estimate_time_offset
 from .rpe import RpeResult, rpe, select_pairs
 
@@ -31,8 +32,10 @@ __all__ = [
     "associate",
     "associate_by_index",
     "ate",
+    "choose_match",
     "drift",
     "estimate_time_offset",
+    "gnss_in_reference_frame",
     "rpe",
     "select_pairs",
 ]

@@ -11,6 +11,7 @@ import numpy.typing as npt
 
 from ibiscape_eval.core import IbiscapeError, Trajectory
 
+from . import _fast
 from ._fast import run_rows, take, trusted
 from .alignment import AlignmentResult
 from .association import Matched, associate, associate_by_index
@@ -89,7 +90,7 @@ def relative_errors(
     if i.shape != j.shape:
         raise IbiscapeError(f"got {i.shape[0]} first and {j.shape[0]} second pose indices")
     trans, rot = np.empty(i.shape[0]), np.empty(i.shape[0])
-    run_rows("relative_errors", i.shape[0],
+    run_rows(_fast.relative_errors, i.shape[0],
              (est.pos_m, est.quat_xyzw, ref.pos_m, ref.quat_xyzw, i, j), (trans, rot))
     return trans, rot
 
@@ -103,7 +104,7 @@ def aligned_errors(
         raise IbiscapeError(f"expected matched trajectories, got {len(est)} and {len(ref)} poses")
     n = len(est)
     pos, quat, trans, rot = np.empty((n, 3)), np.empty((n, 4)), np.empty(n), np.empty(n)
-    run_rows("aligned_errors", n,
+    run_rows(_fast.aligned_errors, n,
              (est.pos_m, est.quat_xyzw, ref.pos_m, ref.quat_xyzw, *al._coefficients()),
              (pos, quat, trans, rot))
     return trusted(est.stamps_ns, pos, quat, est.name), trans, rot

@@ -9,8 +9,10 @@ import numpy.typing as npt
 
 from ibiscape_eval.core import Trajectory
 from ibiscape_eval.core._cpus import usable_cpus as _cpus
+from ibiscape_eval.core.jit import LazyKernel, lazy_njit
 
-__all__ = ["take", "trusted"]
+__all__ = ["aligned_errors", "moments", "nearest", "relative_errors", "run_rows", "take",
+           "transform_poses", "trusted"]
 
 
 def trusted(
@@ -48,28 +50,15 @@ def take(traj: Trajectory, index: npt.ArrayLike) -> Trajectory:
 
 
 # -- fused kernels ------------------------------------------------------------------------------
-# Plain Python functions compiled by numba on first use (numba is heavy to import).  Each one
+# Plain Python functions compiled by numba on first use (:func:`ibiscape_eval.core.jit.lazy_njit`:
+# numba is heavy to import), importable and callable by name.  Each one
 # makes a single pass over the poses instead of a dozen full-size numpy temporaries, and uses
 # the same formulas, in the same order, as the batched operations of ``core.rotations``.
 
-_KERNELS: dict[str, Any] = {}
-
-
-def kernel(name: str) -> Any:
-    """The numba-compiled version of the function ``name`` of this module."""
-    fn = _KERNELS.get(name)
-    if fn is None:
-        from numba import njit
-
-        fn = njit(cache=True, nogil=True, error_model="numpy")(globals()[name])
-        _KERNELS[name] = fn
-    return fn
-
-
-def run_rows(name: str, n: int, inputs: tuple[Any, ...], outputs: tuple[Any, ...]) -> None:
-    """Call kernel ``name(*inputs, start, stop, *outputs)`` over rows ``0:n``; a large ``n`` is
+def run_rows(kernel: LazyKernel, n: int, inputs: tuple[Any, ...], outputs: tuple[Any, ...]) -> None:
+    """Call ``kernel(*inputs, start, stop, *outputs)`` over rows ``0:n``; a large ``n`` is
     cut in two halves run in two threads (the kernels release the GIL)."""
-    fn = kernel(name)
+    fn = kernel.compiled()
     if n < _SPLIT_ROWS or _cpus() < 2:
         fn(*inputs, 0, n, *outputs)
         return
@@ -87,6 +76,7 @@ def run_rows(name: str, n: int, inputs: tuple[Any, ...], outputs: tuple[Any, ...
 _SPLIT_ROWS = 200_000
 
 
+@lazy_njit(error_model="numpy")
 def aligned_errors(pos, quat, ref_pos, ref_quat, A, t, qa, start, stop, pos_out, quat_out,
                    trans, rot):
     """Rows ``start:stop``: apply ``p' = A p + t``, ``q' = qa * q`` (w >= 0) to the estimate
@@ -121,6 +111,7 @@ def aligned_errors(pos, quat, ref_pos, ref_quat, A, t, qa, start, stop, pos_out,
         rot[k] = 2.0 * np.arctan2(np.sqrt(ex * ex + ey * ey + ez * ez), abs(ew))
 
 
+@lazy_njit(error_model="numpy")
 def relative_errors(est_pos, est_quat, ref_pos, ref_quat, first, second, start, stop, trans,
                     rot):
     """Pairs ``start:stop``: translation and rotation angle (rad) of
@@ -169,6 +160,7 @@ def relative_errors(est_pos, est_quat, ref_pos, ref_quat, first, second, start, 
         rot[k] = 2.0 * np.arctan2(np.sqrt(ex * ex + ey * ey + ez * ez), abs(ew))
 
 
+@lazy_njit(error_model="numpy")
 def transform_poses(pos, quat, A, t, qa):
     """``p' = A p + t`` and ``q' = qa * q`` with w >= 0, row by row."""
     n = pos.shape[0]
@@ -191,6 +183,7 @@ def transform_poses(pos, quat, A, t, qa):
     return pos_out, quat_out
 
 
+@lazy_njit(error_model="numpy")
 def moments(x, y):
     """Means, centred scatter matrices ``X^T X``, ``Y^T Y``, ``Y^T X`` and the largest absolute
     coordinate of two point sets ``(N, 3)``.
@@ -267,6 +260,7 @@ def moments(x, y):
     return mx, my, sxx, syy, syx, big_x, big_y
 
 
+@lazy_njit(error_model="numpy")
 def nearest(short, long_, max_diff):
     """For each stamp of the sorted ``short``, the nearest stamp of the sorted ``long_`` (the
     lower one on a tie), kept when within ``max_diff``: (short rows, long rows, |difference|).

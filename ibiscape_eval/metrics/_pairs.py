@@ -10,18 +10,16 @@ closest to ``delta`` (first one on ties), found by binary search and kept when w
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 import numpy.typing as npt
+
+from ibiscape_eval.core.jit import lazy_njit
 
 IntArray = npt.NDArray[np.intp]
 FloatArray = npt.NDArray[np.float64]
 
-_scan_impl: Any = None
-
-
-def _greedy_scan_py(steps: FloatArray, delta: float) -> npt.NDArray[np.int64]:  # pragma: no cover
+@lazy_njit()
+def greedy_scan_kernel(steps: FloatArray, delta: float) -> npt.NDArray[np.int64]:  # pragma: no cover
     out = np.empty(steps.shape[0] + 1, dtype=np.int64)
     out[0] = 0
     m = 1
@@ -41,12 +39,7 @@ def _greedy_scan(steps: FloatArray, delta: float) -> npt.NDArray[np.int64]:
     The running sum restarts from 0.0 at each chosen index and adds the per-step values in
     order, exactly like evo's filters, so the chosen poses agree bit for bit.
     """
-    global _scan_impl
-    if _scan_impl is None:
-        from numba import njit
-
-        _scan_impl = njit(cache=True)(_greedy_scan_py)
-    result: npt.NDArray[np.int64] = _scan_impl(np.ascontiguousarray(steps, dtype=np.float64),
+    result: npt.NDArray[np.int64] = greedy_scan_kernel(np.ascontiguousarray(steps, dtype=np.float64),
                                                float(delta))
     return result
 

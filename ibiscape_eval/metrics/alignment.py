@@ -15,7 +15,7 @@ from ibiscape_eval.core import DegenerateInputError, IbiscapeError, IbiscapeWarn
 from ibiscape_eval.core.rotations import quat_from_matrix
 from ibiscape_eval.core.transforms import invert_transforms
 
-from ._fast import kernel, trusted
+from ._fast import moments, transform_poses, trusted
 
 __all__ = ["Alignment", "AlignmentResult", "align", "parse_alignment"]
 
@@ -85,7 +85,7 @@ class AlignmentResult:
         """A new trajectory with ``p' = s R p + t`` and ``q' = q_R * q`` (stamps unchanged)."""
         if self.scale == 1.0 and np.array_equal(self.transform, _EYE4):
             return trusted(traj.stamps_ns, traj.pos_m, traj.quat_xyzw, traj.name)
-        pos, quat = kernel("transform_poses")(traj.pos_m, traj.quat_xyzw, *self._coefficients())
+        pos, quat = transform_poses(traj.pos_m, traj.quat_xyzw, *self._coefficients())
         return trusted(traj.stamps_ns, pos, quat, traj.name)
 
     def _coefficients(self) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -122,7 +122,7 @@ class _Moments(NamedTuple):
 
 
 def _moments(x: FloatArray, y: FloatArray) -> _Moments:
-    mx, my, sxx, syy, syx, big_x, big_y = kernel("moments")(x, y)
+    mx, my, sxx, syy, syx, big_x, big_y = moments(x, y)
     return _Moments(x.shape[0], mx, my, sxx, syy, syx, float(big_x), float(big_y))
 
 

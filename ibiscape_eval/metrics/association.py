@@ -11,12 +11,20 @@ import numpy.typing as npt
 from ibiscape_eval.core import DegenerateInputError, IbiscapeError, Trajectory
 from ibiscape_eval.core.rotations import quat_slerp
 
-from ._fast import kernel, take, trusted
+from ._fast import nearest, take, trusted
 
-__all__ = ["MIN_MATCHES", "Matched", "associate", "associate_by_index"]
+__all__ = ["MIN_MATCHES", "Matched", "associate", "associate_by_index", "choose_match"]
 
 #: Fewest matched poses any metric accepts.
 MIN_MATCHES = 3
+
+
+def choose_match(est_timed: bool, ref_timed: bool) -> str:
+    """The ``match`` mode of the metrics for two trajectories: ``"time"`` when both carry real
+    timestamps, else ``"index"`` (e.g. KITTI poses without a times file, which
+    :func:`ibiscape_eval.io.read_trajectory` stamps by index; see
+    :func:`ibiscape_eval.io.has_timestamps`)."""
+    return "time" if est_timed and ref_timed else "index"
 
 _HINT = "try a larger --max-diff-s, an --offset-s or --estimate-offset"
 
@@ -74,7 +82,7 @@ def _nearest(
     ``matching_time_indices``.  Returns (short indices, long indices, |difference| ns).
     """
     limit = np.int64(min(max_diff_ns, np.iinfo(np.int64).max))
-    rows_s, rows_l, diff = kernel("nearest")(short_ns, long_ns, limit)
+    rows_s, rows_l, diff = nearest(short_ns, long_ns, limit)
     return rows_s, rows_l, diff
 
 

@@ -1,6 +1,8 @@
-"""Figures for trajectory metrics (matplotlib, Agg backend: no display needed).
+"""Figures for trajectory metrics and IMU noise.
 
-Every function writes one PNG/PDF/SVG atomically and returns nothing; matplotlib is imported inside.
+Every ``plot_*`` function draws on its own :class:`matplotlib.figure.Figure` (never pyplot's global
+state, never ``matplotlib.use``: a notebook's backend and open figures are left alone), writes one
+PNG/PDF/SVG atomically and returns nothing; matplotlib is imported inside.
 """
 
 from __future__ import annotations
@@ -11,7 +13,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from ibiscape_eval.io._atomic import atomic_output_path
+from ibiscape_eval.io.atomic import atomic_output_path
 
 if TYPE_CHECKING:
     from ibiscape_eval.core.trajectory import Trajectory
@@ -19,19 +21,16 @@ if TYPE_CHECKING:
 __all__ = ["plot_allan", "plot_drift", "plot_trajectory_errors"]
 
 
-def _pyplot() -> Any:
-    import matplotlib
+def _figure(**kw: Any) -> Any:
+    """A figure that belongs to no pyplot window (garbage-collected like any object)."""
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
+    return Figure(**kw)
 
 
 def _save(fig: Any, path: str | os.PathLike[str]) -> None:
     with atomic_output_path(path) as tmp:
         fig.savefig(tmp, dpi=120, bbox_inches="tight")
-    _pyplot().close(fig)
 
 
 def plot_trajectory_errors(
@@ -60,8 +59,8 @@ def plot_trajectory_errors(
     distance_m : ndarray, shape (M,), optional
         Distance travelled along the reference at each error sample (second x axis).
     """
-    plt = _pyplot()
-    fig, axes = plt.subplots(2, 2, figsize=(12, 9))
+    fig = _figure(figsize=(12, 9))
+    axes = fig.subplots(2, 2)
     ax = axes[0, 0]
     ax.plot(ref.pos_m[:, 0], ref.pos_m[:, 1], "k-", lw=1.2, label=f"reference ({ref.name})")
     ax.plot(
@@ -121,9 +120,9 @@ def plot_trajectory_errors(
 
 def plot_drift(path: str | os.PathLike[str], doc: dict[str, Any], *, title: str) -> None:
     """Bar charts of KITTI drift per segment length: translation [%] and rotation [deg/m]."""
-    plt = _pyplot()
     lengths = np.asarray(doc["lengths_m"], dtype=float)
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    fig = _figure(figsize=(11, 4))
+    axes = fig.subplots(1, 2)
     labels = [f"{v:.0f}" for v in lengths]
     axes[0].bar(labels, np.asarray(doc["translation_pct"], dtype=float), color="tab:red")
     means = (doc["mean_translation_pct"], doc["mean_rotation_deg_per_m"])
@@ -155,9 +154,8 @@ def plot_allan(path: str | os.PathLike[str], res: Any, model: Any, *, title: str
 
     from ibiscape_eval.imu import BIAS_INSTABILITY_FACTOR
 
-    plt = _pyplot()
-
-    fig, axs = plt.subplots(1, 2, figsize=(12, 5), constrained_layout=True)
+    fig = _figure(figsize=(12, 5), constrained_layout=True)
+    axs = fig.subplots(1, 2)
     t = res.taus_s
     for g, (ax, unit) in enumerate(zip(axs, ("rad/s", "m/s^2"), strict=True)):
         for j in range(3 * g, min(3 * g + 3, len(res.names))):

@@ -61,7 +61,7 @@ def test_atomic_outputs_get_umask_permissions(tmp_path) -> None:
     """mkstemp creates 0600 files; published outputs must be readable like any other file."""
     import os
 
-    from ibiscape_eval.io._atomic import atomic_output_path, atomic_write
+    from ibiscape_eval.io.atomic import atomic_output_path, atomic_write
 
     old = os.umask(0o022)
     try:

@@ -187,3 +187,19 @@ def test_bad_arguments_are_refused():
         detect_hot_pixels(np.zeros(3, np.uint16), np.zeros(3, np.uint16), sensor_size=(0, 5))
     with pytest.raises(IbiscapeError, match="top_n"):
         detect_hot_pixels(np.zeros(3, np.uint16), np.zeros(3, np.uint16), sensor_size=SIZE, top_n=-1)
+
+
+def test_result_to_dict_is_strict_json() -> None:
+    import json
+
+    from ibiscape_eval.events import detect_hot_pixels, synthetic_events
+
+    s = synthetic_events(sensor_size=(64, 48), duration_s=0.2, n_hot=4, seed=3)
+    for kw in ({"top_n": 4}, {"n_sigma": 5.0}):
+        res = detect_hot_pixels(s.events.x, s.events.y, sensor_size=(64, 48), **kw)
+        doc = json.loads(json.dumps(res.to_dict(), allow_nan=False))
+        assert doc["n_hot_pixels"] == len(doc["hot_pixels"]) == len(res.pixels)
+        assert doc["n_events"] == len(s.events) and doc["sensor_size"] == [64, 48]
+        assert sum(p["count"] for p in doc["hot_pixels"]) == doc["n_discarded"]
+        assert (doc["criteria"]["threshold"] is None) == ("n_sigma" not in kw)
+        assert "hot pixels" in repr(res)

@@ -8,11 +8,10 @@ import allantools
 import numpy as np
 import pytest
 from allantools import ci as at_ci
+from shared_data import require_shared
 
 from ibiscape_eval.core.errors import DegenerateInputError, IbiscapeError, IbiscapeWarning
 from ibiscape_eval.imu import allan_deviation, edf_white_fm
-
-REAL = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "trajectories" / "V102_groundtruth.csv"
 
 
 def _ref(y: np.ndarray, rate: float, taus: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -37,9 +36,8 @@ def test_equals_allantools_on_random_data() -> None:
 
 
 def test_equals_allantools_on_real_data() -> None:
-    if not REAL.exists():
-        pytest.skip(f"real data folder missing: {REAL}")
-    v = np.loadtxt(REAL, delimiter=",", skiprows=1, usecols=(8, 9, 10))  # EuRoC velocities, 200 Hz
+    real = require_shared("trajectories", "V102_groundtruth.csv")  # fails under CI=true if missing
+    v = np.loadtxt(real, delimiter=",", skiprows=1, usecols=(8, 9, 10))  # EuRoC velocities, 200 Hz
     res = allan_deviation(v, 200.0, names=["v_x", "v_y", "v_z"])
     for j in range(3):
         _, ad, _ = _ref(v[:, j], 200.0, res.taus_s)

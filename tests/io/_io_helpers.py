@@ -5,19 +5,15 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import pytest
 from hypothesis import strategies as st
+from shared_data import require_shared
 
 from ibiscape_eval.core.trajectory import Trajectory
 
-DATA = Path(__file__).resolve().parents[2] / ".." / "shared" / "data" / "trajectories"
-DATA = DATA.resolve() if DATA.exists() else Path("/work/shared/data/trajectories")
-
 
 def require_data() -> Path:
-    if not DATA.exists():
-        pytest.skip(f"real data folder {DATA} is missing")
-    return DATA
+    """The shared real trajectories (skip when missing, fail under CI=true)."""
+    return require_shared("trajectories")
 
 
 @st.composite

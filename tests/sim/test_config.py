@@ -132,3 +132,18 @@ def test_concentric_rgbd_pair_is_allowed_and_bad_presets_refused() -> None:
         preset("svi", duration_s=-1.0)
     with pytest.raises(IbiscapeError, match="accident needs kind slam"):
         preset("svi", "calibration", scenario="accident")
+
+
+@pytest.mark.parametrize(("text", "line"), [
+    ("setup: svi\nduraton_s: 3\n", 2),
+    ("seed: 1\ncameras:\n  rgbL:\n    fov: 3\n", 4),
+    ("seed: 1\n\nimus: {imu0: {rate_hz: x}}\n", 3),
+])
+def test_bad_config_names_the_line(tmp_path: Path, text: str, line: int) -> None:
+    from ibiscape_eval.core.errors import FormatError
+
+    p = tmp_path / "bad.yaml"
+    p.write_text(text)
+    with pytest.raises(FormatError) as ei:
+        load_config(p)
+    assert ei.value.line == line and str(p) in str(ei.value)

@@ -1,4 +1,5 @@
-"""Express GNSS fixes in a reference trajectory's world frame, for overlays on plots."""
+"""Express GNSS fixes in a reference trajectory's world frame (association + 4-DoF alignment),
+e.g. for overlays on plots (maths lives here, not in ``report``)."""
 
 from __future__ import annotations
 
@@ -8,6 +9,9 @@ import numpy.typing as npt
 from ibiscape_eval.core.errors import DegenerateInputError
 from ibiscape_eval.core.geodesy import enu_from_geodetic
 from ibiscape_eval.core.trajectory import Trajectory
+
+from .alignment import align
+from .association import associate
 
 __all__ = ["gnss_in_reference_frame"]
 
@@ -28,8 +32,6 @@ def gnss_in_reference_frame(
     translation) alignment, since a GNSS frame and a SLAM world frame share the gravity axis but
     not the heading.  Raises :class:`DegenerateInputError` when fewer than 3 fixes match.
     """
-    from ibiscape_eval.metrics import align, associate
-
     enu = enu_from_geodetic(
         lat_deg, lon_deg, alt_m, float(lat_deg[0]), float(lon_deg[0]), float(alt_m[0])
     )

@@ -2,7 +2,13 @@
 rename it into place.
 
 A reader never sees a half-written output, and a failure (bad input found late, Ctrl-C, disk
-full) leaves nothing behind.  Every writer of the project goes through these functions.
+full) leaves nothing behind.  Every writer of the project goes through these functions (this
+module is public: ``cli``, ``report`` and ``sim`` use it too).
+
+Files made by ``mkstemp`` (0600) get the permissions an ordinary ``open`` would have given them.
+The process' umask is read without changing it (``/proc/self/status`` on Linux; elsewhere the
+value seen once at import), because ``os.umask`` sets and restores a process-wide value, which
+races with the library's own writer threads.
 """
 
 from __future__ import annotations
@@ -21,6 +27,7 @@ __all__ = [
     "atomic_output_dir",
     "atomic_output_path",
     "atomic_write",
+    "current_umask",
     "discard",
     "publish",
     "publish_permissions",
@@ -28,16 +35,39 @@ __all__ = [
 ]
 
 
-def _umask() -> int:
-    mask = os.umask(0)
+def _umask_from_proc() -> int | None:
+    """The umask from ``/proc/self/status`` (Linux >= 4.7), or None where that file lacks it."""
+    try:
+        with open("/proc/self/status", encoding="ascii", errors="replace") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        return None
+    return None
+
+
+def _umask_at_import() -> int:
+    # No /proc: read once, while the module is imported (before any writer thread runs).
+    mask = os.umask(0o022)
     os.umask(mask)
     return mask
+
+
+_proc_mask = _umask_from_proc()
+_IMPORT_UMASK: int = _umask_at_import() if _proc_mask is None else _proc_mask
+
+
+def current_umask() -> int:
+    """The process' file-creation mask, read without changing it."""
+    mask = _umask_from_proc()
+    return _IMPORT_UMASK if mask is None else mask
 
 
 def publish_permissions(path: str | os.PathLike[str], *, folder: bool = False) -> None:
     """Give a file made by ``mkstemp`` (mode 0600) or a folder made by ``mkdtemp`` (0700) the
     permissions an ordinary ``open``/``mkdir`` would have had under the current umask."""
-    os.chmod(path, (0o777 if folder else 0o666) & ~_umask())
+    os.chmod(path, (0o777 if folder else 0o666) & ~current_umask())
 
 
 def staging_path(target: str | os.PathLike[str], *, folder: bool = False) -> Path:

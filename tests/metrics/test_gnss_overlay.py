@@ -11,7 +11,7 @@ from click.testing import CliRunner
 from ibiscape_eval.cli.main import cli
 from ibiscape_eval.io import read_gnss, read_trajectory
 from ibiscape_eval.metrics import associate
-from ibiscape_eval.report.gnss import gnss_in_reference_frame
+from ibiscape_eval.metrics.gnss import gnss_in_reference_frame
 from ibiscape_eval.sim import generate, preset
 
 

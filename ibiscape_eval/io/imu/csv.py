@@ -1,0 +1,220 @@
+"""EuRoC/IBISCape IMU csv files (and generic CSV with a column mapping): reading and writing."""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ibiscape_eval.core.errors import FormatError, IbiscapeError
+from ibiscape_eval.core.imu import AXES, CHUNK_ROWS, ImuRecord
+
+from .._text import write_table
+from ..atomic import atomic_write
+from .frames import check_imu_frame, mirror_ibiscape_imu
+from .npy import NpyRows, NpyStreamWriter
+from .timing import TimingAccumulator, finish_record, no_stamp_timing
+
+__all__ = ["IMU_CSV_HEADER", "read_imu_csv", "resolve_columns", "write_imu_csv",
+           "write_imu_csv_chunks"]
+
+#: The one header line of every IMU csv the project writes (EuRoC's, gyro first).
+IMU_CSV_HEADER = ("#timestamp [ns],w_x [rad s^-1],w_y [rad s^-1],w_z [rad s^-1],"
+                  "a_x [m s^-2],a_y [m s^-2],a_z [m s^-2]")
+
+
+def _header_lines(p: Path) -> tuple[int, list[str] | None]:
+    """Count leading lines that are not numeric rows; return the last one split as names."""
+    names = None
+    n = 0
+    with open(p, encoding="utf-8", errors="replace") as fh:
+        for line in fh:
+            s = line.strip()
+            if not s:
+                n += 1
+                continue
+            first = s.split(",")[0].strip()
+            try:
+                float(first)
+                break
+            except ValueError:
+                names = [c.strip().lstrip("#").strip() for c in s.split(",")]
+                n += 1
+            if n > 50:
+                break
+    return n, names
+
+
+def _diagnose(p: Path, start_line: int, n_fields: int) -> FormatError:
+    """Find the first bad line at or after ``start_line`` (1-based) of a CSV."""
+    with open(p, encoding="utf-8", errors="replace") as fh:
+        for i, line in enumerate(fh, start=1):
+            if i < start_line or not line.strip():
+                continue
+            parts = line.rstrip("\r\n").split(",")
+            if parts and not parts[-1].strip() and len(parts) == n_fields + 1:
+                parts = parts[:-1]  # trailing comma
+            if len(parts) != n_fields:
+                return FormatError(p, f"expected {n_fields} comma-separated columns, got "
+                                   f"{len(parts)}; fix or delete this row", line=i)
+            for j, v in enumerate(parts):
+                try:
+                    x = float(v)
+                except ValueError:
+                    return FormatError(p, f"column {j + 1} is not a number ({v.strip()[:30]!r}); "
+                                       "fix or delete this row", line=i)
+                if not math.isfinite(x):
+                    return FormatError(p, f"column {j + 1} is not finite ({v.strip()!r})", line=i)
+    return FormatError(p, "unreadable CSV row; check the delimiter (comma expected)", line=start_line)
+
+
+def resolve_columns(cols: Mapping[str, str | int], names: list[str] | None, n_fields: int,
+             p: Path) -> tuple[int | None, bool, list[int]]:
+    """Indices of (time column, time-in-seconds?, six axis columns)."""
+    if not cols:
+        if n_fields < 7:
+            raise FormatError(p, f"expected 7 columns (timestamp ns, w_x w_y w_z rad/s, a_x a_y a_z "
+                              f"m/s^2), got {n_fields}; give --columns for another layout", line=None)
+        return 0, False, list(range(1, 7))
+
+    def idx(v: str | int) -> int:
+        if isinstance(v, int):
+            if not 0 <= v < n_fields:
+                raise FormatError(p, f"--columns index {v} is outside the file's {n_fields} columns")
+            return v
+        if names is None or v not in names:
+            raise FormatError(p, f"--columns names {v!r}, which is not in the header "
+                              f"({', '.join(names or [])})")
+        return names.index(v)
+
+    t_key = "t" if "t" in cols else ("t_s" if "t_s" in cols else None)
+    t = idx(cols[t_key]) if t_key else None
+    return t, t_key == "t_s", [idx(cols[a]) for a in AXES]
+
+
+def read_imu_csv(p: Path, cols: Mapping[str, str | int], spill_bytes: int,
+              rate_hz: float | None, *, signs: np.ndarray | None = None) -> ImuRecord:
+    import pandas as pd
+
+    skip, names = _header_lines(p)
+    with open(p, encoding="utf-8", errors="replace") as fh:
+        for i, line in enumerate(fh):
+            if i == skip:
+                first_row = line
+                break
+        else:
+            raise FormatError(p, "no data rows; an Allan deviation needs thousands of samples")
+    n_fields = len(first_row.rstrip("\r\n").rstrip().rstrip(",").split(","))
+    t_col, t_in_s, axis_cols = resolve_columns(cols, names, n_fields, p)
+    if t_col is None:
+        timing_acc = None
+    else:
+        timing_acc = TimingAccumulator(str(p), first_line=skip + 1)
+    spill = p.stat().st_size > spill_bytes
+    keep: tempfile.TemporaryDirectory[str] | None = None
+    parts: list[np.ndarray] = []
+    writer = None
+    if spill:
+        keep = tempfile.TemporaryDirectory(prefix="ibiscape-imu-")
+        spill_path = os.path.join(keep.name, "imu.npy")
+        writer = NpyStreamWriter(spill_path, 6)
+    n = 0
+    try:
+        # integer ns stamps are parsed exactly (float64 would round 1.4e18 ns to 256 ns)
+        fields = first_row.split(",")
+        int_time = t_col is not None and not t_in_s and fields[t_col].strip().isdigit()
+        dtypes: dict[int, Any] = {i: np.float64 for i in range(n_fields)}
+        if int_time:
+            dtypes[t_col] = np.int64  # type: ignore[index]
+        reader = pd.read_csv(p, header=None, skiprows=skip, dtype=dtypes, engine="c",
+                             chunksize=CHUNK_ROWS, skip_blank_lines=True)
+        while True:
+            try:
+                chunk = next(reader)
+            except StopIteration:
+                break
+            except (ValueError, pd.errors.ParserError):
+                raise _diagnose(p, skip + 1 + n, n_fields) from None
+            if chunk.shape[1] != n_fields:
+                raise _diagnose(p, skip + 1 + n, n_fields)
+            arr = chunk.to_numpy(dtype=np.float64)
+            if not np.isfinite(arr).all():
+                raise _diagnose(p, skip + 1 + n, n_fields)
+            if timing_acc is not None:
+                tcol = np.asarray(chunk.iloc[:, t_col])  # type: ignore[index]
+                timing_acc.add(np.round(tcol * 1e9) if t_in_s else tcol)
+            data = arr[:, axis_cols]
+            if signs is not None:
+                data = data * signs
+            if writer is not None:
+                writer.write(data)
+            else:
+                parts.append(np.ascontiguousarray(data))
+            n += arr.shape[0]
+    except BaseException:
+        if writer is not None:
+            writer.close()
+        if keep is not None:
+            keep.cleanup()
+        raise
+    timing = timing_acc.result() if timing_acc is not None else no_stamp_timing(str(p), rate_hz, "the CSV")
+    if writer is not None:
+        writer.close()
+        assert keep is not None
+        return finish_record(str(p), None, n, timing, rate_hz,
+                             _source=NpyRows(writer.path, keep=keep))
+    samples = np.concatenate(parts, axis=0) if parts else np.zeros((0, 6))
+    return finish_record(str(p), samples, n, timing, rate_hz)
+
+
+def write_imu_csv(path: str | os.PathLike[str], stamps_ns: npt.ArrayLike, gyro_rad_s: npt.ArrayLike,
+                  accel_m_s2: npt.ArrayLike, *, frame: str = "right-handed") -> None:
+    """Write the EuRoC/IBISCape IMU csv (gyro first), atomically: :func:`write_imu_csv_chunks`
+    with one chunk.
+
+    Parameters
+    ----------
+    stamps_ns : ndarray of int64, shape (N,)
+    gyro_rad_s, accel_m_s2 : ndarray, shape (N, 3)
+        Samples in OUR right-handed frame, rad/s and m/s^2.
+    frame : {"right-handed", "ibiscape"}
+        ``"ibiscape"`` writes CARLA's left-handed frame like the real dataset (``w_x, w_z, a_y``
+        negated; :func:`read_imu` with ``fmt="ibiscape"`` converts back).
+    """
+    t = np.asarray(stamps_ns, dtype=np.int64)
+    g = np.asarray(gyro_rad_s, dtype=np.float64)
+    a = np.asarray(accel_m_s2, dtype=np.float64)
+    if t.ndim != 1 or g.shape != (t.size, 3) or a.shape != (t.size, 3):
+        raise IbiscapeError(f"expected (N,) stamps and (N, 3) gyro/accel, got {t.shape}, {g.shape}, {a.shape}")
+    write_imu_csv_chunks(path, [(t, g, a)], frame=frame)
+
+
+def write_imu_csv_chunks(path: str | os.PathLike[str],
+                         chunks: Iterable[tuple[npt.ArrayLike, npt.ArrayLike, npt.ArrayLike]], *,
+                         frame: str = "right-handed") -> int:
+    """Stream ``(stamps_ns, gyro_rad_s (n, 3), accel_m_s2 (n, 3))`` chunks into one IMU csv
+    (IBISCape/EuRoC layout, gyro first, 15 significant digits, rows ending in a space),
+    atomically.  Returns the rows.
+
+    The chunks hold OUR right-handed frame.  ``frame="ibiscape"`` writes CARLA's left-handed
+    frame like the real dataset (``w_x, w_z, a_y`` negated, see :mod:`ibiscape_eval.io.imu`);
+    ``read_imu`` converts back (by itself inside a sequence folder).
+    """
+    mirror = check_imu_frame(frame)
+    rows = 0
+    with atomic_write(path, "wb") as f:
+        f.write((IMU_CSV_HEADER + "\n").encode())
+        for st, g, a in chunks:
+            if mirror:
+                g, a = mirror_ibiscape_imu(g, a)
+            vals = np.concatenate((np.asarray(g, dtype=np.float64), np.asarray(a, dtype=np.float64)),
+                                  axis=1)
+            write_table(f, np.asarray(st, dtype=np.int64), vals, stamp="ns", sep=",", row_end=" \n")
+            rows += vals.shape[0]
+    return rows
