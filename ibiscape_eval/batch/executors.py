@@ -123,7 +123,7 @@ class DaskExecutor:
     Connecting fails fast (``timeout_s``) with :class:`IbiscapeError` naming the address.
     """
 
-    def __init__(self, address: str, *, timeout_s: float = 10.0):
+    def __init__(self, address: str, *, timeout_s: float = 5.0):
         try:
             from distributed import Client
         except ImportError:
@@ -148,7 +148,7 @@ class DaskExecutor:
 
         futures = {self.client.submit(run_job, job, key=f"ibiscape-{i}-{job.key}", pure=False): job
                    for i, job in enumerate(jobs)}
-        for fut in as_completed(list(futures)):
+        for fut in as_completed(list(futures), loop=self.client.loop):
             job = futures[fut]
             try:
                 yield fut.result()
