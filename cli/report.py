@@ -148,6 +148,8 @@ def report(
     s = evaluation.summary
     info(f"{s['n_ok']} runs evaluated ({s['n_cached']} from the cache), {s['n_failed']} failed")
     for r in evaluation.runs:
+        for w in r.get("warnings") or ():
+            info(f"warning: run {r['sequence']}/{r['algorithm']}/{r['trial']}: {w}")
         if r["status"] != "ok":
             info(f"warning: run {r['sequence']}/{r['algorithm']}/{r['trial']} failed: "
                  f"{r['error']}")

@@ -19,7 +19,8 @@ from ibiscape_eval.cli.main import cli
 
 ROOT = Path(__file__).resolve().parents[1]
 # subcommand -> how many leading positional arguments are inputs that must exist
-INPUTS = {"ate": 2, "rpe": 2, "drift": 2, "convert": 1, "allan": 1, "hotpix": 1, "frames": 1, "sim": 0}
+INPUTS = {"ate": 2, "rpe": 2, "drift": 2, "convert": 1, "allan": 1, "hotpix": 1, "frames": 1, "sim": 0,
+          "report": 1}
 
 
 def readme_commands() -> list[list[str]]:
@@ -62,6 +63,14 @@ def make_demo_output(root: Path) -> None:
     write_imu_csv(imu_csv, np.arange(n, dtype=np.int64) * 50_000_000, s[:, :3], s[:, 3:])
     ev = synthetic_events(sensor_size=(128, 96), duration_s=0.5, n_hot=40, seed=2)
     write_events(out / "davisL", ev.events, fmt="ibiscape")
+    # the runs folder of `make demo` step 5 (real data and synthetic trials; no simulation here)
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("report_runs", ROOT / "examples" / "report_runs.py")
+    assert spec is not None and spec.loader is not None
+    report_runs = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(report_runs)
+    report_runs.make_runs_folder(out / "runs")
 
 
 def test_readme_commands_run(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

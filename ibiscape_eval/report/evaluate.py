@@ -8,6 +8,7 @@ local pool, a Dask worker); :func:`evaluate_runs` builds one job per run, runs t
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -16,7 +17,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ibiscape_eval.batch import ContentCache, Executor, Job, Progress, run_jobs
-from ibiscape_eval.core.errors import IbiscapeError
+from ibiscape_eval.core.errors import IbiscapeError, IbiscapeWarning
 
 from .runs import RunsLayout, RunSpec
 
@@ -107,7 +108,7 @@ def evaluate_run(
     Returns
     -------
     dict
-        ``n_matched``, ``ate`` and ``rpe`` (the ``ate``/``rpe`` commands' JSON), ``drift`` (its
+        ``format`` (of ``est``), ``warnings`` (of the readers), ``n_matched``, ``ate`` and ``rpe`` (the ``ate``/``rpe`` commands' JSON), ``drift`` (its
         averages, or None with ``drift_error`` when no segment fits), ``track_xyz_m`` (at most
         400 aligned estimate positions, for figures) and ``box`` (box-plot statistics of the
         per-pose ATE and per-pair RPE errors).
@@ -117,8 +118,12 @@ def evaluate_run(
 
     o = EvaluationOptions(**{**options, "drift_lengths_pct": tuple(options["drift_lengths_pct"])})
     fmt_est = detect_trajectory_format(est)
-    est_t = read_trajectory(est, fmt_est, times_path=times_est)
-    ref_t = read_trajectory(ref)
+    # Reader warnings (rows skipped, duplicate stamps) travel with the result, so they reach the
+    # user from a pool or cluster worker too.
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", IbiscapeWarning)
+        est_t = read_trajectory(est, fmt_est, times_path=times_est)
+        ref_t = read_trajectory(ref)
     match = "index" if fmt_est == "kitti" and times_est is None else "time"
     common: dict[str, Any] = {"align": o.align, "max_diff_s": o.max_diff_s, "match": match}
     a = ate(est_t, ref_t, **common)
@@ -126,6 +131,8 @@ def evaluate_run(
             **common)
     doc: dict[str, Any] = {
         "format": fmt_est,
+        "warnings": [" ".join(str(w.message).split()) for w in caught
+                     if issubclass(w.category, IbiscapeWarning)],
         "n_matched": int(a.n_matched),
         "ate": a.to_dict(),
         "rpe": r.to_dict(),
