@@ -72,6 +72,7 @@ def sequence_figures(evaluation: RunsEvaluation) -> list[tuple[str, str, bytes]]
     from ibiscape_eval.io import read_gnss, read_trajectory
 
     from .figures import (
+        algorithm_colors,
         error_boxplot_figure,
         figure_png,
         representative_runs,
@@ -80,6 +81,7 @@ def sequence_figures(evaluation: RunsEvaluation) -> list[tuple[str, str, bytes]]
     from .gnss import gnss_in_reference_frame
 
     reps = representative_runs(evaluation.runs)
+    colors = algorithm_colors(evaluation.layout.algorithms)
     out = []
     for seq in evaluation.layout.sequences:
         truth = evaluation.layout.truths[seq]
@@ -99,14 +101,14 @@ def sequence_figures(evaluation: RunsEvaluation) -> list[tuple[str, str, bytes]]
                 warnings.warn(f"{truth.gnss}: GNSS left out of the figure of {seq}: {e}",
                               IbiscapeWarning, stacklevel=2)
         fig = sequence_trajectories_figure(seq, gt.pos_m, tracks, gnss_xyz_m=gnss,
-                                           align=evaluation.options.align)
+                                           align=evaluation.options.align, colors=colors)
         out.append((f"trajectories_{_safe_name(seq)}.png",
                     f"{seq}: ground truth{', GNSS' if gnss is not None else ''} and the aligned "
                     "estimate of each algorithm (median-ATE trial)", figure_png(fig)))
     if reps:
         out.append(("errors_boxplot.png", "ATE and RPE error distributions per sequence and "
                     "algorithm (median-ATE trial)", figure_png(error_boxplot_figure(
-                        evaluation.runs))))
+                        evaluation.runs, colors=colors))))
     return out
 
 

@@ -26,6 +26,7 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
 __all__ = [
+    "algorithm_colors",
     "error_boxplot_figure",
     "figure_png",
     "representative_runs",
@@ -35,11 +36,12 @@ __all__ = [
 _BOX_KEYS = {"ate_m": "ate_m", "rpe_m": "rpe_m", "rpe_deg": "rpe_deg"}
 
 
-def _colors(n: int) -> list[Any]:
+def algorithm_colors(algorithms: Sequence[str]) -> dict[str, Any]:
+    """One colour per algorithm, the same in every figure of a report."""
     from matplotlib import colormaps
 
-    cmap = colormaps["tab10" if n <= 10 else "tab20"]
-    return [cmap(i % cmap.N) for i in range(n)]
+    cmap = colormaps["tab10" if len(algorithms) <= 10 else "tab20"]
+    return {a: cmap(i % cmap.N) for i, a in enumerate(algorithms)}
 
 
 def representative_runs(runs: Sequence[dict[str, Any]]) -> dict[tuple[str, str], dict[str, Any]]:
@@ -72,6 +74,7 @@ def sequence_trajectories_figure(
     *,
     gnss_xyz_m: npt.NDArray[np.float64] | None = None,
     align: str = "se3",
+    colors: dict[str, Any] | None = None,
 ) -> Figure:
     """Top view (x, y) of one sequence.
 
@@ -87,6 +90,8 @@ def sequence_trajectories_figure(
         GNSS fixes in the ground truth's frame.
     align : str
         The alignment used (for the title).
+    colors : dict, optional
+        Algorithm -> matplotlib colour (default: :func:`algorithm_colors` of ``tracks``).
     """
     fig = _new_figure(6.4, 5.2)
     ax = fig.add_subplot()
@@ -95,9 +100,10 @@ def sequence_trajectories_figure(
     if gnss_xyz_m is not None and len(gnss_xyz_m):
         g = np.asarray(gnss_xyz_m)
         ax.scatter(g[:, 0], g[:, 1], s=9, color="0.45", marker="x", label="GNSS", zorder=2)
-    for color, (alg, xyz) in zip(_colors(len(tracks)), tracks.items(), strict=True):
+    colors = colors or algorithm_colors(list(tracks))
+    for alg, xyz in tracks.items():
         p = np.asarray(xyz, dtype=np.float64).reshape(-1, 3)
-        ax.plot(p[:, 0], p[:, 1], color=color, lw=1.2, label=alg, zorder=4)
+        ax.plot(p[:, 0], p[:, 1], color=colors[alg], lw=1.2, label=alg, zorder=4)
     ax.plot(gt[:1, 0], gt[:1, 1], "o", color="black", ms=5, zorder=5)
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x [m]")
@@ -108,18 +114,22 @@ def sequence_trajectories_figure(
     return fig
 
 
-def error_boxplot_figure(runs: Sequence[dict[str, Any]]) -> Figure:
+def error_boxplot_figure(
+    runs: Sequence[dict[str, Any]], *, colors: dict[str, Any] | None = None
+) -> Figure:
     """Box plots of ATE [m], RPE [m] and RPE [deg] per sequence and algorithm (representative
-    trials; whiskers at 1.5 IQR, no outliers drawn)."""
+    trials; whiskers at 1.5 IQR, no outliers drawn); ``colors`` as in
+    :func:`sequence_trajectories_figure`."""
     reps = representative_runs(runs)
     seqs = sorted({s for s, _ in reps}, key=natural_key)
     algs = sorted({a for _, a in reps}, key=natural_key)
     fig = _new_figure(max(6.0, 1.0 + 0.45 * len(seqs) * max(len(algs), 1)), 7.5)
     axes = fig.subplots(len(METRICS), 1, sharex=True)
-    colors = _colors(len(algs))
+    palette = colors or algorithm_colors(algs)
+    colors_ = [palette[a] for a in algs]
     width = 0.8 / max(len(algs), 1)
     for ax, (metric, label) in zip(axes, METRICS, strict=True):
-        for k, (alg, color) in enumerate(zip(algs, colors, strict=True)):
+        for k, (alg, color) in enumerate(zip(algs, colors_, strict=True)):
             stats, pos = [], []
             for i, s in enumerate(seqs):
                 r = reps.get((s, alg))
@@ -138,9 +148,9 @@ def error_boxplot_figure(runs: Sequence[dict[str, Any]]) -> Figure:
     axes[-1].set_xlim(-0.6, len(seqs) - 0.4)
     from matplotlib.patches import Patch
 
-    fig.legend([Patch(facecolor=c, alpha=0.75) for c in colors], algs, fontsize=8,
-               loc="outside upper center", ncols=min(len(algs), 6))
-    fig.suptitle("error distributions (median-ATE trial per algorithm)")
+    axes[0].set_title("error distributions (median-ATE trial per algorithm)")
+    fig.legend([Patch(facecolor=c, alpha=0.75) for c in colors_], algs, fontsize=8,
+               loc="outside lower center", ncols=min(len(algs), 6))
     return fig
 
 

@@ -17,7 +17,7 @@ _CSS = """
 body { font-family: sans-serif; margin: 2em; color: #222; max-width: 1400px; }
 h1 { font-size: 1.5em; } h2 { font-size: 1.2em; margin-top: 1.6em; }
 table { border-collapse: collapse; font-size: 0.9em; margin: 0.6em 0; }
-th, td { border: 1px solid #bbb; padding: 0.25em 0.6em; text-align: right; }
+th, td { border: 1px solid #bbb; padding: 0.25em 0.6em; text-align: right; white-space: nowrap; }
 thead th { background: #eee; text-align: center; }
 tbody th { text-align: left; font-family: monospace; font-weight: normal; }
 td strong { color: #000; }
@@ -59,7 +59,7 @@ def report_html(
     """
     e = html.escape
     opts = ", ".join(f"{k} = {v}" for k, v in options.items())
-    counts = ", ".join(f"{k.removeprefix('n_')}: {v}" for k, v in summary.items())
+    counts = ", ".join(f"{v} {k.removeprefix('n_')}" for k, v in summary.items())
     parts = [
         "<!DOCTYPE html>",
         '<html lang="en">',
@@ -71,7 +71,7 @@ def report_html(
         "</head>",
         "<body>",
         f"<h1>{e(title)}</h1>",
-        f'<p class="meta">{e(opts)}<br>jobs: {e(counts)}</p>',
+        f'<p class="meta">{e(opts)}<br>runs: {e(counts)}</p>',
         "<h2>Evaluation</h2>",
         "<p>ATE [m]: RMSE of the translation errors; RPE: mean ± std; median over the successful "
         "trials (ok/total); best of each row in bold.</p>",
