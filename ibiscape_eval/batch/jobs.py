@@ -158,8 +158,12 @@ def run_job(job: Job) -> JobResult:
             raise IbiscapeError(
                 f"job function {job.func} returned {type(value).__name__}, expected a dict"
             )
-        _check_json(dict(value), f"result of {job.key}")
-        value = json.loads(canonical_json(value))
+        try:  # json's own checks (C speed): NaN/Infinity and non-JSON types are refused
+            text = canonical_json(value)
+        except (TypeError, ValueError) as e:
+            raise IbiscapeError(f"job function {job.func} returned a value that is not strict "
+                                f"JSON ({e}); return None instead of NaN") from None
+        value = json.loads(text)
     except Exception as e:  # a job's failure is data, not a crash of the batch
         msg = " ".join(str(e).split()) or "".join(traceback.format_exception_only(e)).strip()
         return JobResult(job.key, "failed", error=f"{type(e).__name__}: {msg}",

@@ -28,3 +28,7 @@ def file_size(*, path: str, log: str, **_: Any) -> dict[str, Any]:
 
 def not_a_dict(*, x: float) -> Any:
     return [x]
+
+
+def nan_result(*, x: float) -> dict[str, Any]:
+    return {"value": float("nan")}

@@ -45,6 +45,8 @@ def test_run_job_ok_and_failures() -> None:
     assert (r.status, r.error) == ("failed", "ValueError: no square for 1")
     r = run_job(Job("c", f"{M}:not_a_dict", {"x": 1}))
     assert r.status == "failed" and "expected a dict" in (r.error or "")
+    r = run_job(Job("n", f"{M}:nan_result", {"x": 1}))
+    assert r.status == "failed" and "not strict JSON" in (r.error or "")
     r = run_job(Job("d", "no_such_module_xyz:f", {}))
     assert r.status == "failed" and "cannot import" in (r.error or "")
 
