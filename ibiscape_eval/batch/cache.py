@@ -36,15 +36,25 @@ def _file_sha256(path: Path) -> str:
 
 
 def code_version(func: str) -> str:
-    """``"<package version>+<sha256 of the module file that defines func>[:16]"``."""
+    """``"<package version>+<hash>"``: the hash covers every ``.py`` file of the package that
+    defines ``func`` (and of ``ibiscape_eval``), so any change to the code that computes a result
+    (the job function or the metrics it calls) invalidates the cached results."""
+    import importlib
+
     from ibiscape_eval import __version__
 
-    fn = resolve(func)
-    source = getattr(getattr(fn, "__code__", None), "co_filename", None)
-    digest = "nosource"
-    if source and os.path.isfile(source):
-        digest = _file_sha256(Path(source))[:16]
-    return f"{__version__}+{digest}"
+    resolve(func)  # fails clearly for a job function that cannot be imported
+    h = hashlib.sha256()
+    for top in sorted({func.split(".", 1)[0], "ibiscape_eval"}):
+        root = getattr(importlib.import_module(top), "__file__", None)
+        if not root:
+            continue
+        base = Path(root).parent
+        files = sorted(base.rglob("*.py")) if Path(root).name == "__init__.py" else [Path(root)]
+        for f in files:
+            h.update(f.relative_to(base.parent).as_posix().encode() + b"\0")
+            h.update(f.read_bytes())
+    return f"{__version__}+{h.hexdigest()[:16]}"
 
 
 class ContentCache:

@@ -117,6 +117,11 @@ class LocalExecutor:
         pass
 
 
+def run_chunk(jobs: list[Job]) -> list[JobResult]:
+    """Run several jobs one after the other (each failure stays its own job's)."""
+    return [run_job(job) for job in jobs]
+
+
 class DaskExecutor:
     """Jobs sent to an existing Dask ``distributed`` scheduler at ``address``.
 
@@ -146,16 +151,25 @@ class DaskExecutor:
     def map(self, jobs: Sequence[Job]) -> Iterator[JobResult]:
         from distributed import as_completed
 
-        futures = {self.client.submit(run_job, job, key=f"ibiscape-{i}-{job.key}", pure=False): job
-                   for i, job in enumerate(jobs)}
-        for fut in as_completed(list(futures), loop=self.client.loop):
-            job = futures[fut]
-            try:
-                yield fut.result()
-            except Exception as e:  # worker lost, killed, ... (run_job itself never raises)
-                yield JobResult(job.key, "failed", error=f"{type(e).__name__}: {e}")
-            finally:
-                fut.release()
+        # Jobs go in chunks (about 4 per worker thread, at most 25 jobs each): a task costs the
+        # scheduler a few milliseconds, as much as a small job itself.
+        slots = max(1, sum(self.client.nthreads().values()))
+        size = max(1, min(25, len(jobs) // (4 * slots)))
+        chunks = [list(jobs[i:i + size]) for i in range(0, len(jobs), size)]
+        keys = [f"ibiscape-{i}-{c[0].key}" for i, c in enumerate(chunks)]
+        futures = self.client.map(run_chunk, chunks, key=keys, pure=False)
+        by_key = {f.key: c for f, c in zip(futures, chunks, strict=True)}
+        # with_results: results travel as they finish, without one round trip per task
+        done = as_completed(futures, with_results=True, raise_errors=False,
+                            loop=self.client.loop)
+        for fut, value in done:
+            if isinstance(value, list):
+                yield from value
+            else:  # worker lost, killed, ... (run_job itself never raises)
+                err = value[1] if isinstance(value, tuple) and len(value) > 1 else value
+                for job in by_key[fut.key]:
+                    yield JobResult(job.key, "failed", error=f"{type(err).__name__}: {err}")
+            fut.release()
 
     def close(self) -> None:
         self.client.close()

@@ -58,7 +58,7 @@ def representative_runs(runs: Sequence[dict[str, Any]]) -> dict[tuple[str, str],
     return out
 
 
-def _new_figure(w_in: float, h_in: float, *, layout: str | None = "constrained") -> Figure:
+def _new_figure(w_in: float, h_in: float, *, layout: Any = "constrained") -> Figure:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
