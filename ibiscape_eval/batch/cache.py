@@ -45,7 +45,7 @@ def code_version(func: str) -> str:
 
     resolve(func)  # fails clearly for a job function that cannot be imported
     h = hashlib.sha256()
-    for top in sorted({func.split(".", 1)[0], "ibiscape_eval"}):
+    for top in sorted({func.partition(":")[0].split(".", 1)[0], "ibiscape_eval"}):
         root = getattr(importlib.import_module(top), "__file__", None)
         if not root:
             continue

@@ -170,3 +170,18 @@ def test_unreachable_scheduler_fails_fast_naming_the_address() -> None:
     with pytest.raises(IbiscapeError, match=r"tcp://127\.0\.0\.1:9"):
         DaskExecutor("tcp://127.0.0.1:9", timeout_s=1.0)
     assert time.perf_counter() - t0 < 30  # not a speed assertion: it must not hang
+
+
+def test_code_version_follows_the_source(tmp_path, monkeypatch) -> None:
+    from ibiscape_eval.batch import code_version
+
+    pkg = tmp_path / "mypkg_cv"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "helper.py").write_text("K = 1\n")
+    (pkg / "jobs.py").write_text("def f(**_):\n    return {}\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    v1 = code_version("mypkg_cv.jobs:f")
+    assert v1 == code_version("mypkg_cv.jobs:f")
+    (pkg / "helper.py").write_text("K = 2\n")  # a module the job may call, not the job's own
+    assert code_version("mypkg_cv.jobs:f") != v1
