@@ -178,6 +178,10 @@ def discover_runs(
             ignored.append((str(seq_dir), "a file directly in the runs folder (expected "
                                           "<sequence>/ folders)"))
             continue
+        if (seq_dir / "report.json").is_file():
+            ignored.append((str(seq_dir), "an ibiscape-eval report folder (--out), not a "
+                                          "sequence"))
+            continue
         seq = seq_dir.name
         gts = _truth_in_runs(seq_dir)
         gnss = seq_dir / GNSS_NAME

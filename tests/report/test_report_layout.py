@@ -56,23 +56,27 @@ def test_paths_outside_the_layout_are_listed_with_reasons(tmp_path) -> None:
     (runs / "seq1" / "summary.pdf").write_text("x")
     (runs / "empty_seq").mkdir()
     (runs / ".hidden").mkdir()
+    (runs / "report" / "figures").mkdir(parents=True)  # an earlier --out inside the runs folder
+    (runs / "report" / "report.json").write_text("{}")
+    (runs / "report" / "figures" / "x.png").write_text("")
     layout = discover_runs(runs, sequences_dir=seqs)
     why = {p.removeprefix(str(runs) + "/"): r for p, r in layout.ignored}
     assert set(why) == {"README.txt", "seq1/alpha/notes.txt", "seq1/beta/empty", "seq1/gamma/t2",
-                        "seq1/summary.pdf", "empty_seq"}
+                        "seq1/summary.pdf", "empty_seq", "report"}
     assert "expected <sequence>/ folders" in why["README.txt"]
     assert "expected <trial>/ folders" in why["seq1/alpha/notes.txt"]
     assert "without a trajectory file" in why["seq1/beta/empty"]
     assert "2 candidate trajectory files (a.txt, b.txt)" in why["seq1/gamma/t2"]
     assert "neither groundtruth.<ext> nor gnss.csv" in why["seq1/summary.pdf"]
     assert "without any" in why["empty_seq"]
+    assert "report folder" in why["report"]
     assert len(layout.runs) == 7
 
     res = CliRunner().invoke(cli, ["report", str(runs), "--sequences", str(seqs), "--no-cache",
                                    "--workers", "1", "--align", "none"])
     assert res.exit_code == 0
     assert f"ignored {runs / 'README.txt'}: a file directly in the runs folder" in res.stderr
-    assert res.stderr.count("ignored ") == 6
+    assert res.stderr.count("ignored ") == 7
 
 
 def test_sequences_without_ground_truth_are_an_error(tmp_path) -> None:
