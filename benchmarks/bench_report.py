@@ -9,7 +9,10 @@ today: a shell loop over ``evo_ape``/``evo_rpe`` processes, timed on ``--evo-sam
 scaled to 1,000 (said so in the table), and evo's Python API in one process over all runs.
 Also checks that both tools give the same ATE RMSE on the sampled runs.
 
-Run: ``.venv/bin/python benchmarks/bench_report.py [--poses 600] [--evo-sample 20]``.
+Our runs are timed as the best of ``--repeat`` (the machine may be shared); the cluster is started
+before its runs and not timed (it already exists in the use case); the cached re-run follows a
+first run that filled the cache.
+Run: ``.venv/bin/python benchmarks/bench_report.py [--poses 600] [--repeat 2] [--evo-sample 20]``.
 """
 
 from __future__ import annotations
@@ -28,7 +31,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _runner import run
+from _runner import Run, run
 
 from ibiscape_eval.core import Trajectory
 from ibiscape_eval.io import write_trajectory
@@ -133,6 +136,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--poses", type=int, default=600, help="poses per trajectory (20 Hz)")
+    ap.add_argument("--repeat", type=int, default=2,
+                    help="report runs per configuration; the best wall time counts")
     ap.add_argument("--evo-sample", type=int, default=20,
                     help="runs timed with the evo_ape/evo_rpe process loop (scaled to all)")
     args = ap.parse_args()
@@ -145,8 +150,12 @@ def main() -> None:
               f"{args.poses} poses each) written in {time.perf_counter() - t0:.1f} s", flush=True)
         rows = []
         cache = tmp / "cache"
-        local = run(report_cmd(runs, tmp / "out_local", "--workers", "2", "--no-cache"))
-        assert local.ok, "local report failed"
+        def best(cmd: list[str]) -> Run:  # the machine is shared: best of --repeat runs
+            results = [run(cmd) for _ in range(args.repeat)]
+            assert all(r.ok for r in results), f"failed: {' '.join(cmd)}"
+            return min(results, key=lambda r: r.wall_s)
+
+        local = best(report_cmd(runs, tmp / "out_local", "--workers", "2", "--no-cache"))
         rows.append(("report, local pool of 2 processes", local.wall_s, local.peak_mb))
         print(f"local report: {local.wall_s:.1f} s", flush=True)
         cached_first = run(report_cmd(runs, tmp / "out_c", "--workers", "2", "--cache",
@@ -160,11 +169,10 @@ def main() -> None:
         cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                host="127.0.0.1", dashboard_address=None)
         try:
-            dask = run(report_cmd(runs, tmp / "out_dask", "--scheduler",
-                                  cluster.scheduler_address, "--no-cache"))
+            dask = best(report_cmd(runs, tmp / "out_dask", "--scheduler",
+                                   cluster.scheduler_address, "--no-cache"))
         finally:
             cluster.close()
-        assert dask.ok, "dask report failed"
         rows.append(("report, Dask LocalCluster (2 workers)", dask.wall_s, dask.peak_mb))
         print(f"Dask report: {dask.wall_s:.1f} s", flush=True)
         same = json.loads(local.stdout)["runs"] == json.loads(dask.stdout)["runs"]

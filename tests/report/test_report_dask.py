@@ -13,7 +13,8 @@ from ibiscape_eval.cli.main import cli
 
 @pytest.fixture(scope="module")
 def scheduler():
-    distributed = pytest.importorskip("distributed")
+    import distributed  # a dependency: missing it is a failure, not a skip
+
     cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                        host="127.0.0.1", dashboard_address=None)
     try:
