@@ -77,39 +77,46 @@ class LocalExecutor:
         from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
         from concurrent.futures.process import BrokenProcessPool
 
+        # Jobs travel in small chunks (one round trip per chunk, not per job).  When a worker
+        # dies the pool breaks and every chunk it held is lost: those jobs become suspects and
+        # run again one at a time in a fresh pool, so the job that crashes is found and
+        # reported as failed, and no other job is lost.
+        size = max(1, min(8, len(jobs) // (8 * self.workers)))
+        pending = [jobs[i:i + size] for i in range(0, len(jobs), size)][::-1]  # pop() = next
+        suspects: list[Job] = []
         # "spawn": workers start clean, without this process's threads, locks or open files.
         ctx = multiprocessing.get_context("spawn")
-        pending = list(reversed(jobs))  # pop() from the end keeps the submission order
-        while pending:
-            pool = ProcessPoolExecutor(max_workers=min(self.workers, len(pending)),
+        while pending or suspects:
+            pool = ProcessPoolExecutor(max_workers=min(self.workers, len(pending) or 1),
                                        mp_context=ctx)
-            running: dict[Any, Job] = {}
+            running: dict[Any, list[Job]] = {}
             broken = False
             try:
-                # Keep at most 2 jobs per worker queued, so a broken pool loses few of them.
-                while (pending or running) and not broken:
-                    while pending and len(running) < 2 * self.workers:
-                        job = pending.pop()
-                        running[pool.submit(run_job, job)] = job
+                while (pending or suspects or running) and not broken:
+                    if suspects:  # alone in the pool: a crash now names its job
+                        if not running:
+                            one = [suspects.pop()]
+                            running[pool.submit(run_chunk, one)] = one
+                    else:
+                        while pending and len(running) < 2 * self.workers:
+                            chunk = pending.pop()
+                            running[pool.submit(run_chunk, chunk)] = chunk
                     done, _ = wait(running, return_when=FIRST_COMPLETED)
                     for fut in done:
-                        job = running.pop(fut)
-                        try:
-                            yield fut.result()
-                        except BrokenProcessPool:
+                        if isinstance(fut.exception(), BrokenProcessPool):
                             broken = True
-                            yield JobResult(job.key, "failed", error=(
-                                "WorkerDied: the process running this job exited abruptly "
-                                "(crash in native code or out of memory)"))
-                # A broken pool fails every job it still held; the rest go to a fresh pool.
-                for fut, job in list(running.items()):
-                    if fut.done() and not fut.exception():
-                        yield fut.result()
+                            continue
+                        yield from fut.result()
+                        running.pop(fut)
+                for fut, chunk in running.items():  # the pool broke: its chunks are lost
+                    if fut.done() and fut.exception() is None:
+                        yield from fut.result()
+                    elif len(running) == 1 and len(chunk) == 1:
+                        yield JobResult(chunk[0].key, "failed", error=(
+                            "WorkerDied: the process running this job exited abruptly "
+                            "(crash in native code or out of memory)"))
                     else:
-                        yield JobResult(job.key, "failed", error=(
-                            "WorkerDied: the worker pool broke while this job was queued or "
-                            "running (another job crashed its process)"))
-                running.clear()
+                        suspects.extend(reversed(chunk))
             finally:
                 pool.shutdown(wait=True, cancel_futures=True)
 
