@@ -7,12 +7,19 @@ DEMO_OUT ?= demo-output
 
 .PHONY: demo test lint bench clean sysdeps
 
-# open3d links against libusb; install it from Debian when it is missing (needs root, as here).
+# open3d links against libusb, and the report test drives a headless chromium: install them
+# from Debian when they are missing (needs root, as here).
 sysdeps:
 	@if ! ldconfig -p 2>/dev/null | grep -q 'libusb-1.0.so.0'; then \
 	  echo "installing libusb-1.0-0 (needed by open3d)"; \
 	  if [ "$$(id -u)" = 0 ]; then SUDO=""; else SUDO="sudo"; fi; \
 	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq libusb-1.0-0 >/dev/null; \
+	fi
+	@# report's HTML page is checked (and screenshotted for the demo) by a headless Chromium.
+	@if ! command -v chromium >/dev/null 2>&1; then \
+	  echo "installing chromium (headless check of the report's HTML page)"; \
+	  if [ "$$(id -u)" = 0 ]; then SUDO=""; else SUDO="sudo"; fi; \
+	  $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq chromium >/dev/null; \
 	fi
 
 $(STAMP): pyproject.toml | sysdeps

@@ -9,7 +9,9 @@ Steps:
   2. the simulator: an SVI calibration sequence over bumps toward an AprilGrid, a FULL SLAM sequence
      in dynamic weather and a 2-hour still IMU, all in the IBISCape layout with exact ground truth;
   3. IMU noise from the Allan deviation of the simulated still IMU, compared with the simulated truth;
-  4. DVS hot-pixel detection and filtering on a generated event stream with planted hot pixels.
+  4. DVS hot-pixel detection and filtering on a generated event stream with planted hot pixels;
+  5. batch evaluation of a runs folder (real and synthetic runs, several trials, one crashed) into
+     the paper's table, figures and an HTML page, screenshotted by a headless Chromium.
 """
 
 from __future__ import annotations
@@ -239,11 +241,32 @@ def events(out: Path) -> None:
     )
 
 
+def report(out: Path) -> None:
+    banner("5. Batch evaluation: sequences x algorithms x trials -> the paper's table and figures")
+    from report_runs import make_runs_folder  # examples/report_runs.py
+
+    from ibiscape_eval.report.browser import check_page, find_chromium
+
+    # fr1/xyz and V1_02 (real data and real estimates) plus the simulated FULL_dynamic sequence of
+    # step 2 (ground truth and GNSS read from its IBISCape folder with --sequences).
+    runs = make_runs_folder(out / "runs", sim_sequences=out)
+    args = ["report", runs, "--sequences", out, "--cache", out / ".cache"]
+    sh(*args, "--out", out / "report")
+    sh(*args)  # again, table on stdout: every finished run now comes from the cache
+    if find_chromium() is None:
+        print("chromium not found (make demo installs it): no screenshot of report.html")
+        return
+    shot = out / "report_screenshot.png"
+    seen = check_page(out / "report" / "report.html", screenshot=shot, window=(1500, 2600))
+    print(f"headless Chromium: {len(seen.console)} console messages; screenshot {shot}")
+
+
 STEPS: list[tuple[str, Callable[[Path], None]]] = [
     ("trajectories", trajectories),
     ("sim", simulate),
     ("imu", imu),
     ("events", events),
+    ("report", report),
 ]
 
 
@@ -253,7 +276,7 @@ def main() -> None:
     )
     ap.add_argument("--out", type=Path, default=Path("demo-output"))
     ap.add_argument("--only", choices=[name for name, _ in STEPS], action="append", default=None,
-                    help="run only these steps (repeatable; 'imu' needs 'sim')")
+                    help="run only these steps (repeatable; 'imu' and 'report' need 'sim')")
     args = ap.parse_args()
     marker = args.out / ".ibiscape-demo"
     if args.out.exists() and any(args.out.iterdir()):

@@ -22,7 +22,8 @@ from ibiscape_eval.cli.main import cli
 
 ROOT = Path(__file__).resolve().parents[1]
 # subcommand -> how many leading positional arguments are inputs that must exist
-INPUTS = {"ate": 2, "rpe": 2, "drift": 2, "convert": 1, "allan": 1, "hotpix": 1, "frames": 1, "sim": 0}
+INPUTS = {"ate": 2, "rpe": 2, "drift": 2, "convert": 1, "allan": 1, "hotpix": 1, "frames": 1, "sim": 0,
+          "report": 1}
 # inputs of README commands that are illustrations only (a ROS bag is not generated here)
 ILLUSTRATIVE = {"recording.bag"}
 # options whose value is a file or folder the command must create
@@ -79,6 +80,15 @@ def make_demo_output(root: Path) -> None:
     np.savetxt(root / "log.csv", cols, delimiter=",", header="time,gx,gy,gz,ax,ay,az", comments="",
                fmt="%.12g")
     write_events(root / "events.txt", ev.events, fmt="text")
+
+    # the runs folder of `make demo` step 5 (real data and synthetic trials; no simulation here)
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("report_runs", ROOT / "examples" / "report_runs.py")
+    assert spec is not None and spec.loader is not None
+    report_runs = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(report_runs)
+    report_runs.make_runs_folder(out / "runs")
 
 
 def outputs_of(args: list[str]) -> list[Path]:

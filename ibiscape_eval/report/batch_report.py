@@ -1,0 +1,166 @@
+"""Write a report folder from a :class:`~ibiscape_eval.report.evaluate.RunsEvaluation`.
+
+``write_report(out, evaluation)`` creates, atomically (the folder appears complete or not at all)::
+
+    out/
+      table.md  table.tex  table.csv   the paper-style table (see paper_table)
+      runs.csv                         one line per run (status, error, every statistic)
+      report.json                      the ``report --json`` document plus the table
+      report.html                      self-contained page, figures embedded
+      figures/trajectories_<sequence>.png   ground truth, GNSS, aligned estimates (top view)
+      figures/errors_boxplot.png       ATE/RPE error distributions per sequence and algorithm
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+import re
+import warnings
+from pathlib import Path
+from typing import Any
+
+from ibiscape_eval.batch.files import atomic_output_dir
+from ibiscape_eval.core.errors import IbiscapeError, IbiscapeWarning
+
+from .evaluate import RunsEvaluation
+from .paper_table import PaperTable
+
+__all__ = ["ReportFiles", "runs_csv", "sequence_figures", "write_report"]
+
+ReportFiles = dict[str, str]
+
+
+def _safe_name(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9._-]+", "_", text).strip("._") or "sequence"
+
+
+def runs_csv(evaluation: RunsEvaluation) -> str:
+    """One line per run: identity, status, statistics, error message."""
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    cols = ["sequence", "algorithm", "trial", "status", "n_matched", "ate_rmse_m", "ate_mean_m",
+            "ate_rot_rmse_deg", "rpe_m_mean", "rpe_m_std", "rpe_deg_mean", "rpe_deg_std",
+            "drift_translation_pct", "drift_rotation_deg_per_m", "error", "path"]
+    w.writerow(cols)
+
+    def g(d: Any, *path: str) -> str:
+        for p in path:
+            if not isinstance(d, dict) or d.get(p) is None:
+                return ""
+            d = d[p]
+        return repr(float(d))
+
+    for r in evaluation.runs:
+        w.writerow([r["sequence"], r["algorithm"], r["trial"], r["status"],
+                    "" if r.get("n_matched") is None else r["n_matched"],
+                    g(r, "ate", "translation_m", "rmse"), g(r, "ate", "translation_m", "mean"),
+                    g(r, "ate", "rotation_deg", "rmse"),
+                    g(r, "rpe", "translation_m", "mean"), g(r, "rpe", "translation_m", "std"),
+                    g(r, "rpe", "rotation_deg", "mean"), g(r, "rpe", "rotation_deg", "std"),
+                    g(r, "drift", "mean_translation_pct"),
+                    g(r, "drift", "mean_rotation_deg_per_m"),
+                    r.get("error") or "", r["path"]])
+    return buf.getvalue()
+
+
+def sequence_figures(evaluation: RunsEvaluation) -> list[tuple[str, str, bytes]]:
+    """``(file name, caption, png)`` of every figure: one top view per sequence and the box
+    plots.  A GNSS file that cannot be placed is left out of its figure with a warning."""
+    from ibiscape_eval.io import read_gnss, read_trajectory
+
+    from ..metrics.gnss import gnss_in_reference_frame
+    from .figures import (
+        algorithm_colors,
+        error_boxplot_figure,
+        figure_png,
+        representative_runs,
+        sequence_trajectories_figure,
+    )
+
+    reps = representative_runs(evaluation.runs)
+    colors = algorithm_colors(evaluation.layout.algorithms)
+    out = []
+    for seq in evaluation.layout.sequences:
+        truth = evaluation.layout.truths[seq]
+        tracks = {a: r["track_xyz_m"] for (s, a), r in sorted(reps.items())
+                  if s == seq and r.get("track_xyz_m")}
+        try:
+            gt = read_trajectory(truth.groundtruth)
+        except (IbiscapeError, OSError) as e:
+            warnings.warn(f"figure of {seq} left out: {e}", IbiscapeWarning, stacklevel=2)
+            continue
+        gnss = None
+        if truth.gnss is not None:
+            try:
+                fx = read_gnss(truth.gnss)
+                gnss = gnss_in_reference_frame(fx.stamps_ns, fx.lat_deg, fx.lon_deg, fx.alt_m, gt)
+            except (IbiscapeError, OSError) as e:
+                warnings.warn(f"{truth.gnss}: GNSS left out of the figure of {seq}: {e}",
+                              IbiscapeWarning, stacklevel=2)
+        fig = sequence_trajectories_figure(seq, gt.pos_m, tracks, gnss_xyz_m=gnss,
+                                           align=evaluation.options.align, colors=colors)
+        out.append((f"trajectories_{_safe_name(seq)}.png",
+                    f"{seq}: ground truth{', GNSS' if gnss is not None else ''} and the aligned "
+                    "estimate of each algorithm (median-ATE trial)", figure_png(fig)))
+    if reps:
+        out.append(("errors_boxplot.png", "ATE and RPE error distributions per sequence and "
+                    "algorithm (median-ATE trial)", figure_png(error_boxplot_figure(
+                        evaluation.runs, colors=colors))))
+    return out
+
+
+def _check_out(out: Path) -> None:
+    if out.exists() and not out.is_dir():
+        raise IbiscapeError(f"{out}: exists and is a file; --out needs a folder")
+    if out.is_dir() and any(out.iterdir()) and not (out / "report.json").is_file():
+        raise IbiscapeError(
+            f"{out}: folder exists, is not empty and holds no earlier report (report.json); "
+            "choose a new or empty folder"
+        )
+
+
+def write_report(
+    out: str | os.PathLike[str], evaluation: RunsEvaluation, *, figures: bool = True
+) -> ReportFiles:
+    """Write the report folder ``out`` (see the module docstring); returns name -> path.
+
+    An existing ``out`` is replaced only if it is empty or holds an earlier report.
+    """
+    target = Path(out)
+    _check_out(target)
+    table = PaperTable.from_runs(evaluation.runs)
+    figs = sequence_figures(evaluation) if figures else []
+    doc = evaluation.to_dict()
+    doc["table"] = table.to_dict()
+    from .html import report_html
+
+    page = report_html(
+        table,
+        title=f"Evaluation of {Path(evaluation.layout.root).name or evaluation.layout.root}",
+        options=evaluation.options.to_dict(),
+        summary=evaluation.summary,
+        figures=[(cap, png) for _, cap, png in figs],
+        failed=[r for r in evaluation.runs if r["status"] != "ok"],
+        ignored=evaluation.layout.ignored,
+    )
+    texts = {
+        "table.md": table.to_markdown(),
+        "table.tex": table.to_latex(),
+        "table.csv": table.to_csv(),
+        "runs.csv": runs_csv(evaluation),
+        "report.json": json.dumps(doc, indent=1, allow_nan=False) + "\n",
+        "report.html": page,
+    }
+    with atomic_output_dir(target, overwrite=True) as tmp:
+        for name, text in texts.items():
+            (tmp / name).write_text(text, encoding="utf-8", newline="\n")
+        if figs:
+            (tmp / "figures").mkdir()
+            for name, _, png in figs:
+                (tmp / "figures" / name).write_bytes(png)
+    files = {name: str(target / name) for name in texts}
+    files.update({f"figures/{n}": str(target / "figures" / n) for n, _, _ in figs})
+    return files
