@@ -17,10 +17,14 @@ from .ate import AteResult, ate
 from .drift import KITTI_LENGTHS_M, DriftResult, drift
 from .gnss import gnss_in_reference_frame
 from .offset import estimate_time_offset
-from .rpe import RpeResult, rpe, select_pairs
+from .relations import PLANES, POSE_RELATIONS, project_to_plane
+from .rpe import PAIRS_FROM, RpeResult, rpe, select_pairs
 
 __all__ = [
     "KITTI_LENGTHS_M",
+    "PAIRS_FROM",
+    "PLANES",
+    "POSE_RELATIONS",
     "Alignment",
     "AlignmentResult",
     "AteResult",
@@ -36,6 +40,7 @@ __all__ = [
     "drift",
     "estimate_time_offset",
     "gnss_in_reference_frame",
+    "project_to_plane",
     "rpe",
     "select_pairs",
 ]
