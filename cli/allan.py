@@ -110,11 +110,11 @@ def allan(imu: str, fmt: str | None, columns: str | None, units: str | None, ros
         from ibiscape_eval.io.atomic import atomic_write
 
         with atomic_write(csv_path) as fh:
-            res.to_frame().to_csv(fh, index=False, float_format="%.10g", lineterminator="\n")
+            res.to_frame().to_csv(fh, index=False, float_format="%.17g", lineterminator="\n")
     if plot_path:
         from ibiscape_eval.report.plots import plot_allan
 
-        plot_allan(plot_path, res, model, title=str(imu))
+        plot_allan(plot_path, res, model, title="overlapping Allan deviation")
 
     kalibr: dict[str, Any] = {
         **model.kalibr(gyro=rec.names[:3], accel=rec.names[3:]),

@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -95,10 +95,24 @@ class NoiseModel:
     def names(self) -> tuple[str, ...]:
         return tuple(a.name for a in self.axes)
 
-    def kalibr(self, gyro: Sequence[str], accel: Sequence[str]) -> dict[str, float]:
+    def _split(self, gyro: Sequence[str] | None, accel: Sequence[str] | None
+               ) -> tuple[Sequence[str], Sequence[str]]:
+        if gyro is None or accel is None:
+            if len(self.axes) != 6:
+                raise IbiscapeError(
+                    f"name the gyro and accelerometer axes: the model has {len(self.axes)} axes, "
+                    "not the usual six (three gyro then three accelerometer)")
+            gyro = self.names[:3] if gyro is None else gyro
+            accel = self.names[3:] if accel is None else accel
+        return gyro, accel
+
+    def kalibr(self, gyro: Sequence[str] | None = None,
+               accel: Sequence[str] | None = None) -> dict[str, float]:
         """Kalibr ``imu.yaml`` densities: the largest value over the given gyro and accelerometer
         axes (continuous time); NaN where an axis lacks the parameter (e.g. a record too short
-        to show the random walk), so that a caller can refuse to write it."""
+        to show the random walk), so that a caller can refuse to write it.  Without arguments
+        the usual six axes are taken as three gyro then three accelerometer axes."""
+        gyro, accel = self._split(gyro, accel)
 
         def largest(names: Sequence[str], attr: str) -> float:
             vals = [getattr(self[n], attr) for n in names]
@@ -111,7 +125,8 @@ class NoiseModel:
             "gyroscope_random_walk": largest(gyro, "random_walk"),
         }
 
-    def kalibr_discrete(self, gyro: Sequence[str], accel: Sequence[str]) -> dict[str, float]:
+    def kalibr_discrete(self, gyro: Sequence[str] | None = None,
+                        accel: Sequence[str] | None = None) -> dict[str, float]:
         """Per-sample (discrete-time) sigmas of :meth:`kalibr` at the record's rate ``r``:
         noise ``N sqrt(r)`` and bias step ``K / sqrt(r)`` (what a CARLA-style simulator or a
         discrete filter takes); NaN where :meth:`kalibr` has NaN."""
@@ -123,6 +138,46 @@ class NoiseModel:
             "accelerometer_noise_sigma": k["accelerometer_noise_density"] * root,
             "accelerometer_bias_step_sigma": k["accelerometer_random_walk"] / root,
         }
+
+    def to_dict(self) -> dict[str, Any]:
+        """Strict-JSON document: ``rate_hz, duration_s`` and one entry per axis with every field
+        (NaN as null, ranges as lists, notes as a list)."""
+
+        def val(v: Any) -> Any:
+            if isinstance(v, float):
+                return v if math.isfinite(v) else None
+            if isinstance(v, tuple):
+                return [val(x) for x in v]
+            return v
+
+        return {
+            "rate_hz": float(self.rate_hz),
+            "duration_s": float(self.duration_s),
+            "axes": {a.name: {k: val(getattr(a, k)) for k in AxisNoise.__dataclass_fields__
+                              if k != "name"} for a in self.axes},
+        }
+
+    def __repr__(self) -> str:
+        lines = [f"NoiseModel(rate_hz={self.rate_hz:.6g}, duration_s={self.duration_s:.6g},"]
+        for a in self.axes:
+            lines.append(f"  {a.name}: N={a.noise_density:.4g} +- {a.noise_density_unc:.2g}, "
+                         f"K={a.random_walk:.4g} +- {a.random_walk_unc:.2g}, "
+                         f"B={a.bias_instability:.4g}")
+        return "\n".join(lines) + ")"
+
+    def _repr_html_(self) -> str:
+        import html
+
+        head = "".join(f"<th>{h}</th>" for h in ("axis", "N", "N unc", "K", "K unc", "B",
+                                                "B unc", "notes"))
+        rows = [f"<caption>IMU noise, {self.rate_hz:.6g} Hz, {self.duration_s:.6g} s</caption>",
+                f"<tr>{head}</tr>"]
+        for a in self.axes:
+            cells = [a.name] + [f"{v:.4g}" for v in (
+                a.noise_density, a.noise_density_unc, a.random_walk, a.random_walk_unc,
+                a.bias_instability, a.bias_instability_unc)] + ["; ".join(a.notes)]
+            rows.append("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in cells) + "</tr>")
+        return "<table>" + "".join(rows) + "</table>"
 
     def to_frame(self) -> pd.DataFrame:
         """One row per axis with every numeric field and the notes joined by '; '."""
