@@ -14,6 +14,7 @@ from ._stats import ErrorStats
 from .alignment import Alignment, AlignmentResult, align
 from .association import Matched, associate, associate_by_index, choose_match
 from .ate import AteResult, ate
+from .compare import CompareResult, compare
 from .drift import KITTI_LENGTHS_M, DriftResult, drift
 from .gnss import gnss_in_reference_frame
 from .offset import estimate_time_offset
@@ -28,6 +29,7 @@ __all__ = [
     "Alignment",
     "AlignmentResult",
     "AteResult",
+    "CompareResult",
     "DriftResult",
     "ErrorStats",
     "Matched",
@@ -37,6 +39,7 @@ __all__ = [
     "associate_by_index",
     "ate",
     "choose_match",
+    "compare",
     "drift",
     "estimate_time_offset",
     "gnss_in_reference_frame",

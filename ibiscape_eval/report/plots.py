@@ -23,6 +23,7 @@ __all__ = [
     "PANELS",
     "PLOT_PLANES",
     "allan_figure",
+    "compare_figure",
     "drift_figure",
     "plain_axes",
     "plot_allan",
@@ -211,6 +212,49 @@ def _fill_forward(a: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
 def plot_trajectory_errors(path: str | os.PathLike[str], **kw: Any) -> None:
     """Write :func:`trajectory_errors_figure` (same keyword arguments) to ``path``."""
     save_figure(trajectory_errors_figure(**kw), path)
+
+
+def compare_figure(result: Any, *, plane: str = "xy", title: str = "") -> Any:
+    """Several estimates against one reference (a
+    :class:`~ibiscape_eval.metrics.CompareResult`): every aligned estimate over the reference in
+    ``plane``, the ATE over time of each, and box plots of the ATE and RPE per estimate."""
+    a, b = _plane_axes(plane)
+    fig = _figure(figsize=(13, 9), constrained_layout=True)
+    axs = fig.subplots(2, 2)
+    ax = axs[0, 0]
+    ref = result.entries[0].ate.ref
+    ax.plot(ref.pos_m[:, a], ref.pos_m[:, b], "--", color="0.3", lw=1.2, label="reference")
+    for e in result.entries:
+        p = e.ate.est_aligned.pos_m
+        ax.plot(p[:, a], p[:, b], lw=1.0, label=f"{e.label} ({e.ate.alignment.method})")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel(f"{plane[0]} [m]")
+    ax.set_ylabel(f"{plane[1]} [m]")
+    ax.legend(fontsize=8)
+    ax = axs[0, 1]
+    t0 = min(int(e.ate.stamps_ns[0]) for e in result.entries if len(e.ate.stamps_ns))
+    for e in result.entries:
+        ax.plot((e.ate.stamps_ns - t0) / 1e9, e.ate.errors_m, lw=0.8,
+                label=f"{e.label}: rmse {e.ate.translation_m.rmse:.4g} m")
+    ax.set_xlabel("time since start [s]")
+    ax.set_ylabel("ATE translation error [m]")
+    ax.legend(fontsize=8)
+    labels = [e.label for e in result.entries]
+    for ax, data, ylabel in (
+        (axs[1, 0], [e.ate.errors_m for e in result.entries], "ATE translation error [m]"),
+        (axs[1, 1], [e.rpe.errors_m for e in result.entries],
+         f"RPE translation error [m] (delta {result.options['delta']:g} "
+         f"{result.options['delta_unit']})"),
+    ):
+        ax.boxplot(data, widths=0.6, medianprops={"color": "tab:red"})
+        ax.set_xticks(np.arange(1, len(labels) + 1), labels)
+        ax.set_ylabel(ylabel)
+    for ax in axs.ravel():
+        ax.grid(alpha=0.3)
+    if title:
+        fig.suptitle(title)
+    plain_axes(fig)
+    return fig
 
 
 def drift_figure(result: Any, *, title: str = "") -> Any:

@@ -1,0 +1,125 @@
+"""Issue 14 on the command line: evo's options, compare, lossless CSVs, helpful messages."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from _cli_data import assert_one_error_line, write_tum
+
+
+def test_ate_pose_relation_and_projection(run_cli, tum_pair) -> None:
+    est, gt = tum_pair
+    res = run_cli("ate", est, gt, "--pose-relation", "full", "--project-to-plane", "xy", "--json")
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    assert doc["pose_relation"] == "full" and doc["project_to_plane"] == "xy"
+    assert doc["error"]["rmse"] > 0
+    table = run_cli("ate", est, gt, "--pose-relation", "rot-part")
+    assert "rot-part: rmse" in table.stdout
+
+
+def test_rpe_pairs_from_ref(run_cli, tum_pair) -> None:
+    est, gt = tum_pair
+    res = run_cli("rpe", est, gt, "--delta", "1", "--delta-unit", "metres", "--pairs-from", "ref",
+                  "--json")
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.stdout)["pairs_from"] == "ref"
+
+
+def test_bad_panel_is_one_error_line(run_cli, tum_pair, tmp_path: Path) -> None:
+    est, gt = tum_pair
+    res = run_cli("ate", est, gt, "--plot", tmp_path / "a.png", "--plot-panels", "map")
+    assert res.exit_code == 2 and "unknown panel" in res.output
+    assert not (tmp_path / "a.png").exists()
+
+
+def test_plot_single_panel_plane(run_cli, tum_pair, tmp_path: Path) -> None:
+    est, gt = tum_pair
+    res = run_cli("ate", est, gt, "--plot", tmp_path / "a.png", "--plot-panels", "trajectory",
+                  "--plot-plane", "xz")
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "a.png").stat().st_size > 5_000
+
+
+def test_csv_time_is_exact(run_cli, tmp_path: Path) -> None:
+    n = 50
+    stamps_ns = 1_403_715_529_112_143_104 + np.arange(n, dtype=np.int64) * 50_000_001
+    t = stamps_ns / 1e9  # what a TUM file holds
+    pos = np.c_[np.arange(n) * 0.1, np.sin(np.arange(n)), np.zeros(n)]
+    quat = np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))
+    gt = write_tum(tmp_path / "gt.txt", t, pos, quat)
+    est = write_tum(tmp_path / "est.txt", t, pos + 0.01, quat)
+    res = run_cli("ate", est, gt, "--save-csv", tmp_path / "e.csv")
+    assert res.exit_code == 0, res.output
+    df = pd.read_csv(tmp_path / "e.csv", dtype={"ref_t_s": str})
+    assert list(df.columns[:3]) == ["ref_stamp_ns", "ref_t_s", "est_stamp_ns"]
+    for ns, text in zip(df["ref_stamp_ns"], df["ref_t_s"], strict=True):
+        whole, frac = text.split(".")
+        assert len(frac) == 9 and int(whole) * 10**9 + int(frac) == ns
+
+
+def test_swapped_arguments_warning(run_cli, tmp_path: Path) -> None:
+    n = 400
+    t = 10.0 + np.arange(n) * 0.005
+    pos = np.c_[np.sin(t), np.cos(t), 0 * t]
+    quat = np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))
+    dense = write_tum(tmp_path / "gt.txt", t, pos, quat)
+    sparse = write_tum(tmp_path / "est.txt", t[::10], pos[::10], quat[::10])
+    res = run_cli("ate", dense, sparse)
+    assert res.exit_code == 0, res.output
+    assert "looks like the ground truth" in res.stderr
+    ok = run_cli("ate", sparse, dense)
+    assert "looks like the ground truth" not in ok.stderr
+
+
+def test_compare_table_figure_and_saved_results(run_cli, tum_pair, tmp_path: Path) -> None:
+    est, gt = tum_pair
+    est2 = tmp_path / "est2.txt"
+    rows = np.loadtxt(est)
+    rows[:, 1:4] += np.random.default_rng(1).normal(0, 0.05, (len(rows), 3))
+    np.savetxt(est2, rows, fmt="%.9f")
+    out = tmp_path / "res"
+    res = run_cli("compare", gt, est, est2, "--labels", "A,B c", "--plot", tmp_path / "c.png",
+                  "--save-results", out)
+    assert res.exit_code == 0, res.output
+    lines = res.stdout.splitlines()
+    assert lines[1].startswith("label") and lines[2].startswith("A ") and lines[3].startswith("B c")
+    index = json.loads((out / "compare.json").read_text())
+    assert [e["label"] for e in index["estimates"]] == ["A", "B c"]
+    assert index["estimates"][1]["ate_json"] == "B_c.ate.json"
+    doc = json.loads((out / "B_c.ate.json").read_text())
+    assert doc["label"] == "B c" and doc["est_file"] == "est2.txt" and doc["metric"] == "ate"
+    assert doc["translation_m"]["rmse"] > index["estimates"][0]["ate_rmse_m"]
+    assert len(pd.read_csv(out / "A.rpe.csv")) == doc["n_matched"] - 1
+    assert (tmp_path / "c.png").stat().st_size > 10_000
+
+
+def test_compare_label_count_mismatch(run_cli, tum_pair) -> None:
+    est, gt = tum_pair
+    res = run_cli("compare", gt, est, "--labels", "a,b")
+    assert res.exit_code == 2 and "2 labels for 1 estimates" in res.output
+
+
+def test_allan_csv_full_precision(run_cli, tmp_path: Path) -> None:
+    rng = np.random.default_rng(0)
+    n = 4000
+    stamps = np.arange(n, dtype=np.int64) * 5_000_000
+    data = rng.normal(0, 0.01, (n, 6))
+    p = tmp_path / "imu.csv"
+    with p.open("w") as f:
+        f.write("#timestamp [ns],w_x,w_y,w_z,a_x,a_y,a_z\n")
+        for s, row in zip(stamps, data, strict=True):
+            f.write(f"{s}," + ",".join(repr(float(v)) for v in row) + "\n")
+    res = run_cli("allan", p, "--csv", tmp_path / "a.csv")
+    assert res.exit_code == 0, res.output
+    df = pd.read_csv(tmp_path / "a.csv", dtype=str)
+    digits = [len(v.replace(".", "").replace("-", "").split("e")[0].lstrip("0"))
+              for v in df["adev_w_x"]]
+    assert max(digits) >= 16
+
+
+def test_assert_helper_is_importable() -> None:
+    assert callable(assert_one_error_line)
