@@ -191,6 +191,9 @@ class NoiseModel:
         return pd.DataFrame(rows).set_index("name")
 
 
+_WALK_EXTEND_SLOPE = 0.2
+
+
 def _local_slopes(logt: np.ndarray, logs: np.ndarray, half_width_dec: float) -> np.ndarray:
     """Least-squares slope of log sigma vs log tau over a window of +-half_width decades."""
     out = np.full(logt.size, np.nan)
@@ -212,12 +215,14 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
 
 
 def _fixed_slope_fit(var: np.ndarray, taus: np.ndarray, edf: np.ndarray, slope: float,
-                     tau_read: float) -> tuple[float, float]:
+                     tau_read: float, *, edf_of: str = "max") -> tuple[float, float]:
     """Fit sigma = c * tau^slope (log space, weights edf) and return (sigma(tau_read), rel unc).
 
     The relative uncertainty combines the scatter about the line with the chi-squared spread of
-    the best-determined point (neighbouring overlapping taus are strongly correlated, so their
-    count does not shrink it)."""
+    one point (neighbouring overlapping taus are strongly correlated, so their count does not
+    shrink it): the best-determined point (``edf_of="max"``, the white-noise fit) or a typical
+    one (``"mean"``, the random-walk fit, whose long-tau points are far less certain; measured
+    coverage in tests/imu/test_allan_coverage.py)."""
     ok = var > 0
     if not ok.any():
         return math.nan, math.nan
@@ -227,7 +232,8 @@ def _fixed_slope_fit(var: np.ndarray, taus: np.ndarray, edf: np.ndarray, slope: 
     offs = ls - slope * lt
     c = float(np.sum(w * offs) / np.sum(w))
     resid_var = float(np.sum(w * (offs - c) ** 2) / np.sum(w)) if offs.size > 1 else 0.0
-    rel = math.sqrt(1.0 / (2.0 * float(np.max(w))) + resid_var)
+    e = float(np.max(w)) if edf_of == "max" else float(np.mean(w))
+    rel = math.sqrt(1.0 / (2.0 * e) + resid_var)
     return math.exp(c + slope * math.log(tau_read)), rel
 
 
@@ -308,6 +314,12 @@ def fit_noise_model(
             if runs:  # the run with the most information (sum of edf), usually the earliest
                 best = max(runs, key=lambda r: float(edf[r[0] : r[1]].sum()))
                 k_sel[best[0] : best[1]] = True
+                # widened to the end of the usable curve while it keeps rising: a 0.1-decade
+                # range gave uncertainties that covered the truth far less often than stated
+                for i in range(best[1], taus.size):  # over taus (tens), not samples
+                    if not (usable[i] and slopes[i] > _WALK_EXTEND_SLOPE):
+                        break
+                    k_sel[i] = True
             if w_sel.any() and k_sel.any() and taus[k_sel][0] <= taus[w_sel][-1]:
                 k_sel[:] = False
 
@@ -320,7 +332,8 @@ def fit_noise_model(
                 N, n_rel = _fixed_slope_fit(v, taus[w_sel], edf[w_sel], -0.5, 1.0)
             if k_sel.any():
                 v = var[k_sel] - (N**2 / taus[k_sel] if math.isfinite(N) else 0.0)
-                K, k_rel = _fixed_slope_fit(v, taus[k_sel], edf[k_sel], 0.5, 3.0)
+                K, k_rel = _fixed_slope_fit(v, taus[k_sel], edf[k_sel], 0.5, 3.0,
+                                            edf_of="mean")
         if not w_sel.any():
             notes.append(
                 "no slope -1/2 region at short taus: the white noise is hidden (filtered or "
