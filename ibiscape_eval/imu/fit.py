@@ -125,6 +125,53 @@ class NoiseModel:
             "gyroscope_random_walk": largest(gyro, "random_walk"),
         }
 
+    def kalibr_values(
+        self,
+        *,
+        random_walk_fallback: tuple[float, float] | None = None,
+        inflate: float = 1.0,
+        gyro: Sequence[str] | None = None,
+        accel: Sequence[str] | None = None,
+    ) -> tuple[dict[str, float], list[str]]:
+        """The four values of a Kalibr ``imu.yaml`` and the comments that explain them.
+
+        A random walk the record cannot show (NaN in :meth:`kalibr`) is taken from
+        ``random_walk_fallback = (gyro, accel)`` (rad/s^2/sqrt(Hz), m/s^3/sqrt(Hz)) and said so in
+        a comment; without a fallback, or when a noise density is missing, an
+        :class:`IbiscapeError` names what is missing and the option that helps.  Every value is
+        multiplied by ``inflate`` (Kalibr users often inflate the noise for a real system),
+        recorded in a comment.
+        """
+        if not (math.isfinite(inflate) and inflate > 0):
+            raise IbiscapeError(f"inflate must be a positive number, got {inflate!r}")
+        vals = self.kalibr(gyro, accel)
+        notes: list[str] = []
+        for key in ("gyroscope_noise_density", "accelerometer_noise_density"):
+            if not math.isfinite(vals[key]):
+                raise IbiscapeError(f"{key} could not be determined (no slope -1/2 region); "
+                                    "give --white-range")
+        missing = [k for k in ("gyroscope_random_walk", "accelerometer_random_walk")
+                   if not math.isfinite(vals[k])]
+        if missing:
+            if random_walk_fallback is None:
+                raise IbiscapeError(
+                    f"{', '.join(missing)} could not be determined (the record of "
+                    f"{self.duration_s:.4g} s is too short to show the random walk): record "
+                    "longer, give --walk-range, or set it with --random-walk-fallback GYRO,ACCEL")
+            fb = dict(zip(("gyroscope_random_walk", "accelerometer_random_walk"),
+                          random_walk_fallback, strict=True))
+            for k in missing:
+                if not (math.isfinite(fb[k]) and fb[k] > 0):
+                    raise IbiscapeError(f"random-walk fallback for {k} must be positive, "
+                                        f"got {fb[k]!r}")
+                vals[k] = float(fb[k])
+                notes.append(f"{k}: not determined by this {self.duration_s:.4g} s record; "
+                             f"fallback {fb[k]:.6g} given by the user")
+        if inflate != 1.0:
+            vals = {k: v * inflate for k, v in vals.items()}
+            notes.append(f"every value inflated by a factor {inflate:g} (--inflate)")
+        return vals, notes
+
     def kalibr_discrete(self, gyro: Sequence[str] | None = None,
                         accel: Sequence[str] | None = None) -> dict[str, float]:
         """Per-sample (discrete-time) sigmas of :meth:`kalibr` at the record's rate ``r``:

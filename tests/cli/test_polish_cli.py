@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import pytest
 from _cli_data import assert_one_error_line, write_tum
 
 
@@ -123,3 +124,46 @@ def test_allan_csv_full_precision(run_cli, tmp_path: Path) -> None:
 
 def test_assert_helper_is_importable() -> None:
     assert callable(assert_one_error_line)
+
+
+def _short_imu(tmp_path: Path) -> Path:
+    from ibiscape_eval.io.imu import write_imu_csv
+    from ibiscape_eval.sim.noise import imu_noise
+
+    n = int(0.1 * 3600 * 20)
+    y = imu_noise(n, 20.0, noise_density=[1e-3] * 3 + [2e-2] * 3, random_walk=0.0, seed=1)
+    t = 1_600_000_000_000_000_000 + np.arange(n, dtype=np.int64) * 50_000_000
+    p = tmp_path / "short.csv"
+    write_imu_csv(p, t, y[:, :3], y[:, 3:])
+    return p
+
+
+def test_short_record_refusal_suggests_fallback(run_cli, tmp_path: Path) -> None:
+    res = run_cli("allan", _short_imu(tmp_path), "--yaml", tmp_path / "imu.yaml")
+    assert_one_error_line(res, "imu.yaml not written", "--random-walk-fallback",
+                          stdout_empty=False)
+    assert not (tmp_path / "imu.yaml").exists()
+
+
+def test_short_record_with_fallback_and_inflate_writes_yaml(run_cli, tmp_path: Path) -> None:
+    from ibiscape_eval.io.imu import read_kalibr_imu_yaml
+
+    out = tmp_path / "imu.yaml"
+    res = run_cli("allan", _short_imu(tmp_path), "--yaml", out, "--random-walk-fallback",
+                  "2e-5,3e-3", "--inflate", "2", "--json")
+    assert res.exit_code == 0, res.output
+    doc = read_kalibr_imu_yaml(out)
+    assert doc["gyroscope_random_walk"] == pytest.approx(4e-5)
+    assert doc["accelerometer_random_walk"] == pytest.approx(6e-3)
+    n_gyro = json.loads(res.stdout)["kalibr"]["gyroscope_noise_density"]
+    assert doc["gyroscope_noise_density"] == pytest.approx(2 * n_gyro)
+    text = out.read_text()
+    assert "fallback" in text and "inflated by a factor 2" in text
+
+
+def test_bad_fallback_and_inflate(run_cli, tmp_path: Path) -> None:
+    p = _short_imu(tmp_path)
+    res = run_cli("allan", p, "--yaml", tmp_path / "i.yaml", "--random-walk-fallback", "1e-5")
+    assert_one_error_line(res, "--random-walk-fallback", "GYRO,ACCEL")
+    res = run_cli("allan", p, "--yaml", tmp_path / "i.yaml", "--inflate", "-1")
+    assert_one_error_line(res, "--inflate")
