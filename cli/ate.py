@@ -195,6 +195,10 @@ def _read_pair(est: Path, ref: Path, o: dict[str, Any]) -> tuple[Any, Any, str]:
                 info(f"{path}: format {fmt} (detected; force another with --format-{side})")
             times = o[f"times_{side}"]
             topic = o[f"topic_{side}"] or o["topic"]
+            if fmt == "bag" and topic is not None:
+                from .convert import tf_hint
+
+                tf_hint(path, topic)
             trajs.append(
                 read_trajectory(
                     path,

@@ -167,3 +167,38 @@ def test_bad_fallback_and_inflate(run_cli, tmp_path: Path) -> None:
     assert_one_error_line(res, "--random-walk-fallback", "GYRO,ACCEL")
     res = run_cli("allan", p, "--yaml", tmp_path / "i.yaml", "--inflate", "-1")
     assert_one_error_line(res, "--inflate")
+
+
+def test_events_frames_sorted_names_and_inferred_size_note(run_cli, tmp_path: Path) -> None:
+    from ibiscape_eval.events import synthetic_events
+    from ibiscape_eval.io.events import write_events
+
+    ev = synthetic_events(sensor_size=(40, 30), duration_s=1.2, seed=2).events
+    src = tmp_path / "ev.txt"
+    write_events(src, ev, fmt="text")
+    out = tmp_path / "frames"
+    res = run_cli("events", "frames", src, "--out", out, "--rate-hz", 10)
+    assert res.exit_code == 0, res.output
+    assert "inferred from the largest event coordinates" in res.stderr
+    names = sorted(p.name for p in out.glob("*.png"))
+    stamps = [int(n[:-4]) for n in names]
+    assert len(names) >= 10 and all(len(n) == 24 for n in names)
+    assert stamps == sorted(stamps)  # glob (name) order is time order
+    res = run_cli("events", "frames", src, "--out", tmp_path / "f2", "--sensor-size", "40x30")
+    assert "inferred" not in res.stderr
+
+
+def test_convert_tf_topic_hint_and_json(run_cli, tmp_path: Path) -> None:
+    from _cli_data import SHARED
+
+    bag = SHARED / "tf_example_ros2"
+    if not bag.exists():
+        pytest.skip("shared ROS 2 bag missing")
+    res = run_cli("convert", bag, tmp_path / "o.txt", "--topic", "/tf")
+    assert_one_error_line(res, "/tf:odom.base_footprint", "TOPIC:parent.child")
+    assert "unsupported" not in res.stderr
+    res = run_cli("convert", bag, tmp_path / "o.txt", "--topic", "/tf:odom.base_footprint",
+                  "--json")
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.stdout)
+    assert doc["n_poses"] > 100 and doc["to"] == "tum" and doc["start_ns"] < doc["end_ns"]
