@@ -118,3 +118,20 @@ def test_allan_legend_explains_markers_and_units_are_typeset() -> None:
     for ax in fig.axes:
         leg = ax.get_legend()
         assert leg is not None and not leg.get_title().get_text()
+
+
+def test_hot_pixel_figure_shows_silent_pixels_and_log_histogram() -> None:
+    from ibiscape_eval.events import detect_hot_pixels, synthetic_events
+    from ibiscape_eval.events.plots import hot_pixel_figure
+
+    ev = synthetic_events(sensor_size=(64, 48), duration_s=0.05, seed=1).events
+    res = detect_hot_pixels(ev.x, ev.y, sensor_size=(64, 48), top_n=3)
+    assert (res.count_map == 0).any()
+    fig = hot_pixel_figure(res)
+    ax_h, ax_m = fig.axes[0], fig.axes[1]
+    assert ax_h.get_xscale() == "log" and ax_h.get_yscale() == "log"
+    assert "silent" in _texts(fig)
+    img = ax_m.get_images()[0]
+    rgba = img.to_rgba(img.get_array())
+    silent = rgba[res.count_map == 0]
+    assert np.allclose(silent, silent[0]) and not np.allclose(silent[0], img.cmap(0.0))
