@@ -81,6 +81,7 @@ def frames(
              "event coordinates (the file does not say); give --sensor-size WxH if the sensor "
              "is larger")
     size = size or src.sensor_size
+    assert size is not None
     if rate_hz is None and window_ms is None:
         rate_hz = 20.0
     signed = not unsigned

@@ -91,8 +91,8 @@ class CompareResult:
         return "\n".join(rows) + ")"
 
     def _repr_html_(self) -> str:
-        html: str = self.to_frame()._repr_html_()
-        return html
+        frame: Any = self.to_frame()
+        return str(frame.to_html())
 
     def save(self, directory: str | os.PathLike[str]) -> list[Path]:
         """Write the layout of the module docstring into ``directory`` (created if needed);
