@@ -174,5 +174,5 @@ def compare(
                "delta_unit": delta_unit, "pairs": pairs, "pairs_from": pairs_from,
                "pose_relation": pose_relation, "project_to_plane": project_to_plane,
                **{k: v for k, v in match_kw.items() if isinstance(v, str | int | float | bool)}}
-    return CompareResult(ref_file=ref_file, entries=tuple(entries), options=options)
+    return CompareResult(ref_file=ref_file or ref.name, entries=tuple(entries), options=options)
 
