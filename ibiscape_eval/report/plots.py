@@ -354,7 +354,7 @@ def allan_figure(res: Any, model: Any, *, title: str = "") -> Any:
             Line2D([], [], color=k, ls="--", marker="o", label=r"N: slope $-1/2$, read at 1 s"),
             Line2D([], [], color=k, ls=":", marker="s", label=r"K: slope $+1/2$, read at 3 s"),
             Line2D([], [], color=k, ls="", marker="^",
-                   label=f"B: minimum ({BIAS_INSTABILITY_FACTOR:g} B)"),
+                   label=f"B: minimum = {BIAS_INSTABILITY_FACTOR:.3f} B"),
             Line2D([], [], color=k, lw=6, alpha=0.3, label=r"1$\sigma$ band"),
         ]
         ax.legend(handles=handles, fontsize=8, loc="best")
