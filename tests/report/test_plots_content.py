@@ -135,3 +135,21 @@ def test_hot_pixel_figure_shows_silent_pixels_and_log_histogram() -> None:
     rgba = img.to_rgba(img.get_array())
     silent = rgba[res.count_map == 0]
     assert np.allclose(silent, silent[0]) and not np.allclose(silent[0], img.cmap(0.0))
+
+
+def test_other_results_have_short_repr_and_dict() -> None:
+    import json
+
+    from ibiscape_eval.events import accumulate_frames, detect_hot_pixels, synthetic_events
+    from ibiscape_eval.metrics import ate
+
+    est, ref = _pair(2000)
+    al = ate(est, ref).alignment
+    assert len(repr(al)) < 200 and "array" not in repr(al)
+    json.dumps(al.to_dict(), allow_nan=False)
+    ev = synthetic_events(sensor_size=(64, 48), duration_s=0.2, seed=1).events
+    hot = detect_hot_pixels(ev.x, ev.y, sensor_size=(64, 48), top_n=3)
+    assert hot._repr_html_().startswith("<table>")
+    fr = accumulate_frames(ev, sensor_size=(64, 48), rate_hz=20)
+    assert repr(fr).startswith("EventFrames(") and len(repr(fr)) < 200
+    json.dumps(fr.to_dict(), allow_nan=False)
