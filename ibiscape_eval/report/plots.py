@@ -158,7 +158,8 @@ def trajectory_errors_figure(
                 lc.set_clim(float(np.nanmin(seg_err)), float(np.nanmax(seg_err)))
             ax.add_collection(lc)
             state = "not aligned" if aligned in ("", "none") else f"aligned ({aligned})"
-            ax.plot([], [], "-", color="tab:red", lw=1.8, label=f"{est_label}, {state}")
+            ax.plot([], [], "-", color=lc.cmap(0.75), lw=1.8,
+                    label=f"{est_label}, {state} (colour: error)")
             if gps_xyz_m is not None and len(gps_xyz_m):
                 ax.plot(gps_xyz_m[:, a], gps_xyz_m[:, b], ".", color="tab:green", ms=3,
                         label="GNSS")
