@@ -29,8 +29,9 @@ FORMATS = ("auto", *TRAJECTORY_FORMATS)
               help="Largest time difference of an associated pose pair, seconds.")
 @click.option("--align", "alignment", type=click.Choice(ALIGNMENTS), default="se3",
               show_default=True, help="Alignment of every estimate for the ATE.")
-@click.option("--rpe-align", type=click.Choice(ALIGNMENTS), default="none", show_default=True,
-              help="Alignment for the RPE (only sim3 changes it).")
+@click.option("--rpe-align", type=click.Choice(ALIGNMENTS), default=None,
+              help="Alignment for the RPE (only sim3 changes it); default sim3 when --align is "
+              "sim3 (a monocular scale), else none.")
 @click.option("--delta", type=click.FloatRange(min=0.0, min_open=True), default=1.0,
               show_default=True, help="RPE pair distance in --delta-unit.")
 @click.option("--delta-unit", type=click.Choice(DELTA_UNITS), default="frames",
@@ -50,7 +51,7 @@ FORMATS = ("auto", *TRAJECTORY_FORMATS)
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document on stdout.")
 @user_errors
 def compare(ref: Path, estimates: tuple[Path, ...], labels: str | None, fmt: str,
-            max_diff_s: float, alignment: str, rpe_align: str, delta: float, delta_unit: str,
+            max_diff_s: float, alignment: str, rpe_align: str | None, delta: float, delta_unit: str,
             pairs: str, pairs_from: str, pose_relation: str, project_to_plane: str | None,
             save_results: Path | None, plot: Path | None, plot_plane: str,
             as_json: bool) -> None:
@@ -74,6 +75,8 @@ def compare(ref: Path, estimates: tuple[Path, ...], labels: str | None, fmt: str
     from .ate import swap_warning
     from .startup import numba_startup
 
+    if rpe_align is None:
+        rpe_align = "sim3" if alignment == "sim3" else "none"
     names = None
     if labels is not None:
         names = [s.strip() for s in labels.split(",")]
@@ -118,8 +121,8 @@ def compare(ref: Path, estimates: tuple[Path, ...], labels: str | None, fmt: str
         echo_json(result.to_dict())
         return
     rel = f" {pose_relation}" if pose_relation != "trans" else ""
-    click.echo(f"reference {ref.name}; ATE align {alignment}, RPE delta {delta:g} {delta_unit} "
-               f"({pairs} pairs from {pairs_from})")
+    click.echo(f"reference {ref.name}; ATE align {alignment}, RPE align {rpe_align}, delta "
+               f"{delta:g} {delta_unit} ({pairs} pairs from {pairs_from})")
     head = (f"{'label':<20}{'matched':>8}{'ATE rmse m':>12}{'ATE rot deg':>12}"
             f"{'RPE rmse m':>12}{'RPE rot deg':>12}" + (f"{'ATE' + rel:>16}" if rel else ""))
     click.echo(head)

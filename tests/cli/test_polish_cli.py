@@ -98,6 +98,14 @@ def test_compare_table_figure_and_saved_results(run_cli, tum_pair, tmp_path: Pat
     assert (tmp_path / "c.png").stat().st_size > 10_000
 
 
+def test_compare_rpe_follows_sim3(run_cli, tum_pair) -> None:
+    est, gt = tum_pair
+    doc = json.loads(run_cli("compare", gt, est, "--align", "sim3", "--json").stdout)
+    assert doc["options"]["rpe_align"] == "sim3"
+    doc = json.loads(run_cli("compare", gt, est, "--json").stdout)
+    assert doc["options"]["rpe_align"] == "none"
+
+
 def test_compare_label_count_mismatch(run_cli, tum_pair) -> None:
     est, gt = tum_pair
     res = run_cli("compare", gt, est, "--labels", "a,b")
