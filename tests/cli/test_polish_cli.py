@@ -210,3 +210,17 @@ def test_convert_tf_topic_hint_and_json(run_cli, tmp_path: Path) -> None:
     assert res.exit_code == 0, res.output
     doc = json.loads(res.stdout)
     assert doc["n_poses"] > 100 and doc["to"] == "tum" and doc["start_ns"] < doc["end_ns"]
+
+
+def test_hotpix_notes_inferred_sensor_size(run_cli, tmp_path: Path) -> None:
+    from ibiscape_eval.events import synthetic_events
+    from ibiscape_eval.io.events import write_events
+
+    ev = synthetic_events(sensor_size=(40, 30), duration_s=0.2, seed=3).events
+    src = tmp_path / "ev.txt"
+    write_events(src, ev, fmt="text")
+    res = run_cli("hotpix", src, "--top-n", 3, "--plot", tmp_path / "h.png")
+    assert res.exit_code == 0, res.output
+    assert "inferred from the largest event coordinates" in res.stderr
+    res = run_cli("hotpix", src, "--top-n", 3, "--sensor-size", "40x30")
+    assert "inferred" not in res.stderr
