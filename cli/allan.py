@@ -30,6 +30,19 @@ def _range(text: str | None, option: str) -> tuple[float, float] | None:
     return lo, hi
 
 
+def _pair(text: str | None, option: str) -> tuple[float, float] | None:
+    if text is None:
+        return None
+    try:
+        g, a = (float(v) for v in text.split(","))
+    except ValueError:
+        fail(f"{option}: expected two numbers GYRO,ACCEL, e.g. 2e-5,3e-3 ; got {text!r}")
+        raise  # pragma: no cover
+    if not (g > 0 and a > 0 and math.isfinite(g) and math.isfinite(a)):
+        fail(f"{option}: expected two positive numbers, got {text!r}")
+    return g, a
+
+
 def _fmt(v: float, u: float) -> str:
     if not math.isfinite(v):
         return "n/a"
@@ -66,6 +79,11 @@ Examples:
 @click.option("--white-range", help="Tau range (s) of the slope -1/2 fit, e.g. 0.02,1 (default: auto).")
 @click.option("--walk-range", help="Tau range (s) of the slope +1/2 fit, e.g. 1000,6000 (default: auto).")
 @click.option("--yaml", "yaml_path", type=click.Path(dir_okay=False), help="Write a Kalibr imu.yaml.")
+@click.option("--random-walk-fallback", "rw_fallback",
+              help="GYRO,ACCEL random walks (rad/s^2/sqrt(Hz), m/s^3/sqrt(Hz)) written to --yaml "
+              "when the record is too short to determine them (recorded in a comment).")
+@click.option("--inflate", type=float, default=1.0, show_default=True,
+              help="Multiply every --yaml value by this factor (recorded in a comment).")
 @click.option("--csv", "csv_path", type=click.Path(dir_okay=False), help="Write the curves (one row per tau).")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="Write a log-log figure (png/pdf/svg).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document instead of the table.")
@@ -73,7 +91,7 @@ Examples:
 def allan(imu: str, fmt: str | None, columns: str | None, units: str | None, rostopic: str | None,
           rate_hz: float | None, allow_gaps: bool, max_missing: float, points_per_decade: int,
           white_range: str | None, walk_range: str | None, yaml_path: str | None,
-          csv_path: str | None, plot_path: str | None, as_json: bool) -> None:
+          rw_fallback: str | None, inflate: float, csv_path: str | None, plot_path: str | None, as_json: bool) -> None:
     """IMU noise from the overlapping Allan deviation of a still recording.
 
     Prints the white-noise density N (slope -1/2 read at 1 s), the rate random walk K (slope +1/2
@@ -85,6 +103,9 @@ def allan(imu: str, fmt: str | None, columns: str | None, units: str | None, ros
     from ibiscape_eval.imu import allan_deviation, check_gaps, fit_noise_model
     from ibiscape_eval.io.imu import read_imu
 
+    fallback = _pair(rw_fallback, "--random-walk-fallback")
+    if not (math.isfinite(inflate) and inflate > 0):
+        fail(f"--inflate must be a positive number, got {inflate!r}")
     wr = _range(white_range, "--white-range")
     kr = _range(walk_range, "--walk-range")
     if points_per_decade < 1:
@@ -110,11 +131,11 @@ def allan(imu: str, fmt: str | None, columns: str | None, units: str | None, ros
         from ibiscape_eval.io.atomic import atomic_write
 
         with atomic_write(csv_path) as fh:
-            res.to_frame().to_csv(fh, index=False, float_format="%.10g", lineterminator="\n")
+            res.to_frame().to_csv(fh, index=False, float_format="%.17g", lineterminator="\n")
     if plot_path:
         from ibiscape_eval.report.plots import plot_allan
 
-        plot_allan(plot_path, res, model, title=str(imu))
+        plot_allan(plot_path, res, model, title="overlapping Allan deviation")
 
     kalibr: dict[str, Any] = {
         **model.kalibr(gyro=rec.names[:3], accel=rec.names[3:]),
@@ -145,30 +166,31 @@ def allan(imu: str, fmt: str | None, columns: str | None, units: str | None, ros
     if yaml_path:
         from ibiscape_eval.io.imu import write_kalibr_imu_yaml
 
-        missing = [k for k, v in kalibr.items() if isinstance(v, float) and not math.isfinite(v)]
-        if missing:
-            raise IbiscapeError(
-                f"{yaml_path} not written: {', '.join(missing)} could not be determined "
-                f"(see the notes above; the record of {res.duration_s:.4g} s is too short to show "
-                "the random walk); record longer or give --walk-range"
-            )
+        try:
+            vals, notes = model.kalibr_values(random_walk_fallback=fallback, inflate=inflate,
+                                              gyro=rec.names[:3], accel=rec.names[3:])
+        except IbiscapeError as e:
+            raise IbiscapeError(f"{yaml_path} not written: {e}") from None
         rate = rec.rate_hz
-        sig = model.kalibr_discrete(gyro=rec.names[:3], accel=rec.names[3:])
+        root = math.sqrt(rate)
         write_kalibr_imu_yaml(
             yaml_path,
-            accelerometer_noise_density=kalibr["accelerometer_noise_density"],
-            accelerometer_random_walk=kalibr["accelerometer_random_walk"],
-            gyroscope_noise_density=kalibr["gyroscope_noise_density"],
-            gyroscope_random_walk=kalibr["gyroscope_random_walk"],
+            accelerometer_noise_density=vals["accelerometer_noise_density"],
+            accelerometer_random_walk=vals["accelerometer_random_walk"],
+            gyroscope_noise_density=vals["gyroscope_noise_density"],
+            gyroscope_random_walk=vals["gyroscope_random_walk"],
             update_rate_hz=rate,
             rostopic=str(kalibr["rostopic"]),
             comments=[
                 f"ibiscape-eval allan {imu}: largest value over the three axes, continuous time",
+                *notes,
                 f"per-sample (discrete) sigmas at {rate:.6g} Hz:",
-                f"  gyroscope_noise_sigma: {sig['gyroscope_noise_sigma']:.6g} rad/s",
-                f"  gyroscope_bias_step_sigma: {sig['gyroscope_bias_step_sigma']:.6g} rad/s",
-                f"  accelerometer_noise_sigma: {sig['accelerometer_noise_sigma']:.6g} m/s^2",
-                f"  accelerometer_bias_step_sigma: {sig['accelerometer_bias_step_sigma']:.6g} m/s^2",
+                f"  gyroscope_noise_sigma: {vals['gyroscope_noise_density'] * root:.6g} rad/s",
+                f"  gyroscope_bias_step_sigma: {vals['gyroscope_random_walk'] / root:.6g} rad/s",
+                f"  accelerometer_noise_sigma: {vals['accelerometer_noise_density'] * root:.6g} "
+                "m/s^2",
+                f"  accelerometer_bias_step_sigma: {vals['accelerometer_random_walk'] / root:.6g} "
+                "m/s^2",
             ],
         )
 

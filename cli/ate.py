@@ -10,7 +10,9 @@ import click
 
 from ibiscape_eval.io.detect import TRAJECTORY_FORMATS
 from ibiscape_eval.metrics.alignment import Alignment
-from ibiscape_eval.metrics.rpe import DELTA_UNITS, PAIR_MODES
+from ibiscape_eval.metrics.relations import PLANES, POSE_RELATIONS
+from ibiscape_eval.metrics.rpe import DELTA_UNITS, PAIR_MODES, PAIRS_FROM
+from ibiscape_eval.report.plots import PANELS, PLOT_PLANES
 
 from ._common import echo_json, info, user_errors
 
@@ -115,6 +117,68 @@ def _input_options(func: Callable[..., Any]) -> Callable[..., Any]:
     return func
 
 
+def _evo_options(func: Callable[..., Any]) -> Callable[..., Any]:
+    """evo's pose relation and projection, and the figure's plane and panels (ate, rpe)."""
+    opts = [
+        click.option(
+            "--pose-relation",
+            type=click.Choice(POSE_RELATIONS),
+            default="trans",
+            show_default=True,
+            help="Error of the summary line (evo): translation, rotation angle [deg], "
+            "||R-I||, ||E-I|| or point distance.",
+        ),
+        click.option(
+            "--project-to-plane",
+            type=click.Choice(PLANES),
+            default=None,
+            help="Project both trajectories onto this plane after alignment (evo).",
+        ),
+        click.option(
+            "--plot-plane",
+            type=click.Choice(PLOT_PLANES),
+            default="xy",
+            show_default=True,
+            help="Plane of the trajectory panel (KITTI's camera frame: xz).",
+        ),
+        click.option(
+            "--plot-panels",
+            default=None,
+            help=f"Comma-separated panels of the figure, from {','.join(PANELS)} (default all).",
+        ),
+    ]
+    for opt in reversed(opts):
+        func = opt(func)
+    return func
+
+
+def _panels(text: str | None) -> list[str] | None:
+    if text is None:
+        return None
+    names = [p.strip() for p in text.split(",") if p.strip()]
+    bad = [p for p in names if p not in PANELS]
+    if bad or not names:
+        raise click.BadParameter(
+            f"unknown panel(s) {', '.join(bad) or text!r}; choose from {', '.join(PANELS)}",
+            param_hint="--plot-panels",
+        )
+    return names
+
+
+def swap_warning(est: Any, ref: Any, fmt_est: str, fmt_ref: str) -> str | None:
+    """A warning when EST looks like the reference: much denser than REF and in a ground-truth
+    format (EuRoC's) or the reference's own format, e.g. EuRoC ground truth given as EST."""
+    if len(ref) == 0 or len(est) < 4 * len(ref):
+        return None
+    if fmt_est != "euroc" and fmt_est != fmt_ref:
+        return None
+    return (
+        f"warning: EST {est.name} has {len(est)} poses, {len(est) / len(ref):.0f}x as many as "
+        f"REF {ref.name} ({len(ref)}), in format {fmt_est}: it looks like the ground truth. "
+        "The order is EST then REF; swap them if so"
+    )
+
+
 def _read_pair(est: Path, ref: Path, o: dict[str, Any]) -> tuple[Any, Any, str]:
     """Read both trajectories, say which formats were used, and choose time or index pairing."""
     from ibiscape_eval.io import detect_trajectory_format, has_timestamps, read_trajectory
@@ -122,7 +186,7 @@ def _read_pair(est: Path, ref: Path, o: dict[str, Any]) -> tuple[Any, Any, str]:
 
     from .startup import numba_startup
 
-    trajs, timed = [], []
+    trajs, timed, fmts = [], [], []
     with numba_startup():
         for path, side in ((est, "est"), (ref, "ref")):
             fmt = o[f"format_{side}"] or o["fmt"]
@@ -131,6 +195,10 @@ def _read_pair(est: Path, ref: Path, o: dict[str, Any]) -> tuple[Any, Any, str]:
                 info(f"{path}: format {fmt} (detected; force another with --format-{side})")
             times = o[f"times_{side}"]
             topic = o[f"topic_{side}"] or o["topic"]
+            if fmt == "bag" and topic is not None:
+                from .convert import tf_hint
+
+                tf_hint(path, topic)
             trajs.append(
                 read_trajectory(
                     path,
@@ -141,6 +209,10 @@ def _read_pair(est: Path, ref: Path, o: dict[str, Any]) -> tuple[Any, Any, str]:
                 )
             )
             timed.append(has_timestamps(fmt, times))
+            fmts.append(fmt)
+    warn = swap_warning(trajs[0], trajs[1], fmts[0], fmts[1])
+    if warn:
+        info(warn)
     match = choose_match(*timed)
     if match == "index":
         info("KITTI poses without a times file: pairing poses by index")
@@ -167,10 +239,22 @@ def _report_counts(doc: dict[str, Any]) -> None:
 
 
 def _write_csv(path: Path, frame: Any) -> None:
-    from ibiscape_eval.io.atomic import atomic_write
+    from ibiscape_eval.io.results import write_result_csv
 
-    with atomic_write(path) as f:
-        frame.to_csv(f, index=False, float_format="%.9g")
+    write_result_csv(path, frame)
+
+
+def relation_line(doc: dict[str, Any]) -> str | None:
+    """The summary of the chosen pose relation when it is not the translation table's."""
+    rel = doc.get("pose_relation", "trans")
+    if rel == "trans" and not doc.get("project_to_plane"):
+        return None
+    e = doc["error"]
+    unit = f" {doc['relation_unit']}" if doc["relation_unit"] else ""
+    plane = f", projected to {doc['project_to_plane']}" if doc.get("project_to_plane") else ""
+    return (f"{rel}{plane}: rmse {e['rmse']:.6g}{unit}, mean {e['mean']:.6g}, "
+            f"median {e['median']:.6g}, std {e['std']:.6g}, min {e['min']:.6g}, "
+            f"max {e['max']:.6g}")
 
 
 def _finish(result: Any, est: Path, ref: Path, o: dict[str, Any], *,
@@ -190,6 +274,9 @@ def _finish(result: Any, est: Path, ref: Path, o: dict[str, Any], *,
     else:
         click.echo(format_header(doc, est.name, ref.name))
         click.echo(table(doc))
+        line = relation_line(doc)
+        if line:
+            click.echo(line)
 
 
 def _gps_positions(path: Path | None, ref: Any) -> Any:
@@ -202,14 +289,18 @@ def _gps_positions(path: Path | None, ref: Any) -> Any:
     return gnss_in_reference_frame(fixes.stamps_ns, fixes.lat_deg, fixes.lon_deg, fixes.alt_m, ref)
 
 
-def _plot_errors(path: Path, result: Any, ref_full: Any, gps: Path | None, title: str) -> None:
+def _plot_errors(path: Path, result: Any, ref_full: Any, o: dict[str, Any], title: str) -> None:
+    from ibiscape_eval.metrics.relations import RELATION_UNITS
     from ibiscape_eval.report.plots import plot_trajectory_errors
 
     ref = result.ref
-    dist = None
     idx = getattr(result, "first_index", None)
     path_len = ref.path_length_m()
     dist = path_len if idx is None else path_len[idx]
+    rel = result.pose_relation
+    labels = {"trans": "translation error", "rot-angle": "rotation error",
+              "rot-part": "rotation part ||R-I||", "full": "full ||E-I||",
+              "point-distance": "point distance error"}
     plot_trajectory_errors(
         path,
         est_aligned=result.est_aligned,
@@ -217,14 +308,22 @@ def _plot_errors(path: Path, result: Any, ref_full: Any, gps: Path | None, title
         stamps_ns=result.stamps_ns,
         errors_m=result.errors_m,
         errors_deg=result.errors_deg,
+        errors=result.errors,
+        error_label=labels[rel],
+        error_unit=RELATION_UNITS[rel],
         title=title,
-        gps_xyz_m=_gps_positions(gps, ref_full),
+        gps_xyz_m=_gps_positions(o["gps"], ref_full),
         distance_m=dist,
+        plane=o["plot_plane"],
+        panels=_panels(o["plot_panels"]),
+        aligned=result.alignment.method,
+        color_index=idx,
     )
 
 
 @click.command()
 @_input_options
+@_evo_options
 @click.option(
     "--align",
     "alignment",
@@ -255,22 +354,32 @@ def ate(est: Path, ref: Path, alignment: str, save_aligned: Path | None, **o: An
     from ibiscape_eval.metrics import ate as ate_fn
     from ibiscape_eval.report import format_error_table
 
+    _panels(o["plot_panels"])  # checked before any work
     est_t, ref_t, match = _read_pair(est, ref, o)
-    result = ate_fn(est_t, ref_t, align=alignment, **_assoc_kwargs(o, match))
+    result = ate_fn(est_t, ref_t, align=alignment, pose_relation=o["pose_relation"],
+                    project_to_plane=o["project_to_plane"], **_assoc_kwargs(o, match))
     if save_aligned:
         from ibiscape_eval.io import write_trajectory
 
         write_trajectory(save_aligned, result.alignment.apply(est_t), "tum")
     _finish(
         result, est, ref, o,
-        plot=lambda p: _plot_errors(p, result, ref_t, o["gps"],
-                                    f"ATE {est.name} vs {ref.name} ({alignment})"),
+        plot=lambda p: _plot_errors(p, result, ref_t, o, "absolute trajectory error"),
         table=lambda doc: format_error_table(doc, title="absolute trajectory error (ATE)"),
     )
 
 
 @click.command()
 @_input_options
+@_evo_options
+@click.option(
+    "--pairs-from",
+    type=click.Choice(PAIRS_FROM),
+    default="est",
+    show_default=True,
+    help="Trajectory whose path defines the pairs in metres/degrees/seconds: est (evo) or "
+    "ref (what most papers mean).",
+)
 @click.option(
     "--delta",
     type=click.FloatRange(min=0.0, min_open=True),
@@ -301,7 +410,8 @@ def ate(est: Path, ref: Path, alignment: str, save_aligned: Path | None, **o: An
 )
 @user_errors
 def rpe(
-    est: Path, ref: Path, delta: float, delta_unit: str, pairs: str, alignment: str, **o: Any
+    est: Path, ref: Path, delta: float, delta_unit: str, pairs: str, alignment: str,
+    pairs_from: str, **o: Any
 ) -> None:
     """Relative pose error of EST against REF over pose pairs DELTA apart.
 
@@ -317,6 +427,7 @@ def rpe(
         delta_unit = "metres"
     if delta_unit == "frames" and delta != int(delta):
         raise click.BadParameter("a delta in frames must be a whole number", param_hint="--delta")
+    _panels(o["plot_panels"])  # checked before any work
     est_t, ref_t, match = _read_pair(est, ref, o)
     result = rpe_fn(
         est_t,
@@ -325,13 +436,16 @@ def rpe(
         delta_unit=delta_unit,
         pairs=pairs,
         align=alignment,
+        pose_relation=o["pose_relation"],
+        project_to_plane=o["project_to_plane"],
+        pairs_from=pairs_from,
         **_assoc_kwargs(o, match),
     )
     _finish(
         result, est, ref, o,
         plot=lambda p: _plot_errors(
-            p, result, ref_t, o["gps"],
-            f"RPE {est.name} vs {ref.name} (delta {delta:g} {delta_unit}, {pairs})"),
+            p, result, ref_t, o,
+            f"relative pose error, delta {delta:g} {delta_unit} ({pairs} pairs from {pairs_from})"),
         table=lambda doc: format_error_table(
             doc,
             title=f"relative pose error (RPE), delta {delta:g} {delta_unit}, {pairs} pairs: "
@@ -410,7 +524,7 @@ def drift(
     def plot(path: Path) -> None:
         from ibiscape_eval.report.plots import plot_drift
 
-        plot_drift(path, result.to_dict(), title=f"drift {est.name} vs {ref.name}")
+        plot_drift(path, result, title="drift per segment length")
 
     _finish(result, est, ref, o, plot=plot, table=format_drift_table)
 

@@ -6,10 +6,11 @@ from pathlib import Path
 
 import click
 
+from ibiscape_eval.core.errors import IbiscapeError
 from ibiscape_eval.io.detect import TRAJECTORY_FORMATS
 from ibiscape_eval.io.trajectory import WRITABLE_FORMATS
 
-from ._common import info, user_errors
+from ._common import echo_json, info, user_errors
 
 
 @click.command()
@@ -32,6 +33,8 @@ from ._common import info, user_errors
     help="Format of DST.",
 )
 @click.option("--topic", default=None, help="Bag topic (tf: '/tf:parent.child').")
+@click.option("--json", "as_json", is_flag=True,
+              help="Print one JSON document (source, formats, poses, files written) on stdout.")
 @click.option(
     "--times",
     type=click.Path(path_type=Path),
@@ -40,7 +43,8 @@ from ._common import info, user_errors
 )
 @user_errors
 def convert(
-    src: Path, dst: Path, src_fmt: str, dst_fmt: str, topic: str | None, times: Path | None
+    src: Path, dst: Path, src_fmt: str, dst_fmt: str, topic: str | None, times: Path | None,
+    as_json: bool,
 ) -> None:
     """Convert the trajectory SRC into DST (written atomically).
 
@@ -57,9 +61,32 @@ def convert(
     if src_fmt == "auto":
         src_fmt = detect_trajectory_format(src)
         info(f"{src}: format {src_fmt} (detected; force another with --from)")
+    if src_fmt == "bag" and topic is not None:
+        tf_hint(src, topic)
     traj = read_trajectory(
         src, src_fmt, topic=topic, times_path=None if times is None else str(times)
     )
     times = dst.with_name(dst.stem + ".times.txt") if dst_fmt == "kitti" else None
     write_trajectory(dst, traj, dst_fmt, times_path=times)
     info(f"wrote {len(traj)} poses to {dst} ({dst_fmt})" + (f" and their stamps to {times}" if times else ""))
+    if as_json:
+        echo_json({"src": str(src), "from": src_fmt, "dst": str(dst), "to": dst_fmt,
+                   "topic": topic, "n_poses": len(traj),
+                   "times": None if times is None else str(times),
+                   "start_ns": int(traj.stamps_ns[0]) if len(traj) else None,
+                   "end_ns": int(traj.stamps_ns[-1]) if len(traj) else None})
+
+
+def tf_hint(src: Path, topic: str) -> None:
+    """A TF topic named without its frames (``--topic /tf``): one line suggesting the
+    ``/tf:parent.child`` forms the bag offers, instead of a list of message types."""
+    if ":" in topic or topic.rstrip("/").split("/")[-1] not in ("tf", "tf_static"):
+        return
+    from ibiscape_eval.io.bag import list_pose_topics
+
+    offered = [t for t in list_pose_topics(src) if t.startswith(topic.rstrip("/") + ":")]
+    if not offered:
+        return
+    raise IbiscapeError(
+        f"{src}: {topic} is a TF topic holding several transforms; name one as "
+        f"TOPIC:parent.child, e.g. --topic {offered[0]} (offered: {', '.join(offered)})")

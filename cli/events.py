@@ -8,7 +8,7 @@ import click
 
 from ibiscape_eval.events.frames import KINDS as FRAME_KINDS
 
-from ._common import echo_json, user_errors
+from ._common import echo_json, info, user_errors
 from .hotpix import FORMAT_CHOICES, parse_sensor_size
 from .progress import progress_bar
 
@@ -75,7 +75,13 @@ def frames(
     size = parse_sensor_size(sensor_size)
     src = open_events(events_path, fmt=None if fmt == "auto" else fmt)
     ev = read_events(src.path, fmt=src.fmt)
-    size = size or src.sensor_size or (int(ev.x.max()) + 1, int(ev.y.max()) + 1)
+    if size is None and src.sensor_size is None:
+        size = (int(ev.x.max()) + 1, int(ev.y.max()) + 1) if len(ev) else (1, 1)
+        info(f"note: {events_path}: sensor size {size[0]}x{size[1]} inferred from the largest "
+             "event coordinates (the file does not say); give --sensor-size WxH if the sensor "
+             "is larger")
+    size = size or src.sensor_size
+    assert size is not None
     if rate_hz is None and window_ms is None:
         rate_hz = 20.0
     signed = not unsigned

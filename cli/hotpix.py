@@ -119,6 +119,9 @@ def hotpix(
             counter.add(chunk.events, chunk)
             bar.update(len(chunk.events))
     size = counter.sensor_size
+    if parse_sensor_size(sensor_size) is None and src.sensor_size is None:
+        info(f"note: {events}: sensor size {size[0]}x{size[1]} inferred from the largest event "
+             "coordinates (the file does not say); give --sensor-size WxH if the sensor is larger")
     if applied is not None:
         w, h = size
         out = (applied[:, 0] >= w) | (applied[:, 1] >= h)
@@ -147,7 +150,7 @@ def hotpix(
     if plot is not None:
         from ibiscape_eval.events.plots import hot_pixel_figure
 
-        fig = hot_pixel_figure(result, title=str(events))
+        fig = hot_pixel_figure(result, title="events per pixel before and after hot-pixel removal")
         with atomic_output_path(plot) as tmp:
             fig.savefig(tmp, dpi=110)
 

@@ -21,6 +21,11 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
         "Relative pose error over a delta in frames, seconds, metres or degrees.",
     ),
     "drift": ("ate", "drift", "KITTI-style drift over segment lengths, in % and deg/m."),
+    "compare": (
+        "compare",
+        "compare",
+        "ATE and RPE of several estimates against one reference (REF first), saved results.",
+    ),
     "convert": (
         "convert",
         "convert",

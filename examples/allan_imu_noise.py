@@ -57,3 +57,15 @@ for ax, title in zip(axs, ("gyroscope [rad/s]", "accelerometer [m/s^2]"), strict
     ax.legend()
 fig.savefig("allan_example.png")
 print("wrote allan_example.png")
+
+# %% Notebook-friendly results: a short repr, a table in Jupyter, strict-JSON dicts.
+print(res)      # AllanResult(6 axes w_x, ...; taus; samples) - no arrays
+print(model)    # one line per axis: N, K, B with uncertainties
+print(model.kalibr())  # the usual six axes need no arguments
+
+# %% A short record cannot show the random walk: give an explicit fallback (and inflate).
+short = allan_deviation(samples[: int(600 * rate_hz)], rate_hz)
+short_model = fit_noise_model(short)
+vals, notes = short_model.kalibr_values(random_walk_fallback=(2e-5, 3e-3), inflate=2.0)
+print(vals)
+print("\n".join(notes))  # what the imu.yaml comments say

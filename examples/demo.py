@@ -117,6 +117,15 @@ def trajectories(out: Path) -> None:
         out / "drift_v102.png",
     )
     sh("ate", DATA / "V102.txt", DATA / "V102_groundtruth.csv", "--align", "sim3", "--json")
+    # Several estimates at once (REF first), evo's pose relations, publishable single panels.
+    sh("compare", gt, DATA / "freiburg1_xyz-rgbdslam.txt", DATA / "freiburg1_xyz-ORB_kf_mono.txt",
+       "--labels", "rgbdslam,ORB-mono", "--align", "sim3", "--plot", out / "compare_fr1.png",
+       "--save-results", out / "compare_fr1")
+    sh("ate", DATA / "V102.txt", DATA / "V102_groundtruth.csv", "--pose-relation", "full",
+       "--project-to-plane", "xy", "--plot", out / "ate_v102_traj_xz.png", "--plot-plane", "xz",
+       "--plot-panels", "trajectory")
+    sh("rpe", DATA / "V102.txt", DATA / "V102_groundtruth.csv", "--delta", "1", "--delta-unit",
+       "metres", "--pairs-from", "ref", "--align", "se3")
 
 
 def simulate(out: Path) -> None:

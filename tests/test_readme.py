@@ -22,13 +22,13 @@ from ibiscape_eval.cli.main import cli
 
 ROOT = Path(__file__).resolve().parents[1]
 # subcommand -> how many leading positional arguments are inputs that must exist
-INPUTS = {"ate": 2, "rpe": 2, "drift": 2, "convert": 1, "allan": 1, "hotpix": 1, "frames": 1, "sim": 0,
-          "report": 1}
+INPUTS = {"ate": 2, "rpe": 2, "drift": 2, "compare": 3, "convert": 1, "allan": 1, "hotpix": 1, "frames": 1,
+          "sim": 0, "report": 1}
 # inputs of README commands that are illustrations only (a ROS bag is not generated here)
 ILLUSTRATIVE = {"recording.bag"}
 # options whose value is a file or folder the command must create
-OUTPUT_OPTIONS = ("--plot", "--yaml", "--csv", "--save-csv", "--save-aligned", "--hot-out",
-                  "--filtered-out", "--out")
+OUTPUT_OPTIONS = ("--plot", "--yaml", "--csv", "--save-csv", "--save-aligned", "--save-results",
+                  "--hot-out", "--filtered-out", "--out")
 NUMBER = re.compile(r"\d+\.\d+|\b\d+\b")
 
 

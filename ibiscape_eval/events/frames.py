@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -47,6 +48,21 @@ class EventFrames:
     t_end_ns: npt.NDArray[np.int64]
     kind: str
     signed: bool
+
+    def __repr__(self) -> str:
+        f, h, w = self.frames.shape if self.frames.ndim == 3 else (0, 0, 0)
+        span = (f", {(int(self.t_end_ns[-1]) - int(self.t_start_ns[0])) / 1e9:.6g} s"
+                if len(self.t_end_ns) else "")
+        return (f"EventFrames({f} {'signed' if self.signed else 'unsigned'} {self.kind} frames "
+                f"of {w}x{h}{span})")
+
+    def to_dict(self) -> dict[str, Any]:
+        """Strict JSON summary (the frames themselves stay arrays): kind, signed, shape, and
+        the windows' stamps."""
+        return {"kind": self.kind, "signed": bool(self.signed),
+                "shape": [int(v) for v in self.frames.shape],
+                "t_start_ns": [int(v) for v in self.t_start_ns],
+                "t_end_ns": [int(v) for v in self.t_end_ns]}
 
     def to_uint8(self) -> npt.NDArray[np.uint8]:
         """8-bit images for viewing: signed frames map 0 to grey 128, unsigned 0 to black.

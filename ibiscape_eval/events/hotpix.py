@@ -228,6 +228,17 @@ class HotPixelResult:
         return (f"HotPixelResult({len(self.pixels)} hot pixels on {w}x{h}, "
                 f"{100 * self.fraction_discarded:.2f} % of {self.n_events} events discarded)")
 
+    def _repr_html_(self) -> str:
+        rows = "".join(f"<tr><td>{int(x)}</td><td>{int(y)}</td><td>{int(c)}</td></tr>"
+                       for (x, y), c in zip(self.pixels[:20], self.counts[:20], strict=True))
+        more = (f"<tr><td colspan='3'>... {len(self.pixels) - 20} more</td></tr>"
+                if len(self.pixels) > 20 else "")
+        w, h = self.sensor_size
+        cap = (f"{len(self.pixels)} hot pixels on {w}x{h}, {100 * self.fraction_discarded:.2f} % "
+               f"of {self.n_events} events discarded")
+        return (f"<table><caption>{cap}</caption><tr><th>x</th><th>y</th><th>count</th></tr>"
+                f"{rows}{more}</table>")
+
     def to_frame(self) -> pd.DataFrame:
         """The hot pixels as a table with columns ``x, y, count``."""
         import pandas as pd

@@ -127,6 +127,34 @@ class AllanResult:
         """Length of the record, s."""
         return self.n_samples / self.rate_hz
 
+    def __repr__(self) -> str:
+        t = self.taus_s
+        span = f"{t[0]:.3g}..{t[-1]:.4g} s" if t.size else "none"
+        return (f"AllanResult({len(self.names)} axes {', '.join(self.names)}; {t.size} taus "
+                f"{span}; {self.n_samples} samples at {self.rate_hz:.6g} Hz; ci={self.ci:g})")
+
+    def _repr_html_(self) -> str:
+        import html
+
+        return f"<pre>{html.escape(repr(self))}</pre>"
+
+    def to_dict(self) -> dict[str, Any]:
+        """Strict-JSON document: the scalars and, per axis, the curve and its bounds as lists
+        (NaN as null)."""
+
+        def lst(a: np.ndarray) -> list[Any]:
+            return [float(v) if np.isfinite(v) else None for v in np.asarray(a, dtype=float)]
+
+        return {
+            "rate_hz": float(self.rate_hz),
+            "n_samples": int(self.n_samples),
+            "ci": float(self.ci),
+            "taus_s": lst(self.taus_s),
+            "edf": lst(self.edf),
+            "axes": {n: {"adev": lst(self.adev[:, i]), "adev_lo": lst(self.adev_lo[:, i]),
+                         "adev_hi": lst(self.adev_hi[:, i])} for i, n in enumerate(self.names)},
+        }
+
     def to_frame(self) -> pd.DataFrame:
         """One row per tau: ``tau_s, m, n_terms, edf`` then ``adev_<name>``, ``adev_lo_<name>``,
         ``adev_hi_<name>`` for every axis."""
@@ -219,7 +247,8 @@ def allan_deviation(
     points_per_decade : int
         Density of the default taus.
     names : sequence of str, optional
-        Axis names (default ``"0", "1", ...``), used in messages and ``to_frame()``.
+        Axis names, used in messages, ``to_frame()`` and plots (default: the usual
+        ``w_x, w_y, w_z, a_x, a_y, a_z`` for six columns, else ``"0", "1", ...``).
     ci : float
         Confidence level of ``adev_lo`` / ``adev_hi`` (default one sigma, 0.683).
     memory_budget_bytes : int
@@ -268,7 +297,12 @@ def allan_deviation(
     k = int(source.n_columns)
     if n < 3:
         raise DegenerateInputError(f"need at least 3 samples for an Allan deviation, got {n}")
-    axis_names = tuple(names) if names is not None else tuple(str(i) for i in range(k))
+    if names is None:
+        from ibiscape_eval.core.imu import AXES
+
+        axis_names = AXES if k == len(AXES) else tuple(str(i) for i in range(k))
+    else:
+        axis_names = tuple(names)
     if len(axis_names) != k:
         raise IbiscapeError(f"{len(axis_names)} names for {k} columns")
 

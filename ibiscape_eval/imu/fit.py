@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -95,10 +95,24 @@ class NoiseModel:
     def names(self) -> tuple[str, ...]:
         return tuple(a.name for a in self.axes)
 
-    def kalibr(self, gyro: Sequence[str], accel: Sequence[str]) -> dict[str, float]:
+    def _split(self, gyro: Sequence[str] | None, accel: Sequence[str] | None
+               ) -> tuple[Sequence[str], Sequence[str]]:
+        if gyro is None or accel is None:
+            if len(self.axes) != 6:
+                raise IbiscapeError(
+                    f"name the gyro and accelerometer axes: the model has {len(self.axes)} axes, "
+                    "not the usual six (three gyro then three accelerometer)")
+            gyro = self.names[:3] if gyro is None else gyro
+            accel = self.names[3:] if accel is None else accel
+        return gyro, accel
+
+    def kalibr(self, gyro: Sequence[str] | None = None,
+               accel: Sequence[str] | None = None) -> dict[str, float]:
         """Kalibr ``imu.yaml`` densities: the largest value over the given gyro and accelerometer
         axes (continuous time); NaN where an axis lacks the parameter (e.g. a record too short
-        to show the random walk), so that a caller can refuse to write it."""
+        to show the random walk), so that a caller can refuse to write it.  Without arguments
+        the usual six axes are taken as three gyro then three accelerometer axes."""
+        gyro, accel = self._split(gyro, accel)
 
         def largest(names: Sequence[str], attr: str) -> float:
             vals = [getattr(self[n], attr) for n in names]
@@ -111,7 +125,55 @@ class NoiseModel:
             "gyroscope_random_walk": largest(gyro, "random_walk"),
         }
 
-    def kalibr_discrete(self, gyro: Sequence[str], accel: Sequence[str]) -> dict[str, float]:
+    def kalibr_values(
+        self,
+        *,
+        random_walk_fallback: tuple[float, float] | None = None,
+        inflate: float = 1.0,
+        gyro: Sequence[str] | None = None,
+        accel: Sequence[str] | None = None,
+    ) -> tuple[dict[str, float], list[str]]:
+        """The four values of a Kalibr ``imu.yaml`` and the comments that explain them.
+
+        A random walk the record cannot show (NaN in :meth:`kalibr`) is taken from
+        ``random_walk_fallback = (gyro, accel)`` (rad/s^2/sqrt(Hz), m/s^3/sqrt(Hz)) and said so in
+        a comment; without a fallback, or when a noise density is missing, an
+        :class:`IbiscapeError` names what is missing and the option that helps.  Every value is
+        multiplied by ``inflate`` (Kalibr users often inflate the noise for a real system),
+        recorded in a comment.
+        """
+        if not (math.isfinite(inflate) and inflate > 0):
+            raise IbiscapeError(f"inflate must be a positive number, got {inflate!r}")
+        vals = self.kalibr(gyro, accel)
+        notes: list[str] = []
+        for key in ("gyroscope_noise_density", "accelerometer_noise_density"):
+            if not math.isfinite(vals[key]):
+                raise IbiscapeError(f"{key} could not be determined (no slope -1/2 region); "
+                                    "give --white-range")
+        missing = [k for k in ("gyroscope_random_walk", "accelerometer_random_walk")
+                   if not math.isfinite(vals[k])]
+        if missing:
+            if random_walk_fallback is None:
+                raise IbiscapeError(
+                    f"{', '.join(missing)} could not be determined (the record of "
+                    f"{self.duration_s:.4g} s is too short to show the random walk): record "
+                    "longer, give --walk-range, or set it with --random-walk-fallback GYRO,ACCEL")
+            fb = dict(zip(("gyroscope_random_walk", "accelerometer_random_walk"),
+                          random_walk_fallback, strict=True))
+            for k in missing:
+                if not (math.isfinite(fb[k]) and fb[k] > 0):
+                    raise IbiscapeError(f"random-walk fallback for {k} must be positive, "
+                                        f"got {fb[k]!r}")
+                vals[k] = float(fb[k])
+                notes.append(f"{k}: not determined by this {self.duration_s:.4g} s record; "
+                             f"fallback {fb[k]:.6g} given by the user")
+        if inflate != 1.0:
+            vals = {k: v * inflate for k, v in vals.items()}
+            notes.append(f"every value inflated by a factor {inflate:g} (--inflate)")
+        return vals, notes
+
+    def kalibr_discrete(self, gyro: Sequence[str] | None = None,
+                        accel: Sequence[str] | None = None) -> dict[str, float]:
         """Per-sample (discrete-time) sigmas of :meth:`kalibr` at the record's rate ``r``:
         noise ``N sqrt(r)`` and bias step ``K / sqrt(r)`` (what a CARLA-style simulator or a
         discrete filter takes); NaN where :meth:`kalibr` has NaN."""
@@ -124,6 +186,46 @@ class NoiseModel:
             "accelerometer_bias_step_sigma": k["accelerometer_random_walk"] / root,
         }
 
+    def to_dict(self) -> dict[str, Any]:
+        """Strict-JSON document: ``rate_hz, duration_s`` and one entry per axis with every field
+        (NaN as null, ranges as lists, notes as a list)."""
+
+        def val(v: Any) -> Any:
+            if isinstance(v, float):
+                return v if math.isfinite(v) else None
+            if isinstance(v, tuple):
+                return [val(x) for x in v]
+            return v
+
+        return {
+            "rate_hz": float(self.rate_hz),
+            "duration_s": float(self.duration_s),
+            "axes": {a.name: {k: val(getattr(a, k)) for k in AxisNoise.__dataclass_fields__
+                              if k != "name"} for a in self.axes},
+        }
+
+    def __repr__(self) -> str:
+        lines = [f"NoiseModel(rate_hz={self.rate_hz:.6g}, duration_s={self.duration_s:.6g},"]
+        for a in self.axes:
+            lines.append(f"  {a.name}: N={a.noise_density:.4g} +- {a.noise_density_unc:.2g}, "
+                         f"K={a.random_walk:.4g} +- {a.random_walk_unc:.2g}, "
+                         f"B={a.bias_instability:.4g}")
+        return "\n".join(lines) + ")"
+
+    def _repr_html_(self) -> str:
+        import html
+
+        head = "".join(f"<th>{h}</th>" for h in ("axis", "N", "N unc", "K", "K unc", "B",
+                                                "B unc", "notes"))
+        rows = [f"<caption>IMU noise, {self.rate_hz:.6g} Hz, {self.duration_s:.6g} s</caption>",
+                f"<tr>{head}</tr>"]
+        for a in self.axes:
+            cells = [a.name] + [f"{v:.4g}" for v in (
+                a.noise_density, a.noise_density_unc, a.random_walk, a.random_walk_unc,
+                a.bias_instability, a.bias_instability_unc)] + ["; ".join(a.notes)]
+            rows.append("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in cells) + "</tr>")
+        return "<table>" + "".join(rows) + "</table>"
+
     def to_frame(self) -> pd.DataFrame:
         """One row per axis with every numeric field and the notes joined by '; '."""
         import pandas as pd
@@ -134,6 +236,9 @@ class NoiseModel:
             row["notes"] = "; ".join(a.notes)
             rows.append(row)
         return pd.DataFrame(rows).set_index("name")
+
+
+_WALK_EXTEND_SLOPE = 0.2
 
 
 def _local_slopes(logt: np.ndarray, logs: np.ndarray, half_width_dec: float) -> np.ndarray:
@@ -157,12 +262,14 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
 
 
 def _fixed_slope_fit(var: np.ndarray, taus: np.ndarray, edf: np.ndarray, slope: float,
-                     tau_read: float) -> tuple[float, float]:
+                     tau_read: float, *, edf_of: str = "max") -> tuple[float, float]:
     """Fit sigma = c * tau^slope (log space, weights edf) and return (sigma(tau_read), rel unc).
 
     The relative uncertainty combines the scatter about the line with the chi-squared spread of
-    the best-determined point (neighbouring overlapping taus are strongly correlated, so their
-    count does not shrink it)."""
+    one point (neighbouring overlapping taus are strongly correlated, so their count does not
+    shrink it): the best-determined point (``edf_of="max"``, the white-noise fit) or a typical
+    one (``"mean"``, the random-walk fit, whose long-tau points are far less certain; measured
+    coverage in tests/imu/test_allan_coverage.py)."""
     ok = var > 0
     if not ok.any():
         return math.nan, math.nan
@@ -172,7 +279,8 @@ def _fixed_slope_fit(var: np.ndarray, taus: np.ndarray, edf: np.ndarray, slope: 
     offs = ls - slope * lt
     c = float(np.sum(w * offs) / np.sum(w))
     resid_var = float(np.sum(w * (offs - c) ** 2) / np.sum(w)) if offs.size > 1 else 0.0
-    rel = math.sqrt(1.0 / (2.0 * float(np.max(w))) + resid_var)
+    e = float(np.max(w)) if edf_of == "max" else float(np.mean(w))
+    rel = math.sqrt(1.0 / (2.0 * e) + resid_var)
     return math.exp(c + slope * math.log(tau_read)), rel
 
 
@@ -253,6 +361,12 @@ def fit_noise_model(
             if runs:  # the run with the most information (sum of edf), usually the earliest
                 best = max(runs, key=lambda r: float(edf[r[0] : r[1]].sum()))
                 k_sel[best[0] : best[1]] = True
+                # widened to the end of the usable curve while it keeps rising: a 0.1-decade
+                # range gave uncertainties that covered the truth far less often than stated
+                for i in range(best[1], taus.size):  # over taus (tens), not samples
+                    if not (usable[i] and slopes[i] > _WALK_EXTEND_SLOPE):
+                        break
+                    k_sel[i] = True
             if w_sel.any() and k_sel.any() and taus[k_sel][0] <= taus[w_sel][-1]:
                 k_sel[:] = False
 
@@ -265,7 +379,8 @@ def fit_noise_model(
                 N, n_rel = _fixed_slope_fit(v, taus[w_sel], edf[w_sel], -0.5, 1.0)
             if k_sel.any():
                 v = var[k_sel] - (N**2 / taus[k_sel] if math.isfinite(N) else 0.0)
-                K, k_rel = _fixed_slope_fit(v, taus[k_sel], edf[k_sel], 0.5, 3.0)
+                K, k_rel = _fixed_slope_fit(v, taus[k_sel], edf[k_sel], 0.5, 3.0,
+                                            edf_of="mean")
         if not w_sel.any():
             notes.append(
                 "no slope -1/2 region at short taus: the white noise is hidden (filtered or "

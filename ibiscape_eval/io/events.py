@@ -673,7 +673,7 @@ def write_frames_png(
     to_uint8: Callable[[np.ndarray], np.ndarray],
     progress: Callable[[int], None] | None = None,
 ) -> int:
-    """Write frames as ``<out_dir>/<t_end_ns>.png`` plus ``timestamps.csv``
+    """Write frames as ``<out_dir>/<t_end_ns>.png`` (20 digits, zero-padded) plus ``timestamps.csv``
     (``#timestamp_start [ns], timestamp_end [ns], filename``); each file atomically.
 
     Returns the number of frames written.
@@ -686,7 +686,7 @@ def write_frames_png(
     rows = []
     try:
         for a, b, frame in frames:
-            name = f"{b}.png"
+            name = f"{b:020d}.png"  # zero-padded: glob order is time order
             with atomic_output_path(out / name) as tmp:
                 if not cv2.imwrite(str(tmp), to_uint8(frame)):
                     raise IbiscapeError(f"{out / name}: could not write the PNG image")

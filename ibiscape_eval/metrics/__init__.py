@@ -14,16 +14,22 @@ from ._stats import ErrorStats
 from .alignment import Alignment, AlignmentResult, align
 from .association import Matched, associate, associate_by_index, choose_match
 from .ate import AteResult, ate
+from .compare import CompareResult, compare
 from .drift import KITTI_LENGTHS_M, DriftResult, drift
 from .gnss import gnss_in_reference_frame
 from .offset import estimate_time_offset
-from .rpe import RpeResult, rpe, select_pairs
+from .relations import PLANES, POSE_RELATIONS, project_to_plane
+from .rpe import PAIRS_FROM, RpeResult, rpe, select_pairs
 
 __all__ = [
     "KITTI_LENGTHS_M",
+    "PAIRS_FROM",
+    "PLANES",
+    "POSE_RELATIONS",
     "Alignment",
     "AlignmentResult",
     "AteResult",
+    "CompareResult",
     "DriftResult",
     "ErrorStats",
     "Matched",
@@ -33,9 +39,11 @@ __all__ = [
     "associate_by_index",
     "ate",
     "choose_match",
+    "compare",
     "drift",
     "estimate_time_offset",
     "gnss_in_reference_frame",
+    "project_to_plane",
     "rpe",
     "select_pairs",
 ]

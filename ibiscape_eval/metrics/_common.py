@@ -150,6 +150,13 @@ class MatchedResult:
     t_offset_s: float
     interpolated: bool
 
+    def _relation_dict(self, relation: str, plane: str | None, stats: Any) -> dict[str, Any]:
+        """The keys of the chosen pose relation (ATE and RPE)."""
+        from .relations import RELATION_UNITS
+
+        return {"pose_relation": relation, "relation_unit": RELATION_UNITS[relation],
+                "project_to_plane": plane, "error": stats.to_dict()}
+
     def _common_dict(self, metric: str) -> dict[str, Any]:
         """The keys every metric's ``to_dict`` starts with (the JSON contract)."""
         return {

@@ -6,7 +6,7 @@ import math
 import warnings
 from dataclasses import dataclass
 from enum import Enum
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -93,6 +93,19 @@ class AlignmentResult:
         R = self.transform[:3, :3]
         return (np.ascontiguousarray(self.scale * R), np.ascontiguousarray(self.transform[:3, 3]),
                 quat_from_matrix(R))
+
+    def to_dict(self) -> dict[str, Any]:
+        """Strict JSON: ``method, scale, n_used, transform`` (4x4 nested lists)."""
+        return {"method": self.method, "scale": float(self.scale), "n_used": int(self.n_used),
+                "transform": self.transform.tolist()}
+
+    def __repr__(self) -> str:
+        from scipy.spatial.transform import Rotation
+
+        t = self.translation_m
+        angle = float(np.degrees(Rotation.from_matrix(self.rotation).magnitude()))
+        return (f"AlignmentResult({self.method}, scale={self.scale:.6g}, rotation {angle:.4g} deg, "
+                f"translation [{t[0]:.4g}, {t[1]:.4g}, {t[2]:.4g}] m, {self.n_used} pairs)")
 
     def inverse(self) -> AlignmentResult:
         """The transform taking the reference to the estimate (``p_est = R^T (p_ref - t) / s``)."""

@@ -18,6 +18,7 @@ from ._common import match as _match
 from ._stats import ErrorStats
 from .alignment import Alignment
 from .alignment import align as _align
+from .summary import summary_html, summary_repr
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -73,6 +74,12 @@ class DriftResult(MatchedResult):
     translation_m: ErrorStats
     rotation_deg: ErrorStats
     step_frames: int
+
+    def __repr__(self) -> str:
+        return summary_repr(self, "DriftResult")
+
+    def _repr_html_(self) -> str:
+        return summary_html(self, "drift")
 
     def to_frame(self) -> pd.DataFrame:
         """One row per length: ``length_m, n_segments, translation_pct, rotation_deg_per_m``."""

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -19,14 +19,18 @@ from ._pairs import pairs_by_frames, pairs_by_steps
 from ._stats import ErrorStats
 from .alignment import Alignment
 from .alignment import align as _align
+from .relations import check_plane, check_relation, relation_errors
+from .relations import project_to_plane as _project
+from .summary import summary_html, summary_repr
 
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = ["DELTA_UNITS", "PAIR_MODES", "RpeResult", "rpe", "select_pairs"]
+__all__ = ["DELTA_UNITS", "PAIRS_FROM", "PAIR_MODES", "RpeResult", "rpe", "select_pairs"]
 
 DELTA_UNITS = ("frames", "seconds", "metres", "degrees")
 PAIR_MODES = ("consecutive", "all")
+PAIRS_FROM = ("est", "ref")
 _UNIT_ALIASES = {"meters": "metres", "m": "metres", "s": "seconds", "deg": "degrees",
                  "f": "frames"}
 
@@ -53,6 +57,12 @@ class RpeResult(MatchedResult):
         Pair distance, in ``delta_unit`` (frames, seconds, metres or degrees).
     pairs : str
         ``"consecutive"`` (non-overlapping, like evo) or ``"all"``.
+    pose_relation : str
+        The relation of :attr:`errors` / :attr:`stats` (default ``"trans"``).
+    project_to_plane : str or None
+        Plane both trajectories were projected to after alignment.
+    pairs_from : str
+        ``"est"`` (evo's default) or ``"ref"``: the trajectory whose path defines the pairs.
     alignment, est_aligned, ref, n_matched, n_dropped_est, n_dropped_ref, t_offset_s,
     interpolated
         How the trajectories were matched and aligned: see :class:`MatchedResult`.
@@ -69,30 +79,60 @@ class RpeResult(MatchedResult):
     delta: float
     delta_unit: str
     pairs: str
+    pose_relation: str = "trans"
+    project_to_plane: str | None = None
+    pairs_from: str = "est"
+
+    @property
+    def errors(self) -> npt.NDArray[np.float64]:
+        """Per-pair errors of :attr:`pose_relation` (evo's RPE ``error`` array)."""
+        pd_m = None
+        if self.pose_relation == "point-distance":
+            i, j = self.first_index, self.second_index
+            dr = np.linalg.norm(self.ref.pos_m[j] - self.ref.pos_m[i], axis=1)
+            de = np.linalg.norm(self.est_aligned.pos_m[j] - self.est_aligned.pos_m[i], axis=1)
+            pd_m = np.abs(dr - de)
+        return relation_errors(self.pose_relation, self.errors_m, self.errors_deg,
+                               point_distance_m=pd_m)
+
+    @property
+    def stats(self) -> ErrorStats:
+        """Statistics of :attr:`errors`."""
+        return ErrorStats.from_errors(self.errors)
+
+    def __repr__(self) -> str:
+        return summary_repr(self, "RpeResult")
+
+    def _repr_html_(self) -> str:
+        return summary_html(self, "RPE")
 
     def to_frame(self) -> pd.DataFrame:
-        """Per-pair rows: ``stamp_ns, t_s, first_index, second_index, error_m, error_deg``."""
+        """Per-pair rows: ``ref_stamp_ns, ref_t_s, first_index, second_index, error_m,
+        error_deg`` (and ``error`` for a relation other than ``trans``); the stamp is the
+        reference stamp of the pair's first pose."""
         import pandas as pd
 
-        return pd.DataFrame(
-            {
-                "stamp_ns": self.stamps_ns,
-                "t_s": s_from_ns(self.stamps_ns),
+        cols: dict[str, Any] = {
+                "ref_stamp_ns": self.stamps_ns,
+                "ref_t_s": s_from_ns(self.stamps_ns),
                 "first_index": self.first_index,
                 "second_index": self.second_index,
                 "error_m": self.errors_m,
                 "error_deg": self.errors_deg,
-            }
-        )
+        }
+        if self.pose_relation != "trans":
+            cols["error"] = self.errors
+        return pd.DataFrame(cols)
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON document the CLI prints (ATE's keys plus ``n_pairs, delta, delta_unit,
         pairs``)."""
         doc = self._common_dict("rpe")
         doc.update(n_pairs=int(self.n_pairs), delta=float(self.delta),
-                   delta_unit=self.delta_unit, pairs=self.pairs)
+                   delta_unit=self.delta_unit, pairs=self.pairs, pairs_from=self.pairs_from)
         doc["translation_m"] = self.translation_m.to_dict()
         doc["rotation_deg"] = self.rotation_deg.to_dict()
+        doc.update(self._relation_dict(self.pose_relation, self.project_to_plane, self.stats))
         return doc
 
 
@@ -163,6 +203,9 @@ def rpe(
     interpolate: bool = False,
     match: str = "time",
     rel_tol: float = 0.1,
+    pose_relation: str = "trans",
+    project_to_plane: str | None = None,
+    pairs_from: str = "est",
 ) -> RpeResult:
     """Relative pose error of ``est`` against ``ref`` (evo's RPE).
 
@@ -185,6 +228,13 @@ def rpe(
         ``sim3`` for a monocular scale).
     rel_tol : float
         Relative tolerance on ``delta`` for ``pairs="all"`` in continuous units.
+    pose_relation : {"trans", "rot-angle", "rot-part", "full", "point-distance"}
+        evo's pose relation of :attr:`RpeResult.errors` / ``stats``.
+    project_to_plane : {"xy", "xz", "yz"}, optional
+        Project both trajectories onto this plane after the alignment (as evo).
+    pairs_from : {"est", "ref"}
+        Which trajectory's path (distance, angle, time) defines the pairs: the estimate
+        (evo's default) or the reference (what most papers mean by "RPE over 100 m").
 
     Returns
     -------
@@ -198,20 +248,29 @@ def rpe(
     d, unit = _check_delta(delta, delta_unit)
     if pairs not in PAIR_MODES:
         raise IbiscapeError(f"unknown pair mode {pairs!r}; choose 'consecutive' or 'all'")
+    check_relation(pose_relation)
+    plane = check_plane(project_to_plane)
+    if pairs_from not in PAIRS_FROM:
+        raise IbiscapeError(f"unknown pairs_from {pairs_from!r}; choose 'est' or 'ref'")
     m = _match(est, ref, match=match, max_diff_s=max_diff_s, offset_s=offset_s,
                estimate_offset=estimate_offset, interpolate=interpolate)
     al = _align(m.est, m.ref, method=align, n_align=n_align)
     est_al = al.apply(m.est)
-    i, j = select_pairs(est_al, delta=d, delta_unit=unit, pairs=pairs, rel_tol=rel_tol)
+    if plane is not None:
+        est_al = _project(est_al, plane)
+        m = replace(m, ref=_project(m.ref, plane))
+    on = est_al if pairs_from == "est" else m.ref
+    i, j = select_pairs(on, delta=d, delta_unit=unit, pairs=pairs, rel_tol=rel_tol)
     if i.shape[0] == 0:
         extent = {
-            "frames": f"{len(est_al)} matched poses",
-            "seconds": f"{est_al.duration_s:.3f} s",
-            "metres": f"{est_al.path_length_m()[-1]:.3f} m of path",
+            "frames": f"{len(on)} matched poses",
+            "seconds": f"{on.duration_s:.3f} s",
+            "metres": f"{on.path_length_m()[-1]:.3f} m of path",
             "degrees": "its rotation",
         }[unit]
         raise DegenerateInputError(
-            f"delta = {delta:g} {unit} gives no pose pair ({pairs} pairs) on the estimate "
+            f"delta = {delta:g} {unit} gives no pose pair ({pairs} pairs) on the "
+            f"{'estimate' if pairs_from == 'est' else 'reference'} "
             f"({extent}); use a smaller --delta"
         )
     trans, rot = relative_errors(est_al, m.ref, i, j)
@@ -228,5 +287,8 @@ def rpe(
         delta=d,
         delta_unit=unit,
         pairs=pairs,
+        pose_relation=pose_relation,
+        project_to_plane=plane,
+        pairs_from=pairs_from,
         **matched_fields(m, al, est_al),
     )

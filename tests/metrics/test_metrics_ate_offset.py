@@ -30,9 +30,9 @@ def test_ate_known_offset_error_and_contract() -> None:
     np.testing.assert_allclose(res.errors_m, 0.5, rtol=1e-12)
     assert res.translation_m.rmse == pytest.approx(0.5) and res.translation_m.std < 1e-12
     df = res.to_frame()
-    assert list(df.columns) == ["stamp_ns", "t_s", "error_m", "error_deg", "est_x_m", "est_y_m",
-                                "est_z_m", "ref_x_m", "ref_y_m", "ref_z_m"]
-    assert len(df) == 120 and df["stamp_ns"].dtype == np.int64
+    assert list(df.columns) == ["ref_stamp_ns", "ref_t_s", "est_stamp_ns", "error_m", "error_deg",
+                                "est_x_m", "est_y_m", "est_z_m", "ref_x_m", "ref_y_m", "ref_z_m"]
+    assert len(df) == 120 and df["ref_stamp_ns"].dtype == np.int64
     doc = json.loads(json.dumps(res.to_dict()))
     assert {"n_matched", "n_dropped_est", "n_dropped_ref", "alignment", "scale", "transform",
             "t_offset_s", "translation_m", "rotation_deg"} <= set(doc)

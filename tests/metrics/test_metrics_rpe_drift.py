@@ -95,7 +95,7 @@ def test_rpe_result_frame_and_json() -> None:
     ref = smooth_trajectory(100)
     res = rpe(ref, ref, delta=2)
     df = res.to_frame()
-    assert list(df.columns) == ["stamp_ns", "t_s", "first_index", "second_index", "error_m",
+    assert list(df.columns) == ["ref_stamp_ns", "ref_t_s", "first_index", "second_index", "error_m",
                                 "error_deg"]
     assert len(df) == res.n_pairs == 49
     doc = json.loads(json.dumps(res.to_dict()))

@@ -50,7 +50,7 @@ def test_plot_functions_leave_backend_and_figures_alone(svg_backend, tmp_path: P
                            stamps_ns=res.stamps_ns, errors_m=res.errors_m,
                            errors_deg=res.errors_deg, title="ate")
     d = drift(est, ref, lengths_m=(10.0, 20.0))
-    plot_drift(tmp_path / "drift.png", d.to_dict(), title="drift")
+    plot_drift(tmp_path / "drift.png", d, title="drift")
     y = rng.normal(size=(20_000, 6))
     adev = allan_deviation(y, 100.0)
     plot_allan(tmp_path / "allan.png", adev, fit_noise_model(adev), title="allan")
