@@ -10,14 +10,16 @@ both are parsed exactly from their decimal text.
 from __future__ import annotations
 
 import os
+import warnings
 from pathlib import Path
 
 import numpy as np
 
+from ibiscape_eval.core.errors import IbiscapeWarning
 from ibiscape_eval.core.trajectory import Trajectory
 
 from ._poses import finish_trajectory
-from ._text import decimal_to_ns, parse_table, read_bytes, write_table
+from ._text import decimal_to_ns, format_lines, parse_table, read_bytes, write_table
 from .atomic import atomic_write
 
 __all__ = ["EUROC_HEADER", "read_euroc", "write_euroc"]
@@ -46,11 +48,35 @@ def read_euroc(path: str | os.PathLike[str], *, name: str | None = None) -> Traj
     """
     data = read_bytes(path)
     tb = parse_table(path, data, nkeep=8, ncols_min=8, ncols_max=10_000, expected=_EXPECTED)
+    _note_ragged_rows(path, data, tb.lines)
     del data  # the raw bytes are no longer needed: lower peak memory
     stamps = decimal_to_ns(path, tb, unit_exp=0)
     quat_xyzw = tb.values[:, [5, 6, 7, 4]]
     return finish_trajectory(path, stamps, tb.values[:, 1:4], quat_xyzw, tb.finite, tb.lines,
                              Path(path).name if name is None else name)
+
+
+def _note_ragged_rows(path: str | os.PathLike[str], data: bytes, lines: np.ndarray) -> None:
+    """Warn when data rows have different numbers of columns (a 17-column ground truth with a
+    16- or 18-column row): only the first 8 are read, but the file is damaged."""
+    buf = np.frombuffer(data, dtype=np.uint8)
+    ends = np.flatnonzero(buf == 10)
+    if ends.size == 0 or ends[-1] != buf.size - 1:
+        ends = np.append(ends, buf.size)
+    commas = np.concatenate([[0], np.cumsum(buf == 44, dtype=np.int64)])
+    per_line = np.diff(np.concatenate([[0], commas[ends]]))
+    row_lines = np.asarray(lines, dtype=np.int64)
+    row_lines = row_lines[row_lines <= per_line.size]
+    cols = per_line[row_lines - 1] + 1
+    if cols.size == 0 or (cols == cols[0]).all():
+        return
+    usual = int(np.bincount(cols).argmax())
+    odd = np.flatnonzero(cols != usual)
+    warnings.warn(
+        f"{path}: {odd.size} row{'s' * (odd.size != 1)} with another column count than the "
+        f"usual {usual} (e.g. {int(cols[odd[0]])} at line {int(row_lines[odd[0]])}; lines "
+        f"{format_lines(row_lines[odd])}); read the first 8 columns, check the file",
+        IbiscapeWarning, stacklevel=3)
 
 
 def write_euroc(path: str | os.PathLike[str], traj: Trajectory) -> None:

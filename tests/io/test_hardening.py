@@ -348,3 +348,23 @@ def test_interrupted_write_leaves_no_temporary(tmp_path: Path, monkeypatch) -> N
         generate(preset("svi", "slam", "clear", duration_s=1.0), out / "seq")
     assert os.listdir(out) == []
     assert ref.exists()
+
+
+def test_euroc_rows_with_16_or_18_columns_get_a_note(tmp_path: Path) -> None:
+    from families import SHARED
+
+    if not SHARED.is_dir():
+        pytest.skip("needs ../shared/data")
+    lines = (SHARED / "V102_groundtruth.csv").read_text().splitlines()[:200]
+    p = tmp_path / "data.csv"
+    p.write_text("\n".join(lines) + "\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        plain = read_trajectory(p)
+    lines[10] = lines[10].rsplit(",", 1)[0]  # 16 columns
+    lines[20] = lines[20] + ",0.5"  # 18 columns
+    p.write_text("\n".join(lines) + "\n")
+    with pytest.warns(IbiscapeWarning, match=r"data.csv: 2 rows with another column count than "
+                      r"the usual 17 \(e.g. 16 at line 11; lines 11, 21\)"):
+        back = read_trajectory(p)
+    np.testing.assert_array_equal(back.pos_m, plain.pos_m)

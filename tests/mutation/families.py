@@ -205,7 +205,7 @@ FAMILIES: dict[str, Family] = {
     "ros1_bag": Family(_ros1_seed, lambda p, o: ["ate", str(p), str(p.parent / "ref.txt"),
                                                  "--json"], text=False),
     "ros2_bag": Family(_ros2_seed, lambda p, o: ["convert", str(p), str(o / "tf.txt"), "--to",
-                                                 "tum", "--topic", "/tf:map.base_link"],
+                                                 "tum", "--topic", "/tf:odom.base_footprint"],
                        mutable=lambda p: p / "tf_example.db3", text=False, json=False),
     "imu_csv": Family(_imu_csv_seed, lambda p, o: ["allan", str(p), "--json", "--csv",
                                                    str(o / "curves.csv")]),

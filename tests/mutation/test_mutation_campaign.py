@@ -29,3 +29,20 @@ def test_every_mutant_keeps_the_contract(tmp_path: Path) -> None:
     broke = [o for o in campaign(tmp_path) if o.problem]
     assert not broke, f"{len(broke)} of {N_MUTANTS} mutants broke the contract:\n" + "\n".join(
         map(str, broke[:20]))
+
+
+@pytest.mark.skipif(not SHARED.is_dir(), reason="needs ../shared/data (EuRoC, ROS 2 bag seeds)")
+def test_every_seed_passes_unmutated(tmp_path: Path) -> None:
+    """The campaign is only meaningful if each family's seed is accepted as it is."""
+    from click.testing import CliRunner
+
+    from ibiscape_eval.cli.main import cli
+
+    for name, fam in FAMILIES.items():
+        folder = tmp_path / name
+        folder.mkdir()
+        inp = fam.build(folder)
+        out = folder / "out"
+        out.mkdir()
+        res = CliRunner().invoke(cli, fam.argv(inp, out))
+        assert res.exit_code == 0, f"{name}: {res.stderr}"
