@@ -354,6 +354,9 @@ def _chunks_hdf5(src: EventSource, chunk_events: int) -> Iterator[EventChunk]:
             for s in range(0, n, chunk_events):
                 e = min(n, s + chunk_events)
                 t, x, y, p = (d[s:e] for d in ds)
+                if t.size and int(t.max()) > (np.iinfo(np.int64).max - max(off_ns, 0)) // 1000:
+                    raise FormatError(src.path, f"events/t holds {int(t.max())} us, beyond int64 "
+                                      "nanoseconds (year 2262); the file is damaged")
                 t_ns = t.astype(np.int64) * 1000 + off_ns
                 yield EventChunk(Events(t_ns, x, y, p > 0), str(src.path), s)
     except OSError as e:
@@ -653,23 +656,24 @@ def read_hot_pixels(path: str | os.PathLike[str]) -> npt.NDArray[np.int64]:
     ndarray, shape (K, 2), int64
         Pixels as x, y.
     """
+    from .paths import read_text
+
     p = Path(path)
     rows: list[tuple[int, int]] = []
-    with open(p, encoding="utf-8") as f:
-        for n, raw in enumerate(f, start=1):
-            line = raw.split("#", 1)[0].strip()
-            if not line:
-                continue
-            cols = line.replace(",", " ").split()
-            if len(cols) != 2:
-                raise FormatError(p, f"expected 'x, y' (two integers), got {line!r}", line=n)
-            try:
-                xv, yv = int(cols[0]), int(cols[1])
-            except ValueError:
-                raise FormatError(p, f"expected integer pixel coordinates 'x, y', got {line!r}", line=n) from None
-            if xv < 0 or yv < 0:
-                raise FormatError(p, f"pixel coordinates must be >= 0, got {line!r}", line=n)
-            rows.append((xv, yv))
+    for n, raw in enumerate(read_text(p, what="hot-pixel list").splitlines(), start=1):
+        line = raw.split("#", 1)[0].strip()
+        if not line:
+            continue
+        cols = line.replace(",", " ").split()
+        if len(cols) != 2:
+            raise FormatError(p, f"expected 'x, y' (two integers), got {line!r}", line=n)
+        try:
+            xv, yv = int(cols[0]), int(cols[1])
+        except ValueError:
+            raise FormatError(p, f"expected integer pixel coordinates 'x, y', got {line!r}", line=n) from None
+        if not (0 <= xv <= 65535 and 0 <= yv <= 65535):
+            raise FormatError(p, f"pixel coordinates must be in 0..65535, got {line!r}", line=n)
+        rows.append((xv, yv))
     return np.array(rows, dtype=np.int64).reshape(-1, 2)
 
 

@@ -17,7 +17,7 @@ from typing import Literal
 
 from ibiscape_eval.core.errors import FormatError
 
-__all__ = ["check_input", "os_error_message"]
+__all__ = ["check_input", "os_error_message", "read_text", "safe_yaml"]
 
 Kind = Literal["file", "folder", "any"]
 
@@ -77,3 +77,34 @@ def check_input(path: str | os.PathLike[str], kind: Kind = "file", *, what: str 
     if kind == "folder":
         raise FormatError(p, f"is a file, expected a folder{label}")
     return p
+
+
+def read_text(path: str | os.PathLike[str], *, what: str = "", max_bytes: int | None = None) -> str:
+    """The content of a small UTF-8 text file (a BOM is dropped) after :func:`check_input`;
+    non-UTF-8 bytes raise :class:`FormatError` naming the line."""
+    p = check_input(path, what=what)
+    with open(p, "rb") as fh:
+        raw = fh.read() if max_bytes is None else fh.read(max_bytes + 1)
+    if max_bytes is not None and len(raw) > max_bytes:
+        raise FormatError(p, f"larger than {max_bytes} bytes: not the expected {what or 'file'}")
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        raise FormatError(p, f"not UTF-8 text (byte 0x{raw[e.start]:02x}); save the file as UTF-8",
+                          line=raw[: e.start].count(b"\n") + 1) from None
+
+
+def safe_yaml(path: str | os.PathLike[str], *, what: str = "") -> object:
+    """``yaml.safe_load`` of a small YAML file, every failure (not UTF-8, bad YAML, nesting too
+    deep) as one :class:`FormatError` naming the file."""
+    import yaml
+
+    text = read_text(path, what=what, max_bytes=16 << 20)
+    try:
+        return yaml.safe_load(text)
+    except RecursionError:
+        raise FormatError(path, "YAML nested too deeply") from None
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        raise FormatError(path, f"not valid YAML ({' '.join(str(e).split())[:200]})",
+                          line=None if mark is None else mark.line + 1) from None

@@ -184,6 +184,20 @@ def _events_txt_seed(folder: Path) -> Path:
     return p
 
 
+def _hot_list_seed(folder: Path) -> Path:
+    _events_npz_seed(folder)
+    p = folder / "hot.txt"
+    p.write_text("5, 9\n17, 3\n")
+    return p
+
+
+def _kitti_times_seed(folder: Path) -> Path:
+    _kitti_seed(folder)
+    p = folder / "times.txt"
+    p.write_text("".join(f"{1000.0 + 0.1 * i:.6f}\n" for i in range(60)))
+    return p
+
+
 def _sim_yaml_seed(folder: Path) -> Path:
     from ibiscape_eval.sim.config import dump_config, preset
 
@@ -216,6 +230,12 @@ FAMILIES: dict[str, Family] = {
     "events_txt": Family(_events_txt_seed, lambda p, o: ["events", "frames", str(p), "--out",
                                                          str(o / "frames"), "--rate-hz", "10",
                                                          "--json"]),
+    "hot_list": Family(_hot_list_seed, lambda p, o: ["hotpix", str(p.parent / "events.npz"),
+                                                     "--apply", str(p), "--filtered-out",
+                                                     str(o / "clean.npz"), "--json"]),
+    "kitti_times": Family(_kitti_times_seed, lambda p, o: [
+        "ate", str(p.parent / "est_kitti.txt"), str(p.parent / "ref_kitti.txt"), "--format-est",
+        "kitti", "--format-ref", "kitti", "--times-est", str(p), "--times-ref", str(p), "--json"]),
     "sim_yaml": Family(_sim_yaml_seed, lambda p, o: ["sim", "--config", str(p), "--out",
                                                      str(o / "seq"), "--json"],
                        also_names=("seq",)),
