@@ -368,3 +368,30 @@ def test_euroc_rows_with_16_or_18_columns_get_a_note(tmp_path: Path) -> None:
                       r"the usual 17 \(e.g. 16 at line 11; lines 11, 21\)"):
         back = read_trajectory(p)
     np.testing.assert_array_equal(back.pos_m, plain.pos_m)
+
+
+def test_constant_imu_axis_names_the_file(tmp_path: Path) -> None:
+    s, g, a = imu_arrays()
+    g[:, 2] = 0.01
+    p = tmp_path / "still.npz"
+    np.savez(p, stamps_ns=s, gyro_rad_s=g, accel_m_s2=a)
+    one_error(run("allan", p), "still.npz", "constant")
+
+
+def test_small_text_inputs_refuse_non_utf8_and_fifos(tmp_path: Path, fifo: Path) -> None:
+    from ibiscape_eval.io.events import read_hot_pixels
+    from ibiscape_eval.io.imu import read_kalibr_imu_yaml
+
+    h = tmp_path / "hot.txt"
+    h.write_bytes(b"1, 2\n3, \xff\n")
+    with pytest.raises(FormatError, match=r"hot.txt:2: not UTF-8"):
+        read_hot_pixels(h)
+    h.write_text("1, 2\n99999999999999999999, 3\n")
+    with pytest.raises(FormatError, match=r"hot.txt:2: pixel coordinates must be in 0..65535"):
+        read_hot_pixels(h)
+    with pytest.raises(FormatError, match="named pipe"):
+        read_hot_pixels(fifo)
+    k = tmp_path / "imu.yaml"
+    k.write_bytes(b"a: " + b"[" * 10_000)
+    with pytest.raises(FormatError, match=r"imu.yaml"):
+        read_kalibr_imu_yaml(k)
