@@ -335,8 +335,10 @@ def test_interrupted_write_leaves_no_temporary(tmp_path: Path, monkeypatch) -> N
         res = run("convert", est, out / "x.txt", "--to", "euroc")
     assert res.exit_code != 0
     assert os.listdir(out) == []
-    import ibiscape_eval.sim.generate as gen
-    from ibiscape_eval.sim.generate import generate
+    import importlib
+
+    gen = importlib.import_module("ibiscape_eval.sim.generate")  # the package exports a function of that name
+    generate = gen.generate
 
     def fail_late(*a, **k):
         raise RuntimeError("injected")
