@@ -56,16 +56,27 @@ def read_euroc(path: str | os.PathLike[str], *, name: str | None = None) -> Traj
                              Path(path).name if name is None else name)
 
 
+_RAGGED_EXACT_BYTES = 64 << 20  # per-line column counts up to this size (EuRoC GT: ~3 MB)
+
+
 def _note_ragged_rows(path: str | os.PathLike[str], data: bytes, lines: np.ndarray) -> None:
     """Warn when data rows have different numbers of columns (a 17-column ground truth with a
     16- or 18-column row): only the first 8 are read, but the file is damaged."""
     buf = np.frombuffer(data, dtype=np.uint8)
+    row_lines = np.asarray(lines, dtype=np.int64)
+    if buf.size > _RAGGED_EXACT_BYTES and row_lines.size:
+        # Large files: one counting pass; every data row must have the first row's count
+        # (a 16- and an 18-column row would cancel out: checked exactly below this size only).
+        head = np.flatnonzero(buf[: 1 << 20] == 10)
+        if row_lines[0] - 1 < head.size:
+            start = 0 if row_lines[0] == 1 else int(head[row_lines[0] - 2]) + 1
+            c0 = int(np.count_nonzero(buf[start : int(head[row_lines[0] - 1])] == 44))
+            if int(np.count_nonzero(buf[start:] == 44)) == c0 * row_lines.size:
+                return
     ends = np.flatnonzero(buf == 10)
     if ends.size == 0 or ends[-1] != buf.size - 1:
         ends = np.append(ends, buf.size)
-    commas = np.concatenate([[0], np.cumsum(buf == 44, dtype=np.int64)])
-    per_line = np.diff(np.concatenate([[0], commas[ends]]))
-    row_lines = np.asarray(lines, dtype=np.int64)
+    per_line = np.diff(np.searchsorted(np.flatnonzero(buf == 44), ends), prepend=0)
     row_lines = row_lines[row_lines <= per_line.size]
     cols = per_line[row_lines - 1] + 1
     if cols.size == 0 or (cols == cols[0]).all():
