@@ -397,3 +397,15 @@ def test_small_text_inputs_refuse_non_utf8_and_fifos(tmp_path: Path, fifo: Path)
     k.write_bytes(b"a: " + b"[" * 10_000)
     with pytest.raises(FormatError, match=r"imu.yaml"):
         read_kalibr_imu_yaml(k)
+
+
+def test_hdf5_stamps_beyond_int64_ns_refused(tmp_path: Path) -> None:
+    h5py = pytest.importorskip("h5py")
+    p = tmp_path / "ev.h5"
+    with h5py.File(p, "w") as f:
+        f["events/t"] = np.array([1, 2**62], dtype=np.uint64)  # microseconds
+        f["events/x"] = np.array([1, 2], dtype=np.uint16)
+        f["events/y"] = np.array([1, 2], dtype=np.uint16)
+        f["events/p"] = np.array([0, 1], dtype=np.uint8)
+    with pytest.raises(FormatError, match=r"ev.h5: events/t holds 4611686018427387904 us"):
+        read_events(p)
