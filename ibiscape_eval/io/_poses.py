@@ -94,7 +94,11 @@ def check_positions(
 ) -> None:
     """Refuse a finite coordinate beyond :data:`MAX_ABS_POSITION_M` (NaN rows are left to
     :func:`check_rows`)."""
+    if pos.size == 0:
+        return
     with np.errstate(invalid="ignore"):
+        if max(float(pos.max()), -float(pos.min())) <= MAX_ABS_POSITION_M:
+            return  # the usual file: two reductions, no temporaries (NaN falls through)
         big = np.abs(pos) > MAX_ABS_POSITION_M
         big &= np.isfinite(pos)
     if big.any():
