@@ -18,7 +18,7 @@ from ibiscape_eval.core.errors import IbiscapeError, IbiscapeWarning
 
 F = TypeVar("F", bound=Callable[..., Any])
 
-__all__ = ["echo_json", "fail", "info", "user_errors"]
+__all__ = ["echo_json", "fail", "info", "strict_json", "user_errors"]
 
 
 def fail(message: str) -> None:
@@ -60,6 +60,10 @@ def user_errors(func: F) -> F:
             fail(f"{e.filename}: is a directory, expected a file")
         except PermissionError as e:
             fail(f"{e.filename}: permission denied")
+        except OSError as e:  # symbolic-link loops, full disks, devices ...
+            from ibiscape_eval.io.paths import os_error_message
+
+            fail(os_error_message(e))
         except MemoryError:
             fail("out of memory; process the input in smaller pieces")
         finally:
@@ -69,25 +73,44 @@ def user_errors(func: F) -> F:
 
 
 def echo_json(doc: Any) -> None:
-    """Write one JSON document on stdout (NaN written as null, numpy scalars converted)."""
+    """Write one strict JSON document on stdout (``allow_nan=False``).
 
-    def default(o: Any) -> Any:
-        import numpy as np
+    numpy scalars and arrays are converted; a non-finite number becomes ``null`` and its place is
+    listed under the top-level key ``"non_finite"`` (JSON pointer -> ``"nan"``, ``"inf"`` or
+    ``"-inf"``), so a reader knows why the value is missing.
+    """
+    text = json.dumps(strict_json(doc), indent=2, allow_nan=False)
+    click.echo(text)
 
+
+def strict_json(doc: Any) -> Any:
+    """``doc`` as plain JSON values with every non-finite float replaced by None; the replaced
+    places are listed under ``"non_finite"`` when ``doc`` is a mapping."""
+    import math
+
+    import numpy as np
+
+    missing: dict[str, str] = {}
+
+    def clean(o: Any, where: str) -> Any:
         if isinstance(o, np.ndarray):
-            return o.tolist()
-        if isinstance(o, np.generic):
-            return o.item()
-        raise TypeError(f"not JSON serialisable: {type(o).__name__}")
-
-    def clean(o: Any) -> Any:
-        if isinstance(o, float) and o != o:
+            o = o.tolist()
+        elif isinstance(o, np.generic):
+            o = o.item()
+        if isinstance(o, float):
+            if math.isfinite(o):
+                return o
+            missing[where or "/"] = "nan" if o != o else ("inf" if o > 0 else "-inf")
             return None
         if isinstance(o, dict):
-            return {k: clean(v) for k, v in o.items()}
+            return {str(k): clean(v, f"{where}/{k}") for k, v in o.items()}
         if isinstance(o, list | tuple):
-            return [clean(v) for v in o]
-        return o
+            return [clean(v, f"{where}/{i}") for i, v in enumerate(o)]
+        if o is None or isinstance(o, bool | int | str):
+            return o
+        raise TypeError(f"not JSON serialisable: {type(o).__name__}")
 
-    text = json.dumps(clean(json.loads(json.dumps(doc, default=default))), indent=2)
-    click.echo(text)
+    out = clean(doc, "")
+    if missing and isinstance(out, dict):
+        out = {**out, "non_finite": {**out.get("non_finite", {}), **missing}}
+    return out

@@ -59,7 +59,7 @@ Examples:
               help="Calibration target the vehicle drives toward.")
 @click.option("--out", "out", type=click.Path(file_okay=False),
               help="Sequence folder (default ./<Setup>_1_<map>); must be absent or empty.")
-@click.option("--config", "config_path", type=click.Path(dir_okay=False),
+@click.option("--config", "config_path", type=click.Path(),
               help="YAML config (see --print-config); command-line options win.")
 @click.option("--ideal", is_flag=True, default=None, help="Turn every sensor noise off (IMU, GNSS).")
 @click.option("--no-render/--render", "no_render", default=True, show_default=True,

@@ -327,6 +327,7 @@ def validate(cfg: SimConfig) -> None:
     _nonneg(cfg.motion.accident_obstacle_gap_m, "motion.accident_obstacle_gap_m")
     if not isinstance(cfg.motion.town_blocks, int) or cfg.motion.town_blocks < 1:
         raise IbiscapeError(f"config: motion.town_blocks must be an integer >= 1, got {cfg.motion.town_blocks!r}")
+    check_ranges(cfg)
     from .rig import check_housings
 
     check_housings(cfg)
@@ -588,3 +589,191 @@ def _yaml_items(obj: Any, base: SimConfig) -> list[YamlItem]:
         else:
             items.append(YamlItem(f.name, _to_plain(v), doc))
     return items
+
+
+# ---------------------------------------------------------------------------------------------
+# value ranges and the resources of a run (checked before anything is generated)
+
+#: Upper bounds of config values: beyond them a value is a typo, not a sequence (rates: the
+#: fastest IMUs sample at a few kHz; 16384 px is beyond any camera the paper simulates).
+LIMITS: dict[str, float] = {
+    "duration_s": 1.0e7,  # 116 days (the still IMU's 168 h is 6.05e5 s)
+    "gt_rate_hz": 10_000.0,
+    "imu_rate_hz": 10_000.0,
+    "camera_rate_hz": 10_000.0,
+    "gnss_rate_hz": 100.0,
+    "image_px": 16_384,
+    "town_blocks": 50,
+    "max_speed_m_s": 100.0,
+    "chunk_samples": 1 << 24,
+    "housing_m": 10.0,
+    "sensor_offset_m": 1_000.0,
+    "imu_noise": 1.0e3,
+    "weather_time_s": 1.0e7,
+    "accident_decel_m_s2": 100.0,
+    "accident_obstacle_gap_m": 1_000.0,
+}
+
+
+def _at_most(value: Any, limit: float, key: str, unit: str = "") -> None:
+    if isinstance(value, int | float) and value > limit:
+        raise IbiscapeError(f"config: {key} = {value!r} is beyond the supported {limit:g}{unit}; "
+                            "check for a typo")
+
+
+def _finite_fields(obj: Any, prefix: str) -> None:
+    """Every float in the (nested) config is finite (``.inf``/``.nan`` in YAML are floats)."""
+    for f in fields(obj):
+        v = getattr(obj, f.name)
+        key = f"{prefix}{f.name}"
+        if dataclasses.is_dataclass(v):
+            _finite_fields(v, key + ".")
+        elif isinstance(v, tuple):
+            for i, x in enumerate(v):
+                if dataclasses.is_dataclass(x):
+                    _finite_fields(x, f"{key}.{getattr(x, 'name', i)}.")
+                elif isinstance(x, float) and not math.isfinite(x):
+                    raise IbiscapeError(f"config: {key} must be finite numbers, got {v!r}")
+        elif isinstance(v, float) and not math.isfinite(v):
+            raise IbiscapeError(f"config: {key} must be a finite number, got {v!r}")
+
+
+def check_ranges(cfg: SimConfig) -> None:
+    """Raise :class:`IbiscapeError` naming the key for a value beyond :data:`LIMITS` or not finite."""
+    _finite_fields(cfg, "")
+    lim = LIMITS
+    _at_most(cfg.duration_s, lim["duration_s"], "duration_s", " s")
+    _at_most(cfg.gt_rate_hz, lim["gt_rate_hz"], "gt_rate_hz", " Hz")
+    _at_most(cfg.chunk_samples, lim["chunk_samples"], "chunk_samples")
+    _at_most(cfg.housing_m, lim["housing_m"], "housing_m", " m")
+    end = cfg.start_ns + cfg.duration_s * 1e9
+    if end >= 2.0**63:
+        raise IbiscapeError(f"config: start_ns + duration_s reach {end:.4g} ns, beyond int64 "
+                            "nanoseconds (year 2262)")
+    for f in fields(ImuNoise):
+        if f.name != "model":
+            _at_most(getattr(cfg.imu_noise, f.name), lim["imu_noise"], f"imu_noise.{f.name}")
+    for s in cfg.imus:
+        _at_most(s.rate_hz, lim["imu_rate_hz"], f"imus.{s.name}.rate_hz", " Hz")
+        _at_most(max(abs(x) for x in s.position_m), lim["sensor_offset_m"],
+                 f"imus.{s.name}.position_m", " m")
+    for c in cfg.cameras:
+        _at_most(c.rate_hz, lim["camera_rate_hz"], f"cameras.{c.name}.rate_hz", " Hz")
+        _at_most(c.width_px, lim["image_px"], f"cameras.{c.name}.width_px", " px")
+        _at_most(c.height_px, lim["image_px"], f"cameras.{c.name}.height_px", " px")
+        _at_most(max(abs(x) for x in c.position_m), lim["sensor_offset_m"],
+                 f"cameras.{c.name}.position_m", " m")
+    g = cfg.gnss
+    _at_most(g.rate_hz, lim["gnss_rate_hz"], "gnss.rate_hz", " Hz")
+    _at_most(max(abs(x) for x in g.position_m), lim["sensor_offset_m"], "gnss.position_m", " m")
+    _at_most(max(g.sigma_horizontal_m, g.sigma_vertical_m), lim["sensor_offset_m"],
+             "gnss.sigma_*_m", " m")
+    if not -1000 <= g.ref_alt_m <= 1.0e5:
+        raise IbiscapeError(f"config: gnss.ref_alt_m must be in -1000..100000 m, got {g.ref_alt_m!r}")
+    w = cfg.weather_model
+    _at_most(w.correlation_time_s, lim["weather_time_s"], "weather_model.correlation_time_s", " s")
+    _at_most(w.deposit_lag_s, lim["weather_time_s"], "weather_model.deposit_lag_s", " s")
+    m = cfg.motion
+    _at_most(m.town_blocks, lim["town_blocks"], "motion.town_blocks")
+    _at_most(m.max_speed_m_s, lim["max_speed_m_s"], "motion.max_speed_m_s", " m/s")
+    _at_most(m.accident_decel_m_s2, lim["accident_decel_m_s2"], "motion.accident_decel_m_s2",
+             " m/s^2")
+    _at_most(m.accident_obstacle_gap_m, lim["accident_obstacle_gap_m"],
+             "motion.accident_obstacle_gap_m", " m")
+
+
+@dataclass(frozen=True)
+class RunEstimate:
+    """What a run will need: bytes written, peak memory, samples (see :func:`estimate_run`)."""
+
+    output_bytes: int
+    memory_bytes: int
+    gt_samples: int
+    imu_samples: int
+    frames: int
+
+    def __repr__(self) -> str:
+        return (f"RunEstimate(output {self.output_bytes / 1e9:.3g} GB, memory "
+                f"{self.memory_bytes / 1e9:.3g} GB, {self.gt_samples} gt, {self.imu_samples} imu, "
+                f"{self.frames} frames)")
+
+
+# Measured on this generator (60 s SVI, 30 s at 200/2000 Hz ground truth): ~400 B of memory and
+# ~233 B of csv per ground-truth sample; the IMU csv row is ~130 B (npy 56 B); a process base of
+# ~300 MB; the still IMU streams (flat ~330 MB).  Factors of 2.5 on memory keep the estimate an
+# upper bound.
+_BASE_MEMORY = 300_000_000
+_MEM_PER_SAMPLE = 1_000
+_GT_ROW_BYTES = 240
+_IMU_ROW_BYTES = {"csv": 130, "npy": 56}
+_FRAME_ROW_BYTES = 200  # weather.csv and controls per camera frame
+#: Bytes per rendered frame and pixel by camera kind (PNG-compressed RGB, 16-bit depth, ...),
+#: used when ``render`` is true.
+RENDER_BYTES_PER_PIXEL = {"rgb": 1.5, "depth": 2.0, "semantic": 0.3, "dvs": 0.5}
+
+
+def estimate_run(cfg: SimConfig, *, render: bool = False) -> RunEstimate:
+    """Upper-bound estimate of the output size and the peak memory of generating ``cfg``."""
+    d = float(cfg.duration_s)
+    n_gt = int(d * cfg.gt_rate_hz) + 1
+    n_imu = sum(int(d * s.rate_hz) + 1 for s in cfg.imus)
+    n_frames = max((int(d * c.rate_hz) + 1 for c in cfg.cameras), default=int(d * 20) + 1)
+    n_gnss = int(d * cfg.gnss.rate_hz) + 1
+    if cfg.setup == "imu":
+        still_out = n_imu * _IMU_ROW_BYTES.get(cfg.still_format, 130)
+        still_mem = _BASE_MEMORY + 3 * cfg.chunk_samples * 7 * 8 * max(len(cfg.imus), 1)
+        return RunEstimate(int(still_out), int(still_mem), 0, n_imu, 0)
+    out = n_gt * _GT_ROW_BYTES + n_imu * _IMU_ROW_BYTES["csv"] + n_gnss * 150 + n_frames * _FRAME_ROW_BYTES
+    if render:
+        out += int(sum((int(d * c.rate_hz) + 1) * c.width_px * c.height_px
+                       * RENDER_BYTES_PER_PIXEL.get(c.kind, 3.0) for c in cfg.cameras))
+    mem = _BASE_MEMORY + _MEM_PER_SAMPLE * (n_gt + n_imu + n_gnss + n_frames)
+    return RunEstimate(int(out), int(mem), n_gt, n_imu, n_frames)
+
+
+def _available_memory() -> int | None:
+    try:
+        with open("/proc/meminfo", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        return None
+    return None
+
+
+_HINT = "shorten duration_s or lower the rates"
+
+
+def check_memory(cfg: SimConfig, out: str | os.PathLike[str], *, render: bool = False
+                 ) -> RunEstimate:
+    """Refuse a run whose estimated peak memory exceeds the available memory."""
+    est = estimate_run(cfg, render=render)
+    mem = _available_memory()
+    if mem is not None and est.memory_bytes > mem:
+        raise IbiscapeError(
+            f"{out}: not generated: this run would need about {est.memory_bytes / 1e9:.3g} GB of memory "
+            f"({est.gt_samples} ground-truth and {est.imu_samples} IMU samples) but "
+            f"{mem / 1e9:.3g} GB are available; {_HINT} (the imu setup streams)")
+    return est
+
+
+def check_resources(cfg: SimConfig, out: str | os.PathLike[str], *, render: bool = False) -> RunEstimate:
+    """Refuse a run whose estimated output does not fit on the disk of ``out`` or whose
+    estimated memory exceeds the available memory, with the numbers; returns the estimate."""
+    import shutil
+    from pathlib import Path
+
+    est = check_memory(cfg, out, render=render)
+    parent = Path(out).absolute()
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    try:
+        free = shutil.disk_usage(parent).free
+    except OSError:
+        return est
+    if est.output_bytes > free:
+        raise IbiscapeError(
+            f"{out}: not generated: this run would write about {est.output_bytes / 1e9:.3g} GB but "
+            f"{free / 1e9:.3g} GB are free there; {_HINT}, or write elsewhere")
+    return est

@@ -33,7 +33,7 @@ from ibiscape_eval.io.atomic import atomic_output_dir
 from ibiscape_eval.io.gnss import write_gnss
 from ibiscape_eval.io.ibiscape import IbiscapeGroundTruth, write_ibiscape_groundtruth
 
-from .config import SimConfig
+from .config import SimConfig, check_resources
 from .gnss import simulate_gnss
 from .imu import simulate_imu, sub_seed
 from .rig import T_body_imu
@@ -237,6 +237,7 @@ def generate(config: SimConfig, out: str | os.PathLike[str], *, overwrite: bool 
         if progress is not None:
             progress(frac, label)
 
+    check_resources(config, out)  # before anything is written: refuse with the numbers
     out_p = prepare_output(out, overwrite=overwrite)
     with atomic_output_dir(out_p, overwrite=overwrite) as tmp:
         if config.setup == "imu":

@@ -327,8 +327,9 @@ def allan_deviation(
     adev = (np.sqrt(sums / (2.0 * n_terms)) / ms).T  # (T, k)
     for j, name in enumerate(axis_names):
         if not np.any(adev[:, j] > 0):
+            where = getattr(samples, "path", None)  # an ImuRecord names its file
             raise DegenerateInputError(
-                f"axis {name!r} is constant (Allan deviation 0): a real IMU always shows noise; "
+                (f"{where}: " if where else "") + f"axis {name!r} is constant (Allan deviation 0): a real IMU always shows noise; "
                 "check the column mapping or drop the axis"
             )
     edf = edf_white_fm(n + 1, ms)

@@ -24,9 +24,13 @@ from ibiscape_eval.core.trajectory import Trajectory
 
 from ._text import _kernels, _Pool, _workers, format_lines
 
-__all__ = ["QUAT_NORM_TOL", "check_rows", "finish_trajectory"]
+__all__ = ["MAX_ABS_POSITION_M", "QUAT_NORM_TOL", "check_positions", "check_rows",
+           "finish_trajectory"]
 
 QUAT_NORM_TOL = 1e-3
+#: Largest believable coordinate, m (a million km: ECEF and UTM coordinates fit with room to
+#: spare).  Larger values are damaged data, and squared in the alignment they overflow to inf.
+MAX_ABS_POSITION_M = 1.0e9
 _FUSED_MIN_ROWS = 10_000  # from this size on the usual case is checked by one numba pass
 _PARALLEL_ROWS = 200_000  # ... in parallel threads from this size on
 
@@ -79,6 +83,31 @@ def check_rows(
         mask[dup] = False
         keep = keep[mask]
     return keep
+
+
+def check_positions(
+    path: str | os.PathLike[str],
+    pos: npt.NDArray[np.float64],
+    lines: npt.NDArray[np.int64],
+    *,
+    where: str = "line",
+) -> None:
+    """Refuse a finite coordinate beyond :data:`MAX_ABS_POSITION_M` (NaN rows are left to
+    :func:`check_rows`)."""
+    if pos.size == 0:
+        return
+    with np.errstate(invalid="ignore"):
+        if max(float(pos.max()), -float(pos.min())) <= MAX_ABS_POSITION_M:
+            return  # the usual file: two reductions, no temporaries (NaN falls through)
+        big = np.abs(pos) > MAX_ABS_POSITION_M
+        big &= np.isfinite(pos)
+    if big.any():
+        i = int(np.flatnonzero(big.any(axis=1))[0])
+        msg = (f"position {np.asarray(pos[i]).tolist()} is beyond {MAX_ABS_POSITION_M:g} m: "
+               "damaged data or wrong units; fix or remove the row")
+        if where == "line":
+            raise FormatError(path, msg, line=int(lines[i]))
+        raise FormatError(path, f"{where} {lines[i]}: {msg}")
 
 
 def check_quaternions(
@@ -158,6 +187,7 @@ def finish_trajectory(
     alone; they are normalised in place and adopted instead of copied.
     """
     n = stamps_ns.size
+    check_positions(path, pos_m, lines, where=where)
     if n > _FUSED_MIN_ROWS:
         if owned and pos_m.flags.c_contiguous and quat_xyzw.flags.c_contiguous:
             pos, quat = pos_m, quat_xyzw

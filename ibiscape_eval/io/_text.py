@@ -65,11 +65,9 @@ class Table:
 
 def read_bytes(path: str | os.PathLike[str]) -> bytes:
     """The raw content of a file; a folder is reported as a FormatError."""
-    p = Path(path)
-    if p.is_dir():
-        raise FormatError(p, "is a folder, expected a text file (a ROS 2 bag? use --format bag)")
+    p = _text_path(path)
     with open(p, "rb") as f:
-        return f.read()
+        return _strip_bom(f.read())
 
 
 def map_bytes(path: str | os.PathLike[str]) -> bytes | mmap.mmap:
@@ -78,17 +76,35 @@ def map_bytes(path: str | os.PathLike[str]) -> bytes | mmap.mmap:
 
     The mapping is released when the returned object is no longer referenced.
     """
-    p = Path(path)
-    if p.is_dir():
-        raise FormatError(p, "is a folder, expected a text file (a ROS 2 bag? use --format bag)")
+    p = _text_path(path)
     with open(p, "rb") as f:
         st = os.fstat(f.fileno())
         if stat.S_ISREG(st.st_mode) and st.st_size >= _MMAP_BYTES:
+            if f.read(len(UTF8_BOM)) == UTF8_BOM:  # rare: copy rather than map
+                return f.read()
             try:
                 return mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
             except (OSError, ValueError):  # pragma: no cover (a file system without mmap)
-                pass
-        return f.read()
+                f.seek(0)
+        return _strip_bom(f.read())
+
+
+#: The UTF-8 byte-order mark some editors (Notepad, Excel) put at the start of a text file.
+UTF8_BOM = b"\xef\xbb\xbf"
+
+
+def _strip_bom(data: bytes) -> bytes:
+    return data[len(UTF8_BOM):] if data.startswith(UTF8_BOM) else data
+
+
+def _text_path(path: str | os.PathLike[str]) -> Path:
+    """``path`` if it is a regular file; FIFOs, devices, loops and folders are refused."""
+    from .paths import check_input
+
+    p = Path(path)
+    if p.is_dir():
+        raise FormatError(p, "is a folder, expected a text file (a ROS 2 bag? use --format bag)")
+    return check_input(p)
 
 
 _kernel_module: Any = None  # set once the kernels are imported and numba's runtime started

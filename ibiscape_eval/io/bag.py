@@ -12,6 +12,7 @@ messages are sorted by header stamp when they were recorded out of order (with a
 
 from __future__ import annotations
 
+import contextlib
 import os
 import warnings
 from pathlib import Path
@@ -19,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from ibiscape_eval.core.errors import FormatError, IbiscapeWarning
+from ibiscape_eval.core.errors import FormatError, IbiscapeError, IbiscapeWarning
 from ibiscape_eval.core.trajectory import Trajectory
 
 from ._poses import finish_trajectory
@@ -38,10 +39,21 @@ TF_MSGTYPE = "tf2_msgs/msg/TFMessage"
 IMU_MSGTYPE = "sensor_msgs/msg/Imu"
 
 
+def _damaged(p: Path, e: BaseException) -> FormatError:
+    """rosbags raises many unrelated types (AssertionError, ReaderError, UnicodeDecodeError,
+    struct.error ...) on damaged bags: one message for all of them."""
+    msg = " ".join(str(e).split())[:120]
+    return FormatError(p, f"damaged ROS bag ({type(e).__name__}{': ' + msg if msg else ''}); "
+                       "the recording was cut off or corrupted: re-record it, or repair it "
+                       "(rosbag reindex / ros2 bag reindex)")
+
+
 def _bag_path(path: str | os.PathLike[str]) -> Path:
-    p = Path(path)
-    if not p.exists():
-        raise FileNotFoundError(2, "No such file or directory", str(p))
+    from .paths import check_input
+
+    p = check_input(path, "any")
+    if p.is_file():
+        check_input(p, "file")
     if p.is_file() and p.suffix in (".db3", ".mcap"):
         p = p.parent  # a ROS 2 storage file: the bag is its folder (with metadata.yaml)
     return p
@@ -77,13 +89,19 @@ def _tf_pairs(reader: Any) -> list[str]:
 
 def list_pose_topics(path: str | os.PathLike[str]) -> list[str]:
     """Topics of supported pose messages, then ``/tf:parent.child`` ids of TF transforms."""
-    reader = _open(_bag_path(path))
+    p = _bag_path(path)
+    reader = _open(p)
     try:
         topics = sorted({c.topic for c in reader.connections
                          if c.msgtype in POSE_MSGTYPES and c.msgcount > 0})
         return topics + _tf_pairs(reader)
+    except IbiscapeError:
+        raise
+    except Exception as e:
+        raise _damaged(p, e) from None
     finally:
-        reader.close()
+        with contextlib.suppress(Exception):
+            reader.close()
 
 
 def _split_tf_id(topic: str) -> tuple[str, str, str] | None:
@@ -128,8 +146,13 @@ def read_bag(
     reader = _open(p)
     try:
         return _read(reader, p, topic, name)
+    except IbiscapeError:
+        raise
+    except (Exception, RecursionError) as e:
+        raise _damaged(p, e) from None
     finally:
-        reader.close()
+        with contextlib.suppress(Exception):
+            reader.close()
 
 
 def _read(reader: Any, p: Path, topic: str | None, name: str | None) -> Trajectory:
@@ -213,7 +236,7 @@ def read_imu_bag(path: str | os.PathLike[str],
     from rosbags.highlevel import AnyReader
 
     p = Path(path)
-    bag_path = p.parent if p.suffix.lower() in (".db3", ".mcap") else p
+    bag_path = _bag_path(p)
     try:
         reader_cm = AnyReader([bag_path])
         reader = reader_cm.__enter__()
@@ -244,6 +267,11 @@ def read_imu_bag(path: str | os.PathLike[str],
             w, a = msg.angular_velocity, msg.linear_acceleration
             data[i] = (w.x, w.y, w.z, a.x, a.y, a.z)
             i += 1
+    except IbiscapeError:
+        raise
+    except Exception as e:
+        raise _damaged(p, e) from None
     finally:
-        reader_cm.__exit__(None, None, None)
+        with contextlib.suppress(Exception):
+            reader_cm.__exit__(None, None, None)
     return stamps[:i], data[:i], rostopic

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import os
 import re
-from pathlib import Path
 
 from ibiscape_eval.core.errors import FormatError
 
@@ -55,9 +54,9 @@ def detect_trajectory_format(path: str | os.PathLike[str]) -> str:
     FileNotFoundError
         ``path`` does not exist.
     """
-    p = Path(path)
-    if not p.exists():
-        raise FileNotFoundError(2, "No such file or directory", str(p))
+    from .paths import check_input
+
+    p = check_input(path, "any")
     if p.is_dir():
         if (p / "metadata.yaml").is_file():
             return "bag"

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import zipfile
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -158,10 +157,19 @@ def _text_header(path: Path) -> tuple[tuple[int, int] | None, bytes]:
     """An E2VID-style ``width height`` first line, if present."""
     with open(path, "rb") as f:
         first = f.readline(4096)
+    if first.startswith(_BOM):
+        first = first[len(_BOM):]
     cols = first.replace(b",", b" ").split()
     if len(cols) == 2 and all(c.isdigit() for c in cols):
-        return (int(cols[0]), int(cols[1])), first
+        w, h = int(cols[0]), int(cols[1])
+        if not (0 < w <= 65536 and 0 < h <= 65536):
+            raise FormatError(path, f"header gives a {w}x{h} sensor; width and height must be "
+                              "in 1..65536 (or remove the header line)", line=1)
+        return (w, h), first
     return None, b""
+
+
+_BOM = b"\xef\xbb\xbf"  # UTF-8 byte-order mark (Notepad, Excel): skipped
 
 
 def _h5py() -> Any:
@@ -178,10 +186,12 @@ def open_events(path: str | os.PathLike[str], *, fmt: str | None = None) -> Even
     Checks the folder listing (every file in ``timestamps.csv`` exists), the HDF5 datasets and
     their lengths.  Raises :class:`FormatError` naming the file (and line) otherwise.
     """
-    p = Path(path)
-    if not p.exists():
-        raise FormatError(p, "no such file or directory; check the path")
+    from .paths import check_input
+
+    p = check_input(path, "any")
     fmt = fmt or detect_event_format(p)
+    if fmt != "ibiscape":
+        check_input(p, "file")
     if fmt not in FORMATS:
         raise IbiscapeError(f"unknown event format {fmt!r}; choose one of {', '.join(FORMATS)}")
     if fmt == "ibiscape":
@@ -235,28 +245,18 @@ def open_events(path: str | os.PathLike[str], *, fmt: str | None = None) -> Even
 
 
 def _load_npz(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    try:
-        npz = np.load(path, allow_pickle=False)
-    except (zipfile.BadZipFile, ValueError, EOFError) as e:
-        raise FormatError(path, f"not a readable .npz file ({e}); re-export the window") from None
-    if not isinstance(npz, np.lib.npyio.NpzFile):
-        raise FormatError(path, "expected an .npz archive with keys t, x, y, p")
-    with npz:
-        missing = [k for k in NPZ_KEYS if k not in npz.files]
-        if missing:
-            raise FormatError(
-                path, f"missing key(s) {', '.join(missing)}; found {', '.join(npz.files) or 'none'}; "
-                "expected t (int64 ns), x, y (uint16), p (bool)"
-            )
-        arrays = []
-        for k in NPZ_KEYS:
-            try:
-                arrays.append(npz[k])
-            except ValueError:
-                raise FormatError(
-                    path, f"key {k!r} holds pickled Python objects, which are refused for safety; "
-                    "save plain numeric arrays (t int64, x y uint16, p bool)"
-                ) from None
+    from .npfiles import load_npz_arrays
+
+    got = load_npz_arrays(path, NPZ_KEYS)
+    missing = [k for k in NPZ_KEYS if k not in got]
+    if missing:
+        with np.load(path, allow_pickle=False) as npz:
+            found = list(npz.files)
+        raise FormatError(
+            path, f"missing key(s) {', '.join(missing)}; found {', '.join(found) or 'none'}; "
+            "expected t (int64 ns), x, y (uint16), p (bool)"
+        )
+    arrays = [got[k] for k in NPZ_KEYS]
     t, x, y, p = arrays
     if any(a.ndim != 1 for a in arrays) or len({a.shape[0] for a in arrays}) != 1:
         raise FormatError(
@@ -265,6 +265,7 @@ def _load_npz(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarra
         )
     if t.dtype.kind not in "iu":
         raise FormatError(path, f"t must be integer nanoseconds, got dtype {t.dtype}")
+    t = _stamps_int64(path, t)
     for k, a in (("x", x), ("y", y)):
         if a.dtype.kind not in "iu":
             raise FormatError(path, f"{k} must be integer pixel coordinates, got dtype {a.dtype}")
@@ -275,6 +276,14 @@ def _load_npz(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarra
             raise FormatError(path, f"p must be bool (or 0/1), got dtype {p.dtype}")
         p = p > 0
     return t, x, y, p
+
+
+def _stamps_int64(path: Path, t: np.ndarray) -> np.ndarray:
+    """Integer stamps as int64 ns; unsigned stamps beyond int64 are refused, never wrapped."""
+    if t.dtype.kind == "u" and t.dtype.itemsize >= 8 and t.size and int(t.max()) > np.iinfo(np.int64).max:
+        raise FormatError(path, f"t holds {int(t.max())} ns, beyond int64 nanoseconds (year 2262); "
+                          "store t as int64 ns")
+    return t.astype(np.int64, copy=False)
 
 
 def _chunks_npz_files(files: list[Path]) -> Iterator[EventChunk]:
@@ -290,7 +299,10 @@ def _chunks_text(src: EventSource, chunk_events: int) -> Iterator[EventChunk]:
     line = 1
     offset = 0
     header = src.meta.get("header", b"")
+    size = src.sensor_size
     with open(path, "rb") as f:
+        if f.read(len(_BOM)) != _BOM:
+            f.seek(0)
         if header:
             f.readline()
             line = 2
@@ -316,6 +328,13 @@ def _chunks_text(src: EventSource, chunk_events: int) -> Iterator[EventChunk]:
             n, nlines, err, err_line = _kernels.parse_text(buf, line, t, x, y, p, ln)
             if err:
                 raise FormatError(path, _kernels.TEXT_ERRORS[int(err)], line=int(err_line))
+            if size is not None and n:
+                out = (x[:n] >= size[0]) | (y[:n] >= size[1])
+                if out.any():
+                    i = int(np.flatnonzero(out)[0])
+                    raise FormatError(path, f"event at pixel ({int(x[i])}, {int(y[i])}) lies "
+                                      f"outside the {size[0]}x{size[1]} sensor of the header "
+                                      "(line 1); fix the header or the event", line=int(ln[i]))
             line += int(nlines)
             for s in range(0, int(n), chunk_events):
                 e = min(int(n), s + chunk_events)
@@ -335,6 +354,9 @@ def _chunks_hdf5(src: EventSource, chunk_events: int) -> Iterator[EventChunk]:
             for s in range(0, n, chunk_events):
                 e = min(n, s + chunk_events)
                 t, x, y, p = (d[s:e] for d in ds)
+                if t.size and int(t.max()) > (np.iinfo(np.int64).max - max(off_ns, 0)) // 1000:
+                    raise FormatError(src.path, f"events/t holds {int(t.max())} us, beyond int64 "
+                                      "nanoseconds (year 2262); the file is damaged")
                 t_ns = t.astype(np.int64) * 1000 + off_ns
                 yield EventChunk(Events(t_ns, x, y, p > 0), str(src.path), s)
     except OSError as e:
@@ -634,23 +656,24 @@ def read_hot_pixels(path: str | os.PathLike[str]) -> npt.NDArray[np.int64]:
     ndarray, shape (K, 2), int64
         Pixels as x, y.
     """
+    from .paths import read_text
+
     p = Path(path)
     rows: list[tuple[int, int]] = []
-    with open(p, encoding="utf-8") as f:
-        for n, raw in enumerate(f, start=1):
-            line = raw.split("#", 1)[0].strip()
-            if not line:
-                continue
-            cols = line.replace(",", " ").split()
-            if len(cols) != 2:
-                raise FormatError(p, f"expected 'x, y' (two integers), got {line!r}", line=n)
-            try:
-                xv, yv = int(cols[0]), int(cols[1])
-            except ValueError:
-                raise FormatError(p, f"expected integer pixel coordinates 'x, y', got {line!r}", line=n) from None
-            if xv < 0 or yv < 0:
-                raise FormatError(p, f"pixel coordinates must be >= 0, got {line!r}", line=n)
-            rows.append((xv, yv))
+    for n, raw in enumerate(read_text(p, what="hot-pixel list").splitlines(), start=1):
+        line = raw.split("#", 1)[0].strip()
+        if not line:
+            continue
+        cols = line.replace(",", " ").split()
+        if len(cols) != 2:
+            raise FormatError(p, f"expected 'x, y' (two integers), got {line!r}", line=n)
+        try:
+            xv, yv = int(cols[0]), int(cols[1])
+        except ValueError:
+            raise FormatError(p, f"expected integer pixel coordinates 'x, y', got {line!r}", line=n) from None
+        if not (0 <= xv <= 65535 and 0 <= yv <= 65535):
+            raise FormatError(p, f"pixel coordinates must be in 0..65535, got {line!r}", line=n)
+        rows.append((xv, yv))
     return np.array(rows, dtype=np.int64).reshape(-1, 2)
 
 

@@ -69,7 +69,7 @@ from ibiscape_eval.core.errors import IbiscapeError
 from ibiscape_eval.core.rotations import quat_conjugate, quat_multiply, rotvec_from_quat
 from ibiscape_eval.core.trajectory import Trajectory
 
-from ._poses import check_quaternions, check_rows
+from ._poses import check_positions, check_quaternions, check_rows
 from ._text import decimal_to_ns, parse_table, read_bytes, write_table
 from .atomic import atomic_write
 
@@ -180,6 +180,7 @@ def read_ibiscape_groundtruth(
     stamps = decimal_to_ns(path, tb, unit_exp=0)
     keep = check_rows(path, stamps, tb.finite, tb.lines, stacklevel=4)
     v = tb.values[keep]
+    check_positions(path, v[:, 1:4], tb.lines[keep])
     quat = _quat_ours_from_file(check_quaternions(path, v[:, 10:14], tb.lines[keep]))
     traj = Trajectory(stamps[keep], v[:, 1:4] * _S, quat,
                       Path(path).name if name is None else name)

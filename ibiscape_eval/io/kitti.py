@@ -14,7 +14,7 @@ from ibiscape_eval.core.errors import FormatError
 from ibiscape_eval.core.rotations import quat_from_matrix
 from ibiscape_eval.core.trajectory import Trajectory
 
-from ._poses import check_rows
+from ._poses import check_positions, check_rows
 from ._text import decimal_to_ns, parse_table, read_bytes, write_table
 from .atomic import atomic_write
 
@@ -86,6 +86,7 @@ def read_kitti(
         stamps = np.arange(n, dtype=np.int64) * KITTI_PERIOD_NS
     keep = check_rows(path, stamps, tb.finite, tb.lines)
     M = tb.values[keep].reshape(-1, 3, 4)
+    check_positions(path, M[:, :, 3], tb.lines[keep])
     R = M[:, :, :3]
     U, S, Vt = np.linalg.svd(R)
     det = np.linalg.det(R)

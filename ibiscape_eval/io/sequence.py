@@ -123,8 +123,9 @@ def write_weather_csv(path: str | os.PathLike[str], stamps_ns: npt.ArrayLike,
 
 def read_weather_csv(path: str | os.PathLike[str]) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.float64], list[str]]:
     """Read a ``weather.csv``: ``(stamps_ns, values (N, k), column names)``."""
-    with open(path, encoding="utf-8") as fh:
-        header = fh.readline().strip()
+    from .paths import read_text
+
+    header = read_text(path, what="weather.csv").split("\n", 1)[0].strip()
     if not header.startswith("#timestamp"):
         raise FormatError(path, "expected a '#timestamp [ns],...' header", line=1)
     names = [h.strip() for h in header.split(",")[1:]]
@@ -197,13 +198,9 @@ def read_sequence_yaml(path: str | os.PathLike[str]) -> dict[str, Any]:
     FormatError
         Not YAML, missing keys (naming them), malformed transforms.
     """
-    import yaml
+    from .paths import safe_yaml
 
-    with open(path, encoding="utf-8") as fh:
-        try:
-            doc = yaml.safe_load(fh)
-        except yaml.YAMLError as e:
-            raise FormatError(path, f"not valid YAML ({' '.join(str(e).split())})") from None
+    doc = safe_yaml(path, what="sequence.yaml")
     if not isinstance(doc, dict):
         raise FormatError(path, "expected a mapping at the top level")
     missing = [k for k in SEQUENCE_KEYS if k not in doc]

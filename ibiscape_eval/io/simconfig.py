@@ -54,13 +54,26 @@ class SimConfigDoc:
         return FormatError(self.path, message, line=self.line_of(keys))
 
 
+#: A simulator config is a few KiB; anything much larger is not one (and not worth parsing).
+_MAX_CONFIG_BYTES = 1 << 20
+
+
+class _DuplicateKeyError(Exception):
+    def __init__(self, key: tuple[str, ...], first: int, line: int) -> None:
+        super().__init__(key)
+        self.key, self.first, self.line = key, first, line
+
+
 def _key_lines(node: Any, prefix: tuple[str, ...], out: dict[tuple[str, ...], int]) -> None:
     import yaml
 
     if isinstance(node, yaml.MappingNode):
         for knode, vnode in node.value:
             key = (*prefix, str(knode.value))
-            out.setdefault(key, knode.start_mark.line + 1)
+            line = knode.start_mark.line + 1
+            if key in out:  # yaml.safe_load silently keeps the last value
+                raise _DuplicateKeyError(key, out[key], line)
+            out[key] = line
             _key_lines(vnode, key, out)
 
 
@@ -76,12 +89,27 @@ def read_sim_config_yaml(path: str | os.PathLike[str]) -> SimConfigDoc:
     """
     import yaml
 
+    from .paths import check_input
+
     where = os.fspath(path)
-    with open(path, encoding="utf-8") as fh:
-        text = fh.read()
+    check_input(path, what="simulator config")
+    with open(path, "rb") as fb:
+        raw = fb.read(_MAX_CONFIG_BYTES + 1)
+    if len(raw) > _MAX_CONFIG_BYTES:
+        raise FormatError(where, f"larger than {_MAX_CONFIG_BYTES // 1024} KiB: not a simulator "
+                          "config; start from --print-config")
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        bad_line = raw[: e.start].count(b"\n") + 1
+        raise FormatError(where, f"not UTF-8 text (byte 0x{raw[e.start]:02x}); save the file as "
+                          "UTF-8", line=bad_line) from None
     try:
         doc = yaml.safe_load(text)
         root = yaml.compose(text, Loader=yaml.SafeLoader)
+    except RecursionError:
+        raise FormatError(where, "nested too deeply to be a simulator config; start from "
+                          "--print-config") from None
     except yaml.YAMLError as e:
         line = getattr(getattr(e, "problem_mark", None), "line", None)
         raise FormatError(where, f"not valid YAML ({' '.join(str(e).split())})",
@@ -91,7 +119,11 @@ def read_sim_config_yaml(path: str | os.PathLike[str]) -> SimConfigDoc:
     if not isinstance(doc, dict):
         raise FormatError(where, "expected a mapping of config keys at the top level")
     lines: dict[tuple[str, ...], int] = {}
-    _key_lines(root, (), lines)
+    try:
+        _key_lines(root, (), lines)
+    except _DuplicateKeyError as e:
+        raise FormatError(where, f"key {'.'.join(e.key)!r} given twice (first on line "
+                          f"{e.first}); keep one", line=e.line) from None
     return SimConfigDoc(where, doc, lines)
 
 

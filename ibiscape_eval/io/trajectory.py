@@ -58,7 +58,12 @@ def read_trajectory(
     IbiscapeError
         Unknown ``fmt`` or options that do not apply to it.
     """
+    from .paths import check_input
+
     fmt = fmt.lower()
+    check_input(path, "any" if fmt in ("auto", "bag") else "file")
+    if times_path is not None:
+        check_input(times_path, what="times file")
     if fmt == "auto":
         fmt = detect_trajectory_format(path)
     if fmt not in TRAJECTORY_FORMATS:

@@ -136,10 +136,12 @@ def read_imu(
     FileNotFoundError
         The file does not exist.
     """
-    p = Path(path)
-    if not p.exists():
-        raise FileNotFoundError(2, "No such file or directory", str(p))
+    from ..paths import check_input
+
+    p = check_input(path, "any")
     f = (fmt or _guess_format(p)).lower()
+    if f != "rosbag":
+        check_input(p, "file")
     gscale, ascale = parse_units(units)
     cols = parse_columns(columns)
     if f in ("euroc", "csv", "ibiscape"):

@@ -19,7 +19,13 @@ from .._text import write_table
 from ..atomic import atomic_write
 from .frames import check_imu_frame, mirror_ibiscape_imu
 from .npy import NpyRows, NpyStreamWriter
-from .timing import TimingAccumulator, finish_record, no_stamp_timing
+from .timing import (
+    TimingAccumulator,
+    check_samples,
+    check_stamp_dtype,
+    finish_record,
+    no_stamp_timing,
+)
 
 __all__ = ["IMU_CSV_HEADER", "read_imu_csv", "resolve_columns", "write_imu_csv",
            "write_imu_csv_chunks"]
@@ -70,7 +76,10 @@ def _diagnose(p: Path, start_line: int, n_fields: int) -> FormatError:
                     return FormatError(p, f"column {j + 1} is not a number ({v.strip()[:30]!r}); "
                                        "fix or delete this row", line=i)
                 if not math.isfinite(x):
-                    return FormatError(p, f"column {j + 1} is not finite ({v.strip()!r})", line=i)
+                    return FormatError(p, f"column {j + 1} is not finite ({v.strip()[:30]!r})", line=i)
+                if abs(x) >= 2.0**63:
+                    return FormatError(p, f"column {j + 1} is too large ({v.strip()[:30]!r}); "
+                                       "fix or delete this row", line=i)
     return FormatError(p, "unreadable CSV row; check the delimiter (comma expected)", line=start_line)
 
 
@@ -139,16 +148,20 @@ def read_imu_csv(p: Path, cols: Mapping[str, str | int], spill_bytes: int,
                 chunk = next(reader)
             except StopIteration:
                 break
-            except (ValueError, pd.errors.ParserError):
+            except (ValueError, OverflowError, pd.errors.ParserError, UnicodeDecodeError):
                 raise _diagnose(p, skip + 1 + n, n_fields) from None
             if chunk.shape[1] != n_fields:
                 raise _diagnose(p, skip + 1 + n, n_fields)
             arr = chunk.to_numpy(dtype=np.float64)
             if not np.isfinite(arr).all():
                 raise _diagnose(p, skip + 1 + n, n_fields)
+            check_samples(p, arr[:, axis_cols], skip + 1 + n)
             if timing_acc is not None:
                 tcol = np.asarray(chunk.iloc[:, t_col])  # type: ignore[index]
-                timing_acc.add(np.round(tcol * 1e9) if t_in_s else tcol)
+                if t_in_s:
+                    tcol = np.round(tcol * 1e9)
+                    check_stamp_dtype(p, tcol)
+                timing_acc.add(tcol)
             data = arr[:, axis_cols]
             if signs is not None:
                 data = data * signs

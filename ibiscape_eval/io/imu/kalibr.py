@@ -53,13 +53,9 @@ def write_kalibr_imu_yaml(
 
 def read_kalibr_imu_yaml(path: str | os.PathLike[str]) -> dict[str, Any]:
     """Read a Kalibr ``imu.yaml`` (``yaml.safe_load``); checks the six keys."""
-    import yaml
+    from ..paths import safe_yaml
 
-    with open(path, encoding="utf-8") as fh:
-        try:
-            doc = yaml.safe_load(fh)
-        except yaml.YAMLError as e:
-            raise FormatError(path, f"not valid YAML ({e})") from None
+    doc = safe_yaml(path, what="Kalibr imu.yaml")
     keys = ("accelerometer_noise_density", "accelerometer_random_walk", "gyroscope_noise_density",
             "gyroscope_random_walk", "rostopic", "update_rate")
     if not isinstance(doc, dict) or any(k not in doc for k in keys):

@@ -27,6 +27,8 @@ from ibiscape_eval.core.imu import CHUNK_ROWS, ImuRecord
 from ..atomic import atomic_output_path
 from .timing import (
     TimingAccumulator,
+    check_samples,
+    check_stamp_dtype,
     finish_record,
     no_stamp_timing,
     record_from_array,
@@ -46,6 +48,9 @@ __all__ = [
 
 def read_npy_header(path: str | os.PathLike[str]) -> tuple[int, np.dtype[Any], tuple[int, ...], bool]:
     """``(data offset, dtype, shape, fortran_order)`` of a ``.npy`` file (no pickles)."""
+    from ..npfiles import DAMAGE_ERRORS, check_magic
+
+    check_magic(path, ".npy")
     with open(path, "rb") as fh:
         try:
             version = np.lib.format.read_magic(fh)
@@ -53,8 +58,12 @@ def read_npy_header(path: str | os.PathLike[str]) -> tuple[int, np.dtype[Any], t
                 shape, fortran, dtype = np.lib.format.read_array_header_1_0(fh)
             else:
                 shape, fortran, dtype = np.lib.format.read_array_header_2_0(fh)
-        except ValueError as e:
-            raise FormatError(path, f"not a valid .npy file ({e})") from None
+        except DAMAGE_ERRORS as e:
+            msg = " ".join(str(e).split())[:120] or type(e).__name__
+            raise FormatError(path, f"damaged .npy header ({msg}); export the file again") from None
+        if (not isinstance(shape, tuple) or any(not isinstance(d, int) or d < 0 for d in shape)
+                or not isinstance(dtype, np.dtype)):
+            raise FormatError(path, "damaged .npy header (bad shape); export the file again")
         return fh.tell(), dtype, shape, fortran
 
 
@@ -159,38 +168,44 @@ def read_imu_npy(p: Path, rate_hz: float | None) -> ImuRecord:
     first = width - 6
     if first:
         acc = TimingAccumulator(str(p), first_line=1)
-        for block in iter_npy_blocks(str(p), offset, dtype, width, n, CHUNK_ROWS):
+        for i, block in enumerate(iter_npy_blocks(str(p), offset, dtype, width, n, CHUNK_ROWS)):
+            if i == 0 or (dtype.kind == "f" and not np.isfinite(block[:, 0]).all()):
+                check_stamp_dtype(p, block[:, 0])
             acc.add(block[:, 0].astype(np.int64))
         timing = acc.result()
     else:
         timing = no_stamp_timing(str(p), rate_hz, "an (N, 6) .npy")
     for block in iter_npy_blocks(str(p), offset, dtype, width, min(n, CHUNK_ROWS), CHUNK_ROWS):
-        if not np.isfinite(block[:, first:].astype(np.float64)).all():
-            r = int(np.argwhere(~np.isfinite(block[:, first:].astype(np.float64)))[0][0])
-            raise FormatError(p, "sample is not a finite number", line=r + 1)
+        check_samples(p, block[:, first:].astype(np.float64))
     return finish_record(str(p), None, n, timing, rate_hz, _source=NpyRows(str(p), first=first))
 
 
 
 def read_imu_npz(p: Path, rate_hz: float | None) -> ImuRecord:
-    try:
-        with np.load(p, allow_pickle=False) as z:
-            keys = set(z.files)
-            if {"gyro_rad_s", "accel_m_s2"} <= keys:
-                g, a = z["gyro_rad_s"], z["accel_m_s2"]
-                if g.shape != a.shape or g.ndim != 2 or g.shape[1] != 3:
-                    raise FormatError(p, f"gyro_rad_s {g.shape} and accel_m_s2 {a.shape} must both "
-                                      "be (N, 3)")
-                stamps = z["stamps_ns"] if "stamps_ns" in keys else None
-                if stamps is not None and stamps.shape != (g.shape[0],):
-                    raise FormatError(p, f"stamps_ns has shape {stamps.shape}, expected ({g.shape[0]},)")
-                return record_from_parts(p, stamps, np.concatenate([g, a], axis=1).astype(np.float64),
-                                   rate_hz)
-            if "data" in keys:
-                return record_from_array(p, z["data"], rate_hz)
-    except (ValueError, OSError) as e:
-        if isinstance(e, FileNotFoundError):
-            raise
-        raise FormatError(p, f"not a readable .npz without pickled objects ({e})") from None
+    from ..npfiles import load_npz_arrays
+
+    z = load_npz_arrays(p, ("stamps_ns", "gyro_rad_s", "accel_m_s2", "data"))
+    keys = set(z)
+    if {"gyro_rad_s", "accel_m_s2"} <= keys:
+        g, a = z["gyro_rad_s"], z["accel_m_s2"]
+        if g.shape != a.shape or g.ndim != 2 or g.shape[1] != 3:
+            raise FormatError(p, f"gyro_rad_s {g.shape} and accel_m_s2 {a.shape} must both "
+                              "be (N, 3)")
+        for k, arr in (("gyro_rad_s", g), ("accel_m_s2", a)):
+            if arr.dtype.kind not in "fiu":
+                raise FormatError(p, f"{k} must be numeric, got dtype {arr.dtype}")
+        stamps = z.get("stamps_ns")
+        if stamps is not None and stamps.shape != (g.shape[0],):
+            raise FormatError(p, f"stamps_ns has shape {stamps.shape}, expected ({g.shape[0]},)")
+        if stamps is not None and stamps.dtype.kind not in "iuf":
+            raise FormatError(p, f"stamps_ns must be numeric (int64 ns), got dtype {stamps.dtype}")
+        return record_from_parts(p, stamps, np.concatenate([g, a], axis=1).astype(np.float64),
+                                 rate_hz)
+    if "data" in keys:
+        if z["data"].dtype.kind not in "fiu":
+            raise FormatError(p, f"data must be numeric, got dtype {z['data'].dtype}")
+        return record_from_array(p, z["data"], rate_hz)
+    with np.load(p, allow_pickle=False) as f:
+        found = sorted(f.files)
     raise FormatError(p, f"expected keys stamps_ns, gyro_rad_s, accel_m_s2 (or data), found "
-                      f"{', '.join(sorted(keys)) or 'none'}")
+                      f"{', '.join(found) or 'none'}")

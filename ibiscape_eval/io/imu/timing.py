@@ -11,8 +11,12 @@ import numpy as np
 from ibiscape_eval.core.errors import FormatError
 from ibiscape_eval.core.imu import AXES, ImuRecord, ImuTiming
 
-__all__ = ["TimingAccumulator", "finish_record", "no_stamp_timing", "record_from_array",
-           "record_from_parts"]
+__all__ = ["MAX_ABS_SAMPLE", "TimingAccumulator", "check_samples", "check_stamp_dtype",
+           "finish_record", "no_stamp_timing", "record_from_array", "record_from_parts"]
+
+#: Largest believable IMU reading, rad/s or m/s^2 (no MEMS or FOG IMU comes near it).  Larger
+#: values are damaged data: squared in the Allan variance they overflow to inf.
+MAX_ABS_SAMPLE = 1.0e6
 
 
 class TimingAccumulator:
@@ -82,9 +86,46 @@ class TimingAccumulator:
         )
 
 
+def check_samples(p: str | Path, data: np.ndarray, first_line: int = 1) -> None:
+    """Refuse non-finite samples and samples beyond :data:`MAX_ABS_SAMPLE` (line of the first)."""
+    bad = ~np.isfinite(data)
+    what = "is not a finite number"
+    if not bad.any():
+        bad = np.abs(data) > MAX_ABS_SAMPLE
+        what = f"is beyond {MAX_ABS_SAMPLE:g} (rad/s or m/s^2): damaged data"
+    if bad.any():
+        r, c = (int(v) for v in np.argwhere(bad)[0])
+        axis = AXES[c] if data.ndim == 2 and data.shape[1] == len(AXES) else f"column {c}"
+        raise FormatError(p, f"sample of axis {axis} {what}; fix or remove the row",
+                          line=first_line + r)
+
+
+def check_stamp_dtype(p: str | Path, stamps: np.ndarray) -> None:
+    """Refuse floating-point stamps too coarse for the sample interval (float32 ns stamps of a
+    1e12 ns clock are quantised to ~65 us, which turns 200 Hz into 200.774 Hz)."""
+    t = np.asarray(stamps)
+    if t.dtype.kind != "f" or t.size < 2:
+        return
+    if not np.isfinite(t).all():
+        r = int(np.flatnonzero(~np.isfinite(t))[0])
+        raise FormatError(p, "timestamp is not a finite number", line=r + 1)
+    if np.abs(t).max() >= 2.0**63:
+        raise FormatError(p, "timestamps beyond int64 nanoseconds (year 2262); store int64 ns")
+    step = float(np.spacing(np.abs(t).max().astype(t.dtype)))
+    dt = np.diff(t[: 1 << 16].astype(np.float64))
+    med = float(np.median(dt)) if dt.size else 0.0
+    if med > 0 and step > 1e-3 * med:
+        raise FormatError(p, f"timestamps stored as {t.dtype} are quantised to {step:.4g} ns at "
+                          f"these values, {100 * step / med:.2g} % of the {med:.4g} ns interval; "
+                          "store them as int64 ns (or float64)")
+
+
 def no_stamp_timing(path: str, rate_hz: float | None, what: str) -> ImuTiming:
-    if rate_hz is None or not rate_hz > 0:
+    if rate_hz is None:
         raise FormatError(path, f"{what} has no timestamps; give the sample rate (--rate-hz)")
+    if not (rate_hz > 0 and math.isfinite(rate_hz)):
+        raise FormatError(path, f"{what} has no timestamps and --rate-hz {rate_hz:g} is not a "
+                          "positive number of Hz; give the sample rate, e.g. --rate-hz 200")
     return ImuTiming(has_stamps=False, median_dt_s=1.0 / rate_hz)
 
 
@@ -93,6 +134,13 @@ def finish_record(path: str, samples: np.ndarray | None, n: int, timing: ImuTimi
     rate = 1.0 / timing.median_dt_s if timing.has_stamps else float(rate_hz)  # type: ignore[arg-type]
     if n < 3:
         raise FormatError(path, f"only {n} sample(s); an Allan deviation needs thousands")
+    if timing.has_stamps and rate_hz is not None:
+        import warnings
+
+        from ibiscape_eval.core.errors import IbiscapeWarning
+
+        warnings.warn(f"{path}: --rate-hz {rate_hz:g} ignored: the file has timestamps "
+                      f"(median rate {rate:.6g} Hz)", IbiscapeWarning, stacklevel=2)
     return ImuRecord(path=path, n_samples=n, rate_hz=rate, timing=timing, samples=samples, **kw)
 
 
@@ -109,12 +157,9 @@ def record_from_array(p: Path, arr: np.ndarray, rate_hz: float | None) -> ImuRec
 
 def record_from_parts(p: Path, stamps: np.ndarray | None, data: np.ndarray, rate_hz: float | None,
                 **kw: Any) -> ImuRecord:
-    bad = ~np.isfinite(data)
-    if bad.any():
-        r = int(np.argwhere(bad)[0][0])
-        raise FormatError(p, f"sample of axis {AXES[int(np.argwhere(bad)[0][1])]} is not a finite "
-                          "number", line=r + 1)
+    check_samples(p, data)
     if stamps is not None:
+        check_stamp_dtype(p, stamps)
         acc = TimingAccumulator(str(p), first_line=1)
         acc.add(np.asarray(stamps).astype(np.int64))
         timing = acc.result()

@@ -1,0 +1,242 @@
+"""The input families of the mutation campaign: one seed builder and one command line each.
+
+A family is registered with one line in :data:`FAMILIES`; new readers (calibration images and
+YAML, VIO inputs, report runs) join the campaign the same way::
+
+    FAMILIES["calib_yaml"] = Family(build=_calib_yaml_seed, argv=lambda p, out: ["calib", str(p), ...])
+
+``build(folder)`` writes a small valid seed into ``folder`` and returns the path given on the
+command line; ``mutable(path)`` names the file whose bytes are mutated (a ROS 2 bag folder's
+``.db3``); ``argv(path, out)`` is the command line (``out`` is an empty folder for outputs).
+"""
+
+from __future__ import annotations
+
+import shutil
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+SHARED = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "trajectories"
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "io"))
+
+
+@dataclass(frozen=True)
+class Family:
+    build: Callable[[Path], Path]
+    argv: Callable[[Path, Path], list[str]]
+    mutable: Callable[[Path], Path] = field(default=lambda p: p)
+    text: bool = True
+    json: bool = True
+    #: other names an error line may carry instead of the input's (e.g. the output folder when
+    #: a run is refused for its size)
+    also_names: tuple[str, ...] = ()
+
+
+def _poses(n: int = 60, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    t = 1000.0 + np.arange(n) * 0.1
+    pos = np.column_stack([np.cos(t / 3) * 5, np.sin(t / 2) * 4, 0.3 * np.sin(t)])
+    pos = pos + rng.normal(0, 0.01, pos.shape)
+    yaw = t / 5
+    quat = np.column_stack([0.05 * np.sin(t), np.zeros(n), np.sin(yaw / 2), np.cos(yaw / 2)])
+    quat /= np.linalg.norm(quat, axis=1, keepdims=True)
+    return t, pos, quat
+
+
+def _traj(seed: int = 0):  # type: ignore[no-untyped-def]
+    from ibiscape_eval.core.trajectory import Trajectory
+
+    t, pos, quat = _poses(seed=seed)
+    return Trajectory((t * 1e9).round().astype(np.int64), pos, quat)
+
+
+def _ref_tum(folder: Path) -> Path:
+    """A clean TUM reference (the second input of ``ate``), shared by the pose families."""
+    ref = folder / "ref.txt"
+    if not ref.exists():
+        t, pos, quat = _poses(seed=1)
+        np.savetxt(ref, np.column_stack([t, pos, quat]), fmt="%.9f")
+    return ref
+
+
+def _tum_seed(folder: Path) -> Path:
+    _ref_tum(folder)
+    src = (SHARED / "freiburg1_xyz-groundtruth.txt").read_bytes().splitlines(keepends=True)
+    t, pos, quat = _poses(seed=2)
+    p = folder / "est.txt"
+    head = b"".join(ln for ln in src[:3] if ln.startswith(b"#"))
+    p.write_bytes(head + "".join(
+        " ".join(f"{v:.9f}" for v in row) + "\n"
+        for row in np.column_stack([t, pos, quat])).encode())
+    return p
+
+
+def _kitti_seed(folder: Path) -> Path:
+    from ibiscape_eval.io import write_trajectory
+
+    ref = folder / "ref_kitti.txt"
+    write_trajectory(ref, _traj(1), fmt="kitti")
+    p = folder / "est_kitti.txt"
+    write_trajectory(p, _traj(2), fmt="kitti")
+    return p
+
+
+def _euroc_seed(folder: Path) -> Path:
+    lines = (SHARED / "V102_groundtruth.csv").read_bytes().splitlines(keepends=True)
+    p = folder / "data.csv"
+    p.write_bytes(b"".join(lines[:1500]))
+    est = folder / "V102.txt"
+    shutil.copyfile(SHARED / "V102.txt", est)
+    return p
+
+
+def _ibiscape_seed(folder: Path) -> Path:
+    from ibiscape_eval.io.ibiscape import write_ibiscape
+
+    _ref_tum(folder)
+    p = folder / "groundtruth_sync.csv"
+    write_ibiscape(p, _traj(2))
+    return p
+
+
+def _ros1_seed(folder: Path) -> Path:
+    from _bag_helpers import write_bag
+
+    _ref_tum(folder)
+    t, pos, quat = _poses(seed=2)
+    p = folder / "est.bag"
+    write_bag(p, 1, {"/pose": ("geometry_msgs/msg/PoseStamped",
+                               (t * 1e9).round().astype(np.int64), pos, quat)})
+    return p
+
+
+def _ros2_seed(folder: Path) -> Path:
+    p = folder / "tf_example_ros2"
+    shutil.copytree(SHARED / "tf_example_ros2", p)
+    for f in p.iterdir():
+        f.chmod(0o644)
+    p.chmod(0o755)
+    return p
+
+
+def _imu_arrays(n: int = 3000) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(3)
+    stamps = 10**12 + np.arange(n, dtype=np.int64) * 5_000_000
+    gyro = rng.normal(0, 1e-3, (n, 3))
+    accel = rng.normal(0, 1e-2, (n, 3)) + np.array([0.0, 0.0, 9.81])
+    return stamps, gyro, accel
+
+
+def _imu_csv_seed(folder: Path) -> Path:
+    from ibiscape_eval.io.imu import write_imu_csv
+
+    p = folder / "imu.csv"
+    write_imu_csv(p, *_imu_arrays())
+    return p
+
+
+def _imu_npy_seed(folder: Path) -> Path:
+    s, g, a = _imu_arrays()
+    p = folder / "imu.npy"
+    np.save(p, np.column_stack([s.astype(np.float64), g, a]))
+    return p
+
+
+def _imu_npz_seed(folder: Path) -> Path:
+    s, g, a = _imu_arrays()
+    p = folder / "imu.npz"
+    np.savez(p, stamps_ns=s, gyro_rad_s=g, accel_m_s2=a)
+    return p
+
+
+def _events() -> object:
+    from ibiscape_eval.core.events import Events
+
+    rng = np.random.default_rng(4)
+    n = 4000
+    t = np.sort(rng.integers(10**9, 2 * 10**9, n)).astype(np.int64)
+    x = rng.integers(0, 64, n).astype(np.uint16)
+    y = rng.integers(0, 48, n).astype(np.uint16)
+    x[::7] = 5
+    y[::7] = 9  # a hot pixel
+    return Events(t, x, y, rng.random(n) < 0.5)
+
+
+def _events_npz_seed(folder: Path) -> Path:
+    from ibiscape_eval.io.events import write_events
+
+    p = folder / "events.npz"
+    write_events(p, _events())  # type: ignore[arg-type]
+    return p
+
+
+def _events_txt_seed(folder: Path) -> Path:
+    from ibiscape_eval.io.events import write_events
+
+    p = folder / "events.txt"
+    write_events(p, _events())  # type: ignore[arg-type]
+    txt = p.read_bytes()
+    p.write_bytes(b"64 48\n" + txt if not txt[:6].strip().startswith(b"64") else txt)
+    return p
+
+
+def _hot_list_seed(folder: Path) -> Path:
+    _events_npz_seed(folder)
+    p = folder / "hot.txt"
+    p.write_text("5, 9\n17, 3\n")
+    return p
+
+
+def _kitti_times_seed(folder: Path) -> Path:
+    _kitti_seed(folder)
+    p = folder / "times.txt"
+    p.write_text("".join(f"{1000.0 + 0.1 * i:.6f}\n" for i in range(60)))
+    return p
+
+
+def _sim_yaml_seed(folder: Path) -> Path:
+    from ibiscape_eval.sim.config import dump_config, preset
+
+    p = folder / "sim.yaml"
+    p.write_text(dump_config(preset("svi", "slam", "clear", duration_s=1.0)))
+    return p
+
+
+FAMILIES: dict[str, Family] = {
+    "tum": Family(_tum_seed, lambda p, o: ["ate", str(p), str(p.parent / "ref.txt"), "--json",
+                                           "--save-aligned", str(o / "aligned.txt")]),
+    "kitti": Family(_kitti_seed, lambda p, o: ["ate", str(p), str(p.parent / "ref_kitti.txt"),
+                                               "--format-est", "kitti", "--format-ref", "kitti",
+                                               "--json"]),
+    "euroc": Family(_euroc_seed, lambda p, o: ["ate", str(p.parent / "V102.txt"), str(p), "--json",
+                                               "--save-csv", str(o / "errors.csv")]),
+    "ibiscape_gt": Family(_ibiscape_seed, lambda p, o: ["ate", str(p.parent / "ref.txt"), str(p),
+                                                        "--json"]),
+    "ros1_bag": Family(_ros1_seed, lambda p, o: ["ate", str(p), str(p.parent / "ref.txt"),
+                                                 "--json"], text=False),
+    "ros2_bag": Family(_ros2_seed, lambda p, o: ["convert", str(p), str(o / "tf.txt"), "--to",
+                                                 "tum", "--topic", "/tf:odom.base_footprint"],
+                       mutable=lambda p: p / "tf_example.db3", text=False, json=False),
+    "imu_csv": Family(_imu_csv_seed, lambda p, o: ["allan", str(p), "--json", "--csv",
+                                                   str(o / "curves.csv")]),
+    "imu_npy": Family(_imu_npy_seed, lambda p, o: ["allan", str(p), "--json"], text=False),
+    "imu_npz": Family(_imu_npz_seed, lambda p, o: ["allan", str(p), "--json"], text=False),
+    "events_npz": Family(_events_npz_seed, lambda p, o: ["hotpix", str(p), "--json", "--hot-out",
+                                                         str(o / "hot.txt")], text=False),
+    "events_txt": Family(_events_txt_seed, lambda p, o: ["events", "frames", str(p), "--out",
+                                                         str(o / "frames"), "--rate-hz", "10",
+                                                         "--json"]),
+    "hot_list": Family(_hot_list_seed, lambda p, o: ["hotpix", str(p.parent / "events.npz"),
+                                                     "--apply", str(p), "--filtered-out",
+                                                     str(o / "clean.npz"), "--json"]),
+    "kitti_times": Family(_kitti_times_seed, lambda p, o: [
+        "ate", str(p.parent / "est_kitti.txt"), str(p.parent / "ref_kitti.txt"), "--format-est",
+        "kitti", "--format-ref", "kitti", "--times-est", str(p), "--times-ref", str(p), "--json"]),
+    "sim_yaml": Family(_sim_yaml_seed, lambda p, o: ["sim", "--config", str(p), "--out",
+                                                     str(o / "seq"), "--json"],
+                       also_names=("seq",)),
+}

@@ -1,0 +1,48 @@
+"""The mutation campaign as a test: N_MUTANTS seeded mutants over every input family, each run
+in-process through the command line and held to the bad-input contract (see campaign.py)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from campaign import N_MUTANTS, campaign, plan
+from families import FAMILIES, SHARED
+from mutators import BYTE_MUTATORS, PATH_MUTATORS
+
+
+def test_plan_covers_every_family_and_mutator() -> None:
+    p = plan()
+    assert len(p) >= N_MUTANTS - len(FAMILIES)
+    assert {f for f, _, _ in p} == set(FAMILIES)
+    used = {m for _, m, _ in p}
+    assert set(PATH_MUTATORS) <= used
+    assert set(BYTE_MUTATORS) <= used
+
+
+@pytest.mark.skipif(not SHARED.is_dir(), reason="needs ../shared/data (EuRoC, ROS 2 bag seeds)")
+def test_every_mutant_keeps_the_contract(tmp_path: Path) -> None:
+    broke = [o for o in campaign(tmp_path) if o.problem]
+    assert not broke, f"{len(broke)} of {N_MUTANTS} mutants broke the contract:\n" + "\n".join(
+        map(str, broke[:20]))
+
+
+@pytest.mark.skipif(not SHARED.is_dir(), reason="needs ../shared/data (EuRoC, ROS 2 bag seeds)")
+def test_every_seed_passes_unmutated(tmp_path: Path) -> None:
+    """The campaign is only meaningful if each family's seed is accepted as it is."""
+    from click.testing import CliRunner
+
+    from ibiscape_eval.cli.main import cli
+
+    for name, fam in FAMILIES.items():
+        folder = tmp_path / name
+        folder.mkdir()
+        inp = fam.build(folder)
+        out = folder / "out"
+        out.mkdir()
+        res = CliRunner().invoke(cli, fam.argv(inp, out))
+        assert res.exit_code == 0, f"{name}: {res.stderr}"
