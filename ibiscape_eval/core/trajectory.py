@@ -123,6 +123,10 @@ class Trajectory:
         pos, quat = pose_from_matrices(T_world_body)
         return cls(np.asarray(stamps_ns, dtype=np.int64), pos, quat, name)
 
+    def describe(self, role: str) -> str:
+        """``role`` followed by the trajectory's name (its file), for messages: ``estimate 'est.txt'``."""
+        return f"{role} {self.name!r}" if self.name else role
+
     # -- views ------------------------------------------------------------------------------
     def __len__(self) -> int:
         return int(self.stamps_ns.shape[0])

@@ -271,8 +271,8 @@ def align(
         return AlignmentResult(m.value, T, 1.0, 1)
     mo = _moments(est.pos_m[:n_used], ref.pos_m[:n_used])  # one pass serves every check
     planar = m is Alignment.YAW
-    _check_scatter(mo.sxx, mo.size_x, n_used, "estimate", m.value, planar=planar)
-    _check_scatter(mo.syy, mo.size_y, n_used, "reference", m.value, planar=planar)
+    _check_scatter(mo.sxx, mo.size_x, n_used, est.describe("estimate"), m.value, planar=planar)
+    _check_scatter(mo.syy, mo.size_y, n_used, ref.describe("reference"), m.value, planar=planar)
     if planar:
         R, t = _yaw(mo)
         return AlignmentResult(m.value, _se3(R, t), 1.0, n_used)

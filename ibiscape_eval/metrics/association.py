@@ -122,7 +122,8 @@ def _interpolate(traj: Trajectory, stamps_ns: npt.NDArray[np.int64]) -> Trajecto
 def _check_count(n: int, est: Trajectory, ref: Trajectory, how: str) -> None:
     if n < MIN_MATCHES:
         raise DegenerateInputError(
-            f"only {n} pose(s) matched {how} (estimate has {len(est)}, reference {len(ref)}); "
+            f"only {n} pose(s) matched {how} ({est.describe('estimate')} has {len(est)}, "
+            f"{ref.describe('reference')} {len(ref)}); "
             f"at least {MIN_MATCHES} are needed: {_HINT}"
         )
 
@@ -170,8 +171,8 @@ def associate(
     """
     if len(est) == 0 or len(ref) == 0:
         raise DegenerateInputError(
-            f"cannot associate an empty trajectory (estimate has {len(est)} poses, "
-            f"reference {len(ref)})"
+            f"cannot associate an empty trajectory ({est.describe('estimate')} has {len(est)} poses, "
+            f"{ref.describe('reference')} {len(ref)})"
         )
     if not (math.isfinite(max_diff_s) and max_diff_s >= 0.0):
         raise IbiscapeError(f"max_diff_s must be a finite number >= 0, got {max_diff_s!r}")

@@ -270,7 +270,7 @@ def rpe(
         }[unit]
         raise DegenerateInputError(
             f"delta = {delta:g} {unit} gives no pose pair ({pairs} pairs) on the "
-            f"{'estimate' if pairs_from == 'est' else 'reference'} "
+            f"{est.describe('estimate') if pairs_from == 'est' else ref.describe('reference')} "
             f"({extent}); use a smaller --delta"
         )
     trans, rot = relative_errors(est_al, m.ref, i, j)
