@@ -1,0 +1,353 @@
+"""The renderer: rays -> hits (static scene + movers) -> textures -> light -> weather -> sensor.
+
+One :class:`Renderer` per sequence holds the static scene (built once), the cameras and the
+weather log.  Per view it casts one ray per pixel (``cast_rays(nthreads=0)``), takes the nearer of
+the static and the movers' hit, interpolates the hit triangle's texture coordinates with the
+barycentric coordinates open3d returns, shades (one shadow ray toward the sun per lit pixel, an
+``test_occlusions`` any-hit query), adds the weather and, for RGB, the sensor's noise.  Pixels that
+see a calibration target are rendered again with ``s x s`` rays each and averaged (antialiasing
+where it matters, at a fraction of the cost of supersampling the whole image).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ibiscape_eval.core.camera import CameraModel
+from ibiscape_eval.core.errors import IbiscapeError
+from ibiscape_eval.core.rotations import matrix_from_quat
+
+from .optics import add_sensor_noise, fog, fog_beta_per_m, rain_streaks, wet_ground
+from .rays import camera_rays, subpixel_rays, world_rays
+from .scene import MAT, StaticScene, TriangleTables, build_static_scene, mover_mesh, open3d, tensor
+from .shading import Lighting, WeatherState, horizon_radiance, lighting, shade, sky_radiance
+from .textures import albedo, noise_table, sample_bilinear
+
+__all__ = ["RenderCamera", "RenderOptions", "RenderedView", "Renderer"]
+
+F32 = npt.NDArray[np.float32]
+GRAY_WEIGHTS = np.array([0.2989, 0.587, 0.114], np.float32)
+_SHADOW_EPS_M = 0.02
+
+
+@dataclass(frozen=True)
+class RenderOptions:
+    """What to render and how well.
+
+    Attributes
+    ----------
+    shadows : bool
+        Cast a shadow ray toward the sun from every lit pixel.
+    target_supersample : int
+        ``s``: pixels that see a calibration target get ``s x s`` rays (1 = off).
+    noise : bool
+        Sensor noise on RGB images (``False`` for ideal images).
+    weather_optics : bool
+        Fog, rain streaks and the wet road (``False``: clear optics whatever the weather).
+    """
+
+    shadows: bool = True
+    target_supersample: int = 4
+    noise: bool = True
+    weather_optics: bool = True
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.target_supersample, int) or not 1 <= self.target_supersample <= 8:
+            raise IbiscapeError(f"render: target_supersample must be an integer in 1..8, got "
+                                f"{self.target_supersample!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class RenderedView:
+    """One rendered view.
+
+    Attributes
+    ----------
+    rgb : ndarray (H, W, 3) uint8
+    depth_m : ndarray (H, W) float32
+        z-depth along the optical axis [m]; ``inf`` where the ray sees the sky.
+    labels : ndarray (H, W) uint8
+        CARLA semantic tag of the surface seen by the pixel centre.
+    radiance : ndarray (H, W, 3) float32
+        Noise-free 0..255 image before quantisation (what :meth:`Renderer.gray` converts).
+    """
+
+    rgb: npt.NDArray[np.uint8]
+    depth_m: F32
+    labels: npt.NDArray[np.uint8]
+    radiance: F32
+
+    def __repr__(self) -> str:
+        h, w = self.labels.shape
+        return f"RenderedView({w}x{h})"
+
+
+@dataclass(frozen=True, eq=False)
+class RenderCamera:
+    """A camera of the rig: folder name, kind, optics and mounting."""
+
+    name: str
+    kind: str
+    model: CameraModel
+    T_body_cam: npt.NDArray[np.float64]
+
+
+class _Hits:
+    """Per-ray results of the nearer hit of the static and the movers' scene."""
+
+    __slots__ = ("label", "mat", "normal", "t", "uv", "var")
+
+    def __init__(self, t: F32, mat: np.ndarray, var: np.ndarray, label: np.ndarray, uv: F32,
+                 normal: F32) -> None:
+        self.t, self.mat, self.var, self.label, self.uv, self.normal = t, mat, var, label, uv, normal
+
+
+def _gather(tables: TriangleTables, prim: np.ndarray, bary: np.ndarray) -> tuple[np.ndarray, ...]:
+    uvv = tables.uv_m[prim]  # (N, 3, 2)
+    b1, b2 = bary[:, 0:1], bary[:, 1:2]
+    uv = uvv[:, 0] * (1.0 - b1 - b2) + uvv[:, 1] * b1 + uvv[:, 2] * b2
+    return tables.material[prim], tables.variant[prim], tables.label[prim], uv.astype(np.float32)
+
+
+class Renderer:
+    """Render the cameras of one sequence (see the package docstring for the API)."""
+
+    def __init__(self, world: Any, *, cameras: tuple[RenderCamera, ...] = (), motion: Any = None,
+                 weather: Any = None, options: RenderOptions | None = None, seed: int = 0,
+                 extra_cars: Any = None) -> None:
+        self.world = world
+        self.options = options or RenderOptions()
+        self.seed = int(seed)
+        self.motion = motion
+        self.weather = weather
+        self._cams = {c.name: c for c in cameras}
+        self._cam_index = {c.name: i for i, c in enumerate(cameras)}
+        for c in cameras:
+            camera_rays(c.model)  # refuse a non-invertible distortion before any work
+        self.static: StaticScene = build_static_scene(world, extra_cars=extra_cars)
+        self._movers_t: int | None = None
+        self._movers: tuple[Any, TriangleTables] | None = None
+
+    # ----------------------------------------------------------------------------- construction
+    @classmethod
+    def from_config(cls, cfg: Any, world: Any, motion: Any, weather: Any = None, *,
+                    scenario: dict[str, Any] | None = None, options: RenderOptions | None = None
+                    ) -> Renderer:
+        """The renderer of a :class:`~ibiscape_eval.sim.config.SimConfig`'s cameras."""
+        from ..rig import T_body_camera
+        from ..world import Boxes
+
+        cams = tuple(RenderCamera(c.name, c.kind, camera_model(c), T_body_camera(c)) for c in cfg.cameras)
+        extra = None
+        obstacle = (scenario or {}).get("obstacle")
+        if obstacle:
+            p, (L, W, H) = obstacle["position_m"], obstacle["size_m"]
+            extra = Boxes.from_rows([(p[0], p[1], 0.0, L, W, H, obstacle["yaw_rad"], 3)])
+        if options is None:
+            r = getattr(cfg, "render", None)
+            options = RenderOptions(
+                shadows=getattr(r, "shadows", True),
+                target_supersample=getattr(r, "target_supersample", 4),
+                noise=not cfg.ideal and getattr(r, "noise", True),
+                weather_optics=getattr(r, "weather_optics", True))
+        return cls(world, cameras=cams, motion=motion, weather=weather, options=options,
+                   seed=cfg.seed, extra_cars=extra)
+
+    # ---------------------------------------------------------------------------------- queries
+    def camera(self, name: str) -> RenderCamera:
+        """The camera called ``name``."""
+        try:
+            return self._cams[name]
+        except KeyError:
+            raise IbiscapeError(f"no camera {name!r}; the renderer has {sorted(self._cams)}") from None
+
+    def T_world_cam(self, name: str, t_ns: int) -> npt.NDArray[np.float64]:
+        """4x4 pose of camera ``name`` at ``t_ns`` (from the motion)."""
+        if self.motion is None:
+            raise IbiscapeError("the renderer has no motion: use render_pose with an explicit pose")
+        st = self.motion.sample(np.array([int(t_ns)], dtype=np.int64))
+        T = np.eye(4)
+        T[:3, :3] = matrix_from_quat(st.quat_xyzw[0])
+        T[:3, 3] = st.pos_m[0]
+        return T @ self.camera(name).T_body_cam
+
+    def weather_at(self, t_ns: int) -> WeatherState:
+        """Weather state at ``t_ns``, linear between the logged frames (clear defaults without a log)."""
+        log = self.weather
+        if log is None or len(log) == 0:
+            return WeatherState()
+        from ..weather import WEATHER_COLUMNS
+
+        st = log.stamps_ns.astype(np.float64)
+        vals = {k: float(np.interp(float(t_ns), st, log.values[:, i])) for i, k in enumerate(WEATHER_COLUMNS)}
+        names = {f.name for f in fields(WeatherState)}
+        return WeatherState(**{k: v for k, v in vals.items() if k in names})
+
+    # ---------------------------------------------------------------------------------- rendering
+    def render(self, name: str, t_ns: int) -> RenderedView:
+        """RGB (with sensor noise unless ideal), z-depth and labels of camera ``name`` at ``t_ns``."""
+        cam = self.camera(name)
+        return self.render_pose(cam.model, self.T_world_cam(name, t_ns), t_ns,
+                                noise_key=self._cam_index[name])
+
+    def gray(self, name: str, t_ns: int) -> F32:
+        """Noise-free linear intensity ``(H, W)`` float32 0..255 (``0.2989 R + 0.587 G + 0.114 B`` of
+        the RGB render, weather optics included) of camera ``name`` at ``t_ns``."""
+        cam = self.camera(name)
+        rad = self._radiance_image(cam.model, self.T_world_cam(name, t_ns), int(t_ns))[0]
+        return (rad @ GRAY_WEIGHTS).astype(np.float32)
+
+    def render_pose(self, model: CameraModel, T_world_cam: npt.ArrayLike, t_ns: int = 0, *,
+                    noise_key: int = 0, weather: WeatherState | None = None) -> RenderedView:
+        """Render any camera at any pose (``T_world_cam`` 4x4, OpenCV camera frame)."""
+        T = np.asarray(T_world_cam, dtype=np.float64)
+        rad, depth, labels = self._radiance_image(model, T, int(t_ns), weather)
+        img = rad
+        if self.options.noise:
+            light = lighting(weather or self.weather_at(t_ns))
+            rng = np.random.default_rng([self.seed, 0x5E75, noise_key, int(t_ns) & 0xFFFFFFFFFFFF])
+            img = add_sensor_noise(rad, light.gain, rng)
+        rgb = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+        return RenderedView(rgb, depth, labels, rad)
+
+    # ------------------------------------------------------------------------------ internals
+    def _radiance_image(self, model: CameraModel, T: np.ndarray, t_ns: int,
+                        weather: WeatherState | None = None) -> tuple[F32, F32, npt.NDArray[np.uint8]]:
+        H, W = model.height_px, model.width_px
+        w = weather or self.weather_at(t_ns)
+        light = lighting(w)
+        dirs = camera_rays(model)
+        rays = world_rays(dirs, T).reshape(-1, 6)
+        rad, hits, labels = self._radiance(rays, t_ns, w, light)
+        s = self.options.target_supersample
+        if s > 1 and self.static.targets:
+            import cv2
+
+            on = (hits.mat == MAT["target"]).reshape(H, W).astype(np.uint8)
+            if on.any():
+                on = cv2.dilate(on, np.ones((3, 3), np.uint8))
+                rows, cols = np.nonzero(on)
+                sub = world_rays(subpixel_rays(model, rows, cols, s), T).reshape(-1, 6)
+                rs, _, _ = self._radiance(sub, t_ns, w, light)
+                rad[rows * W + cols] = rs.reshape(len(rows), s * s, 3).mean(axis=1)
+        img = (rad * np.float32(255.0 * light.gain)).reshape(H, W, 3)
+        depth = hits.t.reshape(H, W)
+        if self.options.weather_optics and w.precipitation > 0:
+            glow = float(np.clip(255.0 * light.gain * horizon_radiance(w, light).mean() * 1.3, 0, 255))
+            cov = rain_streaks(model, T, depth, t_ns, w, seed=self.seed, brightness=1.0)
+            if cov is not None:
+                a = (0.45 * cov)[..., None]
+                img = img * (1.0 - a) + a * np.float32(glow)
+        return np.clip(img, 0.0, 255.0).astype(np.float32), depth, labels.reshape(H, W)
+
+    def _mover_scene(self, t_ns: int) -> tuple[Any, TriangleTables] | None:
+        if len(self.world.agents) == 0:
+            return None
+        if self._movers_t != t_ns:
+            V, Tr, tables = mover_mesh(self.world, t_ns)
+            sc = open3d().t.geometry.RaycastingScene()
+            sc.add_triangles(tensor(V), tensor(Tr))
+            self._movers, self._movers_t = (sc, tables), t_ns
+        return self._movers
+
+    def _cast(self, rays: F32, t_ns: int) -> _Hits:
+        rt = tensor(rays)
+        r = self.static.scene.cast_rays(rt, nthreads=0)
+        t = r["t_hit"].numpy()
+        sentinel = self.static.n_triangles
+        prim = r["primitive_ids"].numpy().astype(np.int64)
+        hit = np.isfinite(t)
+        prim = np.where(hit, prim, sentinel)
+        mat, var, lab, uv = _gather(self.static.tables, prim, r["primitive_uvs"].numpy())
+        normal = r["primitive_normals"].numpy()
+        movers = self._mover_scene(t_ns)
+        if movers is not None:
+            sc, tables = movers
+            m = sc.cast_rays(rt, nthreads=0)
+            tm = m["t_hit"].numpy()
+            near = tm < t
+            if near.any():
+                idx = np.flatnonzero(near)
+                pm = m["primitive_ids"].numpy()[idx].astype(np.int64)
+                mm, vm, lm, um = _gather(tables, pm, m["primitive_uvs"].numpy()[idx])
+                t = t.copy()
+                t[idx] = tm[idx]
+                mat[idx], var[idx], lab[idx], uv[idx] = mm, vm, lm, um
+                normal[idx] = m["primitive_normals"].numpy()[idx]
+        return _Hits(t, mat, var, lab, uv, normal)
+
+    def _occluded(self, rays: F32, t_ns: int) -> npt.NDArray[np.bool_]:
+        rt = tensor(rays)
+        occ = self.static.scene.test_occlusions(rt, nthreads=0).numpy().astype(bool)
+        movers = self._mover_scene(t_ns)
+        if movers is not None:
+            occ |= movers[0].test_occlusions(rt, nthreads=0).numpy().astype(bool)
+        return occ
+
+    def _radiance(self, rays: F32, t_ns: int, w: WeatherState, light: Lighting
+                  ) -> tuple[F32, _Hits, npt.NDArray[np.uint8]]:
+        """Linear radiance (N, 3) of rays (N, 6) with fog and wet road, the hits, the labels."""
+        hits = self._cast(rays, t_ns)
+        d = rays[:, 3:]
+        hit = np.isfinite(hits.t)
+        idx = np.flatnonzero(hit)
+        n = len(rays)
+        rad = np.empty((n, 3), np.float32)
+        dn = np.sqrt(np.einsum("ij,ij->i", d, d))
+        labels = hits.label.copy()
+        if idx.size:
+            nrm = hits.normal[idx]
+            dh = d[idx]
+            facing = np.einsum("ij,ij->i", nrm, dh) < 0.0
+            nrm = np.where(facing[:, None], nrm, -nrm)
+            front = facing.copy()
+            tgt = hits.mat[idx] == MAT["target"]
+            if tgt.any():
+                flags = np.array([t.z_toward_observer for t in self.static.targets], bool)
+                front[tgt] = facing[tgt] == flags[hits.var[idx][tgt]]
+            alb, lab_fix, paved = albedo(hits.mat[idx], hits.var[idx], hits.uv[idx], self.static.ground,
+                                         self.static.targets, front)
+            fix = lab_fix > 0
+            labels[idx[fix]] = lab_fix[fix]
+            visible = None
+            if self.options.shadows and light.e_sun > 0.0:
+                s = np.asarray(light.sun_dir, np.float32)
+                lit = (nrm @ s) > 0.0
+                visible = lit.copy()
+                li = np.flatnonzero(lit)
+                if li.size:
+                    p = rays[idx[li], :3] + dh[li] * hits.t[idx[li], None] + _SHADOW_EPS_M * nrm[li]
+                    sr = np.concatenate([p, np.broadcast_to(s, p.shape)], axis=1).astype(np.float32)
+                    visible[li] = ~self._occluded(sr, t_ns)
+            col = shade(alb, nrm, visible, light)
+            if self.options.weather_optics and (w.wetness > 0 or w.precipitation_deposits > 0):
+                pv = np.flatnonzero(paved > 0)
+                if pv.size:
+                    uvp = hits.uv[idx[pv]]
+                    pn = sample_bilinear(noise_table(), uvp[:, 0] * 0.45 + 11.0, uvp[:, 1] * 0.45 + 5.0,
+                                         wrap=True)
+                    refl = sky_radiance(-dh[pv, 2] / dn[idx[pv]], w, light)
+                    col[pv] = wet_ground(col[pv], paved[pv], pn, refl, w)
+            rad[idx] = col
+        miss = np.flatnonzero(~hit)
+        if miss.size:
+            rad[miss] = sky_radiance(d[miss, 2] / dn[miss], w, light)
+        if self.options.weather_optics:
+            beta = fog_beta_per_m(w.fog_density)
+            if beta > 0:
+                dist = np.where(hit, hits.t * dn, np.inf).astype(np.float32)
+                rad = fog(rad, dist, beta, horizon_radiance(w, light))
+        return rad, hits, labels
+
+
+def camera_model(spec: Any) -> CameraModel:
+    """The :class:`CameraModel` of a :class:`~ibiscape_eval.sim.config.CameraSpec` (its intrinsics,
+    distortion model and coefficients)."""
+    fx, fy, cx, cy = spec.intrinsics
+    return CameraModel(int(spec.width_px), int(spec.height_px), fx, fy, cx, cy,
+                       getattr(spec, "distortion_model", "none"),
+                       tuple(getattr(spec, "distortion_coeffs", (0.0, 0.0, 0.0, 0.0))))
