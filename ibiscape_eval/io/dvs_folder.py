@@ -28,7 +28,7 @@ from ibiscape_eval.core.events import Events
 from ._atomic import atomic_output_path, atomic_write
 from .events import write_events
 
-__all__ = ["DVS_TIMESTAMPS_HEADER", "DvsFolderWriter"]
+__all__ = ["DVS_TIMESTAMPS_HEADER", "DvsFolderWriter", "read_dvs_frame_list"]
 
 DVS_TIMESTAMPS_HEADER = "#timestamp_start [ns], timestamp_end [ns], filename\n"
 
@@ -88,3 +88,27 @@ class DvsFolderWriter:
                 f.write(DVS_TIMESTAMPS_HEADER)
                 f.writelines(self._frame_rows)
         return len(self._rows)
+
+
+def read_dvs_frame_list(folder: str | os.PathLike[str]) -> tuple[npt.NDArray[np.int64], list[Path]]:
+    """End stamps [ns] and PNG paths of a DVS camera's accumulated frames
+    (``<folder>/frames/timestamps.csv``, three columns)."""
+    from ibiscape_eval.core.errors import FormatError
+
+    csv = Path(folder) / "frames" / "timestamps.csv"
+    if not csv.is_file():
+        raise FormatError(csv, "not found: this DVS camera has no accumulated frames")
+    stamps: list[int] = []
+    paths: list[Path] = []
+    with open(csv, encoding="utf-8") as fh:
+        for n, line in enumerate(fh, start=1):
+            s = line.strip()
+            if not s or s.startswith("#"):
+                continue
+            parts = [x.strip() for x in s.split(",")]
+            if len(parts) != 3 or not parts[1].lstrip("-").isdigit():
+                raise FormatError(csv, "expected 'timestamp_start [ns], timestamp_end [ns], "
+                                  "filename'", line=n)
+            stamps.append(int(parts[1]))
+            paths.append(csv.parent / parts[2])
+    return np.asarray(stamps, dtype=np.int64), paths
