@@ -116,6 +116,9 @@ def _camera_frames(seq: Path, name: str, entry: dict[str, Any]) -> _Camera | Non
             return None
         st, names = read_frame_timestamps(folder / "timestamps.csv")
         paths = [folder / "frames" / n for n in names]
+        mm = [folder / "mm" / n for n in names]
+        if kind == "depth" and mm and all(p.is_file() for p in mm):
+            paths = mm  # the exact 16-bit millimetre copy beside CARLA's 8-bit log depth
     if st.size == 0:
         return None
     missing = next((p for p in paths if not p.is_file()), None)

@@ -25,6 +25,7 @@ from ibiscape_eval.io.images import (
     read_depth_mm,
     read_png,
     write_depth_carla_log,
+    write_depth_mm,
     write_frame_timestamps,
     write_png,
 )
@@ -40,7 +41,9 @@ from ibiscape_eval.sim.export import ExportSummary, export_sequence
 W, H = 40, 30
 
 
-def _make_sequence(root: Path, setup: str, *, render: bool = True) -> Path:
+def _make_sequence(root: Path, setup: str, *, render: bool = True, depth_mm: bool = True) -> Path:
+    """A generated sequence with fabricated frames laid out like the renderer's (RGB PNG, depth
+    as CARLA log depth in frames/ plus 16-bit millimetres in mm/, DVS through the DVS model)."""
     cfg = preset(setup, "calibration", "clear", duration_s=0.5, seed=3)
     cfg = dataclasses.replace(cfg, cameras=tuple(dataclasses.replace(c, width_px=W, height_px=H)
                                                  for c in cfg.cameras))
@@ -56,10 +59,14 @@ def _make_sequence(root: Path, setup: str, *, render: bool = True) -> Path:
             write_dvs_camera(translating_texture((H, W), int(stamps[0])), c, stamps, folder)
             continue
         (folder / "frames").mkdir(parents=True)
+        if c.kind == "depth" and depth_mm:
+            (folder / "mm").mkdir()
         for t in stamps:
             if c.kind == "depth":
-                write_depth_carla_log(folder / "frames" / f"{t}.png",
-                                      rng.uniform(4.0, 60.0, (H, W)))
+                d = rng.uniform(4.0, 60.0, (H, W))
+                write_depth_carla_log(folder / "frames" / f"{t}.png", d)
+                if depth_mm:
+                    write_depth_mm(folder / "mm" / f"{t}.png", d)
             else:
                 write_png(folder / "frames" / f"{t}.png", rng.integers(0, 256, (H, W, 3), np.uint8))
         write_frame_timestamps(folder / "timestamps.csv", stamps)
@@ -148,10 +155,8 @@ def test_tum_rgbd_round_trip(full_seq: Path, tmp_path: Path) -> None:
     dst, dpaths = _frames(full_seq, "depth")
     dst2, dfiles = read_tum_list(out / "depth.txt")
     np.testing.assert_array_equal(dst2, dst)
-    for p, f in zip(dpaths, dfiles, strict=True):
-        src_m = decode_depth_carla_log(read_png(p)[..., 0])
-        np.testing.assert_allclose(read_depth_mm(out / f), np.round(src_m * 1000.0) / 1000.0,
-                                   atol=1e-6)
+    for p, f in zip(dpaths, dfiles, strict=True):  # the exact millimetre copy is preferred
+        np.testing.assert_array_equal(read_png(out / f), read_png(p.parent.parent / "mm" / p.name))
     assoc = [ln.split() for ln in (out / "association.txt").read_text().splitlines()]
     assert [(a[1], a[3]) for a in assoc] == list(zip(files, dfiles, strict=True))
     doc = read_sequence_yaml(full_seq / "sequence.yaml")
@@ -161,6 +166,18 @@ def test_tum_rgbd_round_trip(full_seq: Path, tmp_path: Path) -> None:
     got = read_trajectory(out / "groundtruth.txt", fmt="tum")
     np.testing.assert_array_equal(got.stamps_ns, gt.trajectory.stamps_ns)
     np.testing.assert_allclose(got.matrices(), want, atol=1e-12)
+
+
+def test_tum_rgbd_from_carla_log_depth_only(tmp_path: Path) -> None:
+    seq = _make_sequence(tmp_path, "rgbd", depth_mm=False)
+    out = tmp_path / "tum"
+    export_sequence(seq, "tum-rgbd", out)
+    _, dpaths = _frames(seq, "depth")
+    _, dfiles = read_tum_list(out / "depth.txt")
+    for p, f in zip(dpaths, dfiles, strict=True):
+        src_m = decode_depth_carla_log(read_png(p)[..., 0])
+        np.testing.assert_allclose(read_depth_mm(out / f), np.round(src_m * 1000.0) / 1000.0,
+                                   atol=1e-6)
 
 
 def test_rosbag_round_trip(full_seq: Path, tmp_path: Path) -> None:
