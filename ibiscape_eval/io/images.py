@@ -40,12 +40,14 @@ __all__ = [
     "CITYSCAPES_PALETTE",
     "decode_depth_carla_log",
     "encode_depth_carla_log",
+    "read_association",
     "read_depth_carla_log",
     "read_depth_mm",
     "read_frame_timestamps",
     "read_labels",
     "read_labels_cityscapes",
     "read_png",
+    "write_association",
     "write_depth_carla_log",
     "write_depth_mm",
     "write_frame_timestamps",
@@ -276,3 +278,57 @@ def read_frame_timestamps(path: str | os.PathLike[str]) -> tuple[npt.NDArray[np.
             stamps.append(int(v))
             names.append(parts[1])
     return np.asarray(stamps, dtype=np.int64), names
+
+
+def _seconds(ns: int) -> str:
+    return f"{ns // 1_000_000_000}.{ns % 1_000_000_000:09d}"
+
+
+def write_association(path: str | os.PathLike[str], rgb_stamps_ns: npt.ArrayLike, rgb_files: Sequence[str],
+                      depth_stamps_ns: npt.ArrayLike, depth_files: Sequence[str]) -> None:
+    """TUM RGB-D ``association.txt`` (``t_rgb rgb_file t_depth depth_file``, times in seconds with
+    nine decimals, so the nanoseconds survive), the file ORB-SLAM3's RGB-D examples read."""
+    a = np.asarray(rgb_stamps_ns, dtype=np.int64).reshape(-1)
+    b = np.asarray(depth_stamps_ns, dtype=np.int64).reshape(-1)
+    if not (a.size == b.size == len(rgb_files) == len(depth_files)):
+        raise IbiscapeError(f"{path}: association needs as many rgb and depth stamps and files, got "
+                            f"{a.size}, {b.size}, {len(rgb_files)}, {len(depth_files)}")
+    with atomic_write(path) as f:
+        f.writelines(f"{_seconds(int(ta))} {fa} {_seconds(int(tb))} {fb}\n"
+                     for ta, fa, tb, fb in zip(a, rgb_files, b, depth_files, strict=True))
+
+
+def read_association(path: str | os.PathLike[str]) -> tuple[npt.NDArray[np.int64], list[str],
+                                                             npt.NDArray[np.int64], list[str]]:
+    """Read an ``association.txt``: rgb stamps [ns], rgb files, depth stamps [ns], depth files."""
+    p = Path(path)
+    if not p.is_file():
+        raise FormatError(p, "association file not found")
+    ta: list[int] = []
+    tb: list[int] = []
+    fa: list[str] = []
+    fb: list[str] = []
+    with open(p, encoding="utf-8") as fh:
+        for n, line in enumerate(fh, start=1):
+            s = line.split()
+            if not s or s[0].startswith("#"):
+                continue
+            if len(s) != 4:
+                raise FormatError(p, "expected 't_rgb rgb_file t_depth depth_file'", line=n)
+            try:
+                ta.append(_ns(s[0]))
+                tb.append(_ns(s[2]))
+            except ValueError:
+                raise FormatError(p, f"times {s[0]!r}, {s[2]!r} are not seconds", line=n) from None
+            fa.append(s[1])
+            fb.append(s[3])
+    return np.asarray(ta, np.int64), fa, np.asarray(tb, np.int64), fb
+
+
+def _ns(text: str) -> int:
+    """Decimal seconds -> integer nanoseconds without going through a float."""
+    whole, _, frac = text.partition(".")
+    if not whole.lstrip("-").isdigit() or (frac and not frac.isdigit()):
+        raise ValueError(text)
+    sign = -1 if whole.startswith("-") else 1
+    return sign * (abs(int(whole)) * 1_000_000_000 + int((frac + "000000000")[:9] or 0))

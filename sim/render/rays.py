@@ -9,13 +9,14 @@ are ``(x, y, 1)`` in the camera frame: a ray caster's hit distance along them is
 from __future__ import annotations
 
 import functools
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
 from ibiscape_eval.core.camera import CameraModel
 
-__all__ = ["camera_rays", "subpixel_rays", "world_rays"]
+__all__ = ["camera_model", "camera_rays", "subpixel_rays", "world_rays"]
 
 F32 = npt.NDArray[np.float32]
 
@@ -63,3 +64,12 @@ def world_rays(dirs_cam: npt.ArrayLike, T_world_cam: npt.ArrayLike) -> F32:
     out[..., :3] = T[:3, 3].astype(np.float32)
     np.matmul(d, R.T, out=out[..., 3:])
     return out
+
+
+def camera_model(spec: Any) -> CameraModel:
+    """The :class:`CameraModel` of a :class:`~ibiscape_eval.sim.config.CameraSpec`: its Kalibr
+    intrinsics (square pixels from the horizontal FOV, principal point at the image centre in
+    OpenCV's convention), distortion model and coefficients."""
+    fx, fy, cx, cy = spec.intrinsics
+    return CameraModel(int(spec.width_px), int(spec.height_px), fx, fy, cx, cy,
+                       spec.distortion_model, tuple(spec.distortion_coeffs))

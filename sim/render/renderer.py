@@ -22,7 +22,7 @@ from ibiscape_eval.core.errors import IbiscapeError
 from ibiscape_eval.core.rotations import matrix_from_quat
 
 from .optics import add_sensor_noise, fog, fog_beta_per_m, rain_streaks, wet_ground
-from .rays import camera_rays, subpixel_rays, world_rays
+from .rays import camera_model, camera_rays, subpixel_rays, world_rays
 from .scene import MAT, StaticScene, TriangleTables, build_static_scene, mover_mesh, open3d, tensor
 from .shading import Lighting, WeatherState, horizon_radiance, lighting, shade, sky_radiance
 from .textures import albedo, noise_table, sample_bilinear
@@ -148,12 +148,10 @@ class Renderer:
             p, (L, W, H) = obstacle["position_m"], obstacle["size_m"]
             extra = Boxes.from_rows([(p[0], p[1], 0.0, L, W, H, obstacle["yaw_rad"], 3)])
         if options is None:
-            r = getattr(cfg, "render", None)
-            options = RenderOptions(
-                shadows=getattr(r, "shadows", True),
-                target_supersample=getattr(r, "target_supersample", 4),
-                noise=not cfg.ideal and getattr(r, "noise", True),
-                weather_optics=getattr(r, "weather_optics", True))
+            r = cfg.render
+            options = RenderOptions(shadows=r.shadows, target_supersample=r.target_supersample,
+                                    noise=r.sensor_noise and not cfg.ideal,
+                                    weather_optics=r.weather_optics)
         return cls(world, cameras=cams, motion=motion, weather=weather, options=options,
                    seed=cfg.seed, extra_cars=extra)
 
@@ -196,9 +194,13 @@ class Renderer:
 
     def gray(self, name: str, t_ns: int) -> F32:
         """Noise-free linear intensity ``(H, W)`` float32 0..255 (``0.2989 R + 0.587 G + 0.114 B`` of
-        the RGB render, weather optics included) of camera ``name`` at ``t_ns``."""
+        the RGB render, weather optics included) of camera ``name`` at ``t_ns``.
+
+        Rain streaks are left out: the DVS model adds rain as its own noise events, and streaks
+        moving a whole image width per millisecond would force it to render at its maximum rate.
+        """
         cam = self.camera(name)
-        rad = self._radiance_image(cam.model, self.T_world_cam(name, t_ns), int(t_ns))[0]
+        rad = self._radiance_image(cam.model, self.T_world_cam(name, t_ns), int(t_ns), rain=False)[0]
         return (rad @ GRAY_WEIGHTS).astype(np.float32)
 
     def render_pose(self, model: CameraModel, T_world_cam: npt.ArrayLike, t_ns: int = 0, *,
@@ -216,7 +218,8 @@ class Renderer:
 
     # ------------------------------------------------------------------------------ internals
     def _radiance_image(self, model: CameraModel, T: np.ndarray, t_ns: int,
-                        weather: WeatherState | None = None) -> tuple[F32, F32, npt.NDArray[np.uint8]]:
+                        weather: WeatherState | None = None, *, rain: bool = True
+                        ) -> tuple[F32, F32, npt.NDArray[np.uint8]]:
         H, W = model.height_px, model.width_px
         w = weather or self.weather_at(t_ns)
         light = lighting(w)
@@ -229,14 +232,21 @@ class Renderer:
 
             on = (hits.mat == MAT["target"]).reshape(H, W).astype(np.uint8)
             if on.any():
-                on = cv2.dilate(on, np.ones((3, 3), np.uint8))
-                rows, cols = np.nonzero(on)
+                # only where the pixel may cover an edge: the board's outline, or a 3x3
+                # neighbourhood whose centre samples differ (inside a printed square the
+                # pixel's average equals its centre sample)
+                k = np.ones((3, 3), np.uint8)
+                g = (rad @ GRAY_WEIGHTS).reshape(H, W)
+                spread = cv2.dilate(g, k) - cv2.erode(g, k)
+                grown = cv2.dilate(on, k)
+                edge = (grown > 0) & ((spread > 0.004) | (cv2.erode(on, k) == 0))
+                rows, cols = np.nonzero(edge)
                 sub = world_rays(subpixel_rays(model, rows, cols, s), T).reshape(-1, 6)
                 rs, _, _ = self._radiance(sub, t_ns, w, light)
                 rad[rows * W + cols] = rs.reshape(len(rows), s * s, 3).mean(axis=1)
         img = (rad * np.float32(255.0 * light.gain)).reshape(H, W, 3)
         depth = hits.t.reshape(H, W)
-        if self.options.weather_optics and w.precipitation > 0:
+        if rain and self.options.weather_optics and w.precipitation > 0:
             glow = float(np.clip(255.0 * light.gain * horizon_radiance(w, light).mean() * 1.3, 0, 255))
             cov = rain_streaks(model, T, depth, t_ns, w, seed=self.seed, brightness=1.0)
             if cov is not None:
@@ -343,11 +353,3 @@ class Renderer:
                 rad = fog(rad, dist, beta, horizon_radiance(w, light))
         return rad, hits, labels
 
-
-def camera_model(spec: Any) -> CameraModel:
-    """The :class:`CameraModel` of a :class:`~ibiscape_eval.sim.config.CameraSpec` (its intrinsics,
-    distortion model and coefficients)."""
-    fx, fy, cx, cy = spec.intrinsics
-    return CameraModel(int(spec.width_px), int(spec.height_px), fx, fy, cx, cy,
-                       getattr(spec, "distortion_model", "none"),
-                       tuple(getattr(spec, "distortion_coeffs", (0.0, 0.0, 0.0, 0.0))))
