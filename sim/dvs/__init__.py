@@ -22,9 +22,10 @@ CARLA's DVS sensor is a port of it):
   -0.9 %; 1.0 -> every render of the fixed rate.  The default 0.99 trades 5 % of the events for
   a 4.6x faster simulation (``benchmarks/bench_dvs.py``);
 - weather (rain and fog droplets): spurious events concentrated on a seeded minority of "noisy"
-  pixels (``noisy_pixel_fraction``, each with its own weight in 0.5..1.5) plus a uniform background
+  pixels (``noisy_pixel_fraction``, each with its own weight in 0.75..1.25) plus a uniform background
   share, at a rate ``weather_noise_gain * level * R`` where ``level = (precipitation +
-  fog_density) / 200`` at the window and ``R`` the scene's mean event rate so far: the paper's
+  fog_density) / 200`` at the window and ``R`` the scene's mean event rate so far (at least
+  ``weather_noise_floor_hz`` per pixel, so that a still view in the rain has noise too): the paper's
   FULL Dynamic-1 loses about a quarter of its events to the hot-pixel filter, and with the
   dynamic preset (rain ~45, fog ~70 => level ~0.58) the default gain gives that share.  Noise
   events have random polarity, uniform times inside the window and no refractory period.
@@ -87,6 +88,9 @@ class DvsConfig:
         "highest internal render rate (the fixed rate when adaptive is false) [Hz]"))
     weather_noise_gain: float = field(default=0.6, metadata=_doc(
         "spurious events per scene event at weather level 1 ((rain + fog) / 200)"))
+    weather_noise_floor_hz: float = field(default=0.05, metadata=_doc(
+        "scene rate assumed at least, per pixel [events/s]: rain and fog still fire on a still "
+        "or featureless view"))
     noisy_pixel_fraction: float = field(default=0.001, metadata=_doc(
         "share of the sensor's pixels that rain/fog make noisy (recorded in sequence.yaml)"))
     noisy_pixel_share: float = field(default=0.9, metadata=_doc(
@@ -99,7 +103,8 @@ class DvsConfig:
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
                 raise IbiscapeError(f"dvs: {name} must be a positive number, got {v!r}")
-        for name in ("sigma_positive_threshold", "sigma_negative_threshold", "weather_noise_gain"):
+        for name in ("sigma_positive_threshold", "sigma_negative_threshold", "weather_noise_gain",
+                     "weather_noise_floor_hz"):
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v >= 0):
                 raise IbiscapeError(f"dvs: {name} must be >= 0, got {v!r}")
@@ -281,7 +286,7 @@ class _WeatherNoise:
         k = min(max(k, 1 if active and cfg.noisy_pixel_fraction > 0 else 0), n_pix)
         flat = np.sort(rng.choice(n_pix, size=k, replace=False)) if k else np.zeros(0, np.int64)
         self.pixels = flat.astype(np.int64)
-        wts = rng.uniform(0.5, 1.5, size=k)
+        wts = rng.uniform(0.75, 1.25, size=k)
         self.weights = wts / wts.sum() if k else wts
         self.scene_events = 0
         self.scene_time_ns = 0
@@ -292,7 +297,9 @@ class _WeatherNoise:
         self.scene_time_ns += b_ns - a_ns
         if level <= 0 or self.cfg.weather_noise_gain <= 0 or self.scene_time_ns <= 0:
             return Events.empty(), 0
-        rate = self.cfg.weather_noise_gain * level * self.scene_events / self.scene_time_ns
+        floor = self.cfg.weather_noise_floor_hz * 1e-9 * self.h * self.w  # events per ns
+        rate = self.cfg.weather_noise_gain * level * max(self.scene_events / self.scene_time_ns,
+                                                         floor)
         mean = rate * (b_ns - a_ns)
         share = self.cfg.noisy_pixel_share if self.pixels.size else 0.0
         counts = self.rng.poisson(mean * share * self.weights) if self.pixels.size else \
