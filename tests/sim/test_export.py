@@ -272,3 +272,27 @@ def test_other_bad_inputs(full_seq: Path, tmp_path: Path) -> None:
     with pytest.raises(IbiscapeError, match="already exists"):
         export_sequence(full_seq, "rosbag", tmp_path / "old.bag")
     assert START_NS > 0
+
+
+def test_cli_sim_export_euroc_of_a_rendered_sequence(tmp_path: Path) -> None:
+    from click.testing import CliRunner
+
+    from ibiscape_eval.cli.main import cli
+
+    seq = tmp_path / "SVI_1_calib"
+    exp = tmp_path / "SVI_1_calib_euroc"
+    r = CliRunner().invoke(cli, ["sim", "--setup", "svi", "--kind", "calibration", "--resolution",
+                                 "48", "--duration-s", "0.5", "--export", "euroc", "--export-out",
+                                 str(exp), "--out", str(seq)], catch_exceptions=False)
+    assert r.exit_code == 0, r.output
+    for cam, exp_cam in (("rgbL", "cam0"), ("rgbR", "cam1")):
+        st, paths = _frames(seq, cam)
+        st2, names = read_asl_image_list(exp / "mav0" / exp_cam / "data.csv")
+        np.testing.assert_array_equal(st2, st)
+        src = cv2.cvtColor(read_png(paths[-1]), cv2.COLOR_RGB2GRAY)
+        np.testing.assert_array_equal(read_png(exp / "mav0" / exp_cam / "data" / names[-1]), src)
+    st, g, a = _source_imu(seq, "imu0")
+    st2, g2, a2 = read_imu_samples(exp / "mav0" / "imu0" / "data.csv")
+    np.testing.assert_array_equal(st2, st)
+    np.testing.assert_allclose(np.concatenate([g2, a2], 1), np.concatenate([g, a], 1),
+                               rtol=1e-13, atol=1e-15)
