@@ -11,9 +11,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from hypothesis import given, settings
+from hypothesis import strategies as hs
+from hypothesis.extra import numpy as hnp
 
 from ibiscape_eval.cli.main import cli
 from ibiscape_eval.core.errors import IbiscapeError
+from ibiscape_eval.core.events import Events
 from ibiscape_eval.events import detect_hot_pixels
 from ibiscape_eval.io.events import open_events, read_events, read_hot_pixels
 from ibiscape_eval.sim.config import CameraSpec, preset
@@ -254,3 +258,31 @@ def test_result_to_dict_is_strict_json(tmp_path: Path) -> None:
     assert d["noisy_pixels"] == [list(p) for p in r.noisy_pixels]
     assert "DvsResult(davisL" in repr(r)
     assert DvsConfig().to_dict()["positive_threshold"] == 0.3
+
+
+@settings(max_examples=40)
+@given(data=hs.data())
+def test_reference_tracks_log_intensity_within_one_threshold(data: hs.DataObject) -> None:
+    """Whatever the images, with sigma 0 and no refractory period each pixel's reference stays
+    within C of its log intensity: L_end - L_start - C (n_pos - n_neg) lies in (-C, C); events are
+    time-ordered and inside the rendered span."""
+    h, w = data.draw(hs.integers(1, 5)), data.draw(hs.integers(1, 5))
+    n = data.draw(hs.integers(2, 6))
+    imgs = data.draw(hnp.arrays(np.float32, (n, h, w), elements=hs.floats(0, 255, width=32)))
+    steps = data.draw(hnp.arrays(np.int64, n - 1, elements=hs.integers(1, 10**8)))
+    times = T0 + np.concatenate([[0], np.cumsum(steps)])
+    c_pos, c_neg = data.draw(hs.floats(0.05, 1.0)), data.draw(hs.floats(0.05, 1.0))
+    cfg = DvsConfig(positive_threshold=c_pos, negative_threshold=c_neg)
+    sim = DvsSimulator((h, w), cfg, np.random.default_rng(0))
+    sim.reset(int(times[0]), imgs[0])
+    parts = [sim.step(int(t), img)[0] for t, img in zip(times[1:], imgs[1:], strict=True)]
+    ev = Events.concatenate(parts)
+    assert np.all(np.diff(ev.t_ns) >= 0)
+    assert len(ev) == 0 or (ev.t_ns[0] >= times[0] and ev.t_ns[-1] <= times[-1])
+    pix = ev.y.astype(np.int64) * w + ev.x
+    n_pos = np.bincount(pix[ev.p], minlength=h * w)
+    n_neg = np.bincount(pix[~ev.p], minlength=h * w)
+    log = np.log(0.001 + imgs.astype(np.float64) / 255.0).reshape(n, -1)
+    drift = log[-1] - log[0] - (c_pos * n_pos - c_neg * n_neg)
+    assert np.all(drift < max(c_pos, c_neg) + 1e-6) and np.all(drift > -max(c_pos, c_neg) - 1e-6)
+    np.testing.assert_allclose(sim.ref, log[0] + c_pos * n_pos - c_neg * n_neg, atol=1e-9)
