@@ -211,12 +211,14 @@ class RenderSpec:
     """How images are rendered (``ibiscape_eval.sim.render``)."""
 
     shadows: bool = field(default=True, metadata=_doc("cast shadows (one extra ray per lit pixel)"))
-    target_supersample: int = field(default=4, metadata=_doc(
+    target_supersample: int = field(default=6, metadata=_doc(
         "s x s rays per pixel on calibration targets (antialiased corners), 1..8"))
     sensor_noise: bool = field(default=True, metadata=_doc(
         "camera noise (read + shot, more in the dark); off with ideal: true"))
     weather_optics: bool = field(default=True, metadata=_doc(
         "fog, rain streaks and the wet road"))
+    psf_sigma_px: float = field(default=0.7, metadata=_doc(
+        "lens blur: Gaussian point-spread function sigma [px], 0..5 (0 = none)"))
 
 
 @dataclass(frozen=True)
@@ -349,6 +351,9 @@ def validate(cfg: SimConfig) -> None:
     ts = cfg.render.target_supersample
     if isinstance(ts, bool) or not isinstance(ts, int) or not 1 <= ts <= 8:
         raise IbiscapeError(f"config: render.target_supersample must be an integer in 1..8, got {ts!r}")
+    ps = cfg.render.psf_sigma_px
+    if not (isinstance(ps, int | float) and math.isfinite(ps) and 0.0 <= ps <= 5.0):
+        raise IbiscapeError(f"config: render.psf_sigma_px must be in 0..5 px, got {ps!r}")
     from .rig import check_housings
 
     check_housings(cfg)

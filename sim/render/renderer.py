@@ -48,17 +48,24 @@ class RenderOptions:
         Sensor noise on RGB images (``False`` for ideal images).
     weather_optics : bool
         Fog, rain streaks and the wet road (``False``: clear optics whatever the weather).
+    psf_sigma_px : float
+        Lens blur: a Gaussian point-spread function of this standard deviation [px] (0 = none).
+        Without it every edge is a perfect box-filtered step whose staircase biases corner
+        detectors by up to ~0.07 px; 0.7 px is a sharp real lens.
     """
 
     shadows: bool = True
-    target_supersample: int = 4
+    target_supersample: int = 6
     noise: bool = True
     weather_optics: bool = True
+    psf_sigma_px: float = 0.7
 
     def __post_init__(self) -> None:
         if not isinstance(self.target_supersample, int) or not 1 <= self.target_supersample <= 8:
             raise IbiscapeError(f"render: target_supersample must be an integer in 1..8, got "
                                 f"{self.target_supersample!r}")
+        if not (isinstance(self.psf_sigma_px, int | float) and 0.0 <= self.psf_sigma_px <= 5.0):
+            raise IbiscapeError(f"render: psf_sigma_px must be in 0..5 px, got {self.psf_sigma_px!r}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -151,7 +158,7 @@ class Renderer:
             r = cfg.render
             options = RenderOptions(shadows=r.shadows, target_supersample=r.target_supersample,
                                     noise=r.sensor_noise and not cfg.ideal,
-                                    weather_optics=r.weather_optics)
+                                    weather_optics=r.weather_optics, psf_sigma_px=r.psf_sigma_px)
         return cls(world, cameras=cams, motion=motion, weather=weather, options=options,
                    seed=cfg.seed, extra_cars=extra)
 
@@ -252,6 +259,11 @@ class Renderer:
             if cov is not None:
                 a = (0.45 * cov)[..., None]
                 img = img * (1.0 - a) + a * np.float32(glow)
+        if self.options.psf_sigma_px > 0:
+            import cv2
+
+            img = cv2.GaussianBlur(np.ascontiguousarray(img, dtype=np.float32), (0, 0),
+                                   self.options.psf_sigma_px, borderType=cv2.BORDER_REFLECT)
         return np.clip(img, 0.0, 255.0).astype(np.float32), depth, labels.reshape(H, W)
 
     def _mover_scene(self, t_ns: int) -> tuple[Any, TriangleTables] | None:
