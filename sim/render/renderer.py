@@ -262,8 +262,9 @@ class Renderer:
         if self.options.psf_sigma_px > 0:
             import cv2
 
-            img = cv2.GaussianBlur(np.ascontiguousarray(img, dtype=np.float32), (0, 0),
-                                   self.options.psf_sigma_px, borderType=cv2.BORDER_REFLECT)
+            img = np.asarray(cv2.GaussianBlur(np.ascontiguousarray(img, dtype=np.float32), (0, 0),
+                                              self.options.psf_sigma_px,
+                                              borderType=cv2.BORDER_REFLECT), dtype=np.float32)
         return np.clip(img, 0.0, 255.0).astype(np.float32), depth, labels.reshape(H, W)
 
     def _mover_scene(self, t_ns: int) -> tuple[Any, TriangleTables] | None:

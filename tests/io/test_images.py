@@ -136,7 +136,7 @@ def test_bad_files_are_named(tmp_path: Path) -> None:
     with pytest.raises(FormatError, match="not found"):
         read_png(tmp_path / "missing.png")
     (tmp_path / "junk.png").write_bytes(b"not a png")
-    with pytest.raises(FormatError, match="junk.png.*not a readable image"):
+    with pytest.raises(FormatError, match=r"junk\.png.*not a readable image"):
         read_png(tmp_path / "junk.png")
     write_png(tmp_path / "c.png", np.array([[[1, 2, 3]]], np.uint8))
     with pytest.raises(FormatError, match="not in CARLA's CityScapes palette"):

@@ -162,7 +162,7 @@ def test_movers_without_rebuilding_the_static_scene() -> None:
 
 
 def test_gray_is_the_noise_free_rgb_in_luma_weights(calib) -> None:
-    r, board = calib
+    _, board = calib
     model = CameraModel.from_fov(64, 48, 80.0)
     r2 = Renderer(build_world(kind="calibration", seed=1, bumps=False),
                   cameras=(RenderCamera("davisL", "dvs", model, np.eye(4)),), motion=_Still(board),
