@@ -24,7 +24,7 @@ CARLA's DVS sensor is a port of it):
 - weather (rain and fog droplets): spurious events concentrated on a seeded minority of "noisy"
   pixels (``noisy_pixel_fraction``, each with its own weight in 0.75..1.25) plus a uniform background
   share, at a rate ``weather_noise_gain * level * R`` where ``level = (precipitation +
-  fog_density) / 200`` at the window and ``R`` the scene's mean event rate so far (at least
+  fog_density) / 200`` at the window and ``R`` the scene's event rate in the window (at least
   ``weather_noise_floor_hz`` per pixel, so that a still view in the rain has noise too): the paper's
   FULL Dynamic-1 loses about a quarter of its events to the hot-pixel filter, and with the
   dynamic preset (rain ~45, fog ~70 => level ~0.58) the default gain gives that share.  Noise
@@ -288,19 +288,13 @@ class _WeatherNoise:
         self.pixels = flat.astype(np.int64)
         wts = rng.uniform(0.75, 1.25, size=k)
         self.weights = wts / wts.sum() if k else wts
-        self.scene_events = 0
-        self.scene_time_ns = 0
 
     def events(self, a_ns: int, b_ns: int, n_scene: int, level: float) -> tuple[Events, int]:
         """Noise events of window ``[a, b)`` given its scene events and weather level."""
-        self.scene_events += n_scene
-        self.scene_time_ns += b_ns - a_ns
-        if level <= 0 or self.cfg.weather_noise_gain <= 0 or self.scene_time_ns <= 0:
+        if level <= 0 or self.cfg.weather_noise_gain <= 0 or b_ns <= a_ns:
             return Events.empty(), 0
-        floor = self.cfg.weather_noise_floor_hz * 1e-9 * self.h * self.w  # events per ns
-        rate = self.cfg.weather_noise_gain * level * max(self.scene_events / self.scene_time_ns,
-                                                         floor)
-        mean = rate * (b_ns - a_ns)
+        floor = self.cfg.weather_noise_floor_hz * 1e-9 * self.h * self.w * (b_ns - a_ns)
+        mean = self.cfg.weather_noise_gain * level * max(float(n_scene), floor)
         share = self.cfg.noisy_pixel_share if self.pixels.size else 0.0
         counts = self.rng.poisson(mean * share * self.weights) if self.pixels.size else \
             np.zeros(0, np.int64)
