@@ -10,7 +10,7 @@
   (``wind_intensity`` 100 % = 8 m/s, blowing toward azimuth 35 deg), wrapped periodically in a 24 m
   box around the camera, so the rain is the same for both cameras of a stereo pair and continuous
   in time (the DVS model asks for any instant).  A drop draws the segment it travels during the
-  exposure (4 ms), antialiased, hidden behind nearer surfaces.
+  exposure (10 ms), antialiased, hidden behind nearer surfaces.
 - Sensor: 8-bit output of ``255 gain L`` plus Gaussian noise of standard deviation
   ``sqrt((0.6 gain)^2 + 0.04 gain I)`` DN (read noise grows with the gain, shot noise with the
   signal ``I``), so dark scenes are noisier.
@@ -34,8 +34,8 @@ _DROP_BOX_M = 24.0
 _DROP_FALL_M_S = 7.0
 _WIND_MAX_M_S = 8.0
 _WIND_AZIMUTH_RAD = math.radians(35.0)
-_EXPOSURE_S = 0.004
-_DROPS_PER_M3_AT_100 = 1.2
+_EXPOSURE_S = 0.010
+_DROPS_PER_M3_AT_100 = 0.25
 
 
 def fog_beta_per_m(fog_density: float) -> float:
