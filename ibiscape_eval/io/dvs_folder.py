@@ -16,6 +16,7 @@ anyway).  Read the result with :func:`ibiscape_eval.io.events.open_events`.
 
 from __future__ import annotations
 
+import errno
 import os
 from pathlib import Path
 
@@ -67,16 +68,22 @@ class DvsFolderWriter:
                                 f"{self._last_end}); windows must follow each other in time")
         self._last_end = b
         name = f"{b}.npz"
-        write_events(self.events_dir / name, events, fmt="npz")
-        self._rows.append(f"{a}, {b}, {name} \n")
-        if frame is not None and self.frames_dir is not None:
-            import cv2
+        try:
+            write_events(self.events_dir / name, events, fmt="npz")
+            self._rows.append(f"{a}, {b}, {name} \n")
+            if frame is not None and self.frames_dir is not None:
+                import cv2
 
-            png = self.frames_dir / f"{b}.png"
-            with atomic_output_path(png) as tmp:
-                if not cv2.imwrite(str(tmp), np.ascontiguousarray(frame, dtype=np.uint8)):
-                    raise IbiscapeError(f"{png}: could not write the PNG image (disk full?)")
-            self._frame_rows.append(f"{a}, {b}, {b}.png \n")
+                png = self.frames_dir / f"{b}.png"
+                with atomic_output_path(png) as tmp:
+                    if not cv2.imwrite(str(tmp), np.ascontiguousarray(frame, dtype=np.uint8)):
+                        raise IbiscapeError(f"{png}: could not write the PNG image (disk full?)")
+                self._frame_rows.append(f"{a}, {b}, {b}.png \n")
+        except OSError as e:
+            if e.errno == errno.ENOSPC:
+                raise IbiscapeError(f"{self.folder}: the disk filled up while writing DVS events; "
+                                    "free some space or write elsewhere") from None
+            raise
 
     def close(self) -> int:
         """Write the ``timestamps.csv`` files; return the number of windows."""

@@ -211,3 +211,17 @@ def test_readers_name_the_file_and_line(tmp_path: Path) -> None:
     s.write_text("sensor_type: camera\nT_BS: [1, 2]\n")
     with pytest.raises(FormatError, match="T_BS"):
         read_asl_sensor_yaml(s)
+
+
+def test_dvs_folder_disk_full_is_one_clear_error(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import errno
+
+    import ibiscape_eval.io.dvs_folder as dvs_folder
+
+    def full(*args: object, **kw: object) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(dvs_folder, "write_events", full)
+    w = DvsFolderWriter(tmp_path / "d", frames=False)
+    with pytest.raises(IbiscapeError, match="disk filled up"):
+        w.add(1, 2, Events.empty())
