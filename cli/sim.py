@@ -120,6 +120,12 @@ def sim(setup: str | None, kind: str | None, weather: str | None, scenario: str 
     if export_fmt is not None and not (render and cfg.cameras):
         fail(f"--export {export_fmt} needs rendered images; drop --no-render (setup {cfg.setup} "
              f"has {len(cfg.cameras)} cameras)")
+    if export_fmt is not None:
+        from ibiscape_eval.sim.render.sequence import export_problem
+
+        problem = export_problem(cfg, export_fmt)
+        if problem is not None:
+            fail(problem)
     out_dir = out if out is not None else sequence_name(cfg)
 
     from tqdm import tqdm

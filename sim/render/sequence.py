@@ -27,7 +27,7 @@ import numpy as np
 
 from ibiscape_eval.core.errors import IbiscapeError
 
-__all__ = ["estimate_bytes", "render_cameras"]
+__all__ = ["estimate_bytes", "export_problem", "render_cameras"]
 
 Progress = Callable[[float, str], None]
 
@@ -47,6 +47,18 @@ def estimate_bytes(cfg: Any) -> int:
     for c in cfg.cameras:
         total += len(_stamps(cfg, c.rate_hz)) * c.width_px * c.height_px * _BYTES_PER_PX[c.kind]
     return int(total)
+
+
+def export_problem(cfg: Any, fmt: str) -> str | None:
+    """Why the rendered cameras of ``cfg`` cannot fill the export ``fmt``, or ``None`` if they can
+    (checked before generating, so a doomed export costs nothing)."""
+    kinds = {c.kind for c in cfg.cameras}
+    if fmt == "tum-rgbd" and not {"rgb", "depth"} <= kinds:
+        return (f"--export tum-rgbd needs an RGB and a depth camera; setup {cfg.setup} has "
+                f"{', '.join(sorted(kinds)) or 'no cameras'} (use --setup rgbd or full)")
+    if fmt in ("euroc", "rosbag") and not kinds & {"rgb", "dvs"}:
+        return f"--export {fmt} needs RGB or DVS cameras; setup {cfg.setup} has none"
+    return None
 
 
 def _check_space(cfg: Any, folder: Path) -> None:
