@@ -391,7 +391,7 @@ def _export_tum(seq: Path, doc: dict[str, Any], cams: dict[str, _Camera], tmp: P
 
 
 def _export_rosbag(seq: Path, doc: dict[str, Any], cams: list[_Camera], bag: Path,
-                   step: Progress) -> dict[str, Any]:
+                   step: Progress, *, overwrite: bool = False) -> dict[str, Any]:
     from ibiscape_eval.io.images import read_png
     from ibiscape_eval.io.rosbag_export import RosbagWriter
 
@@ -407,7 +407,7 @@ def _export_rosbag(seq: Path, doc: dict[str, Any], cams: list[_Camera], bag: Pat
     allk = np.concatenate(keys) if keys else np.zeros((0, 3), np.int64)
     allk = allk[np.lexsort((allk[:, 2], allk[:, 1], allk[:, 0]))]
     n_img = n_imu = 0
-    with RosbagWriter(bag) as w:
+    with RosbagWriter(bag, overwrite=overwrite) as w:
         for k, (t, src, i) in enumerate(allk):
             if src < len(cams):
                 c = cams[src]
@@ -444,8 +444,8 @@ def export_sequence(seq_dir: str | os.PathLike[str], fmt: str, out: str | os.Pat
         A sequence folder written by ``ibiscape-eval sim`` (``sequence.yaml`` inside).
     fmt : {"euroc", "tum-rgbd", "rosbag"}
     out : path
-        Export folder (euroc, tum-rgbd; must not exist or be empty unless ``overwrite``) or
-        ``.bag`` file (rosbag; must not exist).
+        Export folder (euroc, tum-rgbd) or ``.bag`` file (rosbag); it must not exist (a folder
+        may be empty) unless ``overwrite``, and is replaced only once the export is complete.
     cameras : list of str, optional
         Source cameras to export, in order (euroc/rosbag; default: the first two RGB cameras, the
         stereo pair, else the DVS cameras' accumulated frames).
@@ -474,8 +474,9 @@ def export_sequence(seq_dir: str | os.PathLike[str], fmt: str, out: str | os.Pat
     dst = Path(out)
     doc, cams = _read(seq)
     if fmt == "rosbag":
-        if dst.exists():
-            raise IbiscapeError(f"{dst}: already exists; choose a new .bag file or remove it")
+        if dst.is_dir() or (dst.exists() and not overwrite):
+            raise IbiscapeError(f"{dst}: already exists; choose a new .bag file, remove it or "
+                                "use --overwrite")
         chosen = _pick_cameras(doc, cams, cameras, fmt, seq)
         raw = sum(len(c.paths) * int(np.prod(c.entry["resolution"])) * (3 if c.kind == "rgb" else 1)
                   for c in chosen)
@@ -483,7 +484,7 @@ def export_sequence(seq_dir: str | os.PathLike[str], fmt: str, out: str | os.Pat
                         (doc.get("imus") or {}).values()) * 3
         _check_space(dst, raw + imu_bytes)
         try:
-            res = _export_rosbag(seq, doc, chosen, dst, step)
+            res = _export_rosbag(seq, doc, chosen, dst, step, overwrite=overwrite)
         except OSError as e:
             if e.errno == errno.ENOSPC:
                 raise _disk_full(dst, e) from None

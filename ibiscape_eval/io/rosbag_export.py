@@ -26,18 +26,19 @@ __all__ = ["RosbagWriter", "read_bag_images", "read_bag_imu"]
 
 
 class RosbagWriter:
-    """Write images and IMU samples into a new ROS 1 bag at ``path`` (atomically).
+    """Write images and IMU samples into a new ROS 1 bag at ``path`` (atomically; an existing
+    file is replaced only with ``overwrite``, once the new bag is complete).
 
     Use as a context manager; :meth:`add_image` / :meth:`add_imu` in any order of topics but
     increasing time per topic (the caller merges topics by time to keep the bag ordered).
     """
 
-    def __init__(self, path: str | os.PathLike[str]) -> None:
+    def __init__(self, path: str | os.PathLike[str], *, overwrite: bool = False) -> None:
         from rosbags.rosbag1 import Writer
         from rosbags.typesys import Stores, get_typestore
 
         self.path = Path(path)
-        if self.path.exists():
+        if self.path.is_dir() or (self.path.exists() and not overwrite):
             raise IbiscapeError(f"{self.path}: already exists; choose a new bag file or remove it")
         self.ts = get_typestore(Stores.ROS1_NOETIC)
         self._dir = staging_path(self.path, folder=True)

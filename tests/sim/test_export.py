@@ -271,6 +271,9 @@ def test_other_bad_inputs(full_seq: Path, tmp_path: Path) -> None:
     (tmp_path / "old.bag").write_bytes(b"")
     with pytest.raises(IbiscapeError, match="already exists"):
         export_sequence(full_seq, "rosbag", tmp_path / "old.bag")
+    assert (tmp_path / "old.bag").read_bytes() == b""
+    export_sequence(full_seq, "rosbag", tmp_path / "old.bag", overwrite=True)
+    assert read_bag_imu(tmp_path / "old.bag", "/imu0")[0].size > 0
     assert START_NS > 0
 
 
