@@ -25,7 +25,7 @@ import numpy.typing as npt
 
 from .shading import WeatherState
 
-__all__ = ["add_sensor_noise", "fog", "fog_beta_per_m", "rain_streaks", "wet_ground"]
+__all__ = ["add_sensor_noise", "fog", "fog_beta_per_m", "puddles", "rain_streaks"]
 
 F32 = npt.NDArray[np.float32]
 
@@ -52,16 +52,14 @@ def fog(radiance: F32, distance_m: F32, beta_per_m: float, airlight: F32) -> F32
     return (radiance * t + airlight[None, :] * (1.0 - t)).astype(np.float32)
 
 
-def wet_ground(radiance: F32, paved: F32, puddle_noise: F32, sky_reflection: F32, w: WeatherState) -> F32:
-    """Darken wet paved ground and mirror the sky in puddles (in place semantics: returns the result)."""
-    wet = np.float32(w.wetness / 100.0)
-    if wet <= 0.0 and w.precipitation_deposits <= 0.0:
-        return radiance
-    out = radiance * (1.0 - 0.45 * wet * paved)[:, None]
+def puddles(radiance: F32, paved: F32, puddle_noise: F32, sky_reflection: F32, w: WeatherState) -> F32:
+    """Mirror the sky in puddles on paved ground: where a coarse noise exceeds a level that falls
+    with ``precipitation_deposits``, blend toward the reflected sky (wet-road darkening is applied
+    to the albedo by the renderer: ``albedo (1 - 0.45 wetness paved)``)."""
     level = 1.6 - 2.2 * w.precipitation_deposits / 100.0  # more deposits: more of the noise is water
     puddle = np.clip((puddle_noise - level) * 3.0, 0.0, 1.0) * paved
     k = (0.65 * puddle)[:, None]
-    return (out * (1.0 - k) + sky_reflection * k).astype(np.float32)
+    return (radiance * (1.0 - k) + sky_reflection * k).astype(np.float32)
 
 
 def rain_streaks(model: object, T_world_cam: np.ndarray, depth_m: F32, t_ns: int, w: WeatherState,

@@ -21,10 +21,19 @@ from ibiscape_eval.core.camera import CameraModel
 from ibiscape_eval.core.errors import IbiscapeError
 from ibiscape_eval.core.rotations import matrix_from_quat
 
-from .optics import add_sensor_noise, fog, fog_beta_per_m, rain_streaks, wet_ground
+from .optics import _SKY_DISTANCE_M, add_sensor_noise, fog, fog_beta_per_m, puddles, rain_streaks
 from .rays import camera_model, camera_rays, subpixel_rays, world_rays
 from .scene import MAT, StaticScene, TriangleTables, build_static_scene, mover_mesh, open3d, tensor
-from .shading import Lighting, WeatherState, horizon_radiance, lighting, shade, sky_radiance
+from .shading import (
+    _HORIZON,
+    _OVERCAST,
+    _ZENITH,
+    Lighting,
+    WeatherState,
+    horizon_radiance,
+    lighting,
+    sky_radiance,
+)
 from .textures import albedo, noise_table, sample_bilinear
 
 __all__ = ["RenderCamera", "RenderOptions", "RenderedView", "Renderer"]
@@ -103,21 +112,19 @@ class RenderCamera:
     T_body_cam: npt.NDArray[np.float64]
 
 
+@dataclass(frozen=True, eq=False)
 class _Hits:
-    """Per-ray results of the nearer hit of the static and the movers' scene."""
+    """Per-ray results of the nearer hit of the static and the movers' scene (``inf`` t: sky)."""
 
-    __slots__ = ("label", "mat", "normal", "t", "uv", "var")
-
-    def __init__(self, t: F32, mat: np.ndarray, var: np.ndarray, label: np.ndarray, uv: F32,
-                 normal: F32) -> None:
-        self.t, self.mat, self.var, self.label, self.uv, self.normal = t, mat, var, label, uv, normal
-
-
-def _gather(tables: TriangleTables, prim: np.ndarray, bary: np.ndarray) -> tuple[np.ndarray, ...]:
-    uvv = tables.uv_m[prim]  # (N, 3, 2)
-    b1, b2 = bary[:, 0:1], bary[:, 1:2]
-    uv = uvv[:, 0] * (1.0 - b1 - b2) + uvv[:, 1] * b1 + uvv[:, 2] * b2
-    return tables.material[prim], tables.variant[prim], tables.label[prim], uv.astype(np.float32)
+    t: F32
+    mat: npt.NDArray[np.uint8]
+    var: npt.NDArray[np.uint8]
+    label: npt.NDArray[np.uint8]
+    uv: F32
+    normal: F32  # unit, facing the viewer
+    facing: npt.NDArray[np.bool_]  # the geometric normal faced the viewer
+    points: F32
+    dn: F32  # |d| of the ray (distance = t |d|)
 
 
 class Renderer:
@@ -232,7 +239,7 @@ class Renderer:
         light = lighting(w)
         dirs = camera_rays(model)
         rays = world_rays(dirs, T).reshape(-1, 6)
-        rad, hits, labels = self._radiance(rays, t_ns, w, light)
+        rad, hits, labels = self._radiance(rays, t_ns, w, light, self._mover_pixels(model, T, t_ns))
         s = self.options.target_supersample
         if s > 1 and self.static.targets:
             import cv2
@@ -277,92 +284,150 @@ class Renderer:
             self._movers, self._movers_t = (sc, tables), t_ns
         return self._movers
 
-    def _cast(self, rays: F32, t_ns: int) -> _Hits:
-        rt = tensor(rays)
-        r = self.static.scene.cast_rays(rt, nthreads=0)
-        t = r["t_hit"].numpy()
-        sentinel = self.static.n_triangles
-        prim = r["primitive_ids"].numpy().astype(np.int64)
-        hit = np.isfinite(t)
-        prim = np.where(hit, prim, sentinel)
-        mat, var, lab, uv = _gather(self.static.tables, prim, r["primitive_uvs"].numpy())
-        normal = r["primitive_normals"].numpy()
+    def _cast(self, rays: F32, t_ns: int, mover_rays: npt.NDArray[np.bool_] | None = None) -> _Hits:
+        """Nearer hit of the static scene and the movers for every ray.
+
+        ``mover_rays`` (N,) bool limits the movers' cast to the rays that may see one (the renderer
+        passes the pixels inside the movers' projected bounding boxes); ``None`` casts all.
+        """
+        from ._kernels import hit_attributes
+
+        r = self.static.scene.cast_rays(tensor(rays), nthreads=0)
+        n = len(rays)
+        st = self.static.tables
         movers = self._mover_scene(t_ns)
-        if movers is not None:
-            sc, tables = movers
-            m = sc.cast_rays(rt, nthreads=0)
-            tm = m["t_hit"].numpy()
-            near = tm < t
-            if near.any():
-                idx = np.flatnonzero(near)
-                pm = m["primitive_ids"].numpy()[idx].astype(np.int64)
-                mm, vm, lm, um = _gather(tables, pm, m["primitive_uvs"].numpy()[idx])
-                t = t.copy()
-                t[idx] = tm[idx]
-                mat[idx], var[idx], lab[idx], uv[idx] = mm, vm, lm, um
-                normal[idx] = m["primitive_normals"].numpy()[idx]
-        return _Hits(t, mat, var, lab, uv, normal)
+        map2 = np.full(1, -1, np.int32)
+        t2 = np.full(1, np.inf, np.float32)
+        p2 = np.zeros(1, np.uint32)
+        b2 = np.zeros((1, 2), np.float32)
+        n2 = np.zeros((1, 3), np.float32)
+        mt = st
+        if movers is not None and (mover_rays is None or mover_rays.any()):
+            sc, mt = movers
+            sel = np.arange(n) if mover_rays is None else np.flatnonzero(mover_rays)
+            m = sc.cast_rays(tensor(rays[sel]), nthreads=0)
+            map2 = np.full(max(n, 2), -1, np.int32)
+            map2[sel] = np.arange(len(sel), dtype=np.int32)
+            t2 = m["t_hit"].numpy()
+            p2 = m["primitive_ids"].numpy()
+            b2, n2 = m["primitive_uvs"].numpy(), m["primitive_normals"].numpy()
+        depth, mat, var, lab, uv, nrm, facing, pts, dn = hit_attributes(
+            r["t_hit"].numpy(), r["primitive_ids"].numpy(), r["primitive_uvs"].numpy(),
+            r["primitive_normals"].numpy(), rays, map2, t2, p2, b2, n2,
+            st.material, st.variant, st.label, st.uv_m, mt.material, mt.variant, mt.label, mt.uv_m,
+            self.static.n_triangles)
+        return _Hits(depth, mat, var, lab, uv, nrm, facing, pts, dn)
 
     def _occluded(self, rays: F32, t_ns: int) -> npt.NDArray[np.bool_]:
-        rt = tensor(rays)
-        occ = self.static.scene.test_occlusions(rt, nthreads=0).numpy().astype(bool)
+        occ = self.static.scene.test_occlusions(tensor(rays), nthreads=0).numpy().astype(bool)
         movers = self._mover_scene(t_ns)
         if movers is not None:
-            occ |= movers[0].test_occlusions(rt, nthreads=0).numpy().astype(bool)
+            near = self._near_movers(rays[:, :3], t_ns)
+            if near.any():
+                sel = np.flatnonzero(near)
+                occ[sel] |= movers[0].test_occlusions(tensor(rays[sel]), nthreads=0).numpy().astype(bool)
         return occ
 
-    def _radiance(self, rays: F32, t_ns: int, w: WeatherState, light: Lighting
+    def _near_movers(self, pts: F32, t_ns: int, reach_m: float = 25.0) -> npt.NDArray[np.bool_]:
+        """Points roughly within ``reach_m`` of a mover (where its shadow may fall): a grid of
+        ``reach_m`` cells, each mover marking its cell and the eight around it."""
+        pos, _ = self.world.agents.poses_at(np.array([t_ns], dtype=np.int64))
+        c = pos[:, 0, :2]
+        lo = c.min(axis=0) - 2 * reach_m
+        nx, ny = (np.ceil((c.max(axis=0) + 2 * reach_m - lo) / reach_m)).astype(int) + 1
+        grid = np.zeros((ny, nx), bool)
+        ci = np.floor((c - lo) / reach_m).astype(int)
+        for dy in (-1, 0, 1):
+            for dx in (-1, 0, 1):
+                grid[ci[:, 1] + dy, ci[:, 0] + dx] = True
+        ix = np.floor((pts[:, 0] - np.float32(lo[0])) / np.float32(reach_m)).astype(np.int64)
+        iy = np.floor((pts[:, 1] - np.float32(lo[1])) / np.float32(reach_m)).astype(np.int64)
+        inside = (ix >= 0) & (ix < nx) & (iy >= 0) & (iy < ny)
+        out = np.zeros(len(pts), bool)
+        out[inside] = grid[iy[inside], ix[inside]]
+        return out
+
+    def _radiance(self, rays: F32, t_ns: int, w: WeatherState, light: Lighting,
+                  mover_rays: npt.NDArray[np.bool_] | None = None
                   ) -> tuple[F32, _Hits, npt.NDArray[np.uint8]]:
         """Linear radiance (N, 3) of rays (N, 6) with fog and wet road, the hits, the labels."""
-        hits = self._cast(rays, t_ns)
-        d = rays[:, 3:]
+        from ._kernels import shade_all
+
+        hits = self._cast(rays, t_ns, mover_rays)
         hit = np.isfinite(hits.t)
-        idx = np.flatnonzero(hit)
         n = len(rays)
-        rad = np.empty((n, 3), np.float32)
-        dn = np.sqrt(np.einsum("ij,ij->i", d, d))
-        labels = hits.label.copy()
-        if idx.size:
-            nrm = hits.normal[idx]
-            dh = d[idx]
-            facing = np.einsum("ij,ij->i", nrm, dh) < 0.0
-            nrm = np.where(facing[:, None], nrm, -nrm)
-            front = facing.copy()
-            tgt = hits.mat[idx] == MAT["target"]
-            if tgt.any():
-                flags = np.array([t.z_toward_observer for t in self.static.targets], bool)
-                front[tgt] = facing[tgt] == flags[hits.var[idx][tgt]]
-            alb, lab_fix, paved = albedo(hits.mat[idx], hits.var[idx], hits.uv[idx], self.static.ground,
-                                         self.static.targets, front)
-            fix = lab_fix > 0
-            labels[idx[fix]] = lab_fix[fix]
-            visible = None
-            if self.options.shadows and light.e_sun > 0.0:
-                s = np.asarray(light.sun_dir, np.float32)
-                lit = (nrm @ s) > 0.0
-                visible = lit.copy()
-                li = np.flatnonzero(lit)
-                if li.size:
-                    p = rays[idx[li], :3] + dh[li] * hits.t[idx[li], None] + _SHADOW_EPS_M * nrm[li]
-                    sr = np.concatenate([p, np.broadcast_to(s, p.shape)], axis=1).astype(np.float32)
-                    visible[li] = ~self._occluded(sr, t_ns)
-            col = shade(alb, nrm, visible, light)
-            if self.options.weather_optics and (w.wetness > 0 or w.precipitation_deposits > 0):
-                pv = np.flatnonzero(paved > 0)
-                if pv.size:
-                    uvp = hits.uv[idx[pv]]
-                    pn = sample_bilinear(noise_table(), uvp[:, 0] * 0.45 + 11.0, uvp[:, 1] * 0.45 + 5.0,
-                                         wrap=True)
-                    refl = sky_radiance(-dh[pv, 2] / dn[idx[pv]], w, light)
-                    col[pv] = wet_ground(col[pv], paved[pv], pn, refl, w)
-            rad[idx] = col
-        miss = np.flatnonzero(~hit)
-        if miss.size:
-            rad[miss] = sky_radiance(d[miss, 2] / dn[miss], w, light)
-        if self.options.weather_optics:
-            beta = fog_beta_per_m(w.fog_density)
-            if beta > 0:
-                dist = np.where(hit, hits.t * dn, np.inf).astype(np.float32)
-                rad = fog(rad, dist, beta, horizon_radiance(w, light))
+        front = hits.facing
+        tgt = hits.mat == MAT["target"]
+        if tgt.any():
+            flags = np.array([t.z_toward_observer for t in self.static.targets], bool)
+            front = front.copy()
+            front[tgt] = hits.facing[tgt] == flags[hits.var[tgt]]
+        alb, lab_fix, paved = albedo(hits.mat, hits.var, hits.uv, self.static.ground,
+                                     self.static.targets, front)
+        labels = np.where(lab_fix > 0, lab_fix, hits.label).astype(np.uint8)
+        visible = np.ones(n, bool)
+        sun = np.asarray(light.sun_dir, np.float32)
+        if self.options.shadows and light.e_sun > 0.0:
+            lit = hit & ((hits.normal @ sun) > 0.0)
+            li = np.flatnonzero(lit)
+            if li.size:
+                sr = np.empty((li.size, 6), np.float32)
+                sr[:, :3] = hits.points[li] + np.float32(_SHADOW_EPS_M) * hits.normal[li]
+                sr[:, 3:] = sun
+                visible[li] = ~self._occluded(sr, t_ns)
+        optics = self.options.weather_optics
+        wet = w.wetness / 100.0 if optics else 0.0
+        if wet > 0:
+            alb *= (1.0 - np.float32(0.45 * wet) * paved)[:, None]
+        c = np.float32(w.cloudiness / 100.0)
+        level = np.float32(1.6 * light.e_sky + 0.25 * light.e_sun)
+        beta = fog_beta_per_m(w.fog_density) if optics else 0.0
+        wet_puddles = optics and w.precipitation_deposits > 0
+        rad = shade_all(alb, hits.normal, visible, hits.t, rays, hits.dn, sun, np.float32(light.e_sun),
+                        np.float32(light.e_sky), _ZENITH, _HORIZON, _OVERCAST, c, level,
+                        np.float32(0.0 if wet_puddles else beta), horizon_radiance(w, light),
+                        np.float32(_SKY_DISTANCE_M))
+        if wet_puddles:
+            pv = np.flatnonzero(paved > 0)
+            if pv.size:
+                uvp = hits.uv[pv]
+                pn = sample_bilinear(noise_table(), uvp[:, 0] * 0.45 + 11.0, uvp[:, 1] * 0.45 + 5.0, wrap=True)
+                d = rays[pv, 3:]
+                refl = sky_radiance(-d[:, 2] / hits.dn[pv], w, light)
+                rad[pv] = puddles(rad[pv], paved[pv], pn, refl, w)
+        if wet_puddles and beta > 0:
+            dist = np.where(hit, hits.t * hits.dn, np.float32(np.inf)).astype(np.float32)
+            rad = fog(rad, dist, beta, horizon_radiance(w, light))
         return rad, hits, labels
+
+    def _mover_pixels(self, model: CameraModel, T: np.ndarray, t_ns: int) -> npt.NDArray[np.bool_] | None:
+        """Pixels (H W,) inside the projected bounding boxes of the movers (with a margin), or
+        ``None`` when a mover straddles the camera plane (then every ray is cast)."""
+        H, W = model.height_px, model.width_px
+        mask = np.zeros((H, W), bool)
+        ag = self.world.agents
+        if len(ag) == 0:
+            return mask.ravel()
+        pos, _ = ag.poses_at(np.array([t_ns], dtype=np.int64))
+        r = 0.5 * np.hypot(ag.size_m[:, 0], ag.size_m[:, 1])
+        corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (0, 1)], float)
+        pts = pos[:, 0, None, :] + corners[None] * np.stack([r, r, ag.size_m[:, 2]], -1)[:, None, :]
+        Tcw = np.linalg.inv(T)
+        pc = pts @ Tcw[:3, :3].T + Tcw[:3, 3]  # (A, 8, 3)
+        dist = np.linalg.norm(pc, axis=2).min(axis=1)
+        front = (pc[..., 2] > 0.05).all(axis=1)
+        behind = (pc[..., 2] <= 0.05).all(axis=1)
+        if np.any(~front & ~behind & (dist < 1e4)):
+            return None
+        margin = 2 + 0.02 * max(H, W)
+        for k in np.flatnonzero(front):
+            uv = model.project(pc[k])
+            if not np.isfinite(uv).all():
+                return None
+            u0, v0 = np.floor(uv.min(axis=0) - margin).astype(int)
+            u1, v1 = np.ceil(uv.max(axis=0) + margin).astype(int)
+            if u1 < 0 or v1 < 0 or u0 >= W or v0 >= H:
+                continue
+            mask[max(v0, 0):min(v1 + 1, H), max(u0, 0):min(u1 + 1, W)] = True
+        return mask.ravel()
 
