@@ -95,3 +95,73 @@ def shade_all(albedo, nrm, visible, depth, rays, dn, sun, e_sun, e_sky, zenith, 
             for c in range(3):
                 out[i, c] = out[i, c] * tr + airlight[c] * (1.0 - tr)
     return out
+
+
+@nb.njit(parallel=True, cache=True)
+def bilinear(table, x, y, wrap):
+    """Bilinear samples (N, C) of ``table`` (H, W, C) float32 at texel coordinates (N,) (texel
+    centres at integers); periodic when ``wrap``, else clamped to the border texels."""
+    h, w, nc = table.shape
+    n = x.shape[0]
+    out = np.empty((n, nc), np.float32)
+    for i in nb.prange(n):
+        fx, fy = x[i], y[i]
+        if wrap:
+            fx = fx - w * np.floor(fx / w)
+            fy = fy - h * np.floor(fy / h)
+        else:
+            fx = min(max(fx, 0.0), w - 1.0)
+            fy = min(max(fy, 0.0), h - 1.0)
+        x0 = int(np.floor(fx))
+        y0 = int(np.floor(fy))
+        ax = fx - x0
+        ay = fy - y0
+        if wrap:
+            x0 %= w
+            y0 %= h
+            x1 = (x0 + 1) % w
+            y1 = (y0 + 1) % h
+        else:
+            x1 = min(x0 + 1, w - 1)
+            y1 = min(y0 + 1, h - 1)
+        for c in range(nc):
+            top = table[y0, x0, c] * (1.0 - ax) + table[y0, x1, c] * ax
+            bot = table[y1, x0, c] * (1.0 - ax) + table[y1, x1, c] * ax
+            out[i, c] = top * (1.0 - ay) + bot * ay
+    return out
+
+
+@nb.njit(cache=True, inline="always")
+def _mix64(z):
+    # splitmix64 finaliser (Steele, Lea, Flood 2014)
+    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    return z ^ (z >> np.uint64(31))
+
+
+@nb.njit(parallel=True, cache=True)
+def sensor_noise(image, gain, key):
+    """``image + sigma N(0, 1)`` with ``sigma = sqrt((0.6 gain)^2 + 0.04 gain I)`` per value; the
+    normal deviates come from a counter-based generator (splitmix64 of ``key`` and the value's
+    index, Box-Muller), so they do not depend on the number of threads."""
+    flat = image.ravel()
+    n = flat.shape[0]
+    out = np.empty(n, np.float32)
+    read2 = (0.6 * gain) ** 2
+    shot = 0.04 * gain
+    k = np.uint64(key)
+    for j in nb.prange((n + 1) // 2):
+        a = _mix64(k + np.uint64(2 * j) * np.uint64(0x9E3779B97F4A7C15))
+        b = _mix64(a + np.uint64(0x632BE59BD9B4E019))
+        u1 = ((a >> np.uint64(11)) + np.uint64(1)) * (1.0 / 9007199254740993.0)
+        u2 = (b >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+        r = np.sqrt(-2.0 * np.log(u1))
+        z0 = r * np.cos(2.0 * np.pi * u2)
+        z1 = r * np.sin(2.0 * np.pi * u2)
+        i0 = 2 * j
+        v = flat[i0]
+        out[i0] = v + np.sqrt(read2 + shot * max(v, 0.0)) * z0
+        if i0 + 1 < n:
+            v = flat[i0 + 1]
+            out[i0 + 1] = v + np.sqrt(read2 + shot * max(v, 0.0)) * z1
+    return out.reshape(image.shape)

@@ -106,7 +106,9 @@ def rain_streaks(model: object, T_world_cam: np.ndarray, depth_m: F32, t_ns: int
     return mask.astype(np.float32) * np.float32(brightness / 255.0)
 
 
-def add_sensor_noise(image: F32, gain: float, rng: np.random.Generator) -> F32:
-    """Gaussian read + shot noise on a 0..255 image (any shape)."""
-    sigma = np.sqrt(np.float32((0.6 * gain) ** 2) + np.float32(0.04 * gain) * np.maximum(image, 0.0))
-    return (image + sigma * rng.standard_normal(image.shape, dtype=np.float32)).astype(np.float32)
+def add_sensor_noise(image: F32, gain: float, key: int) -> F32:
+    """Gaussian read + shot noise on a 0..255 image (any shape), deterministic in ``key``."""
+    from ._kernels import sensor_noise
+
+    return np.asarray(sensor_noise(np.ascontiguousarray(image, dtype=np.float32), float(gain),
+                                   int(key) & 0xFFFFFFFFFFFFFFFF), dtype=np.float32)

@@ -225,8 +225,9 @@ class Renderer:
         img = rad
         if self.options.noise:
             light = lighting(weather or self.weather_at(t_ns))
-            rng = np.random.default_rng([self.seed, 0x5E75, noise_key, int(t_ns) & 0xFFFFFFFFFFFF])
-            img = add_sensor_noise(rad, light.gain, rng)
+            key = int(np.random.default_rng([self.seed, 0x5E75, noise_key, int(t_ns) & 0xFFFFFFFFFFFF])
+                      .integers(0, 2**63))
+            img = add_sensor_noise(rad, light.gain, key)
         rgb = np.clip(np.rint(img), 0, 255).astype(np.uint8)
         return RenderedView(rgb, depth, labels, rad)
 

@@ -66,27 +66,14 @@ def noise_table() -> F32:
 
 def sample_bilinear(table: np.ndarray, x: npt.ArrayLike, y: npt.ArrayLike, *, wrap: bool) -> np.ndarray:
     """Bilinear samples of ``table`` (H, W[, C]) at texel coordinates ``x, y`` (N,) (texel centres
-    at integers), periodic (``wrap``) or clamped to the border.  Returns (N,) or (N, C)."""
-    import cv2
+    at integers), periodic (``wrap``) or clamped to the border.  Returns float32 (N,) or (N, C)."""
+    from ._kernels import bilinear
 
-    xf = np.asarray(x, dtype=np.float32).ravel()
-    yf = np.asarray(y, dtype=np.float32).ravel()
-    n = xf.size
-    h, w = table.shape[:2]
-    if wrap:
-        xf = np.mod(xf, np.float32(w))
-        yf = np.mod(yf, np.float32(h))
-    else:
-        xf = np.clip(xf, -1.0, w)
-        yf = np.clip(yf, -1.0, h)
-    cols = 1024
-    rows = max(1, -(-n // cols))
-    pad = rows * cols - n
-    mx = np.pad(xf, (0, pad)).reshape(rows, cols)
-    my = np.pad(yf, (0, pad)).reshape(rows, cols)
-    out = cv2.remap(np.ascontiguousarray(table), mx, my, cv2.INTER_LINEAR,
-                    borderMode=cv2.BORDER_WRAP if wrap else cv2.BORDER_REPLICATE)
-    return out.reshape(rows * cols, *table.shape[2:])[:n]
+    t = np.asarray(table)  # uint8 or float32: numba compiles one kernel per type
+    t3 = t[..., None] if t.ndim == 2 else t
+    out = bilinear(np.ascontiguousarray(t3), np.asarray(x, np.float32).ravel(),
+                   np.asarray(y, np.float32).ravel(), wrap)
+    return out[:, 0] if t.ndim == 2 else out
 
 
 @functools.lru_cache(maxsize=8)
