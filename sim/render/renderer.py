@@ -11,6 +11,7 @@ where it matters, at a fraction of the cost of supersampling the whole image).
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, fields
 from typing import Any
 
@@ -227,7 +228,9 @@ class Renderer:
             light = lighting(weather or self.weather_at(t_ns))
             key = int(np.random.default_rng([self.seed, 0x5E75, noise_key, int(t_ns) & 0xFFFFFFFFFFFF])
                       .integers(0, 2**63))
-            img = add_sensor_noise(rad, light.gain, key)
+            with warnings.catch_warnings():
+                warnings.filterwarnings("ignore", message=".*TBB threading layer.*")
+                img = add_sensor_noise(rad, light.gain, key)
         rgb = np.clip(np.rint(img), 0, 255).astype(np.uint8)
         return RenderedView(rgb, depth, labels, rad)
 
@@ -235,6 +238,15 @@ class Renderer:
     def _radiance_image(self, model: CameraModel, T: np.ndarray, t_ns: int,
                         weather: WeatherState | None = None, *, rain: bool = True
                         ) -> tuple[F32, F32, npt.NDArray[np.uint8]]:
+        # numba tries the TBB threading layer first and warns (once) that this machine's TBB is
+        # too old before falling back to OpenMP: nothing a user can act on
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message=".*TBB threading layer.*")
+            return self._radiance_image_impl(model, T, t_ns, weather, rain=rain)
+
+    def _radiance_image_impl(self, model: CameraModel, T: np.ndarray, t_ns: int,
+                             weather: WeatherState | None = None, *, rain: bool = True
+                             ) -> tuple[F32, F32, npt.NDArray[np.uint8]]:
         H, W = model.height_px, model.width_px
         w = weather or self.weather_at(t_ns)
         light = lighting(w)
