@@ -77,13 +77,13 @@ def main() -> None:
             model = CameraModel.from_fov(n, n, 90.0)
             w = WeatherState(fog_density=20.0, precipitation=30.0, wetness=40.0) if scene == "dynamic" else None
 
-            def step(model=model, w=w) -> None:
+            def step(model=model, w=w, r=r, TL=TL, TR=TR) -> None:
                 r.render_pose(model, TL, 1_000_000_000_000, weather=w)
                 r.render_pose(model, TR, 1_000_000_000_000, noise_key=1, weather=w)
 
             rays = [tensor(world_rays(camera_rays(model), T).reshape(-1, 6)) for T in (TL, TR)]
 
-            def cast(rays=rays) -> None:
+            def cast(rays=rays, r=r) -> None:
                 for rt in rays:
                     r.static.scene.cast_rays(rt, nthreads=0)
 
