@@ -90,6 +90,14 @@ def main() -> None:
             t_step = _time(step, a.repeat)
             t_cast = _time(cast, a.repeat)
             rows.append((f"{kind} ({scene}) {n}x{n}", t_step, 1.0 / t_step, t_cast, t_step / t_cast))
+            if n == max(int(v) for v in a.sizes.split(",")):  # what the shadow rays cost
+                from dataclasses import replace
+
+                keep = r.options
+                r.options = replace(keep, shadows=False)
+                t_flat = _time(step, a.repeat)
+                r.options = keep
+                rows.append(("  same without shadows", t_flat, 1.0 / t_flat, t_cast, t_flat / t_cast))
         print(f"{kind} world: {r.static.n_triangles} triangles, scene built in {build_s:.2f} s", flush=True)
     print(f"\n{'stereo step (2 RGB + depth + seg)':<36} {'step [s]':>9} {'steps/s':>8} "
           f"{'raw cast x2 [s]':>16} {'RATIO':>6}")
