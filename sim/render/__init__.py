@@ -23,7 +23,13 @@ Modules (one concern each): ``rays`` (camera rays from :class:`~ibiscape_eval.co
 pixel-centre convention), ``scene`` (static meshes from the world, per-triangle material, label and
 texture coordinates; movers in a second small scene), ``textures`` (procedural surfaces, targets),
 ``shading`` (sun, sky, ambient, shadows), ``optics`` (fog, rain streaks, wet road, exposure, sensor
-noise), ``labels`` (CARLA's semantic tags and the CityScapes palette), ``renderer`` (orchestration).
+noise), ``labels`` (CARLA's semantic tags and the CityScapes palette), ``renderer`` (orchestration),
+``_kernels`` (numba loops of the per-ray work), ``sequence`` (every camera of a sequence into the
+IBISCape layout, called by ``sim.generate(..., render=True)``), ``preview`` (contact sheets).
+
+Rain streaks are part of :meth:`Renderer.render` but not of :meth:`Renderer.gray`: the DVS model
+adds rain as its own noise events (streaks crossing the image in a millisecond would force it to
+render at its maximum rate).
 """
 
 from __future__ import annotations
@@ -39,6 +45,9 @@ _EXPORTS: dict[str, str] = {
     "CARLA_TAGS": "labels",
     "CITYSCAPES_PALETTE": "labels",
     "camera_rays": "rays",
+    "camera_model": "rays",
+    "contact_sheet": "preview",
+    "render_cameras": "sequence",
 }
 
 __all__ = sorted(_EXPORTS)
@@ -58,5 +67,7 @@ def __dir__() -> list[str]:
 
 if TYPE_CHECKING:  # pragma: no cover
     from .labels import CARLA_TAGS, CITYSCAPES_PALETTE  # noqa: F401
-    from .rays import camera_rays  # noqa: F401
+    from .preview import contact_sheet  # noqa: F401
+    from .rays import camera_model, camera_rays  # noqa: F401
     from .renderer import RenderCamera, RenderedView, Renderer, RenderOptions  # noqa: F401
+    from .sequence import render_cameras  # noqa: F401

@@ -2,8 +2,7 @@
 
 Texture coordinates come from the triangle's vertex coordinates interpolated with the hit's
 barycentric coordinates (``renderer.py``).  Every surface gets two octaves of a periodic value
-noise (a fixed 256 x 256 table, sampled bilinearly with OpenCV's ``remap``) on top of its base
-colour, plus structure where the real thing has it: lane markings and the calibration pad painted
+noise (a fixed 256 x 256 table, sampled bilinearly by a numba kernel) on top of its base colour, plus structure where the real thing has it: lane markings and the calibration pad painted
 from the :class:`~ibiscape_eval.sim.render.scene.GroundMap`, paving joints on sidewalks, window
 grids on facades, windows on cars, and the printed calibration boards (nearest texel of
 :meth:`Target.texture` at 200 px/m, whose texel edges coincide with the printed edges, so the
