@@ -19,7 +19,9 @@ the file ORB-SLAM3's RGB-D examples read.
 from __future__ import annotations
 
 import shutil
+from collections import deque
 from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -125,20 +127,29 @@ def render_cameras(cfg: Any, folder: str | Path, world: Any, motion: Any, weathe
             for s in sub:
                 (out / c.name / s).mkdir(parents=True, exist_ok=True)
         rgb_first = sorted(g, key=lambda c: c.kind != "rgb")
-        for k, t in enumerate(stamps.tolist()):
-            view = renderer.render(rgb_first[0].name, t)
-            name = f"{t}.png"
-            for c in g:
-                d = out / c.name
-                if c.kind == "rgb":
-                    write_png(d / "frames" / name, view.rgb)
-                elif c.kind == "depth":
-                    write_depth_carla_log(d / "frames" / name, view.depth_m)
-                    write_depth_mm(d / "mm" / name, view.depth_m)
-                elif c.kind == "semantic":
-                    write_labels_cityscapes(d / "frames" / name, view.labels)
-                    write_labels(d / "labels" / name, view.labels)
-            step((k + 1) / len(stamps), lead.name, f"render {'+'.join(c.name for c in g)} {k + 1}/{len(stamps)}")
+        # PNG encoding (which releases the GIL) runs on a second thread while the next view is
+        # rendered; at most a few frames wait, and a write error surfaces at once
+        with ThreadPoolExecutor(max_workers=1) as pool:
+            pending: deque[Future[None]] = deque()
+            for k, t in enumerate(stamps.tolist()):
+                view = renderer.render(rgb_first[0].name, t)
+                name = f"{t}.png"
+                for c in g:
+                    d = out / c.name
+                    if c.kind == "rgb":
+                        pending.append(pool.submit(write_png, d / "frames" / name, view.rgb))
+                    elif c.kind == "depth":
+                        pending.append(pool.submit(write_depth_carla_log, d / "frames" / name, view.depth_m))
+                        pending.append(pool.submit(write_depth_mm, d / "mm" / name, view.depth_m))
+                    elif c.kind == "semantic":
+                        pending.append(pool.submit(write_labels_cityscapes, d / "frames" / name, view.labels))
+                        pending.append(pool.submit(write_labels, d / "labels" / name, view.labels))
+                while len(pending) > 6 or (pending and pending[0].done()):
+                    pending.popleft().result()
+                step((k + 1) / len(stamps), lead.name,
+                     f"render {'+'.join(c.name for c in g)} {k + 1}/{len(stamps)}")
+            while pending:
+                pending.popleft().result()
         for c in g:
             write_frame_timestamps(out / c.name / "timestamps.csv", stamps)
             entry: dict[str, Any] = {"folder": c.name, "frames": len(stamps), "timestamps": f"{c.name}/timestamps.csv"}
