@@ -165,3 +165,115 @@ def sensor_noise(image, gain, key):
             v = flat[i0 + 1]
             out[i0 + 1] = v + np.sqrt(read2 + shot * max(v, 0.0)) * z1
     return out.reshape(image.shape)
+
+
+# material ids (scene.MAT) and CARLA tags used by the albedo kernel (frozen at compile time)
+_GROUND, _SIDEWALK, _FACADE, _CROWN, _CAR, _PED, _TARGET, _CAR_ROOF = 1, 3, 4, 7, 9, 10, 11, 13
+_TAG_ROADLINE, _TAG_ROAD, _TAG_TERRAIN = 6, 7, 22
+
+
+@nb.njit(cache=True, inline="always")
+def _noise(tab, x, y):
+    h, w = tab.shape
+    fx = x - w * np.floor(x / w)
+    fy = y - h * np.floor(y / h)
+    x0 = int(fx)
+    y0 = int(fy)
+    ax = fx - x0
+    ay = fy - y0
+    x0 %= w
+    y0 %= h
+    x1 = (x0 + 1) % w
+    y1 = (y0 + 1) % h
+    top = tab[y0, x0] * (1.0 - ax) + tab[y0, x1] * ax
+    bot = tab[y1, x0] * (1.0 - ax) + tab[y1, x1] * ax
+    return top * (1.0 - ay) + bot * ay
+
+
+@nb.njit(cache=True, inline="always")
+def _frac(x):
+    return x - np.floor(x)
+
+
+@nb.njit(parallel=True, cache=True)
+def albedo_all(mat, var, uv, tab, fine_per_m, coarse_per_m, gmap, gx0, gy0, gres, plain, amp_f, amp_c,
+               facades, cars, clothes, crowns):
+    """Albedo (N, 3), label corrections (N,) (0: keep) and paved weight (N,) of every hit (see
+    ``textures.albedo``; calibration targets are left black for the caller)."""
+    n = mat.shape[0]
+    col = np.zeros((n, 3), np.float32)
+    lab = np.zeros(n, np.uint8)
+    paved = np.zeros(n, np.float32)
+    gh, gw = gmap.shape[0], gmap.shape[1]
+    for i in nb.prange(n):
+        m = mat[i]
+        if m == 0 or m == _TARGET:
+            continue
+        u, v = uv[i, 0], uv[i, 1]
+        vi = var[i]
+        fine = _noise(tab, u * fine_per_m, v * fine_per_m)
+        coarse = _noise(tab, u * coarse_per_m + 97.0, v * coarse_per_m + 31.0)
+        mod = min(max(1.0 + amp_f[m] * fine + amp_c[m] * coarse, 0.15), 2.5)
+        r, g, b = plain[m, 0], plain[m, 1], plain[m, 2]
+        if m == _GROUND:
+            fx = min(max((u - gx0) / gres - 0.5, 0.0), gw - 1.0)
+            fy = min(max((v - gy0) / gres - 0.5, 0.0), gh - 1.0)
+            x0 = int(fx)
+            y0 = int(fy)
+            x1 = min(x0 + 1, gw - 1)
+            y1 = min(y0 + 1, gh - 1)
+            ax = fx - x0
+            ay = fy - y0
+            cov = np.empty(3, np.float32)
+            for c in range(3):
+                top = gmap[y0, x0, c] * (1.0 - ax) + gmap[y0, x1, c] * ax
+                bot = gmap[y1, x0, c] * (1.0 - ax) + gmap[y1, x1, c] * ax
+                cov[c] = (top * (1.0 - ay) + bot * ay) / 255.0
+            asphalt, pad, mark = cov[0], cov[1], cov[2]
+            road = max(asphalt, pad)
+            gr = 1.0 + 0.25 * coarse
+            r = 0.22 * gr * (1.0 - road) + 0.19 * asphalt + 0.46 * pad
+            g = 0.29 * gr * (1.0 - road) + 0.19 * asphalt + 0.45 * pad
+            b = 0.13 * gr * (1.0 - road) + 0.20 * asphalt + 0.42 * pad
+            r = r * (1.0 - mark) + 0.85 * mark
+            g = g * (1.0 - mark) + 0.85 * mark
+            b = b * (1.0 - mark) + 0.80 * mark
+            paved[i] = road
+            lab[i] = _TAG_ROADLINE if mark > 0.5 else (_TAG_ROAD if road > 0.5 else _TAG_TERRAIN)
+        elif m == _SIDEWALK:
+            if min(_frac(u * 2.0), _frac(v * 2.0)) < 0.04:  # 0.5 m paving slabs, dark joints
+                r, g, b = 0.6 * r, 0.6 * g, 0.6 * b
+        elif m == _FACADE:
+            k = vi % facades.shape[0]
+            r, g, b = facades[k, 0], facades[k, 1], facades[k, 2]
+            pitch = 2.6 + 0.3 * (vi % 3)
+            fu = _frac(u / pitch)
+            fv = _frac(v / 3.1)
+            if v < 2.2 and abs(_frac(u / 9.0) - 0.5) < 0.07:  # doors
+                r, g, b = 0.18, 0.12, 0.08
+            elif v > 2.0 and abs(fu - 0.5) < 0.24 and abs(fv - 0.55) < 0.24:  # glass, pane to pane
+                pane = (np.floor(u / pitch) * 7 + np.floor(v / 3.1) * 13) % 5
+                r, g, b = 0.05 + 0.03 * pane, 0.07 + 0.03 * pane, 0.10 + 0.035 * pane
+            elif v > 2.0 and abs(fu - 0.5) < 0.29 and abs(fv - 0.55) < 0.29:  # window frames
+                r, g, b = 0.80, 0.80, 0.78
+        elif m == _CROWN:
+            k = vi % crowns.shape[0]
+            r, g, b = crowns[k, 0], crowns[k, 1], crowns[k, 2]
+        elif m == _CAR or m == _CAR_ROOF:  # noqa: SIM109 (numba: plain comparisons)
+            k = (vi % 100) % cars.shape[0]
+            r, g, b = cars[k, 0], cars[k, 1], cars[k, 2]
+            if m == _CAR and vi >= 100:  # windows all round the cabin
+                r, g, b = 0.06, 0.07, 0.09
+            elif m == _CAR and abs(v - 0.18) < 0.08:  # dark bumper band
+                r, g, b = 0.25 * r, 0.25 * g, 0.25 * b
+        elif m == _PED:
+            k = vi % clothes.shape[0]
+            r, g, b = clothes[k, 0], clothes[k, 1], clothes[k, 2]
+            if v > 1.5:
+                r, g, b = 0.55, 0.40, 0.32
+            elif v < 0.85:
+                r, g, b = 0.12, 0.12, 0.16
+        col[i, 0] = r * mod
+        col[i, 1] = g * mod
+        col[i, 2] = b * mod
+    return col, lab, paved

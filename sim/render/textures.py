@@ -19,7 +19,6 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .labels import TAG
 from .scene import MAT, GroundMap
 
 __all__ = ["TARGET_PX_PER_M", "albedo", "noise_table", "sample_bilinear"]
@@ -82,97 +81,41 @@ def _target_texture(target: Any) -> npt.NDArray[np.float32]:
     return (0.04 + 0.84 * tex).astype(np.float32)
 
 
-def _frac(x: np.ndarray) -> np.ndarray:
-    return x - np.floor(x)
+@functools.lru_cache(maxsize=1)
+def _tables() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    plain = np.zeros((256, 3), np.float32)
+    for m, c in _PLAIN.items():
+        plain[m] = c
+    amp_f = np.zeros(256, np.float32)
+    amp_c = np.zeros(256, np.float32)
+    for m, (a, b) in _NOISE_AMP.items():
+        amp_f[m], amp_c[m] = a, b
+    return plain, amp_f, amp_c
 
 
 def albedo(mat: np.ndarray, var: np.ndarray, uv: np.ndarray, ground: GroundMap, targets: tuple[Any, ...],
            front: np.ndarray) -> tuple[F32, np.ndarray, np.ndarray]:
     """Albedo ``(N, 3)`` float32, label corrections ``(N,)`` (0 = keep the triangle's label) and a
     'paved road' weight ``(N,)`` 0..1 (wet-road effects) for hits with material ``mat`` (N,),
-    variant ``var`` (N,), texture coordinates ``uv`` (N, 2) [m] and a front-face flag (N,)."""
-    n = len(mat)
-    col = np.zeros((n, 3), np.float32)
-    label = np.zeros(n, np.uint8)
-    paved = np.zeros(n, np.float32)
-    tab = noise_table()
-    u, v = uv[:, 0], uv[:, 1]
-    fine = sample_bilinear(tab, u * _FINE_PER_M, v * _FINE_PER_M, wrap=True)
-    coarse = sample_bilinear(tab, u * _COARSE_PER_M + 97.0, v * _COARSE_PER_M + 31.0, wrap=True)
-    amp_f = np.zeros(256, np.float32)
-    amp_c = np.zeros(256, np.float32)
-    for m, (a, b) in _NOISE_AMP.items():
-        amp_f[m], amp_c[m] = a, b
-    mod = np.clip(1.0 + amp_f[mat] * fine + amp_c[mat] * coarse, 0.15, 2.5).astype(np.float32)
+    variant ``var`` (N,), texture coordinates ``uv`` (N, 2) [m] and a front-face flag (N,).
 
-    present = set(np.unique(mat).tolist())
-    for m in present:
-        idx = np.flatnonzero(mat == m)
-        if m in _PLAIN:
-            col[idx] = _PLAIN[m]
-        if m == MAT["sidewalk"]:  # 0.5 m paving slabs with dark joints
-            j = (np.minimum(_frac(u[idx] * 2.0), _frac(v[idx] * 2.0)) < 0.04)
-            col[idx[j]] *= 0.6
-        elif m == MAT["ground"]:
-            _ground(idx, u, v, ground, col, label, paved, coarse)
-        elif m == MAT["facade"]:
-            _facade(idx, u, v, var, col)
-        elif m == MAT["crown"]:
-            col[idx] = _CROWNS[var[idx] % len(_CROWNS)]
-        elif m in (MAT["car"], MAT["car_roof"]):
-            vi = var[idx]
-            col[idx] = _CARS[vi % 100 % len(_CARS)]
-            cabin = (vi >= 100) & (m == MAT["car"])
-            col[idx[cabin]] = (0.06, 0.07, 0.09)  # windows all round the cabin
-            body = (vi < 100) & (m == MAT["car"])
-            stripe = body & (np.abs(v[idx] - 0.18) < 0.08)  # dark bumper / rocker band
-            col[idx[stripe]] *= 0.25
-        elif m == MAT["pedestrian"]:
-            vi = var[idx]
-            col[idx] = _CLOTHES[vi % len(_CLOTHES)]
-            head = v[idx] > 1.5
-            col[idx[head]] = (0.55, 0.40, 0.32)
-            legs = v[idx] < 0.85
-            col[idx[legs]] = (0.12, 0.12, 0.16)
-        elif m == MAT["target"]:
-            _target(idx, uv, var, targets, front, col)
-            mod[idx] = 1.0
-    col *= mod[:, None]
-    return col, label, paved
+    Every surface but the boards is one pass of a numba kernel (``_kernels.albedo_all``): base
+    colour per material and variant, window grids, paving joints, car windows, clothes, the ground
+    map (asphalt, pad, markings, grass) and two noise octaves.  Boards are looked up here.
+    """
+    from ._kernels import albedo_all
 
-
-def _ground(idx: np.ndarray, u: np.ndarray, v: np.ndarray, ground: GroundMap, col: np.ndarray,
-            label: np.ndarray, paved: np.ndarray, coarse: np.ndarray) -> None:
+    plain, amp_f, amp_c = _tables()
     g = ground
-    cov = sample_bilinear(g.image, (u[idx] - g.origin_m[0]) / g.res_m - 0.5,
-                          (v[idx] - g.origin_m[1]) / g.res_m - 0.5, wrap=False).astype(np.float32) / 255.0
-    asphalt, pad, mark = cov[:, 0], cov[:, 1], cov[:, 2]
-    grass = np.array([0.22, 0.29, 0.13], np.float32) * (1.0 + 0.25 * coarse[idx, None])
-    c = grass * (1.0 - np.maximum(asphalt, pad))[:, None]
-    c += asphalt[:, None] * np.array([0.19, 0.19, 0.20], np.float32)
-    c += pad[:, None] * np.array([0.46, 0.45, 0.42], np.float32)
-    road = np.maximum(asphalt, pad)
-    c = c * (1.0 - mark[:, None]) + mark[:, None] * np.array([0.85, 0.85, 0.80], np.float32)
-    col[idx] = c
-    paved[idx] = road
-    label[idx] = np.where(mark > 0.5, TAG["RoadLine"], np.where(road > 0.5, TAG["Road"], TAG["Terrain"]))
-
-
-def _facade(idx: np.ndarray, u: np.ndarray, v: np.ndarray, var: np.ndarray, col: np.ndarray) -> None:
-    vi = var[idx]
-    col[idx] = _FACADES[vi % len(_FACADES)]
-    pitch_u = 2.6 + 0.3 * (vi % 3)
-    fu = _frac(u[idx] / pitch_u)
-    fv = _frac(v[idx] / 3.1)
-    win = (np.abs(fu - 0.5) < 0.24) & (np.abs(fv - 0.55) < 0.24) & (v[idx] > 2.0)
-    frame = (np.abs(fu - 0.5) < 0.29) & (np.abs(fv - 0.55) < 0.29) & (v[idx] > 2.0) & ~win
-    door = (v[idx] < 2.2) & (np.abs(_frac(u[idx] / 9.0) - 0.5) < 0.07)
-    col[idx[frame]] = (0.80, 0.80, 0.78)
-    # glass: dark, slightly blue, varying pane to pane
-    pane = (np.floor(u[idx] / pitch_u) * 7 + np.floor(v[idx] / 3.1) * 13) % 5
-    glass = np.stack([0.05 + 0.03 * pane, 0.07 + 0.03 * pane, 0.10 + 0.035 * pane], -1).astype(np.float32)
-    col[idx[win]] = glass[win]
-    col[idx[door]] = (0.18, 0.12, 0.08)
+    col, label, paved = albedo_all(mat, var, np.ascontiguousarray(uv, dtype=np.float32), noise_table(),
+                                   np.float32(_FINE_PER_M), np.float32(_COARSE_PER_M), g.image,
+                                   np.float32(g.origin_m[0]), np.float32(g.origin_m[1]),
+                                   np.float32(g.res_m), plain, amp_f, amp_c, _FACADES, _CARS, _CLOTHES,
+                                   _CROWNS)
+    idx = np.flatnonzero(mat == MAT["target"])
+    if idx.size:
+        _target(idx, uv, var, targets, front, col)
+    return col, label, paved
 
 
 def _target(idx: np.ndarray, uv: np.ndarray, var: np.ndarray, targets: tuple[Any, ...],
