@@ -4,7 +4,7 @@
     .venv/bin/python benchmarks/bench_render.py --svi-seconds 60 # the 60 s sequence
 
 A *stereo step* renders two RGB views (left and right camera of the SVI rig, 0.4 m apart) with
-depth and segmentation, as ``sim`` does per frame: rays, static + movers casts, textures, shadows,
+depth and segmentation, one after the other and on two threads as ``sim`` does per frame: rays, static + movers casts, textures, shadows,
 weather, sensor noise.  The peer is open3d's raycaster alone: ``cast_rays(nthreads=0)`` of the same
 rays against the same static scene, twice (one per view).  RATIO = render time / raw cast time
 (1 would be a renderer that adds nothing to the ray cast).  The sequence row runs the command line
@@ -20,6 +20,7 @@ import shutil
 import sys
 import tempfile
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -95,6 +96,16 @@ def main() -> None:
             t_step, c_step = _time(step, a.repeat)
             t_cast, c_cast = _time(cast, a.repeat)
             rows.append((f"{kind} ({scene}) {n}x{n}", t_step, c_step, t_cast, c_cast))
+            with ThreadPoolExecutor(max_workers=2) as pool:  # as ``sim`` does: one thread per view
+
+                def step2(model=model, w=w, r=r, TL=TL, TR=TR, pool=pool) -> None:
+                    a_ = pool.submit(r.render_pose, model, TL, 1_000_000_000_000, weather=w)
+                    b_ = pool.submit(r.render_pose, model, TR, 1_000_000_000_000, noise_key=1, weather=w)
+                    a_.result()
+                    b_.result()
+
+                t_par, c_par = _time(step2, a.repeat)
+            rows.append(("  same, views on two threads", t_par, c_par, t_cast, c_cast))
             if n == max(int(v) for v in a.sizes.split(",")):  # what the shadow rays cost
                 from dataclasses import replace
 

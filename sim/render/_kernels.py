@@ -14,7 +14,7 @@ import numba as nb
 import numpy as np
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def hit_attributes(t, prim, bary, normal, rays, map2, t2, prim2, bary2, normal2,
                    material, variant, label, uv_m, material2, variant2, label2, uv_m2, sentinel):
     """Nearer hit of two scenes -> per-ray material, variant, label, uv [m], unit normal facing
@@ -69,7 +69,7 @@ def hit_attributes(t, prim, bary, normal, rays, map2, t2, prim2, bary2, normal2,
     return depth, mat, var, lab, uv, nrm, facing, pts, dn
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def shade_all(albedo, nrm, visible, depth, rays, dn, sun, e_sun, e_sky, zenith, horizon, overcast,
               cloud, sky_level, beta, airlight, sky_distance):
     """Radiance (N, 3): lit surfaces ``albedo (e_sun max(0, n.s) V + e_sky (0.6 + 0.4 n_z))``, the
@@ -101,7 +101,7 @@ def shade_all(albedo, nrm, visible, depth, rays, dn, sun, e_sun, e_sky, zenith, 
     return out
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def bilinear(table, x, y, wrap):
     """Bilinear samples (N, C) of ``table`` (H, W, C) float32 at texel coordinates (N,) (texel
     centres at integers); periodic when ``wrap``, else clamped to the border texels."""
@@ -143,7 +143,7 @@ def _mix64(z):
     return z ^ (z >> np.uint64(31))
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def sensor_noise(image, gain, key):
     """``image + sigma N(0, 1)`` with ``sigma = sqrt((0.6 gain)^2 + 0.04 gain I)`` per value; the
     normal deviates come from a counter-based generator (splitmix64 of ``key`` and the value's
@@ -199,7 +199,7 @@ def _frac(x):
     return x - np.floor(x)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def albedo_all(mat, var, uv, tab, fine_per_m, coarse_per_m, gmap, gx0, gy0, gres, plain, amp_f, amp_c,
                facades, cars, clothes, crowns):
     """Albedo (N, 3), label corrections (N,) (0: keep) and paved weight (N,) of every hit (see

@@ -11,6 +11,7 @@ where it matters, at a fraction of the cost of supersampling the whole image).
 
 from __future__ import annotations
 
+import threading
 import warnings
 from dataclasses import dataclass, fields
 from typing import Any
@@ -146,6 +147,7 @@ class Renderer:
         self.static: StaticScene = build_static_scene(world, extra_cars=extra_cars)
         self._movers_t: int | None = None
         self._movers: tuple[Any, TriangleTables] | None = None
+        self._lock = threading.Lock()  # views of one instant may render on parallel threads
 
     # ----------------------------------------------------------------------------- construction
     @classmethod
@@ -290,12 +292,13 @@ class Renderer:
     def _mover_scene(self, t_ns: int) -> tuple[Any, TriangleTables] | None:
         if len(self.world.agents) == 0:
             return None
-        if self._movers_t != t_ns:
-            V, Tr, tables = mover_mesh(self.world, t_ns)
-            sc = open3d().t.geometry.RaycastingScene()
-            sc.add_triangles(tensor(V), tensor(Tr))
-            self._movers, self._movers_t = (sc, tables), t_ns
-        return self._movers
+        with self._lock:
+            if self._movers_t != t_ns:
+                V, Tr, tables = mover_mesh(self.world, t_ns)
+                sc = open3d().t.geometry.RaycastingScene()
+                sc.add_triangles(tensor(V), tensor(Tr))
+                self._movers, self._movers_t = (sc, tables), t_ns
+            return self._movers
 
     def _cast(self, rays: F32, t_ns: int, mover_rays: npt.NDArray[np.bool_] | None = None) -> _Hits:
         """Nearer hit of the static scene and the movers for every ray.

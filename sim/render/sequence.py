@@ -119,37 +119,47 @@ def render_cameras(cfg: Any, folder: str | Path, world: Any, motion: Any, weathe
             progress(min(1.0, (done + frac_of_cam * work[name]) / total), label)
 
     result: dict[str, dict[str, Any]] = {}
-    for g in groups.values():
-        lead = g[0]
-        stamps = _stamps(cfg, lead.rate_hz)
+    glist = list(groups.values())
+    g_stamps = [_stamps(cfg, g[0].rate_hz) for g in glist]
+    for g in glist:
         for c in g:
-            sub = ["frames", *{"depth": ["mm"], "semantic": ["labels"]}.get(c.kind, [])]
-            for s in sub:
-                (out / c.name / s).mkdir(parents=True, exist_ok=True)
-        rgb_first = sorted(g, key=lambda c: c.kind != "rgb")
-        # PNG encoding (which releases the GIL) runs on a second thread while the next view is
-        # rendered; at most a few frames wait, and a write error surfaces at once
-        with ThreadPoolExecutor(max_workers=1) as pool:
-            pending: deque[Future[None]] = deque()
-            for k, t in enumerate(stamps.tolist()):
-                view = renderer.render(rgb_first[0].name, t)
-                name = f"{t}.png"
-                for c in g:
-                    d = out / c.name
-                    if c.kind == "rgb":
-                        pending.append(pool.submit(write_png, d / "frames" / name, view.rgb))
-                    elif c.kind == "depth":
-                        pending.append(pool.submit(write_depth_carla_log, d / "frames" / name, view.depth_m))
-                        pending.append(pool.submit(write_depth_mm, d / "mm" / name, view.depth_m))
-                    elif c.kind == "semantic":
-                        pending.append(pool.submit(write_labels_cityscapes, d / "frames" / name, view.labels))
-                        pending.append(pool.submit(write_labels, d / "labels" / name, view.labels))
-                while len(pending) > 6 or (pending and pending[0].done()):
-                    pending.popleft().result()
-                step((k + 1) / len(stamps), lead.name,
-                     f"render {'+'.join(c.name for c in g)} {k + 1}/{len(stamps)}")
-            while pending:
+            for sub in ("frames", *{"depth": ("mm",), "semantic": ("labels",)}.get(c.kind, ())):
+                (out / c.name / sub).mkdir(parents=True, exist_ok=True)
+    lead_names = [sorted(g, key=lambda c: c.kind != "rgb")[0].name for g in glist]
+    g_sets = [set(st.tolist()) for st in g_stamps]
+    all_t = sorted(set().union(*g_sets)) if g_sets else []
+
+    def write(g: list[Any], t: int, view: Any) -> None:
+        name = f"{t}.png"
+        for c in g:
+            d = out / c.name
+            if c.kind == "rgb":
+                write_png(d / "frames" / name, view.rgb)
+            elif c.kind == "depth":
+                write_depth_carla_log(d / "frames" / name, view.depth_m)
+                write_depth_mm(d / "mm" / name, view.depth_m)
+            elif c.kind == "semantic":
+                write_labels_cityscapes(d / "frames" / name, view.labels)
+                write_labels(d / "labels" / name, view.labels)
+
+    # the views of one instant (a stereo pair) render on two threads (the ray casts and the numba
+    # kernels release the GIL), and PNG encoding runs on a third while the next instant renders;
+    # at most a few frames wait, and a write error surfaces at once
+    with ThreadPoolExecutor(max_workers=2) as views, ThreadPoolExecutor(max_workers=1) as writer:
+        pending: deque[Future[None]] = deque()
+        for k, t in enumerate(all_t):
+            todo = [gi for gi in range(len(glist)) if t in g_sets[gi]]
+            rendered = list(views.map(lambda gi, t=t: renderer.render(lead_names[gi], t), todo))
+            for gi, view in zip(todo, rendered, strict=True):
+                pending.append(writer.submit(write, glist[gi], t, view))
+                done += work[glist[gi][0].name] / len(g_stamps[gi])
+            while len(pending) > 4 or (pending and pending[0].done()):
                 pending.popleft().result()
+            if progress is not None:
+                progress(min(1.0, done / total), f"render {k + 1}/{len(all_t)}")
+        while pending:
+            pending.popleft().result()
+    for g, stamps in zip(glist, g_stamps, strict=True):
         for c in g:
             write_frame_timestamps(out / c.name / "timestamps.csv", stamps)
             entry: dict[str, Any] = {"folder": c.name, "frames": len(stamps), "timestamps": f"{c.name}/timestamps.csv"}
@@ -160,7 +170,6 @@ def render_cameras(cfg: Any, folder: str | Path, world: Any, motion: Any, weathe
                 entry["encoding"] = {"frames": "CityScapes palette (CARLA 0.9.10-0.9.13 tags)",
                                      "labels": "raw CARLA tag per pixel, 8-bit"}
             result[c.name] = entry
-        done += work[lead.name]
     for i, c in enumerate(cams):
         if c.kind != "dvs":
             continue
