@@ -1,0 +1,334 @@
+"""Camera images of the IBISCape layout: RGB frames, depth, segmentation and ``timestamps.csv``.
+
+Encodings (``../shared/FORMATS.md``)
+------------------------------------
+- RGB: 8-bit PNG (arrays in memory are RGB; OpenCV's BGR order stays inside this module).
+- Depth, as the real dataset saves it: CARLA's logarithmic 8-bit encoding
+  ``g = clamp(1 + ln(d / 1000 m) / 5.70378, 0, 1)``, stored as ``round(255 g)`` in three equal
+  channels (CARLA's ``LogarithmicDepth`` converter).  Depth below ``1000 exp(-5.70378) = 3.34 m``
+  saturates to 0 and the sky (no hit) to 255, exactly like the dataset.
+- Depth for RGB-D users: 16-bit PNG in millimetres (``DepthMapFactor: 1000`` in ORB-SLAM3's
+  settings; 0 = no measurement, also beyond 65.535 m).  The TUM RGB-D recordings use the same
+  layout with a factor of 5000.
+- Segmentation: the raw CARLA tag per pixel (8-bit single channel PNG) and CityScapes colours
+  (8-bit RGB PNG) like IBISCape's ``semantic/frames``.
+- ``timestamps.csv``: ``#timestamp [ns], filename`` then ``<ns>, <ns>.png `` rows (comma
+  separated, trailing space like the acquisition scripts).
+
+Every writer goes through the atomic staging of :mod:`ibiscape_eval.io`; readers raise
+:class:`~ibiscape_eval.core.errors.FormatError` naming the file.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ibiscape_eval.core.errors import FormatError, IbiscapeError
+
+from .atomic import atomic_output_path, atomic_write
+
+__all__ = [
+    "CARLA_LOG_DEPTH_SCALE",
+    "CARLA_TAGS",
+    "CITYSCAPES_PALETTE",
+    "decode_depth_carla_log",
+    "encode_depth_carla_log",
+    "read_association",
+    "read_depth_carla_log",
+    "read_depth_mm",
+    "read_frame_timestamps",
+    "read_labels",
+    "read_labels_cityscapes",
+    "read_png",
+    "write_association",
+    "write_depth_carla_log",
+    "write_depth_mm",
+    "write_frame_timestamps",
+    "write_labels",
+    "write_labels_cityscapes",
+    "write_png",
+]
+
+#: CARLA's ``LogarithmicDepth``: ``g = 1 + ln(d / far) / 5.70378`` with ``far = 1000 m``
+CARLA_LOG_DEPTH_SCALE = 5.70378
+_CARLA_FAR_M = 1000.0
+
+#: CARLA's semantic tags (0.9.10 .. 0.9.13, the versions IBISCape was recorded with): id -> name
+CARLA_TAGS: dict[int, str] = {
+    0: "Unlabeled", 1: "Building", 2: "Fence", 3: "Other", 4: "Pedestrian", 5: "Pole",
+    6: "RoadLine", 7: "Road", 8: "SideWalk", 9: "Vegetation", 10: "Vehicles", 11: "Wall",
+    12: "TrafficSign", 13: "Sky", 14: "Ground", 15: "Bridge", 16: "RailTrack", 17: "GuardRail",
+    18: "TrafficLight", 19: "Static", 20: "Dynamic", 21: "Water", 22: "Terrain",
+}
+
+#: (23, 3) uint8 RGB colour of every tag (CARLA's ``CityScapesPalette`` converter)
+CITYSCAPES_PALETTE: npt.NDArray[np.uint8] = np.array([
+    (0, 0, 0), (70, 70, 70), (100, 40, 40), (55, 90, 80), (220, 20, 60), (153, 153, 153),
+    (157, 234, 50), (128, 64, 128), (244, 35, 232), (107, 142, 35), (0, 0, 142), (102, 102, 156),
+    (220, 220, 0), (70, 130, 180), (81, 0, 81), (150, 100, 100), (230, 150, 140), (180, 165, 180),
+    (250, 170, 30), (110, 190, 160), (170, 120, 50), (45, 60, 150), (145, 170, 100),
+], dtype=np.uint8)
+CITYSCAPES_PALETTE.setflags(write=False)
+
+
+def write_png(path: str | os.PathLike[str], image: npt.ArrayLike, *, compression: int = 1) -> None:
+    """Write an 8- or 16-bit image ``(H, W)`` or RGB ``(H, W, 3)`` as PNG, atomically.
+
+    Parameters
+    ----------
+    compression : int
+        zlib level 0..9 (1: fast, about 10 % larger than 9).
+    """
+    import cv2
+
+    img = np.asarray(image)
+    if img.dtype not in (np.uint8, np.uint16) or not (
+            img.ndim == 2 or (img.ndim == 3 and img.shape[2] in (3, 4))) or img.size == 0:
+        raise IbiscapeError(f"{path}: a PNG image must be uint8/uint16 (H, W) or (H, W, 3|4), "
+                            f"got {img.dtype} {img.shape}")
+    if img.ndim == 3:
+        img = img[..., [2, 1, 0]] if img.shape[2] == 3 else img[..., [2, 1, 0, 3]]
+    with atomic_output_path(path) as tmp:
+        try:
+            ok = cv2.imwrite(str(tmp), np.ascontiguousarray(img),
+                             [cv2.IMWRITE_PNG_COMPRESSION, int(compression)])
+        except cv2.error as e:
+            raise IbiscapeError(f"{path}: could not write the PNG image ({e})") from None
+        if not ok:
+            raise IbiscapeError(f"{path}: could not write the PNG image (disk full or no permission?)")
+
+
+def read_png(path: str | os.PathLike[str]) -> npt.NDArray[Any]:
+    """Read a PNG unchanged: ``(H, W)`` or RGB ``(H, W, 3)`` (RGBA ``(H, W, 4)``), uint8 or uint16."""
+    import cv2
+
+    p = Path(path)
+    if not p.is_file():
+        raise FormatError(p, "image file not found")
+    img = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
+    if img is None:
+        raise FormatError(p, "not a readable image (expected a PNG)")
+    if img.ndim == 3:
+        img = img[..., [2, 1, 0]] if img.shape[2] == 3 else img[..., [2, 1, 0, 3]]
+    return np.ascontiguousarray(img)
+
+
+# ----------------------------------------------------------------------------------------- depth
+def _depth_array(depth_m: npt.ArrayLike, path: str | os.PathLike[str]) -> npt.NDArray[np.float64]:
+    d = np.asarray(depth_m, dtype=np.float64)
+    if d.ndim != 2 or d.size == 0:
+        raise IbiscapeError(f"{path}: depth must be a (H, W) array in metres, got shape {d.shape}")
+    return d
+
+
+def encode_depth_carla_log(depth_m: npt.ArrayLike) -> npt.NDArray[np.uint8]:
+    """CARLA's 8-bit logarithmic depth of z-depths ``(H, W)`` [m]; inf/NaN (sky) -> 255."""
+    d = np.asarray(depth_m, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        g = 1.0 + np.log(d / _CARLA_FAR_M) / CARLA_LOG_DEPTH_SCALE
+    g = np.where(np.isnan(g), 1.0, g)
+    return np.round(255.0 * np.clip(g, 0.0, 1.0)).astype(np.uint8)
+
+
+def decode_depth_carla_log(code: npt.ArrayLike) -> npt.NDArray[np.float32]:
+    """Depth [m] ``(H, W)`` float32 of CARLA log codes (0 -> 3.34 m or nearer, 255 -> 1000 m or sky)."""
+    g = np.asarray(code, dtype=np.float64) / 255.0
+    return (_CARLA_FAR_M * np.exp((g - 1.0) * CARLA_LOG_DEPTH_SCALE)).astype(np.float32)
+
+
+def write_depth_carla_log(path: str | os.PathLike[str], depth_m: npt.ArrayLike) -> None:
+    """Depth ``(H, W)`` [m] as the dataset stores it: CARLA log encoding in three equal channels."""
+    code = encode_depth_carla_log(_depth_array(depth_m, path))
+    write_png(path, np.repeat(code[..., None], 3, axis=2))
+
+
+def read_depth_carla_log(path: str | os.PathLike[str]) -> npt.NDArray[np.float32]:
+    """Depth [m] ``(H, W)`` float32 of a CARLA log-depth PNG (grey, RGB or RGBA)."""
+    img = read_png(path)
+    if img.dtype != np.uint8:
+        raise FormatError(path, f"CARLA log depth is 8-bit, got {img.dtype} (a 16-bit mm depth "
+                          "PNG? use read_depth_mm)")
+    if img.ndim == 3:
+        if not (np.array_equal(img[..., 0], img[..., 1]) and np.array_equal(img[..., 0], img[..., 2])):
+            raise FormatError(path, "CARLA log depth has three equal channels; this image is in "
+                              "colour (raw CARLA depth? decode R + 256 G + 65536 B)")
+        img = img[..., 0]
+    return decode_depth_carla_log(img)
+
+
+def write_depth_mm(path: str | os.PathLike[str], depth_m: npt.ArrayLike) -> None:
+    """Depth ``(H, W)`` [m] as a 16-bit PNG in millimetres; 0 where there is no depth (sky, NaN,
+    <= 0) or it exceeds 65.535 m."""
+    d = _depth_array(depth_m, path)
+    with np.errstate(invalid="ignore"):
+        mm = np.round(d * 1000.0)
+        ok = np.isfinite(mm) & (mm > 0) & (mm <= 65535)
+    write_png(path, np.where(ok, mm, 0).astype(np.uint16))
+
+
+def read_depth_mm(path: str | os.PathLike[str]) -> npt.NDArray[np.float32]:
+    """Depth [m] ``(H, W)`` float32 of a 16-bit millimetre PNG; NaN where the file holds 0."""
+    img = read_png(path)
+    if img.dtype != np.uint16 or img.ndim != 2:
+        raise FormatError(path, f"expected a single-channel 16-bit depth PNG, got {img.dtype} "
+                          f"{img.shape}")
+    d = img.astype(np.float32) / np.float32(1000.0)
+    d[img == 0] = np.nan
+    return d
+
+
+# ---------------------------------------------------------------------------------- segmentation
+def _label_array(labels: npt.ArrayLike, path: str | os.PathLike[str]) -> npt.NDArray[np.uint8]:
+    lab = np.asarray(labels)
+    if lab.ndim != 2 or lab.size == 0 or not np.issubdtype(lab.dtype, np.integer):
+        raise IbiscapeError(f"{path}: labels must be an integer (H, W) array, got {lab.dtype} {lab.shape}")
+    if lab.min() < 0 or lab.max() > 255:
+        raise IbiscapeError(f"{path}: labels must be in 0..255, got {lab.min()}..{lab.max()}")
+    return lab.astype(np.uint8)
+
+
+def write_labels(path: str | os.PathLike[str], labels: npt.ArrayLike) -> None:
+    """Semantic tags ``(H, W)`` as a raw 8-bit single-channel PNG."""
+    write_png(path, _label_array(labels, path))
+
+
+def read_labels(path: str | os.PathLike[str]) -> npt.NDArray[np.uint8]:
+    """Semantic tags ``(H, W)`` uint8 of a raw label PNG."""
+    img = read_png(path)
+    if img.dtype != np.uint8 or img.ndim != 2:
+        raise FormatError(path, f"expected a single-channel 8-bit label PNG, got {img.dtype} "
+                          f"{img.shape} (a CityScapes colour PNG? use read_labels_cityscapes)")
+    return img
+
+
+def write_labels_cityscapes(path: str | os.PathLike[str], labels: npt.ArrayLike) -> None:
+    """Semantic tags ``(H, W)`` in CARLA's CityScapes colours (RGB PNG), like IBISCape."""
+    lab = _label_array(labels, path)
+    if lab.max() >= len(CITYSCAPES_PALETTE):
+        raise IbiscapeError(f"{path}: tag {int(lab.max())} has no CityScapes colour "
+                            f"(tags 0..{len(CITYSCAPES_PALETTE) - 1})")
+    write_png(path, CITYSCAPES_PALETTE[lab])
+
+
+def read_labels_cityscapes(path: str | os.PathLike[str]) -> npt.NDArray[np.uint8]:
+    """Semantic tags ``(H, W)`` uint8 of a CityScapes colour PNG; a colour outside the palette is
+    an error naming the first such pixel."""
+    img = read_png(path)
+    if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] < 3:
+        raise FormatError(path, f"expected an 8-bit RGB CityScapes PNG, got {img.dtype} {img.shape}")
+    key = (img[..., 0].astype(np.int32) << 16) | (img[..., 1].astype(np.int32) << 8) | img[..., 2]
+    pal = CITYSCAPES_PALETTE.astype(np.int32)
+    pkey = (pal[:, 0] << 16) | (pal[:, 1] << 8) | pal[:, 2]
+    order = np.argsort(pkey)
+    pos = np.clip(np.searchsorted(pkey[order], key), 0, len(pkey) - 1)
+    found = pkey[order][pos] == key
+    if not found.all():
+        r, c = np.argwhere(~found)[0]
+        raise FormatError(path, f"pixel (x={c}, y={r}) has the colour {tuple(int(v) for v in img[r, c, :3])}, "
+                          "which is not in CARLA's CityScapes palette")
+    return order[pos].astype(np.uint8)
+
+
+# ------------------------------------------------------------------------------- timestamps.csv
+def write_frame_timestamps(path: str | os.PathLike[str], stamps_ns: npt.ArrayLike,
+                           filenames: Sequence[str] | None = None) -> None:
+    """``timestamps.csv`` of a camera folder: ``#timestamp [ns], filename`` (default ``<ns>.png``)."""
+    st = np.asarray(stamps_ns, dtype=np.int64).reshape(-1)
+    names = [f"{int(t)}.png" for t in st] if filenames is None else list(filenames)
+    if len(names) != st.size:
+        raise IbiscapeError(f"{path}: {st.size} stamps but {len(names)} file names")
+    with atomic_write(path) as f:
+        f.write("#timestamp [ns], filename\n")
+        f.writelines(f"{int(t)}, {n} \n" for t, n in zip(st, names, strict=True))
+
+
+def read_frame_timestamps(path: str | os.PathLike[str]) -> tuple[npt.NDArray[np.int64], list[str]]:
+    """Stamps [ns] and file names of a camera ``timestamps.csv`` (``#timestamp [ns], filename``)."""
+    p = Path(path)
+    if not p.is_file():
+        raise FormatError(p, "timestamps.csv not found")
+    stamps: list[int] = []
+    names: list[str] = []
+    with open(p, encoding="utf-8") as fh:
+        for n, line in enumerate(fh, start=1):
+            s = line.strip()
+            if not s or s.startswith("#"):
+                continue
+            parts = [x.strip() for x in s.split(",")]
+            if len(parts) != 2 or not parts[1]:
+                raise FormatError(p, "expected 'timestamp [ns], filename'", line=n)
+            try:
+                v = float(parts[0]) if any(c in parts[0] for c in ".eE") else int(parts[0])
+            except ValueError:
+                raise FormatError(p, f"timestamp {parts[0]!r} is not a number", line=n) from None
+            if isinstance(v, float):
+                if not math.isfinite(v):
+                    raise FormatError(p, f"timestamp {parts[0]!r} is not finite", line=n)
+                v = round(v)
+            if stamps and v <= stamps[-1]:
+                raise FormatError(p, f"timestamp {v} is not after the previous one {stamps[-1]}; "
+                                  "frames must be in increasing time", line=n)
+            stamps.append(int(v))
+            names.append(parts[1])
+    return np.asarray(stamps, dtype=np.int64), names
+
+
+def _seconds(ns: int) -> str:
+    return f"{ns // 1_000_000_000}.{ns % 1_000_000_000:09d}"
+
+
+def write_association(path: str | os.PathLike[str], rgb_stamps_ns: npt.ArrayLike, rgb_files: Sequence[str],
+                      depth_stamps_ns: npt.ArrayLike, depth_files: Sequence[str]) -> None:
+    """TUM RGB-D ``association.txt`` (``t_rgb rgb_file t_depth depth_file``, times in seconds with
+    nine decimals, so the nanoseconds survive), the file ORB-SLAM3's RGB-D examples read."""
+    a = np.asarray(rgb_stamps_ns, dtype=np.int64).reshape(-1)
+    b = np.asarray(depth_stamps_ns, dtype=np.int64).reshape(-1)
+    if not (a.size == b.size == len(rgb_files) == len(depth_files)):
+        raise IbiscapeError(f"{path}: association needs as many rgb and depth stamps and files, got "
+                            f"{a.size}, {b.size}, {len(rgb_files)}, {len(depth_files)}")
+    with atomic_write(path) as f:
+        f.writelines(f"{_seconds(int(ta))} {fa} {_seconds(int(tb))} {fb}\n"
+                     for ta, fa, tb, fb in zip(a, rgb_files, b, depth_files, strict=True))
+
+
+def read_association(path: str | os.PathLike[str]) -> tuple[npt.NDArray[np.int64], list[str],
+                                                             npt.NDArray[np.int64], list[str]]:
+    """Read an ``association.txt``: rgb stamps [ns], rgb files, depth stamps [ns], depth files."""
+    p = Path(path)
+    if not p.is_file():
+        raise FormatError(p, "association file not found")
+    ta: list[int] = []
+    tb: list[int] = []
+    fa: list[str] = []
+    fb: list[str] = []
+    with open(p, encoding="utf-8") as fh:
+        for n, line in enumerate(fh, start=1):
+            s = line.split()
+            if not s or s[0].startswith("#"):
+                continue
+            if len(s) != 4:
+                raise FormatError(p, "expected 't_rgb rgb_file t_depth depth_file'", line=n)
+            try:
+                ta.append(_ns(s[0]))
+                tb.append(_ns(s[2]))
+            except ValueError:
+                raise FormatError(p, f"times {s[0]!r}, {s[2]!r} are not seconds", line=n) from None
+            fa.append(s[1])
+            fb.append(s[3])
+    return np.asarray(ta, np.int64), fa, np.asarray(tb, np.int64), fb
+
+
+def _ns(text: str) -> int:
+    """Decimal seconds -> integer nanoseconds without going through a float."""
+    whole, _, frac = text.partition(".")
+    if not whole.lstrip("-").isdigit() or (frac and not frac.isdigit()):
+        raise ValueError(text)
+    sign = -1 if whole.startswith("-") else 1
+    return sign * (abs(int(whole)) * 1_000_000_000 + int((frac + "000000000")[:9] or 0))
