@@ -794,7 +794,9 @@ _IMU_ROW_BYTES = {"csv": 130, "npy": 56}
 _FRAME_ROW_BYTES = 200  # weather.csv and controls per camera frame
 #: Bytes per rendered frame and pixel by camera kind (PNG-compressed RGB, 16-bit depth, ...),
 #: used when ``render`` is true.
-RENDER_BYTES_PER_PIXEL = {"rgb": 1.5, "depth": 2.0, "semantic": 0.3, "dvs": 0.5}
+#: rendered bytes per pixel and frame, measured on the renderer's PNGs (noisy RGB, depth as 16-bit mm
+#: and CARLA log, labels raw and in the CityScapes palette, DVS windows and their frames)
+RENDER_BYTES_PER_PIXEL = {"rgb": 2.6, "depth": 1.4, "semantic": 0.3, "dvs": 1.5}
 
 
 def estimate_run(cfg: SimConfig, *, render: bool = False) -> RunEstimate:
@@ -860,5 +862,7 @@ def check_resources(cfg: SimConfig, out: str | os.PathLike[str], *, render: bool
     if est.output_bytes > free:
         raise IbiscapeError(
             f"{out}: not generated: this run would write about {est.output_bytes / 1e9:.3g} GB but "
-            f"{free / 1e9:.3g} GB are free there; {_HINT}, or write elsewhere")
+            f"{free / 1e9:.3g} GB are free there; {_HINT}"
+            + (", use --resolution to render smaller images or --no-render" if render else "")
+            + ", or write elsewhere")
     return est

@@ -19,7 +19,6 @@ the file ORB-SLAM3's RGB-D examples read.
 
 from __future__ import annotations
 
-import shutil
 from collections import deque
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -28,28 +27,15 @@ from typing import Any
 
 import numpy as np
 
-from ibiscape_eval.core.errors import IbiscapeError
-
-__all__ = ["estimate_bytes", "export_problem", "render_cameras"]
+__all__ = ["export_problem", "render_cameras"]
 
 Progress = Callable[[float, str], None]
 
 # bytes per pixel of a written frame (PNG of a noisy image compresses little; labels a lot)
-_BYTES_PER_PX = {"rgb": 2.6, "depth": 1.4, "semantic": 0.3, "dvs": 1.5}
-
-
 def _stamps(cfg: Any, rate_hz: float) -> np.ndarray:
     from ..still import n_samples, uniform_stamps
 
     return uniform_stamps(cfg.start_ns, rate_hz, 0, n_samples(cfg.duration_s, rate_hz))
-
-
-def estimate_bytes(cfg: Any) -> int:
-    """Rough size of the rendered images of ``cfg`` [bytes] (for the free-space check)."""
-    total = 0.0
-    for c in cfg.cameras:
-        total += len(_stamps(cfg, c.rate_hz)) * c.width_px * c.height_px * _BYTES_PER_PX[c.kind]
-    return int(total)
 
 
 def export_problem(cfg: Any, fmt: str) -> str | None:
@@ -62,15 +48,6 @@ def export_problem(cfg: Any, fmt: str) -> str | None:
     if fmt in ("euroc", "rosbag") and not kinds & {"rgb", "dvs"}:
         return f"--export {fmt} needs RGB or DVS cameras; setup {cfg.setup} has none"
     return None
-
-
-def _check_space(cfg: Any, folder: Path) -> None:
-    need = estimate_bytes(cfg)
-    free = shutil.disk_usage(folder).free
-    if need > free:
-        raise IbiscapeError(f"{folder.parent}: not enough disk space for the rendered images (about "
-                            f"{need / 1e9:.2f} GB needed, {free / 1e9:.2f} GB free); free some space, "
-                            "use --resolution to render smaller images or --no-render")
 
 
 def render_cameras(cfg: Any, folder: str | Path, world: Any, motion: Any, weather: Any, *,
@@ -96,7 +73,6 @@ def render_cameras(cfg: Any, folder: str | Path, world: Any, motion: Any, weathe
     from .renderer import Renderer
 
     out = Path(folder)
-    _check_space(cfg, out)
     renderer = Renderer.from_config(cfg, world, motion, weather, scenario=scenario)
     cams = list(cfg.cameras)
     # work units: pixels rendered (a DVS camera renders ~3 times per frame on average)

@@ -236,7 +236,8 @@ FAMILIES: dict[str, Family] = {
     "kitti_times": Family(_kitti_times_seed, lambda p, o: [
         "ate", str(p.parent / "est_kitti.txt"), str(p.parent / "ref_kitti.txt"), "--format-est",
         "kitti", "--format-ref", "kitti", "--times-est", str(p), "--times-ref", str(p), "--json"]),
+    # --no-render: the family tests the YAML reader and the config checks, not the renderer's speed
     "sim_yaml": Family(_sim_yaml_seed, lambda p, o: ["sim", "--config", str(p), "--out",
-                                                     str(o / "seq"), "--json"],
+                                                     str(o / "seq"), "--no-render", "--json"],
                        also_names=("seq",)),
 }
