@@ -34,6 +34,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     ),
     "events": ("events", "events", "Event-camera utilities: accumulation frames, time surfaces."),
     "sim": ("sim", "sim", "Generate a synthetic IBISCape-layout sequence with exact ground truth."),
+    "vio": ("vio", "vio", "Stereo visual-inertial odometry baseline (OpenCV + GTSAM) on a sequence."),
 }
 
 
