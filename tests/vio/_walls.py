@@ -5,6 +5,7 @@ like the IBISCape layout, and a Kalibr ``camchain-imucam.yaml`` of the rig at th
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import cv2
@@ -13,6 +14,7 @@ import yaml
 from scipy.spatial.transform import Rotation, Slerp
 
 from ibiscape_eval.core.trajectory import Trajectory
+from ibiscape_eval.vio.inputs import load_sequence
 from ibiscape_eval.vio.rig import StereoRig
 
 TEX_PX_PER_M = 40.0
@@ -88,3 +90,22 @@ def render_street(seq_dir: Path, gt: Trajectory, rig: StereoRig, stamps_ns: np.n
     calib = seq_dir / "camchain-imucam.yaml"
     calib.write_text(yaml.safe_dump(chain, sort_keys=False))
     return calib
+
+
+W = 160
+N_FRAMES = 120  # 6 s at 20 Hz
+
+
+def render_street_sequence(src: Path, dst: Path, *, blank: bool = False) -> Path:
+    """Copy the generated sequence ``src`` to ``dst`` and render a textured street (or blank
+    images) for its first ``N_FRAMES`` frames at ``W`` px; returns the camchain."""
+    shutil.copytree(src, dst)
+    seq = load_sequence(dst, require_images=False)
+    r = seq.rig
+    rig = StereoRig(r.left.scaled(W, W), r.right.scaled(W, W), r.T_body_left, r.T_body_right)
+    gt = seq.groundtruth
+    assert gt is not None
+    p0, p1 = gt.pos_m[0], gt.pos_m[-1]
+    return render_street(dst, gt, rig, gt.stamps_ns[: 10 * N_FRAMES : 10],
+                         origin_xy=(p0[0], p0[1]), direction_xy=(p1[0] - p0[0], p1[1] - p0[1]),
+                         blank=blank)

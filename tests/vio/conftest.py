@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from _walls import render_street_sequence
 
 from ibiscape_eval.sim import generate, preset
 from ibiscape_eval.vio.inputs import StereoSequence, load_sequence
@@ -30,3 +31,11 @@ def small_rig(svi_seq: StereoSequence) -> StereoRig:
     """The sequence's stereo rig on 256 x 256 px images."""
     r = svi_seq.rig
     return StereoRig(r.left.scaled(256, 256), r.right.scaled(256, 256), r.T_body_left, r.T_body_right)
+
+
+
+@pytest.fixture(scope="session")
+def street(svi_folder: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """(sequence folder with 160 px street images, its camchain-imucam.yaml)."""
+    dst = tmp_path_factory.mktemp("street") / "SVI_street"
+    return dst, render_street_sequence(svi_folder, dst)

@@ -6,39 +6,16 @@ from __future__ import annotations
 
 import json
 import shutil
-from pathlib import Path
 
 import numpy as np
 import pytest
-from _walls import render_street
+from _walls import N_FRAMES
+from _walls import render_street_sequence as _render
 from click.testing import CliRunner
 
 from ibiscape_eval.cli.main import cli
 from ibiscape_eval.io import read_trajectory
 from ibiscape_eval.metrics import ate
-from ibiscape_eval.vio.inputs import load_sequence
-from ibiscape_eval.vio.rig import StereoRig
-
-W = 160
-N_FRAMES = 120  # 6 s at 20 Hz
-
-
-def _render(src: Path, dst: Path, *, blank: bool = False) -> Path:
-    shutil.copytree(src, dst)
-    seq = load_sequence(dst, require_images=False)
-    r = seq.rig
-    rig = StereoRig(r.left.scaled(W, W), r.right.scaled(W, W), r.T_body_left, r.T_body_right)
-    gt = seq.groundtruth
-    p0, p1 = gt.pos_m[0], gt.pos_m[-1]
-    return render_street(dst, gt, rig, gt.stamps_ns[: 10 * N_FRAMES : 10],
-                         origin_xy=(p0[0], p0[1]), direction_xy=(p1[0] - p0[0], p1[1] - p0[1]),
-                         blank=blank)
-
-
-@pytest.fixture(scope="module")
-def street(svi_folder: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
-    dst = tmp_path_factory.mktemp("street") / "SVI_street"
-    return dst, _render(svi_folder, dst)
 
 
 def run(*args: object):
