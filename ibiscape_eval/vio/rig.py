@@ -140,14 +140,16 @@ class StereoRig:
             return {"rect": rect, "maps": None}
         import cv2
 
+        R_rl = np.ascontiguousarray(T[:3, :3])
+        t_rl = np.ascontiguousarray(T[:3, 3]).reshape(3, 1)
         if self.left.distortion == "equidistant" or self.right.distortion == "equidistant":
             R1, R2, P1, P2, _ = cv2.fisheye.stereoRectify(
                 self.left.K, self.left.opencv_dist[:4], self.right.K, self.right.opencv_dist[:4],
-                (w, h), T[:3, :3], T[:3, 3], flags=cv2.CALIB_ZERO_DISPARITY, balance=0.0)
+                (w, h), R_rl, t_rl, flags=cv2.CALIB_ZERO_DISPARITY, balance=0.0)
         else:
             R1, R2, P1, P2, *_ = cv2.stereoRectify(
                 self.left.K, self.left.opencv_dist, self.right.K, self.right.opencv_dist, (w, h),
-                T[:3, :3], T[:3, 3], flags=cv2.CALIB_ZERO_DISPARITY, alpha=0)
+                R_rl, t_rl, flags=cv2.CALIB_ZERO_DISPARITY, alpha=0)
         fx, fy, cx, cy = P1[0, 0], P1[1, 1], P1[0, 2], P1[1, 2]
         baseline = -P2[0, 3] / P2[0, 0]
         if not (np.isfinite([fx, fy, cx, cy, baseline]).all() and fx > 0 and baseline > 0):
