@@ -165,7 +165,11 @@ class StereoFrontEnd:
             pts = np.zeros((0, 2), dtype=np.float32)
             ids = np.zeros(0, dtype=np.int64)
             disp = np.zeros(0, dtype=np.float32)
-        new = self._detect(left, pts)
+        # new corners only when the tracks have thinned out (detection is the costliest step)
+        if len(pts) < 0.85 * self.params.max_features:
+            new = self._detect(left, pts)
+        else:
+            new = np.zeros((0, 2), dtype=np.float32)
         if len(new):
             pts = np.concatenate([pts, new])
             ids = np.concatenate([ids, np.arange(self._next_id, self._next_id + len(new))])

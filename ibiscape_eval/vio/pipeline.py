@@ -125,21 +125,59 @@ def run_vio(seq: StereoSequence, params: VioParams | None = None, *,
     n = seq.n_frames if max_frames is None else min(max_frames, seq.n_frames)
     fe = StereoFrontEnd(seq.rig, p)
     est = Estimator(seq.rig.rectified(), seq.imu, seq.noise, p, seq.T_body_imu)
-    w, h = seq.rig.size
     times = np.zeros(n)
     tracked = np.zeros(n, dtype=np.int64)
     t_start = time.perf_counter()
     cpu_start = time.process_time()
+    # PNG decoding costs as much as tracking: a reader thread decodes the next frames meanwhile
+    # (cv2.imread releases the GIL)
+    from concurrent.futures import ThreadPoolExecutor
+
+    def read(i: int) -> tuple[Any, Any]:
+        return read_gray_image(seq.left_files[i]), read_gray_image(seq.right_files[i])
+
+    pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="vio-read")
+    ahead = {i: pool.submit(read, i) for i in range(min(4, n))}
+    try:
+        _loop(seq, p, n, fe, est, ahead, pool, read, times, tracked, t_start, progress)
+    finally:
+        for f in ahead.values():
+            f.cancel()
+        pool.shutdown(wait=True)
+    est.finish()
+    wall = time.perf_counter() - t_start
+    cpu = time.process_time() - cpu_start
+    traj = est.trajectory("vio")
+    if len(traj) == 0:
+        raise DegenerateInputError(
+            f"{seq.path}: no frame could be estimated (tracking failed from the start: images "
+            "without texture, or no standstill to initialise from); see the failure spans")
+    duration = (int(seq.frame_stamps_ns[n - 1]) - int(seq.frame_stamps_ns[0])) * 1e-9
+    stats = VioStats(frames=n, keyframes=est.n_keyframes, frames_estimated=len(traj),
+                     mean_tracked=float(tracked.mean()), min_tracked=int(tracked.min()),
+                     failures=tuple(est.failures), init_method=est.init_method,
+                     mean_ms_per_frame=1e3 * wall / n, max_ms_per_frame=1e3 * float(times.max()),
+                     realtime_factor=duration / wall if wall > 0 else float("inf"),
+                     cpu_realtime_factor=duration / cpu if cpu > 0 else float("inf"),
+                     resets=est.backend.resets, params=p.to_dict())
+    return VioResult(traj, stats)
+
+
+def _loop(seq: StereoSequence, p: VioParams, n: int, fe: Any, est: Estimator, ahead: dict[int, Any],
+          pool: Any, read: Callable[[int], tuple[Any, Any]], times: np.ndarray,
+          tracked: np.ndarray, t_start: float, progress: Progress | None) -> None:
+    from ibiscape_eval.core.errors import FormatError
+
+    w, h = seq.rig.size
     prev_t: int | None = None
     for i in range(n):
         t0 = time.perf_counter()
         t_ns = int(seq.frame_stamps_ns[i])
-        left = read_gray_image(seq.left_files[i])
-        right = read_gray_image(seq.right_files[i])
+        left, right = ahead.pop(i).result()
+        if i + 4 < n:
+            ahead[i + 4] = pool.submit(read, i + 4)
         for img, f in ((left, seq.left_files[i]), (right, seq.right_files[i])):
             if img.shape != (h, w):
-                from ibiscape_eval.core.errors import FormatError
-
                 raise FormatError(f, f"image is {img.shape[1]}x{img.shape[0]} px, the calibration "
                                   f"says {w}x{h}")
         R = None if prev_t is None else est.gyro_rotation(prev_t, t_ns)
@@ -152,20 +190,3 @@ def run_vio(seq: StereoSequence, params: VioParams | None = None, *,
             wall = time.perf_counter() - t_start
             span = (t_ns - int(seq.frame_stamps_ns[0])) * 1e-9
             progress(i + 1, n, span / wall if wall > 0 else 0.0)
-    est.finish()
-    cpu = time.process_time() - cpu_start
-    traj = est.trajectory("vio")
-    if len(traj) == 0:
-        raise DegenerateInputError(
-            f"{seq.path}: no frame could be estimated (tracking failed from the start: images "
-            "without texture, or no standstill to initialise from); see the failure spans")
-    wall = float(times.sum())
-    duration = (int(seq.frame_stamps_ns[n - 1]) - int(seq.frame_stamps_ns[0])) * 1e-9
-    stats = VioStats(frames=n, keyframes=est.n_keyframes, frames_estimated=len(traj),
-                     mean_tracked=float(tracked.mean()), min_tracked=int(tracked.min()),
-                     failures=tuple(est.failures), init_method=est.init_method,
-                     mean_ms_per_frame=1e3 * wall / n, max_ms_per_frame=1e3 * float(times.max()),
-                     realtime_factor=duration / wall if wall > 0 else float("inf"),
-                     cpu_realtime_factor=duration / cpu if cpu > 0 else float("inf"),
-                     resets=est.backend.resets, params=p.to_dict())
-    return VioResult(traj, stats)
