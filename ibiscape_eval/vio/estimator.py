@@ -41,7 +41,8 @@ class FailureSpan:
 
     ``kind``: ``"tracking"`` (IMU only, estimate written), ``"lost"`` (beyond the IMU-only bound
     or before initialisation: no estimate written), ``"reset"`` (the smoother failed numerically
-    and was restarted from its last state).
+    and was restarted from its last state), ``"diverged"`` (an implausible state: speed, biases;
+    the estimate stops there and re-initialises like after a lost span).
     """
 
     kind: str
@@ -176,6 +177,8 @@ class Estimator:
     def _add_keyframe(self, idx: int, obs: StereoObservations) -> None:
         t = obs.stamp_ns
         p = self.params
+        b = self.backend
+        before = {k: b.states[k] for k in b.kf_t if k in b.states}
         try:
             used = self.backend.add_keyframe(t, self._pim, obs)
         except RuntimeError as exc:
@@ -185,6 +188,18 @@ class Estimator:
             self._restart_backend(t)
             self.failures.append(FailureSpan("reset", t, t))
         self.n_keyframes += 1
+        if not self._plausible(self.backend.latest()):
+            # never diverge silently: keep the window's estimates from before this update, report
+            # the divergence and re-initialise like after a lost span
+            b.states.pop(b.k, None)
+            b.states.update(before)
+            self.failures.append(FailureSpan("diverged", t, t))
+            if self._fail_start is not None:
+                self._close_failure(t, "tracking")
+            self._lost_start = t
+            self._buffer = []
+            self._record(t, len(obs))
+            return
         self._kf_obs = obs
         self._kf_t = t
         self._pim = self.backend.preintegration()
@@ -200,6 +215,14 @@ class Estimator:
                 self._buffer = []
         elif self._fail_start is not None:
             self._close_failure(t, "tracking")
+
+    @staticmethod
+    def _plausible(st: Any) -> bool:
+        """A state a road vehicle can have: speed below 70 m/s, IMU biases below 1 m/s^2 and
+        0.2 rad/s, finite pose."""
+        return bool(np.isfinite(st.T_world_body).all() and np.linalg.norm(st.vel_m_s) < 70.0
+                    and np.linalg.norm(st.bias_acc_m_s2) < 1.0
+                    and np.linalg.norm(st.bias_gyro_rad_s) < 0.2)
 
     def _close_failure(self, t: int, kind: str) -> None:
         assert self._fail_start is not None

@@ -86,3 +86,28 @@ def test_stamps_must_increase(svi_seq, small_rig):
     est.process(StereoObservations.empty(t))
     with pytest.raises(FormatError, match="increase"):
         est.process(StereoObservations.empty(t))
+
+
+def test_a_diverging_state_is_reported_and_reinitialised(svi_seq, small_rig, monkeypatch):
+    """Corrupt the smoother's speed once: the estimator must not keep writing that estimate."""
+    from ibiscape_eval.vio import backend as bk
+
+    real = bk.Backend.add_keyframe
+    calls = {"n": 0}
+
+    def add(self, t_ns, pim, obs):
+        used = real(self, t_ns, pim, obs)
+        calls["n"] += 1
+        if calls["n"] == 15:
+            st = self.states[self.k]
+            self.states[self.k] = bk.KeyframeState(st.stamp_ns, st.T_world_body, st.vel_m_s + 100.0,
+                                                  st.bias_acc_m_s2, st.bias_gyro_rad_s)
+        return used
+
+    monkeypatch.setattr(bk.Backend, "add_keyframe", add)
+    est, traj, gt = _run(svi_seq, small_rig)
+    kinds = [f.kind for f in est.failures]
+    assert "diverged" in kinds and "lost" in kinds
+    v = np.linalg.norm(np.diff(traj.pos_m, axis=0), axis=1) / np.diff(traj.stamps_ns) * 1e9
+    assert v.max() < 20.0  # no 100 m/s pose written
+    assert len(traj) > 0.8 * len(gt.stamps_ns[::10])  # and the estimate resumed
