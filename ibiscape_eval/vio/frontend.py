@@ -166,7 +166,7 @@ class StereoFrontEnd:
             ids = np.zeros(0, dtype=np.int64)
             disp = np.zeros(0, dtype=np.float32)
         # new corners only when the tracks have thinned out (detection is the costliest step)
-        if len(pts) < 0.85 * self.params.max_features:
+        if len(pts) < 0.7 * self.params.max_features:
             new = self._detect(left, pts)
         else:
             new = np.zeros((0, 2), dtype=np.float32)
