@@ -23,7 +23,7 @@ from ibiscape_eval.cli.main import cli
 ROOT = Path(__file__).resolve().parents[1]
 # subcommand -> how many leading positional arguments are inputs that must exist
 INPUTS = {"ate": 2, "rpe": 2, "drift": 2, "compare": 3, "convert": 1, "allan": 1, "hotpix": 1, "frames": 1,
-          "sim": 0, "report": 1}
+          "sim": 0, "report": 1, "vio": 1}
 # inputs of README commands that are illustrations only (a ROS bag is not generated here)
 ILLUSTRATIVE = {"recording.bag"}
 # options whose value is a file or folder the command must create
@@ -80,6 +80,12 @@ def make_demo_output(root: Path) -> None:
     np.savetxt(root / "log.csv", cols, delimiter=",", header="time,gx,gy,gz,ax,ay,az", comments="",
                fmt="%.12g")
     write_events(root / "events.txt", ev.events, fmt="text")
+
+    # a small rendered SVI drive and its EuRoC export, as `make demo`'s vio step writes them
+    res = CliRunner().invoke(cli, ["sim", "--setup", "svi", "--kind", "slam", "--duration-s", "4",
+                                    "--seed", "4", "--resolution", "160", "--out",
+                                    str(out / "SVI_vio"), "--export", "euroc"])
+    assert res.exit_code == 0, res.output
 
     # the runs folder of `make demo` step 5 (real data and synthetic trials; no simulation here)
     import importlib.util
