@@ -21,7 +21,7 @@ Pipeline (one function, :func:`calibrate`):
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -300,7 +300,7 @@ def _pnp(cam: CameraModel, obj: FloatArray, uv: FloatArray) -> FloatArray | None
 # ------------------------------------------------------------------------- numbering consistency
 def _pose_distance(A: FloatArray, B: FloatArray, scale_m: float) -> float:
     """Rotation difference [deg] plus translation difference in units of 1 % of ``scale_m``."""
-    return _rot_angle_deg(A[:3, :3].T @ B[:3, :3]) + np.linalg.norm(A[:3, 3] - B[:3, 3]) / (0.01 * scale_m)
+    return _rot_angle_deg(A[:3, :3].T @ B[:3, :3]) + float(np.linalg.norm(A[:3, 3] - B[:3, 3])) / (0.01 * scale_m)
 
 
 def _consistent_numbering(ref_poses: dict[int, FloatArray], dets: list[Detection | None],
@@ -590,8 +590,8 @@ def calibrate(target: CalibrationTarget, observations: Sequence[Observations], *
     cams = [_init_camera(o, target, views, distortion) for o, views in zip(observations, usable, strict=True)]
     dets: list[list[Detection | None]] = [list(o.detections) for o in observations]
     for n in range(len(observations)):
-        keep = set(usable[n])
-        dets[n] = [d if v in keep else None for v, d in enumerate(dets[n])]
+        ok_views = set(usable[n])
+        dets[n] = [d if v in ok_views else None for v, d in enumerate(dets[n])]
     # per-camera poses
     poses_cam: list[dict[int, FloatArray]] = []
     for n, cam in enumerate(cams):
@@ -663,7 +663,7 @@ def calibrate(target: CalibrationTarget, observations: Sequence[Observations], *
     full = prob
     rounds = 0
     sol = None
-    for rounds in range(1, max_rounds + 1):  # noqa: B007
+    for rounds in range(1, max_rounds + 1):
         say(f"refining (round {rounds})")
         prob = _Problem(cams, full.obj[keep], full.uv[keep], full.cam_i[keep], full.view_i[keep],
                         len(view_ids))
@@ -687,7 +687,7 @@ def calibrate(target: CalibrationTarget, observations: Sequence[Observations], *
                                    "detections are inconsistent (wrong target description?)")
     assert sol is not None
     say("uncertainties")
-    ni, nc, npose = prob.layout()
+    ni, _nc, npose = prob.layout()
     cov, _ = _covariance(sol, npose)
     res = prob.residuals(intr, chain, poses)
     cam_results = []
@@ -709,12 +709,12 @@ def calibrate(target: CalibrationTarget, observations: Sequence[Observations], *
         T = _T(chain[k, :3], chain[k, 3:])
         C = cov[ni + 6 * k: ni + 6 * k + 6, ni + 6 * k: ni + 6 * k + 6]
         t = T[:3, 3]
-        u = t / max(np.linalg.norm(t), 1e-12)
+        u = t / max(float(np.linalg.norm(t)), 1e-12)
         Ts.append(T)
         Tstd.append({"rotation_std_deg": [float(v) for v in np.degrees(np.sqrt(np.clip(np.diag(C)[:3], 0, None)))],
                      "translation_std_m": [float(v) for v in np.sqrt(np.clip(np.diag(C)[3:], 0, None))]})
         base.append(float(np.linalg.norm(t)))
-        base_sd.append(float(np.sqrt(max(u @ C[3:, 3:] @ u, 0.0))))
+        base_sd.append(float(np.sqrt(max(float(u @ C[3:, 3:] @ u), 0.0))))
     return CalibrationResult(model, target, tuple(cam_results), tuple(Ts), tuple(Tstd), tuple(base),
                              tuple(base_sd), len(view_ids), tuple(view_ids), renumbered, rounds)
 
@@ -751,9 +751,9 @@ def evaluate(target: CalibrationTarget, observations: Sequence[Observations], ca
             if d is None:
                 continue
             if T0 is None:
-                T = _pnp(cam, obj[d.ids], d.corners_px)
-                if T is not None:
-                    T0 = np.linalg.inv(T_cn_c0[n]) @ T
+                Tp = _pnp(cam, obj[d.ids], d.corners_px)
+                if Tp is not None:
+                    T0 = np.linalg.inv(T_cn_c0[n]) @ Tp
                 continue
             # pick the numbering of camera n that agrees with the pose seen so far
             best, best_e = None, np.inf

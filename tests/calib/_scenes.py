@@ -5,12 +5,11 @@ from __future__ import annotations
 from functools import lru_cache
 
 import numpy as np
-
-from ibiscape_eval.calib.detect import detect_corners
-from ibiscape_eval.calib.calibrate import Observations
-from ibiscape_eval.core.camera import CameraModel
-
 from _render import random_poses, render, sim_target, stereo_extrinsics
+
+from ibiscape_eval.calib.calibrate import Observations
+from ibiscape_eval.calib.detect import detect_corners
+from ibiscape_eval.core.camera import CameraModel
 
 CAM_RADTAN = CameraModel(480, 360, 330.0, 331.5, 241.3, 178.2, "radtan", (-0.21, 0.06, 0.0012, -0.0008))
 CAM_RADTAN_R = CameraModel(480, 360, 328.2, 329.0, 236.6, 182.4, "radtan", (-0.19, 0.05, -0.0006, 0.0009))
@@ -26,7 +25,7 @@ def stereo_scene(kind: str, n_views: int = 12, seed: int = 1, equi: bool = False
     right = CAM_EQUI if equi else CAM_RADTAN_R
     T10 = stereo_extrinsics(BASELINE_M)
     target = sim_target(kind)
-    dist = (3.0, 6.0) if kind == "checkerboard" else (3.0, 6.0)
+    dist = (3.0, 6.0)
     poses = random_poses(kind, n_views, rng, distance_m=dist, spread=0.15 if not equi else 0.25)
     imgs_l = [render(left, T, kind, rng=rng) for T in poses]
     imgs_r = [render(right, T10 @ T, kind, rng=rng) for T in poses]
