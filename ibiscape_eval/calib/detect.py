@@ -152,9 +152,36 @@ def _aprilgrid(gray: npt.NDArray[np.uint8], target: CalibrationTarget) -> Detect
     moved = np.linalg.norm(refined - pts, axis=1) <= 2.0 + half
     cid = corner_ids.ravel()[moved]
     refined = refined[moved]
+    good = _locally_consistent(target.object_points()[cid, :2], refined)
+    cid, refined = cid[good], refined[good]
+    if len(cid) == 0:
+        return None
     order = np.argsort(cid)
     h, w = gray.shape
     return Detection(cid[order], refined[order], (w, h))
+
+
+def _locally_consistent(board_xy: npt.NDArray[np.float64], uv: npt.NDArray[np.float64], *,
+                        k: int = 12, tol_px: float = 1.0) -> npt.NDArray[np.bool_]:
+    """Keep corners that a homography of their ``k`` nearest neighbours on the board predicts
+    within ``tol_px`` (a refinement caught by a neighbouring edge lands pixels away)."""
+    import cv2
+
+    n = len(uv)
+    ok = np.ones(n, bool)
+    if n < 6:
+        return ok
+    d = np.linalg.norm(board_xy[:, None, :] - board_xy[None, :, :], axis=-1)
+    nn = np.argsort(d, axis=1)[:, 1:min(k, n - 1) + 1]
+    for i in range(n):
+        j = nn[i]
+        H, _ = cv2.findHomography(board_xy[j], uv[j], 0)
+        if H is None:
+            continue
+        p = H @ np.array([board_xy[i, 0], board_xy[i, 1], 1.0])
+        if np.hypot(p[0] / p[2] - uv[i, 0], p[1] / p[2] - uv[i, 1]) > tol_px:
+            ok[i] = False
+    return ok
 
 
 def detect_corners(image: npt.NDArray[Any], target: CalibrationTarget) -> Detection | None:

@@ -130,7 +130,7 @@ def format_report(result: CalibrationResult, truth: TruthComparison | None = Non
     the ground-truth tables when given."""
     lines = [f"model        {result.model}    target {result.target!r}",
              f"views        {result.n_views} used"
-             + (f" of {result.extra['views_detected']} detected" if "views_detected" in result.extra else "")
+             + (f" of {result.extra['views_detected']} searched" if "views_detected" in result.extra else "")
              + (f"; {result.renumbered_views} renumbered for consistent stereo corners"
                 if result.renumbered_views else "")]
     for c in result.cameras:

@@ -38,7 +38,7 @@ def _rays(cam: CameraModel, ss: int) -> np.ndarray:
     return cam.pixel_rays(ss).reshape(-1, 3)
 
 
-def render(cam: CameraModel, T_cam_target: np.ndarray, kind: str, *, ss: int = 3,
+def render(cam: CameraModel, T_cam_target: np.ndarray, kind: str, *, ss: int = 2,
            noise: float = 1.0, rng: np.random.Generator | None = None,
            contrast: float = 1.0) -> np.ndarray:
     """Render the board seen by ``cam`` at ``T_cam_target``; uint8 (h, w)."""

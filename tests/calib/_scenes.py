@@ -26,7 +26,7 @@ def stereo_scene(kind: str, n_views: int = 12, seed: int = 1, equi: bool = False
     T10 = stereo_extrinsics(BASELINE_M)
     target = sim_target(kind)
     dist = (3.0, 6.0)
-    poses = random_poses(kind, n_views, rng, distance_m=dist, spread=0.15 if not equi else 0.25)
+    poses = random_poses(kind, n_views, rng, distance_m=dist, spread=0.1 if kind == "checkerboard" else 0.2)
     imgs_l = [render(left, T, kind, rng=rng) for T in poses]
     imgs_r = [render(right, T10 @ T, kind, rng=rng) for T in poses]
     det_l = [detect_corners(im, target) for im in imgs_l]
