@@ -139,7 +139,7 @@ def detect_frames(target: CalibrationTarget, cameras: Sequence[CameraFrames],
             raise CalibrationError(
                 f"{cam.name}: images of different sizes in one camera: {cam.label(i1)} is "
                 f"{s1[0]}x{s1[1]}, {cam.label(i2)} is {s2[0]}x{s2[1]}; calibrate each size separately")
-        if tried[k] - bad[k] < 3:
+        if bad[k] and tried[k] - bad[k] < 3:
             raise CalibrationError(f"{cam.name}: only {tried[k] - bad[k]} of {tried[k]} images could be "
                                    "read; at least 3 are needed")
         found = sum(d is not None for d in dets[k])

@@ -58,6 +58,8 @@ class ImageSet:
         The folder (or glob) the set came from.
     windows_ns : ndarray (N, 2) int64 or None
         Event windows ``[start, end)`` (events only).
+    exact_stamps : bool
+        The stamps are numbers from file names (matched exactly, not within a tolerance).
     """
 
     name: str
@@ -66,6 +68,7 @@ class ImageSet:
     kind: str
     root: Path
     windows_ns: npt.NDArray[np.int64] | None = None
+    exact_stamps: bool = False
 
     def __len__(self) -> int:
         return len(self.paths)
@@ -180,16 +183,19 @@ def image_sets_from_globs(specs: Sequence[str]) -> list[ImageSet]:
             order = np.argsort(arr, kind="stable")
             files = [files[i] for i in order]
             arr = arr[order]
-        out.append(ImageSet(name, tuple(files), arr, "frames", Path(pattern)))
+        out.append(ImageSet(name, tuple(files), arr, "frames", Path(pattern), exact_stamps=True))
     return out
 
 
 def pair_views(sets: Sequence[ImageSet], *, tolerance_ns: int = 1_000_000) -> list[list[int | None]]:
     """The view table: one row per instant, one column per set (frame index or None).
 
-    Sets with timestamps are matched within ``tolerance_ns``; without, frames are paired by
-    order (then every set must hold the same number of frames).
+    Sets with timestamps are matched within ``tolerance_ns`` (exactly for numbers taken from file
+    names); without, frames are paired by order (then every set must hold the same number of
+    frames).
     """
+    if any(s.exact_stamps for s in sets):
+        tolerance_ns = 0
     if not sets:
         raise IbiscapeError("no image sets to pair")
     if len(sets) == 1:

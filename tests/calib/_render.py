@@ -115,14 +115,15 @@ def dvs_events(img0: np.ndarray, img1: np.ndarray, t0_ns: int, t1_ns: int, *,
     timestamps interpolated linearly in the window), sorted by time."""
     from ibiscape_eval.core.events import Events
 
-    L0 = np.log(log_eps + img0.astype(np.float64) / 255.0)
-    L1 = np.log(log_eps + img1.astype(np.float64) / 255.0)
+    L0 = np.log(log_eps + np.clip(img0, 0, 255).astype(np.float64) / 255.0)
+    L1 = np.log(log_eps + np.clip(img1, 0, 255).astype(np.float64) / 255.0)
     dL = L1 - L0
     n = np.floor(np.abs(dL) / threshold).astype(np.int64)
     ys, xs = np.nonzero(n)
     counts = n[ys, xs]
     rep = np.repeat(np.arange(len(xs)), counts)
-    k = np.concatenate([np.arange(1, c + 1) for c in counts]) if len(counts) else np.zeros(0)
+    starts = np.cumsum(counts) - counts
+    k = np.arange(int(counts.sum())) - np.repeat(starts, counts) + 1
     frac = k * threshold / np.abs(dL[ys, xs])[rep]
     t = (t0_ns + frac * (t1_ns - t0_ns)).astype(np.int64)
     order = np.argsort(t, kind="stable")

@@ -34,3 +34,24 @@ def stereo_scene(kind: str, n_views: int = 12, seed: int = 1, equi: bool = False
     obs = (Observations("cam0", (left.width_px, left.height_px), det_l),
            Observations("cam1", (right.width_px, right.height_px), det_r))
     return target, (left, right), T10, poses, (imgs_l, imgs_r), obs
+
+
+@lru_cache(maxsize=2)
+def dvs_scene(kind: str = "checkerboard", n_views: int = 10, seed: int = 4):
+    """A blinking target seen by an event camera: per view, the events of the board appearing
+    (uniform grey -> printed board) within a 20 ms window."""
+    from _render import dvs_events, render_float
+
+    rng = np.random.default_rng(seed)
+    cam = CAM_RADTAN
+    poses = random_poses(kind, n_views, rng, distance_m=(3.0, 5.5), spread=0.1)
+    windows, events = [], []
+    for v, T in enumerate(poses):
+        t0 = 1_000_000_000 + v * 50_000_000
+        on = render_float(cam, T, kind)
+        off = render_float(cam, T, kind, contrast=0.0)
+        ev = dvs_events(off + rng.normal(0, 0.3, off.shape), on + rng.normal(0, 0.3, on.shape),
+                        t0, t0 + 20_000_000)
+        windows.append((t0, t0 + 20_000_000))
+        events.append(ev)
+    return sim_target(kind), cam, poses, windows, events

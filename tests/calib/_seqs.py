@@ -43,3 +43,14 @@ def write_sequence(root: Path, scene, names=("rgbL", "rgbR"), *, with_target: bo
                         target.to_kalibr() if with_target else None)
     (root / "sequence.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
     return root
+
+
+def write_dvs_folder(folder: Path, windows: list, events: list) -> None:
+    """An IBISCape DVS folder: ``timestamps.csv`` (start, end, file) and ``events/<ns>.npz``."""
+    (folder / "events").mkdir(parents=True, exist_ok=True)
+    rows = ["#timestamp_start [ns],timestamp_end [ns],filename"]
+    for (a, b), ev in zip(windows, events, strict=True):
+        np.savez(folder / "events" / f"{b}.npz", t=np.asarray(ev.t_ns), x=np.asarray(ev.x),
+                 y=np.asarray(ev.y), p=np.asarray(ev.p))
+        rows.append(f"{a},{b},{b}.npz ")
+    (folder / "timestamps.csv").write_text("\n".join(rows) + "\n")
