@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import re
 import sys
+import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -102,7 +103,7 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
     )
     from ibiscape_eval.calib.report import compare_with_truth, format_report, truth_from_sequence
     from ibiscape_eval.calib.targets import target_from_kalibr
-    from ibiscape_eval.core.errors import IbiscapeError
+    from ibiscape_eval.core.errors import IbiscapeError, IbiscapeWarning
     from ibiscape_eval.io.events import read_events
     from ibiscape_eval.io.images import (
         find_image_sets,
@@ -147,7 +148,11 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
         paths = s.paths
 
         def read_window(i: int, p: tuple[Path, ...] = paths) -> Any:
-            return read_events(p[i], fmt="npz")
+            try:
+                return read_events(p[i], fmt="npz")
+            except IbiscapeError as e:  # a corrupt window is skipped like a corrupt image
+                warnings.warn(f"{e}; skipped", IbiscapeWarning, stacklevel=1)
+                return None
 
         assert s.windows_ns is not None
         method = reconstruction

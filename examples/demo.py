@@ -239,11 +239,22 @@ def events(out: Path) -> None:
     )
 
 
+def calib(out: Path) -> None:
+    banner("5. Stereo camera calibration against known cameras (rendered checkerboard views)")
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from calibrate_cameras import render_sequence
+
+    seq = render_sequence(out / "stereo_checkerboard", "checkerboard", n_views=16, seed=0)
+    sh("calib", seq, "--yaml", out / "camchain.yaml", "--plot", out / "calib_plots")
+    sh("calib", seq, "--check", out / "camchain.yaml")
+
+
 STEPS: list[tuple[str, Callable[[Path], None]]] = [
     ("trajectories", trajectories),
     ("sim", simulate),
     ("imu", imu),
     ("events", events),
+    ("calib", calib),
 ]
 
 

@@ -19,7 +19,7 @@ from ibiscape_eval.cli.main import cli
 
 ROOT = Path(__file__).resolve().parents[1]
 # subcommand -> how many leading positional arguments are inputs that must exist
-INPUTS = {"ate": 2, "rpe": 2, "drift": 2, "convert": 1, "allan": 1, "hotpix": 1, "frames": 1, "sim": 0}
+INPUTS = {"ate": 2, "rpe": 2, "drift": 2, "convert": 1, "allan": 1, "hotpix": 1, "frames": 1, "sim": 0, "calib": 1}
 
 
 def readme_commands() -> list[list[str]]:
