@@ -133,3 +133,36 @@ def test_too_few_views(checker_seq, tmp_path):
 
 def test_needs_input():
     _fails(run(), "SEQ or --images")
+
+
+def test_euroc_folder_and_pairing_by_order(tmp_path):
+    from ibiscape_eval.io.images import find_image_sets, image_sets_from_globs, pair_views
+
+    _, _, _, _, (imgs_l, imgs_r), _ = stereo_scene("checkerboard")
+    stamps = [1_403_636_579_763_555_584 + i * 50_000_000 for i in range(len(imgs_l))]
+    for cam, imgs in (("cam0", imgs_l), ("cam1", imgs_r)):
+        d = tmp_path / "mav0" / cam / "data"
+        d.mkdir(parents=True)
+        rows = ["#timestamp [ns],filename"]
+        for t, im in zip(stamps, imgs, strict=True):
+            cv2.imwrite(str(d / f"{t}.png"), im)
+            rows.append(f"{t},{t}.png")
+        (d.parent / "data.csv").write_text("\n".join(rows) + "\n")
+    sets = find_image_sets(tmp_path)
+    assert [s.name for s in sets] == ["cam0", "cam1"]
+    assert pair_views(sets)[3] == [3, 3]
+    (tmp_path / "t.yaml").write_text(yaml.safe_dump({
+        "target_type": "checkerboard", "targetRows": 7, "targetCols": 7,
+        "rowSpacingMeters": 0.5, "colSpacingMeters": 0.5}))
+    res = run(tmp_path, "--target", tmp_path / "t.yaml", "--json")
+    assert res.exit_code == 0, res.output
+    assert abs(json.loads(res.stdout)["chain"][0]["baseline_m"] - 0.2003) < 0.001
+    # names without numbers pair by order; unequal counts cannot be paired
+    for i, im in enumerate(imgs_l[:4]):
+        cv2.imwrite(str(tmp_path / f"l{'abcd'[i]}.png"), im)
+        cv2.imwrite(str(tmp_path / f"r{'abcd'[i]}.png"), im)
+    sets = image_sets_from_globs([f"a={tmp_path}/l*.png", f"b={tmp_path}/r*.png"])
+    assert pair_views(sets) == [[0, 0], [1, 1], [2, 2], [3, 3]]
+    (tmp_path / "re.png").write_bytes((tmp_path / "ra.png").read_bytes())
+    _fails(run("--target", tmp_path / "t.yaml", "--images", f"a={tmp_path}/l*.png",
+               "--images", f"b={tmp_path}/r*.png"), "cannot pair")
