@@ -328,11 +328,15 @@ def _consistent_numbering(ref_poses: dict[int, FloatArray], dets: list[Detection
     scale = float(np.median([np.linalg.norm(T_ref[:3, 3]) for T_ref in ref_poses.values()]))
     # consensus: the candidate that the most views agree with (within 2 deg + 2 % of the distance)
     views = np.array([c[0] for c in cands])
+    Rs = np.stack([c[2][:3, :3] for c in cands])
+    ts = np.stack([c[2][:3, 3] for c in cands])
     best_score, best = -1, cands[0][2]
     step = max(1, len(cands) // 400)
     for _, _, Tc in cands[::step]:
-        ok = np.array([_pose_distance(Tc, c[2], scale) < 4.0 for c in cands])
-        score = len(np.unique(views[ok]))
+        cos = (np.einsum("ij,nij->n", Tc[:3, :3], Rs) - 1.0) / 2.0
+        d = (np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+             + np.linalg.norm(ts - Tc[:3, 3], axis=1) / (0.01 * scale))
+        score = len(np.unique(views[d < 4.0]))
         if score > best_score:
             best_score, best = score, Tc
     out: dict[int, Detection] = {}
