@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
+import resource
 import sys
 import tempfile
 import time
@@ -133,7 +135,10 @@ def main() -> None:
             t = time.perf_counter()
             _, T10 = make_sequence(seq, kind, a.frames, a.seed)
             print(f"[{kind}] rendered {2 * a.frames} frames in {time.perf_counter() - t:.0f} s", flush=True)
+            ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
             r = run([CLI, "calib", str(seq), "--json"])
+            ru1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cpu_s = (ru1.ru_utime - ru0.ru_utime) + (ru1.ru_stime - ru0.ru_stime)
             if not r.ok:
                 raise SystemExit(f"ibiscape-eval calib failed on {seq}")
             ours = json.loads(r.stdout)
@@ -147,16 +152,21 @@ def main() -> None:
             for f in files:
                 detect_corners(cv2.imread(str(f), cv2.IMREAD_GRAYSCALE), sim_target(kind))
             our_det = (time.perf_counter() - t) / len(files)
+            c0 = time.process_time()
             cv_wall, cv_det, cv = opencv_pipeline(seq, kind)
+            cv_cpu = time.process_time() - c0
             gt = ours["ground_truth"]
             cv_f = max(abs(K[i, i] - 512.0) for K in cv["K"] for i in (0, 1))
             cv_c = max(abs(K[i, 2] - 511.5) for K in cv["K"] for i in (0, 1))
-            rows.append((kind, r.wall_s, r.peak_mb, our_det, cv_wall, cv_det, gt, ours, cv, cv_f, cv_c, T10))
+            rows.append((kind, r.wall_s, r.peak_mb, our_det, cv_wall, cv_det, cpu_s, cv_cpu, gt, ours, cv,
+                         cv_f, cv_c, T10))
     print()
-    print(f"{'target':<13}{'ours [s]':>9}{'peak MB':>9}{'OpenCV [s]':>11}  RATIO (OpenCV/ours)"
-          f"{'det/frame ours':>16}{'OpenCV':>8}")
-    for kind, w, mb, od, cw, cd, *_ in rows:
-        print(f"{kind:<13}{w:>9.1f}{mb:>9.0f}{cw:>11.1f}  {cw / w:>19.2f}{1e3 * od:>13.0f} ms{1e3 * cd:>5.0f} ms")
+    print(f"{'target':<13}{'ours [s]':>9}{'CPU [s]':>8}{'peak MB':>9}{'OpenCV [s]':>11}{'CPU [s]':>8}"
+          f"  RATIO wall (OpenCV/ours){'det/frame ours':>16}{'OpenCV':>8}")
+    for kind, w, mb, od, cw, cd, cpu, ccpu, *_ in rows:
+        print(f"{kind:<13}{w:>9.1f}{cpu:>8.1f}{mb:>9.0f}{cw:>11.1f}{ccpu:>8.1f}  {cw / w:>24.2f}"
+              f"{1e3 * od:>13.0f} ms{1e3 * cd:>5.0f} ms")
+    print(f"load average during the run: {os.getloadavg()[0]:.1f} (2 cores)")
     print()
     print(f"{'target':<13}{'pipeline':<10}{'max |df| px':>12}{'max |dc| px':>12}{'baseline err mm':>16}"
           f"{'RMS px':>8}{'views':>7}")
