@@ -75,8 +75,8 @@ class ResidualStats:
 
     def kalibr(self) -> str:
         """``[mean_x, mean_y] +- [std_x, std_y]`` as Kalibr prints it."""
-        return (f"[{self.mean_px[0]:.6f}, {self.mean_px[1]:.6f}] +- "
-                f"[{self.std_px[0]:.6f}, {self.std_px[1]:.6f}]")
+        m = [0.0 if abs(v) < 5e-7 else v for v in self.mean_px]  # no "-0.000000"
+        return f"[{m[0]:.6f}, {m[1]:.6f}] +- [{self.std_px[0]:.6f}, {self.std_px[1]:.6f}]"
 
     def to_dict(self) -> dict[str, Any]:
         return {"mean_px": list(self.mean_px), "std_px": list(self.std_px), "rms_px": self.rms_px,
