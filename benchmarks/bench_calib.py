@@ -46,8 +46,8 @@ BASELINE_M = 0.4
 
 def make_sequence(root: Path, kind: str, n: int, seed: int) -> tuple[list, np.ndarray]:
     import yaml
-    from _render import random_poses, render, stereo_extrinsics
-    from _seqs import sequence_yaml, write_camera_folder
+    from _calib_render import random_poses, render, stereo_extrinsics
+    from _calib_seqs import sequence_yaml, write_camera_folder
 
     rng = np.random.default_rng(seed)
     T10 = stereo_extrinsics(BASELINE_M, yaw_deg=0.5)
@@ -57,7 +57,7 @@ def make_sequence(root: Path, kind: str, n: int, seed: int) -> tuple[list, np.nd
     write_camera_folder(root / "rgbL", left, stamps)
     right = [render(CAM_R, T10 @ T, kind, ss=1, rng=rng) for T in poses]
     write_camera_folder(root / "rgbR", right, stamps)
-    from _render import sim_target
+    from _calib_render import sim_target
 
     doc = sequence_yaml({"rgbL": CAM_L, "rgbR": CAM_R}, {"rgbL": np.eye(4), "rgbR": np.linalg.inv(T10)},
                         sim_target(kind).to_kalibr())
@@ -68,7 +68,7 @@ def make_sequence(root: Path, kind: str, n: int, seed: int) -> tuple[list, np.nd
 def opencv_pipeline(root: Path, kind: str) -> tuple[float, float, dict]:
     """Plain OpenCV: detect every frame (one thread), calibrateCamera x2, stereoCalibrate."""
     import cv2
-    from _render import sim_target
+    from _calib_render import sim_target
 
     target = sim_target(kind)
     obj = target.object_points().astype(np.float32)
@@ -143,7 +143,7 @@ def main() -> None:
                 raise SystemExit(f"ibiscape-eval calib failed on {seq}")
             ours = json.loads(r.stdout)
             import cv2
-            from _render import sim_target
+            from _calib_render import sim_target
 
             from ibiscape_eval.calib.detect import detect_corners
 

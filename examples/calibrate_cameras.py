@@ -31,8 +31,8 @@ RIGHT = CameraModel(640, 480, 421.0, 420.5, 322.0, 237.0, "radtan", (-0.11, 0.02
 def render_sequence(out: Path, kind: str = "checkerboard", n_views: int = 16, seed: int = 0) -> Path:
     """Write a stereo calibration sequence of ``n_views`` board poses; returns ``out``."""
     import yaml
-    from _render import random_poses, render, sim_target, stereo_extrinsics
-    from _seqs import sequence_yaml, write_camera_folder
+    from _calib_render import random_poses, render, sim_target, stereo_extrinsics
+    from _calib_seqs import sequence_yaml, write_camera_folder
 
     rng = np.random.default_rng(seed)
     T_right_left = stereo_extrinsics(0.4, yaw_deg=0.5)  # the paper's RGB baseline

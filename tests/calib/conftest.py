@@ -1,4 +1,4 @@
-"""The calib tests import their helpers (_render, _scenes, _seqs) from this folder."""
+"""The calib tests import their helpers (_calib_render, _calib_scenes, _calib_seqs) from this folder."""
 
 from __future__ import annotations
 

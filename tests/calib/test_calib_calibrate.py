@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from _scenes import CAM_RADTAN, stereo_scene
+from _calib_scenes import CAM_RADTAN, stereo_scene
 
 from ibiscape_eval.calib.calibrate import Observations, calibrate, evaluate
 from ibiscape_eval.calib.detect import Detection

@@ -10,8 +10,8 @@ import cv2
 import numpy as np
 import pytest
 import yaml
-from _scenes import dvs_scene, stereo_scene
-from _seqs import sequence_yaml, write_camera_folder, write_dvs_folder, write_sequence
+from _calib_scenes import dvs_scene, stereo_scene
+from _calib_seqs import sequence_yaml, write_camera_folder, write_dvs_folder, write_sequence
 from click.testing import CliRunner
 
 from ibiscape_eval.cli.main import cli

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import numpy as np
-from _render import board_pose, render, sim_target
-from _scenes import CAM_RADTAN, stereo_scene
+from _calib_render import board_pose, render, sim_target
+from _calib_scenes import CAM_RADTAN, stereo_scene
 
 from ibiscape_eval.calib.detect import detect_corners, detect_many, sharpness
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
-from _scenes import dvs_scene
+from _calib_scenes import dvs_scene
 
 from ibiscape_eval.calib.calibrate import Observations, calibrate
 from ibiscape_eval.calib.detect import detect_corners

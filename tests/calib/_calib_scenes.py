@@ -5,7 +5,7 @@ from __future__ import annotations
 from functools import lru_cache
 
 import numpy as np
-from _render import random_poses, render, sim_target, stereo_extrinsics
+from _calib_render import random_poses, render, sim_target, stereo_extrinsics
 
 from ibiscape_eval.calib.calibrate import Observations
 from ibiscape_eval.calib.detect import detect_corners
@@ -40,7 +40,7 @@ def stereo_scene(kind: str, n_views: int = 12, seed: int = 1, equi: bool = False
 def dvs_scene(kind: str = "checkerboard", n_views: int = 10, seed: int = 4):
     """A blinking target seen by an event camera: per view, the events of the board appearing
     (uniform grey -> printed board) within a 20 ms window."""
-    from _render import dvs_events, render_float
+    from _calib_render import dvs_events, render_float
 
     rng = np.random.default_rng(seed)
     cam = CAM_RADTAN
