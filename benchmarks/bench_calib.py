@@ -44,7 +44,7 @@ CAM_R = CameraModel(1024, 1024, 512.0, 512.0, 511.5, 511.5, "radtan", (-0.04, 0.
 BASELINE_M = 0.4
 
 
-def make_sequence(root: Path, kind: str, n: int, seed: int) -> tuple[list, np.ndarray]:
+def make_sequence(root: Path, kind: str, n: int, seed: int, ss: int = 2) -> tuple[list, np.ndarray]:
     import yaml
     from _calib_render import random_poses, render, stereo_extrinsics
     from _calib_seqs import sequence_yaml, write_camera_folder
@@ -53,9 +53,9 @@ def make_sequence(root: Path, kind: str, n: int, seed: int) -> tuple[list, np.nd
     T10 = stereo_extrinsics(BASELINE_M, yaw_deg=0.5)
     poses = random_poses(kind, n, rng, distance_m=(4.0, 9.0), spread=0.12, tilt_max_deg=30)
     stamps = [1_000_000_000 + i * 50_000_000 for i in range(n)]
-    left = [render(CAM_L, T, kind, ss=1, rng=rng) for T in poses]
+    left = [render(CAM_L, T, kind, ss=ss, rng=rng) for T in poses]
     write_camera_folder(root / "rgbL", left, stamps)
-    right = [render(CAM_R, T10 @ T, kind, ss=1, rng=rng) for T in poses]
+    right = [render(CAM_R, T10 @ T, kind, ss=ss, rng=rng) for T in poses]
     write_camera_folder(root / "rgbR", right, stamps)
     from _calib_render import sim_target
 
@@ -127,13 +127,14 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=100)
     ap.add_argument("--targets", nargs="+", default=["checkerboard", "aprilgrid"])
     ap.add_argument("--seed", type=int, default=7)
+    ap.add_argument("--ss", type=int, default=2, help="supersampling of the renderer (1 aliases)")
     a = ap.parse_args()
     rows = []
     with tempfile.TemporaryDirectory(prefix="bench_calib_") as d:
         for kind in a.targets:
             seq = Path(d) / kind
             t = time.perf_counter()
-            _, T10 = make_sequence(seq, kind, a.frames, a.seed)
+            _, T10 = make_sequence(seq, kind, a.frames, a.seed, a.ss)
             print(f"[{kind}] rendered {2 * a.frames} frames in {time.perf_counter() - t:.0f} s", flush=True)
             ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
             r = run([CLI, "calib", str(seq), "--json"])
