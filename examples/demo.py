@@ -259,6 +259,14 @@ def report(out: Path) -> None:
     shot = out / "report_screenshot.png"
     seen = check_page(out / "report" / "report.html", screenshot=shot, window=(1500, 2600))
     print(f"headless Chromium: {len(seen.console)} console messages; screenshot {shot}")
+def calib(out: Path) -> None:
+    banner("5. Stereo camera calibration against known cameras (rendered checkerboard views)")
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from calibrate_cameras import render_sequence
+
+    seq = render_sequence(out / "stereo_checkerboard", "checkerboard", n_views=16, seed=0)
+    sh("calib", seq, "--yaml", out / "camchain.yaml", "--plot", out / "calib_plots")
+    sh("calib", seq, "--check", out / "camchain.yaml")
 
 
 STEPS: list[tuple[str, Callable[[Path], None]]] = [
@@ -267,6 +275,7 @@ STEPS: list[tuple[str, Callable[[Path], None]]] = [
     ("imu", imu),
     ("events", events),
     ("report", report),
+    ("calib", calib),
 ]
 
 
