@@ -1,0 +1,1 @@
+"""Calibration: targets, detection, camera models, camera-IMU calibration."""
