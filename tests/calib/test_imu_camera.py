@@ -152,3 +152,27 @@ def test_camera_without_intrinsics_is_refused(bumpy):
     bare = CameraObservations(o.name, None, o.stamps_ns, o.frame_index, o.corner_ids, o.pixels_px)
     with pytest.raises(CalibrationError, match="camera rgbL: intrinsics are missing"):
         calibrate_imu_camera([bare], bumpy.imu, bumpy.noise, bumpy.corners_target_m)
+
+
+def test_camchain_imucam_yaml_round_trip(tmp_path, bumpy, bumpy_result):
+    import yaml
+
+    from ibiscape_eval.calib.imu_camera import camchain_imucam_document, errors_against_truth
+    from ibiscape_eval.io.kalibr_imucam import write_camchain_imucam
+
+    doc = camchain_imucam_document(bumpy_result)
+    path = tmp_path / "camchain-imucam.yaml"
+    write_camchain_imucam(path, doc)
+    back = yaml.safe_load(path.read_text())
+    assert list(back) == ["cam0", "cam1"]
+    assert "T_cn_cnm1" in back["cam1"] and "T_cn_cnm1" not in back["cam0"]
+    T0 = np.array(back["cam0"]["T_cam_imu"])
+    np.testing.assert_allclose(T0, bumpy_result.cameras[0].T_cam_imu)
+    T10 = np.array(back["cam1"]["T_cn_cnm1"])
+    np.testing.assert_allclose(T10 @ T0, bumpy_result.cameras[1].T_cam_imu, atol=1e-12)
+    assert back["cam1"]["timeshift_cam_imu"] == pytest.approx(bumpy_result.cameras[1].timeshift_cam_imu_s)
+    assert back["cam0"]["intrinsics"] == pytest.approx(bumpy.observations[0].camera.intrinsics)
+    truth = {k: {"T_cam_imu": bumpy.T_cam_imu[k], "timeshift_cam_imu": bumpy.timeshift_cam_imu_s[k]}
+             for k in bumpy.T_cam_imu}
+    err = errors_against_truth(bumpy_result, truth)
+    assert set(err) == {"rgbL", "rgbR"} and err["rgbL"]["rotation_error_deg"] < 0.1

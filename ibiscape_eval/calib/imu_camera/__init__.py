@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from .calibrate import calibrate_imu_camera
 from .inputs import CameraObservations, ImuData, ImuNoiseDensities
+from .kalibr import camchain_imucam_document, errors_against_truth
 from .result import CameraImuCalibration, Excitation, ImuCameraResult, ResidualSeries
 from .synthetic import observe_target
 
@@ -20,5 +21,7 @@ __all__ = [
     "ImuNoiseDensities",
     "ResidualSeries",
     "calibrate_imu_camera",
+    "camchain_imucam_document",
+    "errors_against_truth",
     "observe_target",
 ]
