@@ -19,6 +19,7 @@ import math
 import time
 import warnings
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -41,6 +42,10 @@ Progress = Callable[[float, str], None]
 WEAK_ROTATION_STD_DEG = 0.05
 WEAK_TRANSLATION_STD_M = 0.005
 WEAK_TIMESHIFT_STD_S = 1e-4
+#: knots of the first solve; the final knot rate is reached by resampling that solution
+COARSE_KNOT_RATE_HZ = 20.0
+COARSE_ITERATIONS = 12
+ABS_COST_TOL = 0.01
 
 
 def _check_inputs(observations: Sequence[CameraObservations], imu: ImuData,
@@ -104,7 +109,7 @@ def _linear_translation_init(prob: Problem, st: State, p_cam: list[FloatArray]) 
     accelerometer ``R^T (p'' - g) + b_a``.  PnP depth noise grows with the squared distance, so its
     rows are weighted by ``1 / (0.05 m + 1e-3 z^2)``."""
     import scipy.sparse as sp
-    from scipy.sparse.linalg import lsqr
+    from scipy.sparse.linalg import splu
 
     nc, C = prob.n_ctrl, len(prob.cams)
     n = 3 * nc + 3 * C + 3 + 3
@@ -162,11 +167,11 @@ def _linear_translation_init(prob: Problem, st: State, p_cam: list[FloatArray]) 
     y = np.zeros(r0)
     for ri, v in rhs:
         y[ri] = v
-    x = lsqr(A, y, atol=1e-12, btol=1e-12, iter_lim=20000)[0]
+    AtA = (A.T @ A).tocsc() + sp.identity(n, format="csc") * 1e-9
+    x = splu(AtA, permc_spec="COLAMD").solve(A.T @ y)
     out = st.copy()
     out.P_ctrl = x[: 3 * nc].reshape(nc, 3)
     out.t_ci = x[3 * nc : 3 * nc + 3 * C].reshape(C, 3)
-    out.t_ci = -np.einsum("cij,cj->ci", st.R_ci, out.t_ci)  # solved for p_imu_cam; t_ci = -R_ci p
     g = x[ig : ig + 3]
     out.R_g = _align(np.array([0.0, 0.0, -1.0]), g)
     out.bias[:, 3:] = x[ib : ib + 3]
@@ -200,7 +205,7 @@ def calibrate_imu_camera(
     corners_target_m: npt.ArrayLike,
     *,
     sigma_px: float = 0.3,
-    knot_rate_hz: float = 20.0,
+    knot_rate_hz: float = 50.0,
     bias_knot_s: float = 10.0,
     max_shift_s: float = 0.1,
     gap_s: float = 1.0,
@@ -288,8 +293,7 @@ def calibrate_imu_camera(
                 " ns); give the IMU recording of the same run")
         al = align_rotations(tf, fp, imu_t, R_w_imu, max_shift_s=max_shift_s)
         keep = al.inliers
-        fp = FramePoses(fp.frames[keep], fp.R_target_cam[keep], fp.p_target_cam_m[keep],
-                        fp.reproj_err[keep])
+        fp = fp.subset(keep)
         poses.append(fp)
         choices.append(al.choice[keep])
         shifts.append(al.shift_s)
@@ -299,7 +303,7 @@ def calibrate_imu_camera(
     step(0.05, "building the problem")
 
     # ---- spline pieces over the (shifted) frame times
-    dt = 1.0 / knot_rate_hz
+    dt = 1.0 / min(knot_rate_hz, COARSE_KNOT_RATE_HZ)
     all_t = np.concatenate([cam_t[c][poses[c].frames] + shifts[c] for c in range(len(observations))])
     margin = max(0.1, 3 * dt) + max_shift_s * 0.25
     pieces = _pieces(all_t, dt, gap_s, margin, imu_lo, imu_hi)
@@ -363,8 +367,14 @@ def calibrate_imu_camera(
                np.zeros((len(observations), 3)), np.asarray(shifts, dtype=np.float64))
     st = _linear_translation_init(prob, st, [ps_c for ps_c in ps])
 
-    # ---- Levenberg-Marquardt on the sparse normal equations
-    st, iterations, converged, H = _solve(prob, st, max_iterations, step)
+    # ---- Levenberg-Marquardt on the sparse normal equations: coarse knots, then the final ones
+    fine = knot_rate_hz > COARSE_KNOT_RATE_HZ
+    st, iterations, converged, H = _solve(prob, st, COARSE_ITERATIONS if fine else max_iterations, step,
+                                          (0.1, 0.5 if fine else 0.95), rel_tol=1e-4 if fine else 0.0)
+    if fine:
+        prob, st = _refine(prob, st, 1.0 / knot_rate_hz)
+        st, it2, converged, H = _solve(prob, st, max_iterations, step, (0.5, 0.95))
+        iterations += it2
     step(0.95, "covariance")
     result = _result(prob, st, H, exc, warn, iterations, converged, force, t_start,
                      observations, keep_residuals)
@@ -374,8 +384,37 @@ def calibrate_imu_camera(
     return result
 
 
-def _solve(prob: Problem, st: State, max_iterations: int, step: Callable[[float, str], None]
+def _refine(prob: Problem, st: State, dt: float) -> tuple[Problem, State]:
+    """The same problem on knots every ``dt``; control points sampled from the coarse spline."""
+    pieces, Rs, Ps = [], [], []
+    off = 0
+    keep = np.zeros(prob.imu_t_s.size, bool)
+    for t0, n_seg, _ in prob.pieces:
+        t1 = t0 + n_seg * prob.dt_s
+        n2 = max(1, math.floor((t1 - t0) / dt + 1e-9))
+        tau = np.clip(t0 + (np.arange(n2 + 3) - 1) * dt, t0, t1)
+        base, u, _ = prob.locate(tau)
+        R, _ = rotation(st.R_ctrl[base[:, None] + np.arange(4)], u, prob.dt_s, angular_velocity=False)
+        p, _, _ = position(st.P_ctrl[base[:, None] + np.arange(4)], u, prob.dt_s)
+        Rs.append(R)
+        Ps.append(p)
+        pieces.append((t0, n2, off))
+        off += n2 + 3
+        keep |= (prob.imu_t_s >= t0) & (prob.imu_t_s <= t0 + n2 * dt)
+    new = replace(prob, dt_s=dt, pieces=pieces, n_ctrl=off, imu_t_s=prob.imu_t_s[keep],
+                  gyro=prob.gyro[keep], accel=prob.accel[keep])
+    st2 = st.copy()
+    st2.R_ctrl = np.concatenate(Rs)
+    st2.P_ctrl = np.concatenate(Ps)
+    return new, st2
+
+
+def _solve(prob: Problem, st: State, max_iterations: int, step: Callable[[float, str], None],
+           span: tuple[float, float] = (0.1, 0.95), rel_tol: float = 0.0
            ) -> tuple[State, int, bool, Any]:
+    """Levenberg-Marquardt; stops when a step lowers chi^2 / 2 by less than 0.05 (moves no
+    parameter by a noticeable fraction of its standard deviation) or by less than ``rel_tol``
+    relative."""
     import scipy.sparse as sp
     from scipy.sparse.linalg import splu
 
@@ -385,7 +424,7 @@ def _solve(prob: Problem, st: State, max_iterations: int, step: Callable[[float,
     it = 0
     n = prob.n_params
     for it in range(1, max_iterations + 1):
-        step(0.1 + 0.85 * it / max_iterations, f"iteration {it}, cost {c0:.4g}")
+        step(span[0] + (span[1] - span[0]) * it / max_iterations, f"iteration {it}, cost {c0:.8g}")
         improved = False
         for _ in range(12):
             d_h = np.asarray(H.diagonal())
@@ -404,11 +443,20 @@ def _solve(prob: Problem, st: State, max_iterations: int, step: Callable[[float,
         if not improved:
             converged = True  # no step lowers the cost: at the minimum to numerical precision
             break
-        rel = (c0 - c1) / max(c0, 1e-300)
+        # extrapolate along the step while the cost keeps falling: in the weakly determined
+        # directions Gauss-Newton converges linearly with short steps, this shortcut saves iterations
+        alpha = 1.0
+        while alpha < 64.0:
+            cand2 = st.retract(prob, 2.0 * alpha * delta)
+            c2 = cost(prob, cand2)
+            if not (np.isfinite(c2) and c2 < c1):
+                break
+            cand, c1, alpha = cand2, c2, 2.0 * alpha
+        decrease = c0 - c1
         st = cand
         lam = max(lam / 10, 1e-9)
         H, g, c0 = normal_equations(prob, st)
-        if rel < 1e-6:
+        if decrease < max(rel_tol * c0, ABS_COST_TOL):
             converged = True
             break
     del n

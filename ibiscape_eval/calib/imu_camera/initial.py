@@ -38,12 +38,20 @@ class FramePoses:
     p_target_cam_m : ndarray (F', 2, 3)
     reproj_err : ndarray (F', 2)
         RMS reprojection error of each candidate (normalised image coordinates).
+    spread_px : ndarray (F',)
+        RMS distance of the frame's corners from their centroid (PnP rotations are about as
+        precise as ``noise / spread``).
     """
 
     frames: npt.NDArray[np.int64]
     R_target_cam: FloatArray
     p_target_cam_m: FloatArray
     reproj_err: FloatArray
+    spread_px: FloatArray
+
+    def subset(self, keep: npt.NDArray[np.bool_]) -> FramePoses:
+        return FramePoses(self.frames[keep], self.R_target_cam[keep], self.p_target_cam_m[keep],
+                          self.reproj_err[keep], self.spread_px[keep])
 
 
 def frame_poses(obs: CameraObservations, corners_target_m: FloatArray, *,
@@ -59,7 +67,8 @@ def frame_poses(obs: CameraObservations, corners_target_m: FloatArray, *,
     ends = np.r_[starts[1:], fi.size]
     rays, ok = obs.camera.unproject(obs.pixels_px[order])
     obj = corners_target_m[obs.corner_ids[order]]
-    frames, Rs, ps, errs = [], [], [], []
+    frames, Rs, ps, errs, spread = [], [], [], [], []
+    px_sorted = obs.pixels_px[order]
     K = np.eye(3)
     for a, b in zip(starts, ends, strict=True):  # one OpenCV call per frame (initialisation only)
         good = ok[a:b]
@@ -84,10 +93,13 @@ def frame_poses(obs: CameraObservations, corners_target_m: FloatArray, *,
         Rs.append(cand_R)
         ps.append(cand_p)
         errs.append([e[0], e[min(1, e.size - 1)]])
+        q = px_sorted[a:b][good]
+        spread.append(float(np.sqrt(np.mean(np.sum((q - q.mean(axis=0)) ** 2, axis=1)))))
     if not frames:
         return FramePoses(np.zeros(0, np.int64), np.zeros((0, 2, 3, 3)), np.zeros((0, 2, 3)),
-                          np.zeros((0, 2)))
-    return FramePoses(np.asarray(frames, np.int64), np.asarray(Rs), np.asarray(ps), np.asarray(errs))
+                          np.zeros((0, 2)), np.zeros(0))
+    return FramePoses(np.asarray(frames, np.int64), np.asarray(Rs), np.asarray(ps), np.asarray(errs),
+                      np.asarray(spread))
 
 
 def integrate_gyro(gyro_rad_s: FloatArray, t_s: FloatArray) -> FloatArray:
@@ -156,18 +168,20 @@ def align_rotations(t_frames_s: FloatArray, poses: FramePoses, imu_t_s: FloatArr
     lo, hi = imu_t_s[0], imu_t_s[-1]
     choice = np.argmin(poses.reproj_err, axis=1)
     inl = np.ones(len(t_frames_s), bool)
+    wts = poses.spread_px**2 / np.mean(poses.spread_px**2)  # rotation precision ~ spread
 
     def residuals(s: float, ch: npt.NDArray[np.int64], use: npt.NDArray[np.bool_]
                   ) -> tuple[FloatArray, FloatArray, FloatArray]:
         A = poses.R_target_cam[np.arange(len(ch)), ch]
         B = slerp(np.clip(t_frames_s + s, lo, hi)).as_matrix()
-        X, Y = _solve_axyb(A[use], B[use], np.ones(int(use.sum())))
+        X, Y = _solve_axyb(A[use], B[use], wts[use])
         E = np.einsum("nji,njk->nik", A @ X, Y @ B)
         return np.linalg.norm(log_so3(E), axis=1), X, Y
 
     def search(centre: float, half: float, step: float) -> float:
         grid = np.arange(centre - half, centre + half + 0.5 * step, step)
-        costs = np.array([np.median(residuals(s, choice, inl)[0][inl] ** 2) for s in grid])
+        costs = np.array([np.average(residuals(s, choice, inl)[0][inl] ** 2, weights=wts[inl])
+                          for s in grid])
         k = int(np.argmin(costs))
         s = float(grid[k])
         if 0 < k < len(grid) - 1:
@@ -185,7 +199,7 @@ def align_rotations(t_frames_s: FloatArray, poses: FramePoses, imu_t_s: FloatArr
         ang = np.stack([np.linalg.norm(log_so3(np.einsum("nji,njk->nik", poses.R_target_cam[:, k], pred)),
                                        axis=1) for k in range(2)], -1)
         choice = np.argmin(ang, axis=1)
-        best = ang[np.arange(len(choice)), choice]
+        best = ang[np.arange(len(choice)), choice] * np.sqrt(wts)  # normalised by the precision
         inl = best <= max(3.0 * np.median(best), np.radians(0.5))
         if max_shift_s > 0:
             s = search(s, 4 * step_s, step_s / 8)
