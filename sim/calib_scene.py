@@ -85,7 +85,8 @@ def calibration_scene(cfg: SimConfig, *, timeshifts_s: dict[str, float] | None =
     obs, T_ci, shift_out = [], {}, {}
     for k, cam in enumerate(cfg.cameras):
         model = CameraModel.from_fov(cam.width_px, cam.height_px, cam.fov_deg)
-        shift = float(shifts.get(cam.name, 0.0))
+        # a CameraSpec.timeshift_cam_imu_s field (the simulator's camera clock offset) is the default
+        shift = float(shifts.get(cam.name, getattr(cam, "timeshift_cam_imu_s", 0.0)))
         if abs(shift) > 0.05:
             raise IbiscapeError(f"timeshift {shift} s of {cam.name}: keep it within +-50 ms")
         period_ns = round(1e9 / cam.rate_hz)

@@ -103,20 +103,31 @@ def test_result_to_dict_is_strict_json(bumpy_result):
     assert repr(bumpy_result).startswith("ImuCameraResult([rgbL, rgbR]")
 
 
-def test_flat_road_is_refused_with_the_measured_excitation(bumpy_result):
+def test_flat_road_is_refused_then_flagged_by_the_standard_deviations(bumpy_result):
     flat = _scene(bumps=False)
     with pytest.raises(CalibrationError, match=r"too little rotational excitation.*x=0\.00[0-9]{2}, y=0\.00"):
         calibrate_imu_camera(flat.observations, flat.imu, flat.noise, flat.corners_target_m,
                              sigma_px=0.2)
     with pytest.warns(UserWarning, match="forced"):
         res = calibrate_imu_camera(flat.observations, flat.imu, flat.noise, flat.corners_target_m,
-                                   sigma_px=0.2, force=True, max_iterations=3)
+                                   sigma_px=0.2, force=True)
     assert res.forced and not res.excitation.translation_observable
     assert set(res.excitation.weak_rotation_axes) == {"x", "y"}
     assert res.excitation.gyro_std_rad_s[:2].max() < 0.01 < res.excitation.gyro_std_rad_s[2]
-    # with bumps every rotation axis is excited
     assert bumpy_result.excitation.translation_observable
     assert bumpy_result.excitation.gyro_std_rad_s.min() > 0.1
+    for fl, bu in zip(res.cameras, bumpy_result.cameras, strict=True):
+        # without roll and pitch the lever arm along the vertical (IMU z) is not observable ...
+        assert fl.position_std_imu_m[2] > 0.5 > 20 * bu.position_std_imu_m[2]
+        # ... and the rotation about the vertical rests on the accelerometer alone
+        assert fl.rotation_std_deg[2] > 5 * bu.rotation_std_deg[2]
+        assert bu.timeshift_std_s < fl.timeshift_std_s
+        assert any(f"camera {fl.name}: translation along IMU z" in w for w in res.warnings)
+        assert not any(f"camera {bu.name}: rotation" in w for w in bumpy_result.warnings)
+        # what is observable is still found: roll and pitch of the camera mount, the offset
+        rot_deg, _, shift_s = _errors(flat, fl)
+        assert rot_deg < 4 * np.linalg.norm(fl.rotation_std_deg)
+        assert abs(shift_s) < 4 * fl.timeshift_std_s
 
 
 # ------------------------------------------------------------------------------------- bad input

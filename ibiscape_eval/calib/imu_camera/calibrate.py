@@ -103,7 +103,7 @@ def _spline_init(t_s: FloatArray, p: FloatArray, imu_t: FloatArray, R_imu: Float
     return np.concatenate(Rs), np.concatenate(Ps)
 
 
-def _linear_translation_init(prob: Problem, st: State, p_cam: list[FloatArray]) -> State:
+def _linear_translation_init(prob: Problem, st: State, p_cam: list[FloatArray]) -> tuple[State, float]:
     """Positions, ``t_ci``, gravity and a constant accelerometer bias by one sparse linear
     least-squares solve with the rotations held: PnP camera positions ``p + R p_imu_cam`` and the
     accelerometer ``R^T (p'' - g) + b_a``.  PnP depth noise grows with the squared distance, so its
@@ -176,7 +176,32 @@ def _linear_translation_init(prob: Problem, st: State, p_cam: list[FloatArray]) 
     out.R_g = _align(np.array([0.0, 0.0, -1.0]), g)
     out.bias[:, 3:] = x[ib : ib + 3]
     del eye
-    return out
+    return out, float(np.sum((A @ x - y) ** 2))
+
+
+def _resolve_single_axis(prob: Problem, st: State, p_cam: list[FloatArray]) -> State:
+    """Rotation about a single axis leaves the hand-eye problem a free angle about that axis:
+    ``(X Rk(a), Y Rk(a))`` solves ``A X = Y B`` as well.  Choose it by the accelerometer: the angle
+    whose linear translation fit (:func:`_linear_translation_init`) has the smallest residual."""
+    w = prob.gyro
+    k = np.linalg.eigh(w.T @ w)[1][:, -1]  # the excited axis (IMU frame)
+
+    def rot(a: float) -> FloatArray:
+        return exp_so3(k * a)
+
+    def trial(a: float) -> tuple[State, float]:
+        s2 = st.copy()
+        Rk = rot(a)
+        s2.R_ci = st.R_ci @ Rk
+        s2.R_ctrl = st.R_ctrl @ Rk  # R_target_imu -> R_target_imu Rk about the excited axis
+        return _linear_translation_init(prob, s2, p_cam)
+
+    grid = np.radians(np.arange(-180.0, 180.0, 10.0))
+    costs = [trial(a)[1] for a in grid]
+    a0 = float(grid[int(np.argmin(costs))])
+    fine = a0 + np.radians(np.arange(-10.0, 10.5, 1.0))
+    costs = [trial(a)[1] for a in fine]
+    return trial(float(fine[int(np.argmin(costs))]))[0]
 
 
 def _align(a: FloatArray, b: FloatArray) -> FloatArray:
@@ -363,9 +388,21 @@ def calibrate_imu_camera(
         ps.append(fp.p_target_cam_m[np.arange(len(fp.frames)), choices[c]])
     R_ctrl, P_ctrl = _spline_init(np.concatenate(ts), np.concatenate(ps), imu_t,
                                   R_tw0[0] @ R_w_imu, pieces, dt)
+    if len(exc.weak_rotation_axes) >= 2:
+        # one rotation axis k: each camera's hand-eye solution is free about k; bring them onto
+        # camera 0's world frame (Y_c Rk(a) = Y_0) before choosing the common angle
+        w = imu.gyro_rad_s[in_piece]
+        k = np.linalg.eigh(w.T @ w)[1][:, -1]
+        grid = np.radians(np.arange(-180.0, 180.0, 0.25))
+        Rks = exp_so3(grid[:, None] * k)
+        for c in range(1, len(observations)):
+            a = int(np.argmin(np.linalg.norm(R_tw0[c] @ Rks - R_tw0[0], axis=(1, 2))))
+            R_ci0[c] = R_ci0[c] @ Rks[a]
     st = State(R_ctrl, P_ctrl, np.zeros((n_bias, 6)), np.eye(3), np.asarray(R_ci0),
                np.zeros((len(observations), 3)), np.asarray(shifts, dtype=np.float64))
-    st = _linear_translation_init(prob, st, [ps_c for ps_c in ps])
+    st, _ = _linear_translation_init(prob, st, ps)
+    if len(exc.weak_rotation_axes) >= 2:  # rotation about one axis only (a flat road, --force)
+        st = _resolve_single_axis(prob, st, ps)
 
     # ---- Levenberg-Marquardt on the sparse normal equations: coarse knots, then the final ones
     fine = knot_rate_hz > COARSE_KNOT_RATE_HZ
