@@ -415,8 +415,8 @@ def calibrate_imu_camera(
     step(0.95, "covariance")
     result = _result(prob, st, H, exc, warn, iterations, converged, force, t_start,
                      observations, keep_residuals)
-    for w in result.warnings:
-        warnings.warn(w, IbiscapeWarning, stacklevel=2)
+    for text in result.warnings:
+        warnings.warn(text, IbiscapeWarning, stacklevel=2)
     step(1.0, "done")
     return result
 
