@@ -496,6 +496,9 @@ def _solve(prob: Problem, st: State, max_iterations: int, step: Callable[[float,
         if decrease < max(rel_tol * c0, ABS_COST_TOL):
             converged = True
             break
+        # creeping along a weakly determined direction: the last steps moved the parameters by a
+        # small fraction of their standard deviations
+        converged = decrease < 10 * ABS_COST_TOL
     del n
     return st, it, converged, H
 
