@@ -2,7 +2,7 @@
 and run time.
 
     .venv/bin/python benchmarks/bench_imu_camera.py                 # 1024 px and 512 px, bumps
-    .venv/bin/python benchmarks/bench_imu_camera.py --size 512 --flat
+    .venv/bin/python benchmarks/bench_imu_camera.py --size 512 --flat --four
 
 The simulator plans the calibration world and drive (bubbles and waves on the road), simulates
 IMU0 (200 Hz, the default continuous-time noise) and projects the checkerboard's corners into the
@@ -29,11 +29,17 @@ from ibiscape_eval.sim.config import MotionSpec
 SHIFTS = {"rgbL": 0.0123, "rgbR": -0.0171}
 
 
-def one(size: int, bumps: bool, duration_s: float, seed: int) -> None:
+def one(size: int, bumps: bool, duration_s: float, seed: int, four: bool = False) -> None:
     cfg = preset("svi", "calibration", "clear", duration_s=duration_s, seed=seed,
                  motion=MotionSpec(bumps=bumps))
-    cfg = replace(cfg, cameras=tuple(replace(c, width_px=size, height_px=size) for c in cfg.cameras))
-    sc = calibration_scene(cfg, timeshifts_s=SHIFTS, noise_px=0.2, min_spacing_px=4.0)
+    cams = cfg.cameras
+    shifts = dict(SHIFTS)
+    if four:  # the stereo RGB pair and the stereo DVS pair of the paper's rig, one problem
+        dvs = preset("esvi", "calibration").cameras
+        cams = (*cams, *dvs)
+        shifts.update({"davisL": 0.0071, "davisR": -0.0034})
+    cfg = replace(cfg, cameras=tuple(replace(c, width_px=size, height_px=size) for c in cams))
+    sc = calibration_scene(cfg, timeshifts_s=shifts, noise_px=0.2, min_spacing_px=4.0)
     frames = {o.name: o.n_frames_with_target for o in sc.observations}
     t0, c0 = time.perf_counter(), time.process_time()
     res = calibrate_imu_camera(sc.observations, sc.imu, sc.noise, sc.corners_target_m, sigma_px=0.2,
@@ -42,7 +48,8 @@ def one(size: int, bumps: bool, duration_s: float, seed: int) -> None:
     truth = {k: {"T_cam_imu": sc.T_cam_imu[k], "timeshift_cam_imu": sc.timeshift_cam_imu_s[k]}
              for k in sc.T_cam_imu}
     err = errors_against_truth(res, truth)
-    print(f"\n{size}x{size} px, {'bumps' if bumps else 'FLAT road (forced)'}, {duration_s:.0f} s, "
+    print(f"\n{len(sc.observations)} cameras, {size}x{size} px, "
+          f"{'bumps' if bumps else 'FLAT road (forced)'}, {duration_s:.0f} s, "
           f"seed {seed}: target frames {frames}, {res.excitation.duration_s:.1f} s of spline, "
           f"{res.iterations} iterations, wall {wall:.1f} s, cpu {cpu:.1f} s, "
           f"RATIO {120.0 / wall:.2f} (2 min budget / wall)")
@@ -77,11 +84,14 @@ def main() -> None:
     ap.add_argument("--duration-s", type=float, default=60.0)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--flat", action="store_true", help="also the same drive without bumps")
+    ap.add_argument("--four", action="store_true", help="also RGB + DVS stereo pairs in one problem")
     a = ap.parse_args()
     for size in a.size or [1024, 512]:
         one(size, True, a.duration_s, a.seed)
         if a.flat:
             one(size, False, a.duration_s, a.seed)
+        if a.four:
+            one(size, True, a.duration_s, a.seed, four=True)
 
 
 if __name__ == "__main__":

@@ -44,7 +44,7 @@ WEAK_TRANSLATION_STD_M = 0.005
 WEAK_TIMESHIFT_STD_S = 1e-4
 #: knots of the first solve; the final knot rate is reached by resampling that solution
 COARSE_KNOT_RATE_HZ = 20.0
-COARSE_ITERATIONS = 12
+COARSE_ITERATIONS = 40
 ABS_COST_TOL = 0.01
 
 
@@ -162,6 +162,16 @@ def _linear_translation_init(prob: Problem, st: State, p_cam: list[FloatArray]) 
         vals.append(np.full(N, wa))
         rhs.append((ri, wa * prob.accel[:, a]))
     r0 += 3 * N
+    # gravity near the mean of -R f (accelerations average out): keeps a poorly initialised
+    # trajectory from trading gravity for a large acceleration
+    g_mean = -np.einsum("nij,nj->i", R, prob.accel) / N
+    g_mean *= prob.gravity_m_s2 / max(float(np.linalg.norm(g_mean)), 1e-9)
+    for a in range(3):
+        rows.append(np.array([r0 + a]))
+        cols.append(np.array([ig + a]))
+        vals.append(np.array([1.0 / 0.5]))
+        rhs.append((np.array([r0 + a]), np.array([g_mean[a] / 0.5])))
+    r0 += 3
     A = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                       shape=(r0, n))
     y = np.zeros(r0)
@@ -407,7 +417,7 @@ def calibrate_imu_camera(
     # ---- Levenberg-Marquardt on the sparse normal equations: coarse knots, then the final ones
     fine = knot_rate_hz > COARSE_KNOT_RATE_HZ
     st, iterations, converged, H = _solve(prob, st, COARSE_ITERATIONS if fine else max_iterations, step,
-                                          (0.1, 0.5 if fine else 0.95), rel_tol=1e-4 if fine else 0.0)
+                                          (0.1, 0.5 if fine else 0.95), rel_tol=1e-5 if fine else 0.0)
     if fine:
         prob, st = _refine(prob, st, 1.0 / knot_rate_hz)
         st, it2, converged, H = _solve(prob, st, max_iterations, step, (0.5, 0.95))
@@ -426,11 +436,14 @@ def _refine(prob: Problem, st: State, dt: float) -> tuple[Problem, State]:
     pieces, Rs, Ps = [], [], []
     off = 0
     keep = np.zeros(prob.imu_t_s.size, bool)
-    for t0, n_seg, _ in prob.pieces:
+    for t0, n_seg, off_old in prob.pieces:
         t1 = t0 + n_seg * prob.dt_s
         n2 = max(1, math.floor((t1 - t0) / dt + 1e-9))
-        tau = np.clip(t0 + (np.arange(n2 + 3) - 1) * dt, t0, t1)
-        base, u, _ = prob.locate(tau)
+        # control point k sits near t0 + (k - 1) dt; the first and last lie just outside the
+        # piece, where the end segments' polynomials are extended (no clamping: that would kink it)
+        x = (t0 + (np.arange(n2 + 3) - 1) * dt - t0) / prob.dt_s
+        i = np.clip(np.floor(x).astype(np.int64), 0, n_seg - 1)
+        base, u = off_old + i, x - i
         R, _ = rotation(st.R_ctrl[base[:, None] + np.arange(4)], u, prob.dt_s, angular_velocity=False)
         p, _, _ = position(st.P_ctrl[base[:, None] + np.arange(4)], u, prob.dt_s)
         Rs.append(R)
