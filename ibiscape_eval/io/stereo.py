@@ -1,0 +1,202 @@
+"""Camera streams and camera calibration files read by the stereo-VIO baseline.
+
+- Frame lists: IBISCape ``<camera>/timestamps.csv`` and EuRoC ``mav0/cam0/data.csv`` share the
+  layout ``#timestamp [ns],filename`` (:func:`read_frame_list`); stamps must increase strictly.
+- IMU samples with their stamps (:func:`read_imu_samples`): the EuRoC/IBISCape csv, converted
+  from CARLA's left-handed frame for ``fmt="ibiscape"``.
+- Images: :func:`read_gray_image` (8-bit grey, any format OpenCV reads; colour is converted).
+- Kalibr ``camchain-imucam.yaml`` (:func:`read_kalibr_camchain`): ``cam0``, ``cam1``, ... with
+  intrinsics, distortion, resolution, ``T_cam_imu`` and ``T_cn_cnm1``.
+- EuRoC ``sensor.yaml`` (:func:`read_euroc_sensor_yaml`): ``T_BS`` as ``{rows, cols, data}``,
+  camera intrinsics or IMU noise densities.
+
+Every reader uses ``yaml.safe_load`` and raises :class:`FormatError` naming the file (and line).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ibiscape_eval.core.errors import FormatError
+
+__all__ = ["read_euroc_sensor_yaml", "read_frame_list", "read_gray_image", "read_imu_samples",
+           "read_kalibr_camchain"]
+
+
+def read_frame_list(path: str | os.PathLike[str]) -> tuple[npt.NDArray[np.int64], list[str]]:
+    """Read ``#timestamp [ns],filename`` rows.
+
+    Returns
+    -------
+    stamps_ns : ndarray, shape (N,), int64
+    names : list of str
+        File names relative to the folder of the images (``frames/`` or ``data/``).
+
+    Raises
+    ------
+    FormatError
+        A row without two fields, a stamp that is not an integer, stamps that do not increase
+        strictly, or no rows at all (naming the line).
+    """
+    stamps: list[int] = []
+    names: list[str] = []
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        for no, line in enumerate(fh, start=1):
+            s = line.strip()
+            if not s or s.startswith("#"):
+                continue
+            parts = [p.strip() for p in s.split(",")]
+            if len(parts) < 2 or not parts[1]:
+                raise FormatError(path, "expected '<timestamp [ns]>,<filename>'", line=no)
+            try:
+                t = int(parts[0]) if "." not in parts[0] else round(float(parts[0]))
+            except ValueError:
+                raise FormatError(path, f"timestamp {parts[0]!r} is not an integer (ns)",
+                                  line=no) from None
+            if stamps and t <= stamps[-1]:
+                raise FormatError(path, f"timestamps must increase strictly: {t} ns follows "
+                                  f"{stamps[-1]} ns; sort the file or remove duplicates", line=no)
+            stamps.append(t)
+            names.append(parts[1])
+    if not stamps:
+        raise FormatError(path, "no frames listed")
+    return np.asarray(stamps, dtype=np.int64), names
+
+
+def read_imu_samples(path: str | os.PathLike[str], *, fmt: str = "euroc"
+                     ) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """Timestamped IMU samples of an EuRoC/IBISCape csv (``#timestamp [ns], w_xyz, a_xyz``).
+
+    Parameters
+    ----------
+    fmt : {"euroc", "ibiscape"}
+        ``"ibiscape"``: CARLA's left-handed frame, converted to ours
+        (:func:`ibiscape_eval.io.imu.mirror_ibiscape_imu`).
+
+    Returns
+    -------
+    stamps_ns (N,) int64, gyro_rad_s (N, 3), accel_m_s2 (N, 3)
+
+    Raises
+    ------
+    FormatError
+        Fewer than 7 columns, non-numeric values, stamps that do not increase strictly (naming
+        the line), fewer than 2 samples.
+    """
+    import pandas as pd
+
+    from .imu import mirror_ibiscape_imu
+
+    try:
+        df = pd.read_csv(path, header=None, comment="#", skip_blank_lines=True,
+                         dtype=str, engine="c")
+    except pd.errors.EmptyDataError:
+        raise FormatError(path, "no IMU samples") from None
+    if df.shape[1] < 7:
+        raise FormatError(path, f"expected 7 columns (t [ns], w_x, w_y, w_z, a_x, a_y, a_z), "
+                          f"got {df.shape[1]}")
+    first = _first_data_line(path)
+    try:
+        stamps = df.iloc[:, 0].str.strip().astype(np.int64).to_numpy()
+    except ValueError:
+        bad = int(np.flatnonzero(~df.iloc[:, 0].str.strip().str.fullmatch(r"\d+"))[0])
+        raise FormatError(path, "timestamp is not an integer (ns)", line=first + bad) from None
+    vals = df.iloc[:, 1:7].apply(pd.to_numeric, errors="coerce").to_numpy(dtype=np.float64)
+    if not np.isfinite(vals).all():
+        bad = int(np.flatnonzero(~np.isfinite(vals).all(axis=1))[0])
+        raise FormatError(path, "non-numeric IMU value", line=first + bad)
+    if len(stamps) < 2:
+        raise FormatError(path, "fewer than 2 IMU samples")
+    dec = np.flatnonzero(np.diff(stamps) <= 0)
+    if dec.size:
+        i = int(dec[0]) + 1
+        raise FormatError(path, f"timestamps must increase strictly: {stamps[i]} ns follows "
+                          f"{stamps[i - 1]} ns", line=first + i)
+    gyro, acc = vals[:, :3], vals[:, 3:]
+    if fmt == "ibiscape":
+        gyro, acc = mirror_ibiscape_imu(gyro, acc)
+    return (np.asarray(stamps, dtype=np.int64), np.ascontiguousarray(gyro, dtype=np.float64),
+            np.ascontiguousarray(acc, dtype=np.float64))
+
+
+def _first_data_line(path: str | os.PathLike[str]) -> int:
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        for no, line in enumerate(fh, start=1):
+            if line.strip() and not line.lstrip().startswith("#"):
+                return no
+    return 1
+
+
+def read_gray_image(path: str | os.PathLike[str]) -> npt.NDArray[np.uint8]:
+    """An 8-bit grey image ``(H, W)`` (colour images are converted with OpenCV's weights)."""
+    import cv2
+
+    p = Path(path)
+    if not p.is_file():
+        raise FormatError(p, "image file is missing; check the frame list")
+    img = cv2.imread(str(p), cv2.IMREAD_GRAYSCALE)
+    if img is None:
+        raise FormatError(p, "not an image OpenCV can read")
+    if img.dtype != np.uint8:
+        img = cv2.convertScaleAbs(img, alpha=255.0 / max(float(img.max()), 1.0))
+    return np.asarray(img, dtype=np.uint8)
+
+
+def _yaml(path: str | os.PathLike[str]) -> dict[str, Any]:
+    import yaml
+
+    try:
+        with open(path, encoding="utf-8") as fh:
+            doc = yaml.safe_load(fh)
+    except yaml.YAMLError as e:
+        raise FormatError(path, f"not valid YAML ({' '.join(str(e).split())})") from None
+    if not isinstance(doc, dict):
+        raise FormatError(path, "expected a mapping at the top level")
+    return doc
+
+
+def _matrix(path: str | os.PathLike[str], value: Any, key: str) -> npt.NDArray[np.float64]:
+    if isinstance(value, dict) and "data" in value:  # EuRoC / OpenCV {rows, cols, data}
+        value = np.asarray(value["data"], dtype=object).reshape(-1)
+    try:
+        T = np.asarray(value, dtype=np.float64).reshape(4, 4)
+    except (TypeError, ValueError):
+        raise FormatError(path, f"{key} must be a 4x4 matrix (16 numbers)") from None
+    if not np.isfinite(T).all() or not np.allclose(T[3], [0, 0, 0, 1]):
+        raise FormatError(path, f"{key} must be a finite homogeneous 4x4 matrix")
+    return T
+
+
+def read_kalibr_camchain(path: str | os.PathLike[str]) -> dict[str, dict[str, Any]]:
+    """Read a Kalibr ``camchain(-imucam).yaml``: ``{"cam0": {...}, "cam1": {...}}`` with the
+    4x4 transforms (``T_cam_imu``, ``T_cn_cnm1``) as arrays."""
+    doc = _yaml(path)
+    cams = {k: v for k, v in doc.items() if str(k).startswith("cam") and isinstance(v, dict)}
+    if not cams:
+        raise FormatError(path, "no cam0/cam1 entries (Kalibr camchain format expected)")
+    out: dict[str, dict[str, Any]] = {}
+    for name in sorted(cams):
+        entry = dict(cams[name])
+        for key in ("intrinsics", "resolution"):
+            if key not in entry:
+                raise FormatError(path, f"{name} lacks the key {key!r}")
+        for key in ("T_cam_imu", "T_cn_cnm1"):
+            if key in entry:
+                entry[key] = _matrix(path, entry[key], f"{name}.{key}")
+        out[str(name)] = entry
+    return out
+
+
+def read_euroc_sensor_yaml(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """Read an EuRoC ``sensor.yaml`` (``T_BS`` becomes a 4x4 array)."""
+    doc = _yaml(path)
+    if "T_BS" not in doc:
+        raise FormatError(path, "missing the key T_BS (EuRoC sensor.yaml expected)")
+    doc = dict(doc)
+    doc["T_BS"] = _matrix(path, doc["T_BS"], "T_BS")
+    return doc

@@ -1,0 +1,376 @@
+"""From stereo observations and IMU samples to a pose per frame: initialisation, keyframe
+selection, the smoother, tracking failures and re-initialisation.
+
+The same estimator serves the image pipeline (:mod:`ibiscape_eval.vio.pipeline`) and synthetic
+measurements (:mod:`ibiscape_eval.vio.synthetic`), so the back end is tested without images.
+
+Frames between keyframes get the IMU prediction from their keyframe: the preintegrated
+``(Delta R, Delta p, Delta v)`` of each frame is stored and composed, at the end, with the
+keyframe's smoothed state (its last estimate before it left the window):
+``R_f = R_k Delta R``, ``p_f = p_k + v_k dt + g dt^2 / 2 + R_k Delta p``.
+
+Tracking failure: a keyframe with fewer than ``min_tracked`` landmark observations.  The state
+then continues on the IMU factors; after ``max_imu_only_s`` without vision the following frames
+are *lost* (not written) until the stereo odometry re-initialises velocity and gravity, and the
+estimate resumes from the last pose held (position and yaw kept).  Every span is reported.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ibiscape_eval.core.trajectory import Trajectory
+
+from .backend import GRAVITY_M_S2, Backend, StereoObservations, integrate_imu
+from .initialise import InitialState, initialise_moving, initialise_standstill
+from .params import ImuNoiseDensities, VioParams
+from .rig import RectifiedStereo
+
+__all__ = ["Estimator", "FailureSpan"]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class FailureSpan:
+    """A time span in which vision did not constrain the estimate.
+
+    ``kind``: ``"tracking"`` (IMU only, estimate written), ``"lost"`` (beyond the IMU-only bound
+    or before initialisation: no estimate written), ``"reset"`` (the smoother failed numerically
+    and was restarted from its last state), ``"diverged"`` (an implausible state: speed, biases;
+    the estimate stops there and re-initialises like after a lost span).
+    """
+
+    kind: str
+    start_ns: int
+    end_ns: int
+
+    @property
+    def duration_s(self) -> float:
+        return (self.end_ns - self.start_ns) * 1e-9
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": self.kind, "start_ns": self.start_ns, "end_ns": self.end_ns,
+                "duration_s": self.duration_s}
+
+
+@dataclass
+class _FrameRecord:
+    stamp_ns: int
+    kf: int            # keyframe index the frame is predicted from (-1: no estimate)
+    dR: FloatArray
+    dp: FloatArray
+    dv: FloatArray
+    dt_s: float
+    n_obs: int
+    pose: FloatArray | None = None  # fixed pose (moving initialisation)
+
+
+class Estimator:
+    """Feed :meth:`process` one :class:`StereoObservations` per frame in time order, then call
+    :meth:`trajectory`.
+
+    Parameters
+    ----------
+    rect : RectifiedStereo
+    imu : (stamps_ns (N,), gyro_rad_s (N, 3), accel_m_s2 (N, 3))
+        Body-frame IMU samples covering the frames.
+    noise : ImuNoiseDensities
+    params : VioParams
+    T_body_imu : (4, 4), optional
+        Pose of the IMU in the body frame (identity for IMU0).
+    """
+
+    def __init__(self, rect: RectifiedStereo, imu: tuple[npt.NDArray[np.int64], FloatArray, FloatArray],
+                 noise: ImuNoiseDensities, params: VioParams, T_body_imu: FloatArray | None = None):
+        self.rect = rect
+        self.imu = imu
+        self.params = params
+        self.T_body_imu = T_body_imu
+        self.backend = Backend(rect, noise, params, T_body_imu)
+        self.frames: list[_FrameRecord] = []
+        self.failures: list[FailureSpan] = []
+        self.initialised = False
+        self.init_method = ""
+        self.n_keyframes = 0
+        self._buffer: list[tuple[int, StereoObservations]] = []
+        self._pim: Any = None
+        self._kf_obs: StereoObservations | None = None
+        self._kf_t = 0
+        self._fail_start: int | None = None     # first failing keyframe stamp of this span
+        self._lost_start: int | None = None
+        self._last_pose: FloatArray | None = None  # latest pose estimate (for re-initialisation)
+        self._prev_t: int | None = None
+        self.last_error = ""
+
+    # ------------------------------------------------------------------------------ frames
+    def gyro_rotation(self, t0_ns: int, t1_ns: int) -> FloatArray:
+        """``R_b0_b1`` from the gyro (bias-corrected with the latest estimate) between two stamps;
+        the front end's rotation prior for KLT."""
+        stamps, gyro, _ = self.imu
+        sel = (stamps >= t0_ns) & (stamps < t1_ns)
+        w = gyro[sel]
+        if self.initialised and self.backend.k >= 0:
+            w = w - self.backend.latest().bias_gyro_rad_s
+        if self.T_body_imu is not None:
+            w = w @ self.T_body_imu[:3, :3].T
+        from scipy.spatial.transform import Rotation
+
+        dt = np.diff(np.concatenate((stamps[sel], [t1_ns]))) * 1e-9
+        rv = (w * dt[:, None]).sum(axis=0) if len(w) else np.zeros(3)
+        return np.asarray(Rotation.from_rotvec(rv).as_matrix())
+
+    def process(self, obs: StereoObservations) -> None:
+        """Consume the observations of the next frame."""
+        t = int(obs.stamp_ns)
+        if self._prev_t is not None and t <= self._prev_t:
+            from ibiscape_eval.core.errors import FormatError
+
+            raise FormatError(None, f"camera stamps must increase: frame {t} ns follows "
+                              f"{self._prev_t} ns; check the timestamps.csv files")
+        self._prev_t = t
+        idx = len(self.frames)
+        if not self.initialised:
+            self._try_initialise(idx, obs)
+            return
+        if self._lost_start is not None:
+            self._frame_t = t
+            self._lost_frame(idx, obs)
+            return
+        integrate_imu(self._pim, *self.imu, self._frame_t, t)
+        self._frame_t = t
+        dt = (t - self._kf_t) * 1e-9
+        if self._is_keyframe(obs, dt):
+            self._add_keyframe(idx, obs)
+        else:
+            self._record(t, len(obs))
+
+    # ------------------------------------------------------------------------------ steps
+    def _record(self, t: int, n_obs: int) -> None:
+        if self._lost_start is not None:
+            self.frames.append(_FrameRecord(t, -1, np.eye(3), np.zeros(3), np.zeros(3), 0.0, n_obs))
+            return
+        self.frames.append(_FrameRecord(t, self.backend.k, np.asarray(self._pim.deltaRij().matrix()),
+                                        np.asarray(self._pim.deltaPij()),
+                                        np.asarray(self._pim.deltaVij()), self._pim.deltaTij(),
+                                        n_obs))
+
+    def _is_keyframe(self, obs: StereoObservations, dt_s: float) -> bool:
+        p = self.params
+        if dt_s >= p.kf_max_dt_s:
+            return True
+        ref = self._kf_obs
+        if ref is None or len(ref) == 0:
+            return len(obs) >= p.min_tracked and dt_s >= p.kf_max_dt_s / 3
+        common, i0, i1 = np.intersect1d(ref.ids, obs.ids, return_indices=True)
+        if len(common) < p.kf_track_ratio * len(ref):
+            return True
+        if len(common) == 0:
+            return False
+        par = np.hypot(obs.uL[i1] - ref.uL[i0], obs.v[i1] - ref.v[i0])
+        return bool(np.median(par) >= p.kf_parallax_px * p.scale_px(self.rect.width_px))
+
+    def _add_keyframe(self, idx: int, obs: StereoObservations) -> None:
+        t = obs.stamp_ns
+        p = self.params
+        b = self.backend
+        before = {k: b.states[k] for k in b.kf_t if k in b.states}
+        try:
+            used = self.backend.add_keyframe(t, self._pim, obs)
+        except RuntimeError as exc:
+            # numerical failure inside the smoother: restart it from the last good state
+            self.last_error = str(exc).strip().splitlines()[0] if str(exc).strip() else "?"
+            used = 0
+            self._restart_backend(t)
+            self.failures.append(FailureSpan("reset", t, t))
+        self.n_keyframes += 1
+        if not self._plausible(self.backend.latest()):
+            # never diverge silently: keep the window's estimates from before this update, report
+            # the divergence and re-initialise like after a lost span
+            b.states.pop(b.k, None)
+            b.states.update(before)
+            self.failures.append(FailureSpan("diverged", t, t))
+            if self._fail_start is not None:
+                self._close_failure(t, "tracking")
+            self._lost_start = t
+            self._buffer = []
+            self._record(t, len(obs))
+            return
+        self._kf_obs = obs
+        self._kf_t = t
+        self._pim = self.backend.preintegration()
+        self._last_pose = self.backend.latest().T_world_body
+        self.frames.append(_FrameRecord(t, self.backend.k, np.eye(3), np.zeros(3), np.zeros(3),
+                                        0.0, len(obs)))
+        if used < p.min_tracked:
+            if self._fail_start is None:
+                self._fail_start = t
+            elif (t - self._fail_start) * 1e-9 > p.max_imu_only_s:
+                self._close_failure(t, "tracking")
+                self._lost_start = t
+                self._buffer = []
+        elif self._fail_start is not None:
+            self._close_failure(t, "tracking")
+
+    @staticmethod
+    def _plausible(st: Any) -> bool:
+        """A state a road vehicle can have: speed below 70 m/s, IMU biases below 1 m/s^2 and
+        0.2 rad/s, finite pose."""
+        return bool(np.isfinite(st.T_world_body).all() and np.linalg.norm(st.vel_m_s) < 70.0
+                    and np.linalg.norm(st.bias_acc_m_s2) < 1.0
+                    and np.linalg.norm(st.bias_gyro_rad_s) < 0.2)
+
+    def _close_failure(self, t: int, kind: str) -> None:
+        assert self._fail_start is not None
+        self.failures.append(FailureSpan(kind, self._fail_start, t))
+        self._fail_start = None
+
+    def _restart_backend(self, t: int) -> None:
+        st = self.backend.latest()
+        self.backend.start(t, st.T_world_body, st.vel_m_s, bias_acc_m_s2=st.bias_acc_m_s2,
+                           bias_gyro_rad_s=st.bias_gyro_rad_s, sigma_vel_m_s=0.5,
+                           index=self.backend.k + 1)
+        self.backend.resets += 1
+
+    # ------------------------------------------------------------------------------ initialisation
+    def _start(self, st: InitialState) -> None:
+        sig_v = 0.01 if st.method == "standstill" else 0.2
+        sig_bg = 1e-3 if st.method == "standstill" else 5e-3
+        self.backend.start(st.stamp_ns, st.T_world_body, st.vel_m_s, bias_gyro_rad_s=st.bias_gyro_rad_s,
+                           sigma_vel_m_s=sig_v, sigma_bias_gyro_rad_s=sig_bg,
+                           sigma_rot_rad=1e-3 if st.method == "standstill" else 0.02,
+                           index=self.backend.k + 1)
+        self.initialised = True
+        self.init_method = self.init_method or st.method
+        self._pim = self.backend.preintegration()
+        self._kf_t = st.stamp_ns
+        self._frame_t = st.stamp_ns
+        self.n_keyframes += 1
+
+    def _try_initialise(self, idx: int, obs: StereoObservations) -> None:
+        """Buffer frames until a standstill (quiet IMU and still image) or the moving
+        initialisation succeeds; the buffered frames get poses from it."""
+        p = self.params
+        self._buffer.append((idx, obs))
+        self.frames.append(_FrameRecord(obs.stamp_ns, -1, np.eye(3), np.zeros(3), np.zeros(3),
+                                        0.0, len(obs)))
+        first_idx, first = self._buffer[0]
+        st: InitialState | None = None
+        if (obs.stamp_ns - first.stamp_ns) * 1e-9 >= p.still_window_s:
+            R_bi = None if self.T_body_imu is None else self.T_body_imu[:3, :3]
+            still = initialise_standstill(*self.imu, first.stamp_ns, p, R_bi)
+            if still is not None and self._image_still(first, obs):
+                T = still.T_world_body
+                st = InitialState(idx, obs.stamp_ns, T, still.vel_m_s, still.bias_gyro_rad_s,
+                                  "standstill", {i: T for i, _ in self._buffer[:-1]})
+        if st is None and len(self._buffer) >= p.init_frames:
+            st = initialise_moving([o for _, o in self._buffer], first_idx, self.rect, self.imu,
+                                   self.backend.imu_params, p)
+            if st is None:
+                self._buffer.pop(0)
+        if st is None:
+            return
+        self._start(st)
+        for i, T in st.frame_poses.items():
+            self.frames[i].pose = T
+        self.frames[idx].kf = self.backend.k
+        self._kf_obs = obs
+        self.backend.seed(obs)
+        self._buffer = []
+        self._last_pose = st.T_world_body
+        if first_idx > 0:
+            self.failures.append(FailureSpan("lost", self.frames[0].stamp_ns,
+                                             self.frames[first_idx].stamp_ns))
+
+    def _image_still(self, a: StereoObservations, b: StereoObservations) -> bool:
+        """No feature moved between ``a`` and ``b`` (True when too few are shared to tell)."""
+        common, i0, i1 = np.intersect1d(a.ids, b.ids, return_indices=True)
+        if len(common) < self.params.min_tracked:
+            return True
+        d = np.hypot(b.uL[i1] - a.uL[i0], b.v[i1] - a.v[i0])
+        return bool(np.median(d) < 1.5 * self.params.scale_px(self.rect.width_px))
+
+    def _lost_frame(self, idx: int, obs: StereoObservations) -> None:
+        """After a lost span: buffer tracked frames, run the moving initialisation on them and
+        resume from the last held position and heading."""
+        p = self.params
+        self._record(obs.stamp_ns, len(obs))
+        if len(obs) < p.min_tracked:
+            self._buffer = []
+            return
+        self._buffer.append((idx, obs))
+        if len(self._buffer) < p.init_frames:
+            return
+        first = self._buffer[0][0]
+        st = initialise_moving([o for _, o in self._buffer], first, self.rect, self.imu,
+                               self.backend.imu_params, p)
+        if st is None:
+            self._buffer.pop(0)
+            return
+        # keep the last held position and heading: rotate the new start about z onto it
+        assert self._last_pose is not None
+        yaw_old = np.arctan2(self._last_pose[1, 0], self._last_pose[0, 0])
+        first_pose = st.frame_poses.get(first, st.T_world_body)
+        yaw_new = np.arctan2(first_pose[1, 0], first_pose[0, 0])
+        c, s = np.cos(yaw_old - yaw_new), np.sin(yaw_old - yaw_new)
+        G = np.eye(4)
+        G[:2, :2] = [[c, -s], [s, c]]
+        G[:3, 3] = self._last_pose[:3, 3] - (G[:3, :3] @ first_pose[:3, 3])
+        moved = InitialState(st.index, st.stamp_ns, G @ st.T_world_body, G[:3, :3] @ st.vel_m_s,
+                             st.bias_gyro_rad_s, "moving", {i: G @ T for i, T in st.frame_poses.items()})
+        assert self._lost_start is not None
+        self.failures.append(FailureSpan("lost", self._lost_start, self.frames[first].stamp_ns))
+        self._lost_start = None
+        self._start(moved)
+        for i, T in moved.frame_poses.items():
+            self.frames[i].pose = T
+            self.frames[i].kf = -1
+        self.frames[idx].kf = self.backend.k
+        self.frames[idx].pose = None
+        self.frames[idx].dR, self.frames[idx].dp = np.eye(3), np.zeros(3)
+        self.frames[idx].dv, self.frames[idx].dt_s = np.zeros(3), 0.0
+        self._kf_obs = obs
+        self.backend.seed(obs)
+        self._buffer = []
+        self._last_pose = moved.T_world_body
+
+    # ------------------------------------------------------------------------------ output
+    def finish(self) -> None:
+        """Close open failure spans (call once after the last frame)."""
+        if not self.frames:
+            return
+        t_end = self.frames[-1].stamp_ns
+        if self._fail_start is not None:
+            self._close_failure(t_end, "tracking")
+        if self._lost_start is not None:
+            self.failures.append(FailureSpan("lost", self._lost_start, t_end))
+            self._lost_start = None
+        if not self.initialised:
+            self.failures.append(FailureSpan("lost", self.frames[0].stamp_ns, t_end))
+
+    def trajectory(self, name: str = "vio") -> Trajectory:
+        """``T_world_body`` at every frame that has an estimate."""
+        states = self.backend.states
+        g = np.array([0.0, 0.0, -GRAVITY_M_S2])
+        stamps, poses = [], []
+        for fr in self.frames:
+            if fr.pose is not None:
+                T = fr.pose
+            elif fr.kf >= 0 and fr.kf in states:
+                st = states[fr.kf]
+                R, p, v = st.T_world_body[:3, :3], st.T_world_body[:3, 3], st.vel_m_s
+                T = np.eye(4)
+                T[:3, :3] = R @ fr.dR
+                T[:3, 3] = p + v * fr.dt_s + 0.5 * g * fr.dt_s ** 2 + R @ fr.dp
+            else:
+                continue
+            stamps.append(fr.stamp_ns)
+            poses.append(T)
+        if not poses:
+            return Trajectory(np.zeros(0, dtype=np.int64), np.zeros((0, 3)),
+                              np.zeros((0, 4)), name)
+        return Trajectory.from_matrices(np.asarray(stamps, dtype=np.int64), np.stack(poses), name)

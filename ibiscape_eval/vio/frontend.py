@@ -1,0 +1,199 @@
+"""OpenCV front end: corners on a grid, KLT tracking with a gyro prior, stereo matching.
+
+Per frame (grey 8-bit images of the raw, unrectified cameras):
+
+1. **Temporal tracking** of the previous left corners with pyramidal Lucas-Kanade
+   (``calcOpticalFlowPyrLK``), started at the position predicted by the gyro rotation between the
+   frames (the infinite-depth homography ``K R_c2c1 K^-1``), kept when tracking back lands within
+   ``fb_max_px`` of the start (forward-backward check, Kalal et al. 2010) and when they are inliers
+   of a RANSAC fundamental matrix on rectified coordinates.
+2. **Detection** of new Shi-Tomasi corners (``goodFeaturesToTrack``) away from the tracked ones,
+   at most ``ceil(max_features / grid^2)`` per grid cell so that they cover the image.
+3. **Stereo matching** of every left corner in the right image with KLT (started at the previous
+   disparity), checked backwards and by the epipolar constraint of the rectified pair
+   (``|v_L - v_R| <= epipolar_max_px``, positive disparity).
+
+The output is :class:`~ibiscape_eval.vio.backend.StereoObservations` in rectified coordinates.
+Pixel thresholds scale with the image width (given for 512 px).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from .backend import StereoObservations
+from .params import VioParams
+from .rig import StereoRig
+
+__all__ = ["StereoFrontEnd"]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+class StereoFrontEnd:
+    """Stateful tracker over a stereo image stream (see the module docstring)."""
+
+    def __init__(self, rig: StereoRig, params: VioParams):
+        self.rig = rig
+        self.params = params
+        self.rect = rig.rectified()
+        s = params.scale_px(rig.size[0])
+        self.fb_px = params.fb_max_px * max(s, 0.5)
+        self.epi_px = params.epipolar_max_px * max(s, 0.5)
+        self.ransac_px = params.ransac_px * max(s, 0.5)
+        self.min_dist = max(params.min_distance_px * s, 3.0)
+        win = max(round(params.klt_window_px * math.sqrt(s)) | 1, 7)
+        self.win = (win, win)
+        self.levels = params.klt_levels
+        self.R_bc = rig.T_body_left[:3, :3]
+        self.K = rig.left.K
+        self.Kinv = np.linalg.inv(self.K)
+        self._prev_pyr: Any = None
+        self.pts = np.zeros((0, 2), dtype=np.float32)   # left corners of the previous frame
+        self.ids = np.zeros(0, dtype=np.int64)
+        self.disp = np.zeros(0, dtype=np.float32)        # last raw disparity guess per corner
+        self._next_id = 0
+
+    def _pyramid(self, img: npt.NDArray[np.uint8]) -> Any:
+        # OpenCV 5's Python binding no longer accepts the list of buildOpticalFlowPyramid as an
+        # image argument of calcOpticalFlowPyrLK: the pyramid is rebuilt inside each call
+        return np.ascontiguousarray(img)
+
+    def _lk(self, pyr0: Any, pyr1: Any, p0: npt.NDArray[np.float32],
+            guess: npt.NDArray[np.float32]) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.bool_]]:
+        """KLT from ``p0`` in image 0 to image 1 with a start guess, plus the backward check."""
+        import cv2
+
+        crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01)
+        p1, st, _ = cv2.calcOpticalFlowPyrLK(pyr0, pyr1, p0.reshape(-1, 1, 2),
+                                             guess.reshape(-1, 1, 2).copy(), winSize=self.win,
+                                             maxLevel=self.levels, criteria=crit,
+                                             flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
+        pb, stb, _ = cv2.calcOpticalFlowPyrLK(pyr1, pyr0, p1, p0.reshape(-1, 1, 2).copy(),
+                                              winSize=self.win, maxLevel=self.levels,
+                                              criteria=crit, flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
+        p1 = p1.reshape(-1, 2)
+        fb = np.linalg.norm(pb.reshape(-1, 2) - p0.reshape(-1, 2), axis=1)
+        w, h = self.rig.size
+        ok = (st.ravel() == 1) & (stb.ravel() == 1) & (fb < self.fb_px)
+        ok &= (p1[:, 0] >= 0) & (p1[:, 0] <= w - 1) & (p1[:, 1] >= 0) & (p1[:, 1] <= h - 1)
+        return p1.astype(np.float32), ok
+
+    def _predict(self, R_b0_b1: FloatArray | None) -> npt.NDArray[np.float32]:
+        if R_b0_b1 is None or len(self.pts) == 0:
+            return self.pts.copy()
+        R_c1c0 = self.R_bc.T @ R_b0_b1.T @ self.R_bc
+        H = self.K @ R_c1c0 @ self.Kinv
+        ph = np.column_stack([self.pts, np.ones(len(self.pts))]) @ H.T
+        with np.errstate(divide="ignore", invalid="ignore"):
+            pred = ph[:, :2] / ph[:, 2:3]
+        bad = ~np.isfinite(pred).all(axis=1) | (ph[:, 2] <= 0)
+        pred[bad] = self.pts[bad]
+        return pred.astype(np.float32)
+
+    def _ransac(self, p0: npt.NDArray[np.float32], p1: npt.NDArray[np.float32]) -> npt.NDArray[np.bool_]:
+        import cv2
+
+        keep = np.ones(len(p0), dtype=bool)
+        if len(p0) < 12:
+            return keep
+        r0 = self.rig.rectify_points(p0, "left")
+        r1 = self.rig.rectify_points(p1, "left")
+        if np.median(np.linalg.norm(r1 - r0, axis=1)) < 1.0:
+            return keep  # too little motion for a fundamental matrix; the back end's Huber copes
+        F, mask = cv2.findFundamentalMat(r0, r1, cv2.FM_RANSAC, self.ransac_px, 0.999)
+        if F is None or mask is None:
+            return keep
+        return np.asarray(mask.ravel() == 1)
+
+    def _detect(self, img: npt.NDArray[np.uint8], pts: npt.NDArray[np.float32]
+                ) -> npt.NDArray[np.float32]:
+        import cv2
+
+        p = self.params
+        need = p.max_features - len(pts)
+        if need <= 0:
+            return np.zeros((0, 2), dtype=np.float32)
+        h, w = img.shape
+        mask = np.full((h, w), 255, dtype=np.uint8)
+        r = round(self.min_dist)
+        for x, y in np.round(pts).astype(int):  # a disc per tracked corner (few hundred)
+            cv2.circle(mask, (int(x), int(y)), r, 0, -1)
+        border = max(self.win[0] // 2, 4)
+        mask[:border], mask[-border:], mask[:, :border], mask[:, -border:] = 0, 0, 0, 0
+        corners = cv2.goodFeaturesToTrack(img, maxCorners=2 * need + p.grid * p.grid,
+                                          qualityLevel=0.01, minDistance=self.min_dist,
+                                          mask=mask, blockSize=5)
+        if corners is None:
+            return np.zeros((0, 2), dtype=np.float32)
+        c = corners.reshape(-1, 2)
+        g = p.grid
+        cap = math.ceil(p.max_features / (g * g))
+
+        def cell(q: np.ndarray) -> np.ndarray:
+            return (np.minimum((q[:, 1] * g / h).astype(int), g - 1) * g
+                    + np.minimum((q[:, 0] * g / w).astype(int), g - 1))
+
+        have = np.bincount(cell(pts), minlength=g * g) if len(pts) else np.zeros(g * g, int)
+        cc = cell(c)
+        order = np.argsort(cc, kind="stable")          # quality order kept inside a cell
+        sc = cc[order]
+        first = np.searchsorted(sc, sc, side="left")
+        rank = np.empty(len(c), dtype=int)
+        rank[order] = np.arange(len(c)) - first
+        keep = rank < (cap - have[cc])
+        out = c[keep][:need]
+        return out.astype(np.float32)
+
+    def process(self, stamp_ns: int, left: npt.NDArray[np.uint8], right: npt.NDArray[np.uint8],
+                R_b0_b1: FloatArray | None = None) -> StereoObservations:
+        """Track into a new stereo pair; ``R_b0_b1`` is the body rotation since the previous
+        frame (from the gyro), used as the KLT start.  Returns the rectified stereo matches."""
+        pyr_l = self._pyramid(left)
+        pyr_r = self._pyramid(right)
+        if self._prev_pyr is not None and len(self.pts):
+            p1, ok = self._lk(self._prev_pyr, pyr_l, self.pts, self._predict(R_b0_b1))
+            idx = np.flatnonzero(ok)
+            inl = self._ransac(self.pts[idx], p1[idx])
+            idx = idx[inl]
+            pts, ids, disp = p1[idx], self.ids[idx], self.disp[idx]
+        else:
+            pts = np.zeros((0, 2), dtype=np.float32)
+            ids = np.zeros(0, dtype=np.int64)
+            disp = np.zeros(0, dtype=np.float32)
+        # new corners only when the tracks have thinned out (detection is the costliest step)
+        if len(pts) < 0.7 * self.params.max_features:
+            new = self._detect(left, pts)
+        else:
+            new = np.zeros((0, 2), dtype=np.float32)
+        if len(new):
+            pts = np.concatenate([pts, new])
+            ids = np.concatenate([ids, np.arange(self._next_id, self._next_id + len(new))])
+            self._next_id += len(new)
+            fill = float(np.median(disp)) if len(disp) else 0.0
+            disp = np.concatenate([disp, np.full(len(new), fill, dtype=np.float32)])
+        self.pts, self.ids, self.disp = pts, ids, disp
+        self._prev_pyr = pyr_l
+        if len(pts) == 0:
+            return StereoObservations.empty(stamp_ns)
+        # stereo: left -> right, started at the last disparity
+        guess = pts.copy()
+        guess[:, 0] -= disp
+        pr, ok = self._lk(pyr_l, pyr_r, pts, guess)
+        rl = self.rig.rectify_points(pts, "left")
+        rr = self.rig.rectify_points(pr, "right")
+        d = rl[:, 0] - rr[:, 0]
+        ok &= (np.abs(rl[:, 1] - rr[:, 1]) <= self.epi_px) & (d > 0.1)
+        self.disp = np.where(ok, pts[:, 0] - pr[:, 0], disp).astype(np.float32)
+        sel = np.flatnonzero(ok)
+        return StereoObservations(int(stamp_ns), ids[sel].astype(np.int64), rl[sel, 0],
+                                  rr[sel, 0], rl[sel, 1])
+
+    @property
+    def n_tracked(self) -> int:
+        """Corners held in the left image."""
+        return len(self.pts)

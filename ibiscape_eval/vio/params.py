@@ -1,0 +1,125 @@
+"""Options of the stereo-VIO baseline (front end, back end, initialisation, robustness).
+
+Pixel thresholds are given for a 512 px wide image and scaled with the image width, so the same
+defaults serve 256 px test images and 1024 px full-size frames.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+from ibiscape_eval.core.errors import IbiscapeError
+
+__all__ = ["ImuNoiseDensities", "VioParams"]
+
+
+@dataclass(frozen=True)
+class ImuNoiseDensities:
+    """Continuous-time IMU noise (Kalibr's ``imu.yaml`` keys), with the sample rate.
+
+    Attributes
+    ----------
+    gyro_noise_density_rad_s_sqrt_hz, gyro_random_walk_rad_s2_sqrt_hz
+    accel_noise_density_m_s2_sqrt_hz, accel_random_walk_m_s3_sqrt_hz
+    rate_hz : float
+    """
+
+    gyro_noise_density_rad_s_sqrt_hz: float
+    gyro_random_walk_rad_s2_sqrt_hz: float
+    accel_noise_density_m_s2_sqrt_hz: float
+    accel_random_walk_m_s3_sqrt_hz: float
+    rate_hz: float = 200.0
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if not (isinstance(v, int | float) and v == v and 0.0 < v < 1e6):
+                raise IbiscapeError(f"IMU noise {f.name} = {v!r}: give a positive finite number")
+
+    @classmethod
+    def from_kalibr(cls, doc: dict[str, Any], *, where: str = "imu.yaml") -> ImuNoiseDensities:
+        """From a Kalibr ``imu.yaml`` mapping (or a ``sequence.yaml`` ``imus.<name>`` entry)."""
+        keys = ("gyroscope_noise_density", "gyroscope_random_walk", "accelerometer_noise_density",
+                "accelerometer_random_walk")
+        missing = [k for k in keys if k not in doc]
+        if missing:
+            raise IbiscapeError(f"{where}: missing IMU noise keys {', '.join(missing)}; give "
+                                "--imu imu.yaml (Kalibr format, from `ibiscape-eval allan`)")
+        try:
+            vals = [float(doc[k]) for k in keys]
+            rate = float(doc.get("update_rate", doc.get("rate_hz", 200.0)))
+        except (TypeError, ValueError):
+            raise IbiscapeError(f"{where}: IMU noise values must be numbers") from None
+        # Ideal (noise-free) sequences write zeros: keep GTSAM's information finite with a floor.
+        floor = (1e-5, 1e-6, 1e-4, 1e-5)
+        vals = [max(v, f) for v, f in zip(vals, floor, strict=True)]
+        return cls(vals[0], vals[1], vals[2], vals[3], rate)
+
+
+@dataclass(frozen=True)
+class VioParams:
+    """Every tuning knob of :func:`ibiscape_eval.vio.run_vio`; the defaults are what the
+    benchmarks use.
+
+    Front end
+        ``max_features`` tracked per frame (on a ``grid`` x ``grid`` cell layout),
+        ``min_distance_px`` between them, KLT ``klt_window_px`` / ``klt_levels``,
+        forward-backward check ``fb_max_px``, stereo epipolar check ``epipolar_max_px``,
+        RANSAC threshold ``ransac_px``.
+    Keyframes
+        a new keyframe when the median parallax since the last one exceeds ``kf_parallax_px``,
+        when fewer than ``kf_track_ratio`` of its tracks survive, or after ``kf_max_dt_s``.
+    Back end
+        ``lag_s`` of the fixed-lag smoother, stereo pixel sigma ``pixel_sigma_px`` (Huber),
+        landmarks need ``min_landmark_obs`` keyframe observations and a disparity of at least
+        ``min_disparity_px``; ``imu_noise_scale`` inflates the IMU densities (model mismatch).
+    Initialisation
+        standstill when the first ``still_window_s`` of IMU data are quiet
+        (``still_gyro_rad_s``, ``still_accel_std_m_s2``); otherwise stereo odometry over
+        ``init_frames`` frames aligned with the preintegrated IMU.
+    Robustness
+        a keyframe with fewer than ``min_tracked`` landmark observations is a tracking failure;
+        the estimate continues on the IMU for at most ``max_imu_only_s``; after that the
+        frames are reported lost (not written) until tracking re-initialises.
+    """
+
+    max_features: int = 200
+    grid: int = 8
+    min_distance_px: float = 12.0
+    klt_window_px: int = 21
+    klt_levels: int = 3
+    fb_max_px: float = 1.0
+    epipolar_max_px: float = 1.5
+    ransac_px: float = 1.0
+    kf_parallax_px: float = 12.0
+    kf_track_ratio: float = 0.6
+    kf_max_dt_s: float = 0.3
+    lag_s: float = 3.0
+    pixel_sigma_px: float = 1.0
+    min_landmark_obs: int = 2
+    min_disparity_px: float = 3.0
+    imu_noise_scale: float = 2.0
+    still_window_s: float = 0.4
+    still_gyro_rad_s: float = 0.02
+    still_accel_std_m_s2: float = 0.15
+    init_frames: int = 10
+    min_tracked: int = 12
+    max_imu_only_s: float = 5.0
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if not (v == v and v > 0):
+                raise IbiscapeError(f"vio option {f.name} = {v!r}: give a positive number")
+        if self.grid < 1 or self.min_landmark_obs < 1:
+            raise IbiscapeError("vio options grid and min_landmark_obs must be >= 1")
+
+    def scale_px(self, width_px: int) -> float:
+        """Factor from the 512 px reference to an image ``width_px`` wide."""
+        return float(width_px) / 512.0
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain mapping (JSON)."""
+        return dataclasses.asdict(self)

@@ -1,0 +1,192 @@
+"""Images + IMU -> trajectory: the front end feeds the estimator frame by frame.
+
+    from ibiscape_eval.vio import load_sequence, run_vio
+    result = run_vio(load_sequence("SVI_1_town"))
+    result.trajectory, result.stats.failures, result.stats.realtime_factor
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ibiscape_eval.core.errors import DegenerateInputError
+from ibiscape_eval.core.trajectory import Trajectory
+
+from .estimator import Estimator, FailureSpan
+from .inputs import StereoSequence
+from .params import VioParams
+
+__all__ = ["VioResult", "VioStats", "run_vio"]
+
+#: progress(frames_done, frames_total, speed_up_over_real_time)
+Progress = Callable[[int, int, float], None]
+
+
+def _finite(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
+
+
+@dataclass(frozen=True)
+class VioStats:
+    """Run statistics (the CLI's ``--json``).
+
+    Attributes
+    ----------
+    frames, keyframes, frames_estimated : int
+        Stereo frames read, keyframes optimised, frames with a pose in the output.
+    mean_tracked, min_tracked : float, int
+        Stereo-matched features per frame.
+    failures : tuple of FailureSpan
+        Tracking failures (IMU only), lost spans and smoother resets with their time spans.
+    init_method : str
+        ``standstill`` or ``moving`` (empty when it never initialised).
+    mean_ms_per_frame, max_ms_per_frame : float
+        Processing time per frame (reading, front end, back end).
+    realtime_factor : float
+        Sequence duration / wall-clock processing time (> 1: faster than real time).
+    cpu_realtime_factor : float
+        Sequence duration / CPU time of the process (all threads): the speed on an idle machine
+        with one core, unaffected by other processes.
+    """
+
+    frames: int
+    keyframes: int
+    frames_estimated: int
+    mean_tracked: float
+    min_tracked: int
+    failures: tuple[FailureSpan, ...]
+    init_method: str
+    mean_ms_per_frame: float
+    max_ms_per_frame: float
+    realtime_factor: float
+    cpu_realtime_factor: float = float("nan")
+    resets: int = 0
+    params: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        d = dataclasses.asdict(self)
+        d["failures"] = [f.to_dict() for f in self.failures]
+        for k in ("mean_tracked", "mean_ms_per_frame", "max_ms_per_frame", "realtime_factor",
+                  "cpu_realtime_factor"):
+            d[k] = _finite(d[k])
+        return d
+
+
+@dataclass(frozen=True, eq=False)
+class VioResult:
+    """The estimate (``T_world_body`` of IMU0 at every estimated frame) and the statistics."""
+
+    trajectory: Trajectory
+    stats: VioStats
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"poses": len(self.trajectory), **self.stats.to_dict()}
+
+    def __repr__(self) -> str:
+        s = self.stats
+        return (f"VioResult({len(self.trajectory)}/{s.frames} frames, {s.keyframes} keyframes, "
+                f"{len(s.failures)} failures, x{s.realtime_factor:.2f} real time)")
+
+
+def run_vio(seq: StereoSequence, params: VioParams | None = None, *,
+            max_frames: int | None = None, progress: Progress | None = None) -> VioResult:
+    """Run the stereo VIO over a sequence with images.
+
+    Parameters
+    ----------
+    seq : StereoSequence
+        From :func:`ibiscape_eval.vio.load_sequence`.
+    params : VioParams, optional
+    max_frames : int, optional
+        Stop after this many frames.
+    progress : callable(done, total, speed_up), optional
+
+    Raises
+    ------
+    DegenerateInputError
+        No frame could be estimated (e.g. every image without texture and no standstill start).
+    FormatError
+        An image that cannot be read or has another size than the calibration.
+    """
+    from ibiscape_eval.io.stereo import read_gray_image
+
+    from .frontend import StereoFrontEnd
+
+    p = params or VioParams()
+    if seq.n_frames == 0:
+        raise DegenerateInputError(f"{seq.path}: no stereo frames to process")
+    n = seq.n_frames if max_frames is None else min(max_frames, seq.n_frames)
+    fe = StereoFrontEnd(seq.rig, p)
+    est = Estimator(seq.rig.rectified(), seq.imu, seq.noise, p, seq.T_body_imu)
+    times = np.zeros(n)
+    tracked = np.zeros(n, dtype=np.int64)
+    t_start = time.perf_counter()
+    cpu_start = time.process_time()
+    # PNG decoding costs as much as tracking: a reader thread decodes the next frames meanwhile
+    # (cv2.imread releases the GIL)
+    from concurrent.futures import ThreadPoolExecutor
+
+    def read(i: int) -> tuple[Any, Any]:
+        return read_gray_image(seq.left_files[i]), read_gray_image(seq.right_files[i])
+
+    pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="vio-read")
+    ahead = {i: pool.submit(read, i) for i in range(min(4, n))}
+    try:
+        _loop(seq, p, n, fe, est, ahead, pool, read, times, tracked, t_start, progress)
+    finally:
+        for f in ahead.values():
+            f.cancel()
+        pool.shutdown(wait=True)
+    est.finish()
+    wall = time.perf_counter() - t_start
+    cpu = time.process_time() - cpu_start
+    traj = est.trajectory("vio")
+    if len(traj) == 0:
+        raise DegenerateInputError(
+            f"{seq.path}: no frame could be estimated (tracking failed from the start: images "
+            "without texture, or no standstill to initialise from); see the failure spans")
+    duration = (int(seq.frame_stamps_ns[n - 1]) - int(seq.frame_stamps_ns[0])) * 1e-9
+    stats = VioStats(frames=n, keyframes=est.n_keyframes, frames_estimated=len(traj),
+                     mean_tracked=float(tracked.mean()), min_tracked=int(tracked.min()),
+                     failures=tuple(est.failures), init_method=est.init_method,
+                     mean_ms_per_frame=1e3 * wall / n, max_ms_per_frame=1e3 * float(times.max()),
+                     realtime_factor=duration / wall if wall > 0 else float("inf"),
+                     cpu_realtime_factor=duration / cpu if cpu > 0 else float("inf"),
+                     resets=est.backend.resets, params=p.to_dict())
+    return VioResult(traj, stats)
+
+
+def _loop(seq: StereoSequence, p: VioParams, n: int, fe: Any, est: Estimator, ahead: dict[int, Any],
+          pool: Any, read: Callable[[int], tuple[Any, Any]], times: np.ndarray,
+          tracked: np.ndarray, t_start: float, progress: Progress | None) -> None:
+    from ibiscape_eval.core.errors import FormatError
+
+    w, h = seq.rig.size
+    prev_t: int | None = None
+    for i in range(n):
+        t0 = time.perf_counter()
+        t_ns = int(seq.frame_stamps_ns[i])
+        left, right = ahead.pop(i).result()
+        if i + 4 < n:
+            ahead[i + 4] = pool.submit(read, i + 4)
+        for img, f in ((left, seq.left_files[i]), (right, seq.right_files[i])):
+            if img.shape != (h, w):
+                raise FormatError(f, f"image is {img.shape[1]}x{img.shape[0]} px, the calibration "
+                                  f"says {w}x{h}")
+        R = None if prev_t is None else est.gyro_rotation(prev_t, t_ns)
+        obs = fe.process(t_ns, left, right, R)
+        est.process(obs)
+        prev_t = t_ns
+        tracked[i] = len(obs)
+        times[i] = time.perf_counter() - t0
+        if progress is not None:
+            wall = time.perf_counter() - t_start
+            span = (t_ns - int(seq.frame_stamps_ns[0])) * 1e-9
+            progress(i + 1, n, span / wall if wall > 0 else 0.0)
