@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import re
-import sys
 import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -18,10 +17,9 @@ RECON_CHOICES = ("auto", "accumulate-signed", "accumulate", "time-surface")
 
 
 def _bar(desc: str) -> Any:
-    from tqdm import tqdm
+    from .progress import progress_bar
 
-    return tqdm(total=0, desc=desc, unit="img", file=sys.stderr, disable=not sys.stderr.isatty(),
-                delay=1.0, leave=False)
+    return progress_bar(0, desc, unit="img", unit_scale=False, delay_s=1.0)
 
 
 def _sensor_size(text: str | None) -> tuple[int, int] | None:
@@ -105,7 +103,7 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
     from ibiscape_eval.calib.targets import target_from_kalibr
     from ibiscape_eval.core.errors import IbiscapeError, IbiscapeWarning
     from ibiscape_eval.io.events import read_events
-    from ibiscape_eval.io.images import (
+    from ibiscape_eval.io.image_sets import (
         find_image_sets,
         image_sets_from_globs,
         pair_views,

@@ -67,8 +67,6 @@ def run_imu_camera(observations: Sequence[Any], imu: Any, imu_yaml: str, corners
     calibration or ``--cams``), ``imu`` (:class:`ImuData`) and ``truth`` (``sequence.yaml``'s
     cameras) come from the calib command.
     """
-    from tqdm import tqdm
-
     from ibiscape_eval.calib.imu_camera import (
         calibrate_imu_camera,
         camchain_imucam_document,
@@ -77,11 +75,10 @@ def run_imu_camera(observations: Sequence[Any], imu: Any, imu_yaml: str, corners
     from ibiscape_eval.io.kalibr_imucam import write_camchain_imucam
 
     noise = load_imu_noise(imu_yaml)
-    with tqdm(total=100, desc="imu-camera", unit="%", leave=False, disable=None) as bar:
-        def progress(frac: float, label: str) -> None:
-            bar.set_postfix_str(label)
-            bar.update(max(0, round(frac * 100) - bar.n))
+    from .progress import fraction_callback, progress_bar
 
+    with progress_bar(1000, "imu-camera", unit="‰", unit_scale=False) as bar:
+        progress = fraction_callback(bar, "imu-camera")
         result = calibrate_imu_camera(observations, imu, noise, corners_target_m, sigma_px=sigma_px,
                                       force=force, progress=progress)
     errors = errors_against_truth(result, truth or {})

@@ -15,7 +15,7 @@ from ibiscape_eval.sim.config import WEATHERS as _WEATHERS
 from ._common import echo_json, fail, user_errors
 
 
-def _summary_text(s: Any) -> str:
+def _summary_text(s: Any, rendered: list[str]) -> str:
     w = s.weather_averages
     lines = [
         f"sequence   {s.path}",
@@ -32,7 +32,10 @@ def _summary_text(s: Any) -> str:
         lines.append(f"weather    fog {w['fog_density']:.0f} %   rain {w['precipitation']:.0f} %   "
                      f"wind {w['wind_intensity']:.0f} %   clouds {w['cloudiness']:.0f} %   "
                      f"sun altitude {w['sun_altitude_angle']:.0f} deg")
-    lines.append("images     not rendered (--no-render: rendering comes with a later release)")
+    if s.frames and rendered:
+        lines.append(f"images     rendered: {', '.join(rendered)}")
+    elif s.frames:
+        lines.append("images     not rendered (--no-render)")
     return "\n".join(lines)
 
 
@@ -45,6 +48,8 @@ Examples:
   ibiscape-eval sim --setup svi --scenario accident --out SVI_accident
   ibiscape-eval sim --setup imu --duration-s 604800 --out IMU_168h   (168 h, streamed)
   ibiscape-eval sim --setup full --print-config > sim.yaml ; ibiscape-eval sim --config sim.yaml --out X
+  ibiscape-eval sim --setup svi --kind calibration --resolution 256 --duration-s 10 --out SVI_small
+  ibiscape-eval sim --setup rgbd --resolution 640x480 --export tum-rgbd --out RGBD_1_town
 """,
 )
 @click.option("--setup", type=click.Choice(_SETUPS), help="Sensor setup (default svi).")
@@ -62,9 +67,15 @@ Examples:
 @click.option("--config", "config_path", type=click.Path(dir_okay=False),
               help="YAML config (see --print-config); command-line options win.")
 @click.option("--ideal", is_flag=True, default=None, help="Turn every sensor noise off (IMU, GNSS).")
-@click.option("--no-render/--render", "no_render", default=True, show_default=True,
-              help="Write ground truth, IMU, GNSS, controls and weather only. Rendering images "
-              "and events is not available yet: --no-render is the only mode.")
+@click.option("--render/--no-render", "render", default=True, show_default=True,
+              help="Render every camera (RGB, depth, segmentation, DVS events). --no-render "
+              "writes ground truth, IMU, GNSS, controls and weather only (fast).")
+@click.option("--resolution", metavar="N|WxH",
+              help="Resize every camera to N x N or W x H pixels, keeping its field of view.")
+@click.option("--export", "export_fmt", type=click.Choice(("euroc", "tum-rgbd", "rosbag")),
+              help="Also export the sequence for other tools (into --export-out).")
+@click.option("--export-out", type=click.Path(),
+              help="Export folder (euroc, tum-rgbd) or .bag file (rosbag); default <out>_<format>.")
 @click.option("--overwrite", is_flag=True, help="Replace a non-empty --out folder.")
 @click.option("--print-config", is_flag=True,
               help="Print the full configuration (commented YAML) and exit.")
@@ -72,7 +83,8 @@ Examples:
 @user_errors
 def sim(setup: str | None, kind: str | None, weather: str | None, scenario: str | None,
         duration_s: float | None, seed: int | None, target: str | None, out: str | None,
-        config_path: str | None, ideal: bool | None, no_render: bool, overwrite: bool,
+        config_path: str | None, ideal: bool | None, render: bool, resolution: str | None,
+        export_fmt: str | None, export_out: str | None, overwrite: bool,
         print_config: bool, as_json: bool) -> None:
     """Generate a synthetic sequence in the IBISCape layout (CPU only, seeded, exact truth).
 
@@ -81,11 +93,15 @@ def sim(setup: str | None, kind: str | None, weather: str | None, scenario: str 
     IMUs, target, GNSS reference, conventions).  The folder appears only when complete.  A summary
     (length, duration, frames, speed, roll/pitch excitation, weather) is printed at the end.
     """
-    from ibiscape_eval.sim.config import dump_config, load_config, preset
+    from ibiscape_eval.sim.config import (
+        dump_config,
+        load_config,
+        parse_resolution,
+        preset,
+        with_resolution,
+    )
     from ibiscape_eval.sim.generate import generate, sequence_name
 
-    if not no_render:
-        fail("--render: rendering images and events is not available yet; use --no-render")
     overrides: dict[str, Any] = {"duration_s": duration_s, "seed": seed, "target": target,
                                  "ideal": ideal}
     overrides = {k: v for k, v in overrides.items() if v is not None}
@@ -97,17 +113,47 @@ def sim(setup: str | None, kind: str | None, weather: str | None, scenario: str 
             setup = "svi"
         cfg = preset(setup or "svi", kind or "slam", weather or "clear",
                      scenario=scenario or "default", **overrides)
+    if resolution is not None:
+        cfg = with_resolution(cfg, *parse_resolution(resolution))
     if print_config:
         click.echo(dump_config(cfg), nl=False)
         return
+    if export_fmt is not None and not (render and cfg.cameras):
+        fail(f"--export {export_fmt} needs rendered images; drop --no-render (setup {cfg.setup} "
+             f"has {len(cfg.cameras)} cameras)")
+    if export_fmt is not None:
+        from ibiscape_eval.sim.render.sequence import export_problem
+
+        problem = export_problem(cfg, export_fmt)
+        if problem is not None:
+            fail(problem)
     out_dir = out if out is not None else sequence_name(cfg)
 
     from .progress import fraction_callback, progress_bar
 
+    do_render = render and bool(cfg.cameras)
     with progress_bar(1000, "sim", unit="‰", unit_scale=False, delay_s=0.0) as bar:
         summary = generate(cfg, out_dir, overwrite=overwrite,
-                           progress=fraction_callback(bar, "sim"))
+                           progress=fraction_callback(bar, "sim"), render=do_render)
+    rendered = [c.name for c in cfg.cameras] if do_render else []
+    exported = None
+    if export_fmt is not None:
+        from pathlib import Path
+
+        from ibiscape_eval.sim.export import export_sequence
+
+        dst = export_out or str(Path(out_dir).with_name(
+            Path(out_dir).name + "_" + export_fmt + (".bag" if export_fmt == "rosbag" else "")))
+        with progress_bar(1000, "export", unit="‰", unit_scale=False, delay_s=0.0) as ebar:
+            exported = export_sequence(out_dir, export_fmt, dst, overwrite=overwrite,
+                                       progress=fraction_callback(ebar, "export"))
     if as_json:
-        echo_json(summary.to_dict())
+        doc = summary.to_dict()
+        doc["rendered_cameras"] = rendered
+        if exported is not None:
+            doc["export"] = exported.to_dict()
+        echo_json(doc)
     else:
-        click.echo(_summary_text(summary))
+        click.echo(_summary_text(summary, rendered))
+        if exported is not None:
+            click.echo(f"export     {export_fmt}: {exported.path}")

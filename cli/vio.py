@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -86,11 +85,10 @@ def vio(sequence: Path, out: Path, calib: Path | None, imu_yaml: Path | None,
         kw["max_features"] = max_features
     params = VioParams(**kw)
 
-    from tqdm import tqdm
+    from .progress import progress_bar
 
     total = seq.n_frames if max_frames is None else min(max_frames, seq.n_frames)
-    bar = tqdm(total=total, file=sys.stderr, disable=not sys.stderr.isatty(), unit="frame",
-               desc="vio", leave=False)
+    bar = progress_bar(total, "vio", unit="frame", unit_scale=False)
 
     def progress(done: int, n: int, speed_up: float) -> None:
         bar.set_postfix_str(f"x{speed_up:.2f} real time", refresh=False)

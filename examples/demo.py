@@ -7,7 +7,10 @@ Steps:
   1. trajectory metrics on the real trajectories in ``examples/data`` (TUM RGB-D fr1/xyz, EuRoC V1_02,
      an ORB-SLAM monocular run that needs Sim(3)): ATE with every alignment, RPE, KITTI-style drift;
   2. the simulator: an SVI calibration sequence over bumps toward an AprilGrid, a FULL SLAM sequence
-     in dynamic weather and a 2-hour still IMU, all in the IBISCape layout with exact ground truth;
+     in dynamic weather and a 2-hour still IMU, all in the IBISCape layout with exact ground truth
+     (ground truth only, --no-render, for speed); then two short RENDERED sequences at 256 px (a
+     calibration drive toward the checkerboard, a FULL setup in dynamic weather with stereo RGB,
+     DVS events, depth and segmentation) with contact sheets of their frames;
   3. IMU noise from the Allan deviation of the simulated still IMU, compared with the simulated truth;
   4. DVS hot-pixel detection and filtering on a generated event stream with planted hot pixels;
   5. batch evaluation of a runs folder (real and synthetic runs, several trials, one crashed) into
@@ -136,6 +139,7 @@ def simulate(out: Path) -> None:
         "40",
         "--seed",
         "1",
+        "--no-render",
         "--out",
         out / "SVI_calib",
     )
@@ -151,6 +155,7 @@ def simulate(out: Path) -> None:
         "60",
         "--seed",
         "2",
+        "--no-render",
         "--out",
         out / "FULL_dynamic",
     )
@@ -161,6 +166,20 @@ def simulate(out: Path) -> None:
         out / "FULL_dynamic" / "vehicle_gt" / "groundtruth_sync.csv",
         out / "full_gt_tum.txt",
     )
+
+
+def render(out: Path) -> None:
+    banner("2b. Rendered sequences (open3d ray casting on the CPU): images, depth, segmentation, events")
+    from ibiscape_eval.sim.render.preview import contact_sheet
+
+    # small images keep the demo short; --resolution keeps every camera's field of view
+    sh("sim", "--setup", "svi", "--kind", "calibration", "--target", "checkerboard", "--duration-s", "8",
+       "--resolution", "192", "--seed", "1", "--out", out / "SVI_render_calib")
+    sh("sim", "--setup", "full", "--kind", "slam", "--weather", "dynamic", "--duration-s", "2",
+       "--resolution", "256", "--seed", "2", "--out", out / "FULL_render_dynamic")
+    for name in ("SVI_render_calib", "FULL_render_dynamic"):
+        rows = contact_sheet(out / name, out / f"{name}_sheet.png", n_frames=4, tile_px=192)
+        print(f"contact sheet {out / f'{name}_sheet.png'}: rows {', '.join(rows)}")
 
 
 def imu(out: Path) -> None:
@@ -286,6 +305,7 @@ def vio(out: Path) -> None:
 STEPS: list[tuple[str, Callable[[Path], None]]] = [
     ("trajectories", trajectories),
     ("sim", simulate),
+    ("render", render),
     ("imu", imu),
     ("events", events),
     ("report", report),

@@ -52,11 +52,14 @@ __all__ = [
     "ImuNoise",
     "ImuSpec",
     "MotionSpec",
+    "RenderSpec",
     "SimConfig",
     "WeatherSpec",
     "dump_config",
     "load_config",
+    "parse_resolution",
     "preset",
+    "with_resolution",
 ]
 
 SETUPS = ("imu", "svi", "esvi", "rgbd", "full")
@@ -129,6 +132,11 @@ class CameraSpec:
     rate_hz: float = field(default=20.0, metadata=_doc("frame rate [Hz]"))
     mount: str = field(default="", metadata=_doc(
         "housing name: sensors sharing a non-empty mount may coincide (RGB-D pair)"))
+    distortion_model: str = field(default="none", metadata=_doc(
+        "none | radtan | equidistant (Kalibr's models; rendered images are distorted exactly)"))
+    distortion_coeffs: tuple[float, float, float, float] = field(
+        default=(0.0, 0.0, 0.0, 0.0), metadata=_doc(
+            "radtan [k1, k2, p1, p2] or equidistant [k1, k2, k3, k4]"))
 
     @property
     def focal_px(self) -> float:
@@ -203,6 +211,21 @@ class MotionSpec:
 
 
 @dataclass(frozen=True)
+class RenderSpec:
+    """How images are rendered (``ibiscape_eval.sim.render``)."""
+
+    shadows: bool = field(default=True, metadata=_doc("cast shadows (one extra ray per lit pixel)"))
+    target_supersample: int = field(default=6, metadata=_doc(
+        "s x s rays per pixel on calibration targets (antialiased corners), 1..8"))
+    sensor_noise: bool = field(default=True, metadata=_doc(
+        "camera noise (read + shot, more in the dark); off with ideal: true"))
+    weather_optics: bool = field(default=True, metadata=_doc(
+        "fog, rain streaks and the wet road"))
+    psf_sigma_px: float = field(default=0.7, metadata=_doc(
+        "lens blur: Gaussian point-spread function sigma [px], 0..5 (0 = none)"))
+
+
+@dataclass(frozen=True)
 class SimConfig:
     """Everything :func:`ibiscape_eval.sim.generate` needs (see the module docstring)."""
 
@@ -230,6 +253,7 @@ class SimConfig:
     weather_model: WeatherSpec = field(default_factory=WeatherSpec, metadata=_doc(
         "weather process (set by the weather preset)"))
     motion: MotionSpec = field(default_factory=MotionSpec, metadata=_doc("route and motion"))
+    render: RenderSpec = field(default_factory=RenderSpec, metadata=_doc("image rendering"))
 
     def __post_init__(self) -> None:
         validate(self)
@@ -305,6 +329,7 @@ def validate(cfg: SimConfig) -> None:
             raise IbiscapeError(f"config: cameras.{c.name}.fov_deg must be in (0, 180), got {c.fov_deg!r}")
         _vec3(c.position_m, f"cameras.{c.name}.position_m")
         _vec3(c.rpy_deg, f"cameras.{c.name}.rpy_deg")
+        _check_camera_optics(c)
     g = cfg.gnss
     _positive(g.rate_hz, "gnss.rate_hz")
     _nonneg(g.sigma_horizontal_m, "gnss.sigma_horizontal_m")
@@ -327,9 +352,69 @@ def validate(cfg: SimConfig) -> None:
     _nonneg(cfg.motion.accident_obstacle_gap_m, "motion.accident_obstacle_gap_m")
     if not isinstance(cfg.motion.town_blocks, int) or cfg.motion.town_blocks < 1:
         raise IbiscapeError(f"config: motion.town_blocks must be an integer >= 1, got {cfg.motion.town_blocks!r}")
+    ts = cfg.render.target_supersample
+    if isinstance(ts, bool) or not isinstance(ts, int) or not 1 <= ts <= 8:
+        raise IbiscapeError(f"config: render.target_supersample must be an integer in 1..8, got {ts!r}")
+    ps = cfg.render.psf_sigma_px
+    if not (isinstance(ps, int | float) and math.isfinite(ps) and 0.0 <= ps <= 5.0):
+        raise IbiscapeError(f"config: render.psf_sigma_px must be in 0..5 px, got {ps!r}")
     from .rig import check_housings
 
     check_housings(cfg)
+
+
+#: smallest and largest image side the renderer accepts [px]
+MIN_SIDE_PX, MAX_SIDE_PX = 8, 8192
+
+
+def _check_camera_optics(c: CameraSpec) -> None:
+    key = f"cameras.{c.name}"
+    for side, v in (("width_px", c.width_px), ("height_px", c.height_px)):
+        if isinstance(v, bool) or not isinstance(v, int) or not MIN_SIDE_PX <= v <= MAX_SIDE_PX:
+            raise IbiscapeError(f"config: {key}.{side} must be an integer in {MIN_SIDE_PX}..{MAX_SIDE_PX}, "
+                                f"got {v!r}")
+    _choice(c.distortion_model, ("none", "radtan", "equidistant"), f"{key}.distortion_model")
+    co = c.distortion_coeffs
+    if not (isinstance(co, tuple) and len(co) == 4
+            and all(isinstance(x, int | float) and math.isfinite(x) for x in co)):
+        raise IbiscapeError(f"config: {key}.distortion_coeffs must be four finite numbers, got {co!r}")
+    if c.distortion_model == "none" and any(co):
+        raise IbiscapeError(f"config: {key}.distortion_coeffs {list(co)} need a distortion_model "
+                            "(radtan or equidistant)")
+    # vertical field of view (pinhole): a tall image may reach 180 deg even with a sane horizontal FOV
+    f = c.focal_px
+    vfov = 2.0 * math.degrees(math.atan(c.height_px / (2.0 * f)))
+    if c.distortion_model != "equidistant" and vfov >= 179.0:
+        raise IbiscapeError(f"config: {key}: {c.width_px}x{c.height_px} px at a horizontal FOV of "
+                            f"{c.fov_deg} deg gives a vertical FOV of {vfov:.1f} deg; a pinhole camera "
+                            "needs less than 179 deg: use a smaller FOV or a wider image")
+
+
+def parse_resolution(text: str) -> tuple[int, int]:
+    """``"N"`` (square) or ``"WxH"`` -> ``(width, height)`` in pixels, refusing nonsense."""
+    t = str(text).strip().lower()
+    parts = t.split("x")
+    try:
+        if len(parts) == 1:
+            w = h = int(parts[0])
+        elif len(parts) == 2:
+            w, h = int(parts[0]), int(parts[1])
+        else:
+            raise ValueError
+    except ValueError:
+        raise IbiscapeError(f"resolution {text!r}: give N (square) or WxH in pixels, e.g. 256 or "
+                            "640x480") from None
+    for v in (w, h):
+        if not MIN_SIDE_PX <= v <= MAX_SIDE_PX:
+            raise IbiscapeError(f"resolution {text!r}: each side must be in {MIN_SIDE_PX}..{MAX_SIDE_PX} px")
+    return w, h
+
+
+def with_resolution(cfg: SimConfig, width_px: int, height_px: int) -> SimConfig:
+    """Every camera resized to ``width_px x height_px`` keeping its horizontal field of view
+    (focal length and principal point scale with the image; distortion is unchanged)."""
+    cams = tuple(replace(c, width_px=int(width_px), height_px=int(height_px)) for c in cfg.cameras)
+    return replace(cfg, cameras=cams)
 
 
 def _vec3(v: Any, key: str) -> None:

@@ -207,7 +207,7 @@ def _frames(cfg: SimConfig) -> tuple[npt.NDArray[np.int64], float]:
 
 def generate(config: SimConfig, out: str | os.PathLike[str], *, overwrite: bool = False,
              progress: Progress | None = None, motion: Motion | None = None,
-             world: Any = None) -> SequenceSummary:
+             world: Any = None, render: bool = False) -> SequenceSummary:
     """Generate one sequence into the folder ``out`` (created atomically).
 
     Parameters
@@ -223,6 +223,9 @@ def generate(config: SimConfig, out: str | os.PathLike[str], *, overwrite: bool 
     motion, world : optional
         Use this motion (anything with ``sample``/``controls``, ``start_ns``/``end_ns``) and world
         instead of planning them (tests, custom trajectories).
+    render : bool
+        Also render every camera (RGB, depth, segmentation, DVS events) with
+        :mod:`ibiscape_eval.sim.render`; needs the world (planned, or given with ``motion``).
 
     Returns
     -------
@@ -242,7 +245,7 @@ def generate(config: SimConfig, out: str | os.PathLike[str], *, overwrite: bool 
         if config.setup == "imu":
             summary = _generate_still(config, tmp, step)
         else:
-            summary = _generate_moving(config, tmp, step, motion, world)
+            summary = _generate_moving(config, tmp, step, motion, world, render=render)
     step(1.0, "done")
     return SequenceSummary(**{**summary.to_dict(), "path": str(out_p), "name": out_p.name})
 
@@ -268,8 +271,17 @@ def _groundtruth(state: MotionState) -> IbiscapeGroundTruth:
 
 
 def _generate_moving(cfg: SimConfig, tmp: Path, step: Callable[[float, str], None],
-                     motion: Motion | None, world: Any) -> SequenceSummary:
+                     motion: Motion | None, world: Any, *, render: bool = False) -> SequenceSummary:
     from ibiscape_eval.io.sequence import write_controls, write_sequence_yaml, write_weather_csv
+
+    render = render and bool(cfg.cameras)
+    if render and motion is not None and world is None:
+        raise IbiscapeError("rendering needs the world the motion drives through: pass world= with "
+                            "motion=, or render=False")
+    outer = step
+    if render:  # rendering dominates: ground truth, IMU and GNSS get the first 5 % of the bar
+        def step(frac: float, label: str) -> None:
+            outer(0.05 * frac, label)
 
     scenario: dict[str, Any] = {"name": cfg.scenario}
     step(0.0, "planning")
@@ -315,6 +327,15 @@ def _generate_moving(cfg: SimConfig, tmp: Path, step: Callable[[float, str], Non
              "controls": f"vehicle_gt/{VEHICLE}_simulation.txt",
              "imus": {k: f"other_sensors/{v}" for k, v in names.items()},
              "gnss": "other_sensors/gnss.csv", "weather": "weather.csv"}
+    rendered: dict[str, dict[str, Any]] | None = None
+    if render:
+        from .render.sequence import render_cameras
+
+        rendered = render_cameras(cfg, tmp, world, motion, weather, scenario=scenario,
+                                  progress=lambda f, label: outer(0.05 + 0.95 * f, label))
+        files["cameras"] = {k: v["folder"] for k, v in rendered.items()}
+        if (tmp / "association.txt").exists():
+            files["association"] = "association.txt"
     target = None
     if world is not None and cfg.kind == "calibration":
         for t in getattr(world, "targets", ()):
@@ -324,7 +345,8 @@ def _generate_moving(cfg: SimConfig, tmp: Path, step: Callable[[float, str], Non
     summary = _summary(cfg, gt_state.pos_m, gt_state.quat_xyzw, len(frames) if cfg.cameras else 0,
                        n_gt, n_imu, len(fixes), weather)
     doc = sequence_document(cfg, world=world_doc, target=target, scenario=scenario,
-                            weather_averages=summary.weather_averages, files=files)
+                            weather_averages=summary.weather_averages, files=files,
+                            rendered=rendered)
     doc["summary"] = {k: v for k, v in summary.to_dict().items()
                       if k not in ("path", "name", "weather_averages")}
     write_sequence_yaml(tmp / "sequence.yaml", doc,

@@ -78,9 +78,18 @@ def imu_file_names(cfg: SimConfig) -> dict[str, str]:
 
 def sequence_document(cfg: SimConfig, *, world: dict[str, Any] | None, target: dict[str, Any] | None,
                       scenario: dict[str, Any], weather_averages: dict[str, float] | None,
-                      files: dict[str, Any]) -> dict[str, Any]:
-    """The ``sequence.yaml`` mapping (see the module docstring of :mod:`ibiscape_eval.io.sequence`)."""
+                      files: dict[str, Any], rendered: dict[str, dict[str, Any]] | None = None
+                      ) -> dict[str, Any]:
+    """The ``sequence.yaml`` mapping (see the module docstring of :mod:`ibiscape_eval.io.sequence`).
+
+    ``rendered`` maps the name of every camera whose images were written to what was written
+    (folders, frame count, DVS counts); camera entries carry the TRUE camera model either way.
+    """
     from ibiscape_eval import __version__
+
+    from .render.rays import camera_model
+
+    rendered = rendered or {}
 
     imu0 = next(s for s in cfg.imus if s.name == "imu0")
     T_b_imu0 = T_body_imu(imu0)
@@ -88,12 +97,13 @@ def sequence_document(cfg: SimConfig, *, world: dict[str, Any] | None, target: d
     prev: np.ndarray | None = None
     for c in cfg.cameras:
         T_bc = T_body_camera(c)
+        kalibr = camera_model(c).to_kalibr()
         entry: dict[str, Any] = {
             "camera_model": "pinhole",
-            "intrinsics": c.intrinsics,
-            "distortion_model": "radtan",
-            "distortion_coeffs": [0.0, 0.0, 0.0, 0.0],
-            "resolution": [c.width_px, c.height_px],
+            "intrinsics": kalibr["intrinsics"],
+            "distortion_model": kalibr["distortion_model"],
+            "distortion_coeffs": kalibr["distortion_coeffs"],
+            "resolution": kalibr["resolution"],
             "rostopic": f"/{c.name}/image_raw",
             "kind": c.kind,
             "rate_hz": c.rate_hz,
@@ -101,8 +111,9 @@ def sequence_document(cfg: SimConfig, *, world: dict[str, Any] | None, target: d
             "T_body_cam": T_bc,
             "T_cam_imu": np.linalg.inv(T_bc) @ T_b_imu0,
             "timeshift_cam_imu": 0.0,
-            "rendered": False,
+            "rendered": c.name in rendered,
         }
+        entry.update(rendered.get(c.name, {}))
         if prev is not None:
             entry["T_cn_cnm1"] = np.linalg.inv(T_bc) @ prev
         prev = T_bc
@@ -136,7 +147,7 @@ def sequence_document(cfg: SimConfig, *, world: dict[str, Any] | None, target: d
         "generator": {"name": "ibiscape-eval sim", "version": __version__, "seed": cfg.seed,
                       "setup": cfg.setup, "kind": cfg.kind, "scenario": cfg.scenario,
                       "ideal": cfg.ideal, "duration_s": cfg.duration_s, "start_ns": cfg.start_ns,
-                      "gt_rate_hz": cfg.gt_rate_hz, "rendered": False},
+                      "gt_rate_hz": cfg.gt_rate_hz, "rendered": bool(rendered)},
         "conventions": CONVENTIONS,
         "files": files,
         "cameras": cams,

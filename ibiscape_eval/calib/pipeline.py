@@ -1,8 +1,8 @@
 """From frames to a calibration: frame preselection, parallel detection, view selection, solve.
 
-The caller (the command line) opens the image sets through :mod:`ibiscape_eval.io.images` and hands
+The caller (the command line) opens the image sets through :mod:`ibiscape_eval.io.image_sets` and hands
 one :class:`CameraFrames` per camera (a loader per frame) plus the view table
-(:func:`ibiscape_eval.io.images.pair_views`); nothing here touches files.
+(:func:`ibiscape_eval.io.image_sets.pair_views`); nothing here touches files.
 """
 
 from __future__ import annotations

@@ -1,249 +1,334 @@
-"""Camera image sets for calibration: IBISCape camera folders, EuRoC ASL cameras, file globs.
+"""Camera images of the IBISCape layout: RGB frames, depth, segmentation and ``timestamps.csv``.
 
-- IBISCape layout: ``<seq>/<camera>/timestamps.csv`` (``#timestamp [ns], filename``) and
-  ``frames/<ns>.png`` for ``rgbL``, ``rgbR``, ``rgb`` (and any other folder of that shape); DVS
-  folders (``davisL``, ``davisR``) with ``events/`` and a three-column ``timestamps.csv`` are event
-  sets (frames are reconstructed from their event windows).
-- EuRoC ASL: ``<seq>/mav0/camN/data.csv`` (``#timestamp [ns],filename``) and ``data/``.
-- Globs: ``NAME=PATTERN`` (``cam0='left*.jpg'``), paired across cameras by a timestamp (the last
-  run of digits) in the file names when every name has one, else by sorted order.
+Encodings (``../shared/FORMATS.md``)
+------------------------------------
+- RGB: 8-bit PNG (arrays in memory are RGB; OpenCV's BGR order stays inside this module).
+- Depth, as the real dataset saves it: CARLA's logarithmic 8-bit encoding
+  ``g = clamp(1 + ln(d / 1000 m) / 5.70378, 0, 1)``, stored as ``round(255 g)`` in three equal
+  channels (CARLA's ``LogarithmicDepth`` converter).  Depth below ``1000 exp(-5.70378) = 3.34 m``
+  saturates to 0 and the sky (no hit) to 255, exactly like the dataset.
+- Depth for RGB-D users: 16-bit PNG in millimetres (``DepthMapFactor: 1000`` in ORB-SLAM3's
+  settings; 0 = no measurement, also beyond 65.535 m).  The TUM RGB-D recordings use the same
+  layout with a factor of 5000.
+- Segmentation: the raw CARLA tag per pixel (8-bit single channel PNG) and CityScapes colours
+  (8-bit RGB PNG) like IBISCape's ``semantic/frames``.
+- ``timestamps.csv``: ``#timestamp [ns], filename`` then ``<ns>, <ns>.png `` rows (comma
+  separated, trailing space like the acquisition scripts).
 
-:func:`pair_views` turns several sets into one view table (one row per instant).
+Every writer goes through the atomic staging of :mod:`ibiscape_eval.io`; readers raise
+:class:`~ibiscape_eval.core.errors.FormatError` naming the file.
 """
 
 from __future__ import annotations
 
-import glob
+import math
 import os
-import re
-import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from ibiscape_eval.core.errors import FormatError, IbiscapeError, IbiscapeWarning
+from ibiscape_eval.core.errors import FormatError, IbiscapeError
+
+from .atomic import atomic_output_path, atomic_write
 
 __all__ = [
-    "CAMERA_FOLDERS",
-    "ImageSet",
-    "find_image_sets",
-    "image_sets_from_globs",
-    "pair_views",
-    "read_image",
+    "CARLA_LOG_DEPTH_SCALE",
+    "CARLA_TAGS",
+    "CITYSCAPES_PALETTE",
+    "decode_depth_carla_log",
+    "encode_depth_carla_log",
+    "read_association",
+    "read_depth_carla_log",
+    "read_depth_mm",
+    "read_frame_timestamps",
+    "read_labels",
+    "read_labels_cityscapes",
+    "read_png",
+    "write_association",
+    "write_depth_carla_log",
+    "write_depth_mm",
+    "write_frame_timestamps",
+    "write_labels",
+    "write_labels_cityscapes",
+    "write_png",
 ]
 
-#: IBISCape camera folder names, in chain order
-CAMERA_FOLDERS = ("rgbL", "rgbR", "rgb", "davisL", "davisR")
-_IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm"}
+#: CARLA's ``LogarithmicDepth``: ``g = 1 + ln(d / far) / 5.70378`` with ``far = 1000 m``
+CARLA_LOG_DEPTH_SCALE = 5.70378
+_CARLA_FAR_M = 1000.0
+
+#: CARLA's semantic tags (0.9.10 .. 0.9.13, the versions IBISCape was recorded with): id -> name
+CARLA_TAGS: dict[int, str] = {
+    0: "Unlabeled", 1: "Building", 2: "Fence", 3: "Other", 4: "Pedestrian", 5: "Pole",
+    6: "RoadLine", 7: "Road", 8: "SideWalk", 9: "Vegetation", 10: "Vehicles", 11: "Wall",
+    12: "TrafficSign", 13: "Sky", 14: "Ground", 15: "Bridge", 16: "RailTrack", 17: "GuardRail",
+    18: "TrafficLight", 19: "Static", 20: "Dynamic", 21: "Water", 22: "Terrain",
+}
+
+#: (23, 3) uint8 RGB colour of every tag (CARLA's ``CityScapesPalette`` converter)
+CITYSCAPES_PALETTE: npt.NDArray[np.uint8] = np.array([
+    (0, 0, 0), (70, 70, 70), (100, 40, 40), (55, 90, 80), (220, 20, 60), (153, 153, 153),
+    (157, 234, 50), (128, 64, 128), (244, 35, 232), (107, 142, 35), (0, 0, 142), (102, 102, 156),
+    (220, 220, 0), (70, 130, 180), (81, 0, 81), (150, 100, 100), (230, 150, 140), (180, 165, 180),
+    (250, 170, 30), (110, 190, 160), (170, 120, 50), (45, 60, 150), (145, 170, 100),
+], dtype=np.uint8)
+CITYSCAPES_PALETTE.setflags(write=False)
 
 
-@dataclass(frozen=True, eq=False)
-class ImageSet:
-    """One camera's frames.
+def write_png(path: str | os.PathLike[str], image: npt.ArrayLike, *, compression: int = 1) -> None:
+    """Write an 8- or 16-bit image ``(H, W)`` or RGB ``(H, W, 3)`` as PNG, atomically.
 
-    Attributes
+    Parameters
     ----------
-    name : str
-    paths : tuple of Path
-        Image files (frames), or the event files of each window (``kind == "events"``).
-    stamps_ns : ndarray (N,) int64 or None
-        Time of every frame (window end for events); None when the names carry none.
-    kind : str
-        ``"frames"`` or ``"events"``.
-    root : Path
-        The folder (or glob) the set came from.
-    windows_ns : ndarray (N, 2) int64 or None
-        Event windows ``[start, end)`` (events only).
-    exact_stamps : bool
-        The stamps are numbers from file names (matched exactly, not within a tolerance).
+    compression : int
+        zlib level 0..9 (1: fast, about 10 % larger than 9).
     """
+    import cv2
 
-    name: str
-    paths: tuple[Path, ...]
-    stamps_ns: npt.NDArray[np.int64] | None
-    kind: str
-    root: Path
-    windows_ns: npt.NDArray[np.int64] | None = None
-    exact_stamps: bool = False
-
-    def __len__(self) -> int:
-        return len(self.paths)
-
-    def __repr__(self) -> str:
-        return f"ImageSet({self.name}: {len(self)} {self.kind} from {self.root})"
-
-
-def _read_frame_csv(csv: Path, folder: Path) -> tuple[list[Path], npt.NDArray[np.int64]]:
-    paths: list[Path] = []
-    stamps: list[int] = []
-    with open(csv, encoding="utf-8") as f:
-        for n, raw in enumerate(f, start=1):
-            line = raw.strip()
-            if not line or line.startswith("#"):
-                continue
-            cols = [c.strip() for c in line.split(",")]
-            if len(cols) < 2:
-                raise FormatError(csv, f"expected 2 columns (timestamp [ns], filename), got {len(cols)}",
-                                  line=n)
-            try:
-                t = int(cols[0]) if re.fullmatch(r"[+-]?\d+", cols[0]) else round(float(cols[0]))
-            except ValueError:
-                raise FormatError(csv, f"timestamp {cols[0]!r} is not a number of ns", line=n) from None
-            name = cols[-1]
-            cand = [folder / name, csv.parent / name]
-            hit = next((c for c in cand if c.is_file()), cand[0])
-            paths.append(hit)
-            stamps.append(t)
-    if not paths:
-        raise FormatError(csv, "lists no frames")
-    return paths, np.array(stamps, np.int64)
+    img = np.asarray(image)
+    if img.dtype not in (np.uint8, np.uint16) or not (
+            img.ndim == 2 or (img.ndim == 3 and img.shape[2] in (3, 4))) or img.size == 0:
+        raise IbiscapeError(f"{path}: a PNG image must be uint8/uint16 (H, W) or (H, W, 3|4), "
+                            f"got {img.dtype} {img.shape}")
+    if img.ndim == 3:
+        img = img[..., [2, 1, 0]] if img.shape[2] == 3 else img[..., [2, 1, 0, 3]]
+    with atomic_output_path(path) as tmp:
+        try:
+            ok = cv2.imwrite(str(tmp), np.ascontiguousarray(img),
+                             [cv2.IMWRITE_PNG_COMPRESSION, int(compression)])
+        except cv2.error as e:
+            raise IbiscapeError(f"{path}: could not write the PNG image ({e})") from None
+        if not ok:
+            raise IbiscapeError(f"{path}: could not write the PNG image (disk full or no permission?)")
 
 
-def _ibiscape_set(name: str, folder: Path) -> ImageSet | None:
-    csv = folder / "timestamps.csv"
-    if not csv.is_file():
-        return None
-    if (folder / "events").is_dir():
-        from .events import open_events
-
-        src = open_events(folder)
-        win = np.array([[a, b] for a, b, _ in src.windows], np.int64)
-        return ImageSet(name, tuple(p for _, _, p in src.windows), win[:, 1].copy(), "events", folder, win)
-    paths, stamps = _read_frame_csv(csv, folder / "frames")
-    return ImageSet(name, tuple(paths), stamps, "frames", folder)
-
-
-def find_image_sets(seq: str | os.PathLike[str], *, cameras: Sequence[str] | None = None) -> list[ImageSet]:
-    """Camera sets of an IBISCape sequence (``rgbL``, ``rgbR``, ``rgb``, ``davisL``, ``davisR`` with a
-    ``timestamps.csv``) or an EuRoC ASL folder (``mav0/camN``); ``cameras`` picks and orders them."""
-    root = Path(seq)
-    if not root.is_dir():
-        raise IbiscapeError(f"{root}: no such folder; give a sequence folder (IBISCape or EuRoC) or "
-                            "use --images NAME=GLOB")
-    found: dict[str, ImageSet] = {}
-    if root.name in CAMERA_FOLDERS and (root / "timestamps.csv").is_file():
-        s = _ibiscape_set(root.name, root)
-        assert s is not None
-        found[root.name] = s
-    for name in CAMERA_FOLDERS:
-        s = _ibiscape_set(name, root / name)
-        if s is not None:
-            found[name] = s
-    mav = root / "mav0" if (root / "mav0").is_dir() else root
-    for cam in sorted(mav.glob("cam[0-9]*"), key=lambda p: int(p.name[3:]) if p.name[3:].isdigit() else 99):
-        csv = cam / "data.csv"
-        if csv.is_file() and cam.name[3:].isdigit():
-            paths, stamps = _read_frame_csv(csv, cam / "data")
-            found[cam.name] = ImageSet(cam.name, tuple(paths), stamps, "frames", cam)
-    if not found:
-        raise IbiscapeError(
-            f"{root}: no camera folders found (looked for {', '.join(CAMERA_FOLDERS)} with "
-            "timestamps.csv, and mav0/camN/data.csv); use --images NAME=GLOB for plain image files")
-    if cameras:
-        missing = [c for c in cameras if c not in found]
-        if missing:
-            raise IbiscapeError(f"{root}: camera(s) {', '.join(missing)} not found; available: "
-                                f"{', '.join(found)}")
-        return [found[c] for c in cameras]
-    return list(found.values())
-
-
-def _digits_stamp(name: str) -> int | None:
-    runs = re.findall(r"\d+", Path(name).stem)
-    return int(runs[-1]) if runs else None
-
-
-def image_sets_from_globs(specs: Sequence[str]) -> list[ImageSet]:
-    """Image sets from ``NAME=GLOB`` specifications (the names' last digit runs are timestamps
-    when every file of every set has a distinct one)."""
-    sets: list[tuple[str, list[Path], str]] = []
-    for spec in specs:
-        if "=" not in spec:
-            raise IbiscapeError(f"--images {spec!r}: write NAME=GLOB, e.g. cam0='left*.jpg'")
-        name, pattern = (s.strip() for s in spec.split("=", 1))
-        if not name or not pattern:
-            raise IbiscapeError(f"--images {spec!r}: write NAME=GLOB, e.g. cam0='left*.jpg'")
-        files = sorted(Path(p) for p in glob.glob(os.path.expanduser(pattern))
-                       if Path(p).suffix.lower() in _IMAGE_SUFFIXES and Path(p).is_file())
-        if not files:
-            raise IbiscapeError(f"--images {name}={pattern}: no image files match")
-        if any(name == s[0] for s in sets):
-            raise IbiscapeError(f"--images: the camera name {name!r} is given twice")
-        sets.append((name, files, pattern))
-    stamps = [[_digits_stamp(p.name) for p in files] for _, files, _ in sets]
-    by_stamp = all(None not in st and len(set(st)) == len(st) for st in stamps)
-    out = []
-    for (name, files, pattern), st in zip(sets, stamps, strict=True):
-        arr = np.array(st, np.int64) if by_stamp else None
-        if arr is not None:
-            order = np.argsort(arr, kind="stable")
-            files = [files[i] for i in order]
-            arr = arr[order]
-        out.append(ImageSet(name, tuple(files), arr, "frames", Path(pattern), exact_stamps=True))
-    return out
-
-
-def pair_views(sets: Sequence[ImageSet], *, tolerance_ns: int = 1_000_000) -> list[list[int | None]]:
-    """The view table: one row per instant, one column per set (frame index or None).
-
-    Sets with timestamps are matched within ``tolerance_ns`` (exactly for numbers taken from file
-    names); without, frames are paired by order (then every set must hold the same number of
-    frames).
-    """
-    if any(s.exact_stamps for s in sets):
-        tolerance_ns = 0
-    if not sets:
-        raise IbiscapeError("no image sets to pair")
-    if len(sets) == 1:
-        return [[i] for i in range(len(sets[0]))]
-    if any(s.stamps_ns is None for s in sets):
-        n = {s.name: len(s) for s in sets}
-        if len(set(n.values())) != 1:
-            raise IbiscapeError(
-                "cannot pair the image sets by order: they hold "
-                + ", ".join(f"{k} {v}" for k, v in n.items())
-                + " images; give equally many, or names with a timestamp/number to pair by")
-        return [[i] * len(sets) for i in range(len(sets[0]))]
-    allst = np.unique(np.concatenate([s.stamps_ns for s in sets if s.stamps_ns is not None]))
-    # merge stamps closer than the tolerance into one view
-    keep = np.concatenate([[True], np.diff(allst) > tolerance_ns])
-    views = allst[keep]
-    table: list[list[int | None]] = [[None] * len(sets) for _ in range(len(views))]
-    for k, s in enumerate(sets):
-        st = s.stamps_ns
-        assert st is not None
-        j = np.clip(np.searchsorted(views, st), 0, len(views) - 1)
-        jm = np.clip(j - 1, 0, len(views) - 1)
-        pick = np.where(np.abs(views[jm] - st) < np.abs(views[j] - st), jm, j)
-        ok = np.abs(views[pick] - st) <= tolerance_ns
-        for i in np.flatnonzero(ok):
-            table[int(pick[i])][k] = int(i)
-    if all(sum(c is not None for c in row) < 2 for row in table):
-        raise IbiscapeError(
-            "the image sets share no instant: "
-            + ", ".join(f"{s.name} {int(s.stamps_ns[0])}..{int(s.stamps_ns[-1])}" for s in sets
-                        if s.stamps_ns is not None)
-            + f" (matched within {tolerance_ns} ns); are they recordings of the same session?")
-    return table
-
-
-def read_image(path: str | os.PathLike[str]) -> npt.NDArray[Any] | None:
-    """Read an image (any depth, grey or colour); None with a warning naming the file when it is
-    missing, unreadable or corrupt."""
+def read_png(path: str | os.PathLike[str]) -> npt.NDArray[Any]:
+    """Read a PNG unchanged: ``(H, W)`` or RGB ``(H, W, 3)`` (RGBA ``(H, W, 4)``), uint8 or uint16."""
     import cv2
 
     p = Path(path)
-    img = None
-    try:
-        data = np.fromfile(p, dtype=np.uint8)
-        if data.size:
-            img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
-    except OSError:
-        img = None
+    if not p.is_file():
+        raise FormatError(p, "image file not found")
+    img = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
     if img is None:
-        warnings.warn(f"{p}: not a readable image; skipped", IbiscapeWarning, stacklevel=2)
+        raise FormatError(p, "not a readable image (expected a PNG)")
+    if img.ndim == 3:
+        img = img[..., [2, 1, 0]] if img.shape[2] == 3 else img[..., [2, 1, 0, 3]]
+    return np.ascontiguousarray(img)
+
+
+# ----------------------------------------------------------------------------------------- depth
+def _depth_array(depth_m: npt.ArrayLike, path: str | os.PathLike[str]) -> npt.NDArray[np.float64]:
+    d = np.asarray(depth_m, dtype=np.float64)
+    if d.ndim != 2 or d.size == 0:
+        raise IbiscapeError(f"{path}: depth must be a (H, W) array in metres, got shape {d.shape}")
+    return d
+
+
+def encode_depth_carla_log(depth_m: npt.ArrayLike) -> npt.NDArray[np.uint8]:
+    """CARLA's 8-bit logarithmic depth of z-depths ``(H, W)`` [m]; inf/NaN (sky) -> 255."""
+    d = np.asarray(depth_m, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        g = 1.0 + np.log(d / _CARLA_FAR_M) / CARLA_LOG_DEPTH_SCALE
+    g = np.where(np.isnan(g), 1.0, g)
+    return np.round(255.0 * np.clip(g, 0.0, 1.0)).astype(np.uint8)
+
+
+def decode_depth_carla_log(code: npt.ArrayLike) -> npt.NDArray[np.float32]:
+    """Depth [m] ``(H, W)`` float32 of CARLA log codes (0 -> 3.34 m or nearer, 255 -> 1000 m or sky)."""
+    g = np.asarray(code, dtype=np.float64) / 255.0
+    return (_CARLA_FAR_M * np.exp((g - 1.0) * CARLA_LOG_DEPTH_SCALE)).astype(np.float32)
+
+
+def write_depth_carla_log(path: str | os.PathLike[str], depth_m: npt.ArrayLike) -> None:
+    """Depth ``(H, W)`` [m] as the dataset stores it: CARLA log encoding in three equal channels."""
+    code = encode_depth_carla_log(_depth_array(depth_m, path))
+    write_png(path, np.repeat(code[..., None], 3, axis=2))
+
+
+def read_depth_carla_log(path: str | os.PathLike[str]) -> npt.NDArray[np.float32]:
+    """Depth [m] ``(H, W)`` float32 of a CARLA log-depth PNG (grey, RGB or RGBA)."""
+    img = read_png(path)
+    if img.dtype != np.uint8:
+        raise FormatError(path, f"CARLA log depth is 8-bit, got {img.dtype} (a 16-bit mm depth "
+                          "PNG? use read_depth_mm)")
+    if img.ndim == 3:
+        if not (np.array_equal(img[..., 0], img[..., 1]) and np.array_equal(img[..., 0], img[..., 2])):
+            raise FormatError(path, "CARLA log depth has three equal channels; this image is in "
+                              "colour (raw CARLA depth? decode R + 256 G + 65536 B)")
+        img = img[..., 0]
+    return decode_depth_carla_log(img)
+
+
+def write_depth_mm(path: str | os.PathLike[str], depth_m: npt.ArrayLike) -> None:
+    """Depth ``(H, W)`` [m] as a 16-bit PNG in millimetres; 0 where there is no depth (sky, NaN,
+    <= 0) or it exceeds 65.535 m."""
+    d = _depth_array(depth_m, path)
+    with np.errstate(invalid="ignore"):
+        mm = np.round(d * 1000.0)
+        ok = np.isfinite(mm) & (mm > 0) & (mm <= 65535)
+    write_png(path, np.where(ok, mm, 0).astype(np.uint16))
+
+
+def read_depth_mm(path: str | os.PathLike[str]) -> npt.NDArray[np.float32]:
+    """Depth [m] ``(H, W)`` float32 of a 16-bit millimetre PNG; NaN where the file holds 0."""
+    img = read_png(path)
+    if img.dtype != np.uint16 or img.ndim != 2:
+        raise FormatError(path, f"expected a single-channel 16-bit depth PNG, got {img.dtype} "
+                          f"{img.shape}")
+    d = img.astype(np.float32) / np.float32(1000.0)
+    d[img == 0] = np.nan
+    return d
+
+
+# ---------------------------------------------------------------------------------- segmentation
+def _label_array(labels: npt.ArrayLike, path: str | os.PathLike[str]) -> npt.NDArray[np.uint8]:
+    lab = np.asarray(labels)
+    if lab.ndim != 2 or lab.size == 0 or not np.issubdtype(lab.dtype, np.integer):
+        raise IbiscapeError(f"{path}: labels must be an integer (H, W) array, got {lab.dtype} {lab.shape}")
+    if lab.min() < 0 or lab.max() > 255:
+        raise IbiscapeError(f"{path}: labels must be in 0..255, got {lab.min()}..{lab.max()}")
+    return lab.astype(np.uint8)
+
+
+def write_labels(path: str | os.PathLike[str], labels: npt.ArrayLike) -> None:
+    """Semantic tags ``(H, W)`` as a raw 8-bit single-channel PNG."""
+    write_png(path, _label_array(labels, path))
+
+
+def read_labels(path: str | os.PathLike[str]) -> npt.NDArray[np.uint8]:
+    """Semantic tags ``(H, W)`` uint8 of a raw label PNG."""
+    img = read_png(path)
+    if img.dtype != np.uint8 or img.ndim != 2:
+        raise FormatError(path, f"expected a single-channel 8-bit label PNG, got {img.dtype} "
+                          f"{img.shape} (a CityScapes colour PNG? use read_labels_cityscapes)")
     return img
+
+
+def write_labels_cityscapes(path: str | os.PathLike[str], labels: npt.ArrayLike) -> None:
+    """Semantic tags ``(H, W)`` in CARLA's CityScapes colours (RGB PNG), like IBISCape."""
+    lab = _label_array(labels, path)
+    if lab.max() >= len(CITYSCAPES_PALETTE):
+        raise IbiscapeError(f"{path}: tag {int(lab.max())} has no CityScapes colour "
+                            f"(tags 0..{len(CITYSCAPES_PALETTE) - 1})")
+    write_png(path, CITYSCAPES_PALETTE[lab])
+
+
+def read_labels_cityscapes(path: str | os.PathLike[str]) -> npt.NDArray[np.uint8]:
+    """Semantic tags ``(H, W)`` uint8 of a CityScapes colour PNG; a colour outside the palette is
+    an error naming the first such pixel."""
+    img = read_png(path)
+    if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] < 3:
+        raise FormatError(path, f"expected an 8-bit RGB CityScapes PNG, got {img.dtype} {img.shape}")
+    key = (img[..., 0].astype(np.int32) << 16) | (img[..., 1].astype(np.int32) << 8) | img[..., 2]
+    pal = CITYSCAPES_PALETTE.astype(np.int32)
+    pkey = (pal[:, 0] << 16) | (pal[:, 1] << 8) | pal[:, 2]
+    order = np.argsort(pkey)
+    pos = np.clip(np.searchsorted(pkey[order], key), 0, len(pkey) - 1)
+    found = pkey[order][pos] == key
+    if not found.all():
+        r, c = np.argwhere(~found)[0]
+        raise FormatError(path, f"pixel (x={c}, y={r}) has the colour {tuple(int(v) for v in img[r, c, :3])}, "
+                          "which is not in CARLA's CityScapes palette")
+    return order[pos].astype(np.uint8)
+
+
+# ------------------------------------------------------------------------------- timestamps.csv
+def write_frame_timestamps(path: str | os.PathLike[str], stamps_ns: npt.ArrayLike,
+                           filenames: Sequence[str] | None = None) -> None:
+    """``timestamps.csv`` of a camera folder: ``#timestamp [ns], filename`` (default ``<ns>.png``)."""
+    st = np.asarray(stamps_ns, dtype=np.int64).reshape(-1)
+    names = [f"{int(t)}.png" for t in st] if filenames is None else list(filenames)
+    if len(names) != st.size:
+        raise IbiscapeError(f"{path}: {st.size} stamps but {len(names)} file names")
+    with atomic_write(path) as f:
+        f.write("#timestamp [ns], filename\n")
+        f.writelines(f"{int(t)}, {n} \n" for t, n in zip(st, names, strict=True))
+
+
+def read_frame_timestamps(path: str | os.PathLike[str]) -> tuple[npt.NDArray[np.int64], list[str]]:
+    """Stamps [ns] and file names of a camera ``timestamps.csv`` (``#timestamp [ns], filename``)."""
+    p = Path(path)
+    if not p.is_file():
+        raise FormatError(p, "timestamps.csv not found")
+    stamps: list[int] = []
+    names: list[str] = []
+    with open(p, encoding="utf-8") as fh:
+        for n, line in enumerate(fh, start=1):
+            s = line.strip()
+            if not s or s.startswith("#"):
+                continue
+            parts = [x.strip() for x in s.split(",")]
+            if len(parts) != 2 or not parts[1]:
+                raise FormatError(p, "expected 'timestamp [ns], filename'", line=n)
+            try:
+                v = float(parts[0]) if any(c in parts[0] for c in ".eE") else int(parts[0])
+            except ValueError:
+                raise FormatError(p, f"timestamp {parts[0]!r} is not a number", line=n) from None
+            if isinstance(v, float):
+                if not math.isfinite(v):
+                    raise FormatError(p, f"timestamp {parts[0]!r} is not finite", line=n)
+                v = round(v)
+            if stamps and v <= stamps[-1]:
+                raise FormatError(p, f"timestamp {v} is not after the previous one {stamps[-1]}; "
+                                  "frames must be in increasing time", line=n)
+            stamps.append(int(v))
+            names.append(parts[1])
+    return np.asarray(stamps, dtype=np.int64), names
+
+
+def _seconds(ns: int) -> str:
+    return f"{ns // 1_000_000_000}.{ns % 1_000_000_000:09d}"
+
+
+def write_association(path: str | os.PathLike[str], rgb_stamps_ns: npt.ArrayLike, rgb_files: Sequence[str],
+                      depth_stamps_ns: npt.ArrayLike, depth_files: Sequence[str]) -> None:
+    """TUM RGB-D ``association.txt`` (``t_rgb rgb_file t_depth depth_file``, times in seconds with
+    nine decimals, so the nanoseconds survive), the file ORB-SLAM3's RGB-D examples read."""
+    a = np.asarray(rgb_stamps_ns, dtype=np.int64).reshape(-1)
+    b = np.asarray(depth_stamps_ns, dtype=np.int64).reshape(-1)
+    if not (a.size == b.size == len(rgb_files) == len(depth_files)):
+        raise IbiscapeError(f"{path}: association needs as many rgb and depth stamps and files, got "
+                            f"{a.size}, {b.size}, {len(rgb_files)}, {len(depth_files)}")
+    with atomic_write(path) as f:
+        f.writelines(f"{_seconds(int(ta))} {fa} {_seconds(int(tb))} {fb}\n"
+                     for ta, fa, tb, fb in zip(a, rgb_files, b, depth_files, strict=True))
+
+
+def read_association(path: str | os.PathLike[str]) -> tuple[npt.NDArray[np.int64], list[str],
+                                                             npt.NDArray[np.int64], list[str]]:
+    """Read an ``association.txt``: rgb stamps [ns], rgb files, depth stamps [ns], depth files."""
+    p = Path(path)
+    if not p.is_file():
+        raise FormatError(p, "association file not found")
+    ta: list[int] = []
+    tb: list[int] = []
+    fa: list[str] = []
+    fb: list[str] = []
+    with open(p, encoding="utf-8") as fh:
+        for n, line in enumerate(fh, start=1):
+            s = line.split()
+            if not s or s[0].startswith("#"):
+                continue
+            if len(s) != 4:
+                raise FormatError(p, "expected 't_rgb rgb_file t_depth depth_file'", line=n)
+            try:
+                ta.append(_ns(s[0]))
+                tb.append(_ns(s[2]))
+            except ValueError:
+                raise FormatError(p, f"times {s[0]!r}, {s[2]!r} are not seconds", line=n) from None
+            fa.append(s[1])
+            fb.append(s[3])
+    return np.asarray(ta, np.int64), fa, np.asarray(tb, np.int64), fb
+
+
+def _ns(text: str) -> int:
+    """Decimal seconds -> integer nanoseconds without going through a float."""
+    whole, _, frac = text.partition(".")
+    if not whole.lstrip("-").isdigit() or (frac and not frac.isdigit()):
+        raise ValueError(text)
+    sign = -1 if whole.startswith("-") else 1
+    return sign * (abs(int(whole)) * 1_000_000_000 + int((frac + "000000000")[:9] or 0))

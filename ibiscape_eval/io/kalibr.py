@@ -27,7 +27,7 @@ import numpy.typing as npt
 from ibiscape_eval.core.camera import CameraModel
 from ibiscape_eval.core.errors import FormatError, IbiscapeError
 
-from ._atomic import atomic_output_path, atomic_write
+from .atomic import atomic_output_path, atomic_write
 
 __all__ = [
     "CameraChain",

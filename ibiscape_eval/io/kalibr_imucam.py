@@ -7,7 +7,7 @@ import os
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from ._atomic import atomic_write
+from .atomic import atomic_write
 
 __all__ = ["write_camchain_imucam"]
 
@@ -35,7 +35,7 @@ def write_figures(folder: str | os.PathLike[str], figures: Sequence[tuple[str, A
     """Save ``(name, Figure)`` pairs into ``folder`` (created), each atomically."""
     from pathlib import Path
 
-    from ._atomic import atomic_output_path
+    from .atomic import atomic_output_path
 
     out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)

@@ -13,7 +13,7 @@ from ibiscape_eval.core.trajectory import Trajectory
 
 # the project's atomic writer (renamed ibiscape_eval.io.atomic by a pending refactor): the one
 # place this package imports it
-from ibiscape_eval.io._atomic import atomic_output_path
+from ibiscape_eval.io.atomic import atomic_output_path
 
 from .estimator import FailureSpan
 

@@ -136,7 +136,7 @@ def test_needs_input():
 
 
 def test_euroc_folder_and_pairing_by_order(tmp_path):
-    from ibiscape_eval.io.images import find_image_sets, image_sets_from_globs, pair_views
+    from ibiscape_eval.io.image_sets import find_image_sets, image_sets_from_globs, pair_views
 
     _, _, _, _, (imgs_l, imgs_r), _ = stereo_scene("checkerboard")
     stamps = [1_403_636_579_763_555_584 + i * 50_000_000 for i in range(len(imgs_l))]

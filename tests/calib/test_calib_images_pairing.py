@@ -8,7 +8,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ibiscape_eval.io.images import ImageSet, pair_views
+from ibiscape_eval.io.image_sets import ImageSet, pair_views
 
 
 @settings(max_examples=60, deadline=None)

@@ -17,7 +17,7 @@ def test_help_has_example_and_no_render_note(run_cli) -> None:
     res = run_cli("sim", "--help")
     assert res.exit_code == 0
     assert "Examples:" in res.output and "--no-render" in res.output
-    assert "not available yet" in res.output
+    assert "--resolution" in res.output and "--export" in res.output
 
 
 def test_still_imu_with_json_summary(run_cli, tmp_path: Path) -> None:
@@ -32,7 +32,7 @@ def test_still_imu_with_json_summary(run_cli, tmp_path: Path) -> None:
 
 def test_summary_text_with_planner(run_cli, tmp_path: Path) -> None:
     res = run_cli("sim", "--setup", "svi", "--kind", "calibration", "--duration-s", "5",
-                  "--target", "aprilgrid", "--ideal", "--out", tmp_path / "s")
+                  "--target", "aprilgrid", "--ideal", "--no-render", "--out", tmp_path / "s")
     assert res.exit_code == 0, res.output
     for word in ("length", "duration", "frames", "speed", "roll std", "pitch std", "weather"):
         assert word in res.stdout
@@ -68,7 +68,8 @@ def test_bad_config_file(run_cli, tmp_path: Path, yaml_text: str, needles: tuple
 @pytest.mark.parametrize(("args", "needles"), [
     (("--duration-s", "-3"), ["duration_s must be a positive"]),
     (("--duration-s", "0"), ["duration_s must be a positive"]),
-    (("--render",), ["not available yet"]),
+    (("--resolution", "0"), ["resolution '0'", "8..8192"]),
+    (("--resolution", "64x"), ["resolution '64x'", "WxH"]),
     (("--kind", "calibration", "--scenario", "accident"), ["accident needs kind slam"]),
 ])
 def test_bad_options(run_cli, tmp_path: Path, args: tuple[str, ...], needles: list[str]) -> None:

@@ -1,0 +1,210 @@
+"""Render every camera of a sequence into the IBISCape layout (called by ``sim.generate``).
+
+Per camera folder ``<name>/`` (``../shared/FORMATS.md``)::
+
+    rgb:       frames/<ns>.png (8-bit RGB)
+    depth:     frames/<ns>.png (CARLA's 8-bit logarithmic depth, like the dataset)
+               mm/<ns>.png     (16-bit millimetres, ORB-SLAM3 / TUM RGB-D style, 0 = none)
+    semantic:  frames/<ns>.png (CityScapes palette, like the dataset)
+               labels/<ns>.png (raw CARLA tag per pixel)
+    dvs:       events/<ns>.npz, frames/<ns>.png (``ibiscape_eval.sim.dvs.write_dvs_camera``)
+    every one: timestamps.csv (``#timestamp [ns], filename``)
+
+Cameras with the same optics, mounting and rate (the RGB-D housing: ``rgb``, ``depth``,
+``semantic``) share one render per frame.  An RGB camera and a depth camera in the same housing
+also get ``association.txt`` (``t_rgb rgb/frames/<ns>.png t_depth depth/mm/<ns>.png``, seconds),
+the file ORB-SLAM3's RGB-D examples read.
+"""
+
+from __future__ import annotations
+
+import shutil
+from collections import deque
+from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ibiscape_eval.core.errors import IbiscapeError
+
+__all__ = ["estimate_bytes", "export_problem", "render_cameras"]
+
+Progress = Callable[[float, str], None]
+
+# bytes per pixel of a written frame (PNG of a noisy image compresses little; labels a lot)
+_BYTES_PER_PX = {"rgb": 2.6, "depth": 1.4, "semantic": 0.3, "dvs": 1.5}
+
+
+def _stamps(cfg: Any, rate_hz: float) -> np.ndarray:
+    from ..still import n_samples, uniform_stamps
+
+    return uniform_stamps(cfg.start_ns, rate_hz, 0, n_samples(cfg.duration_s, rate_hz))
+
+
+def estimate_bytes(cfg: Any) -> int:
+    """Rough size of the rendered images of ``cfg`` [bytes] (for the free-space check)."""
+    total = 0.0
+    for c in cfg.cameras:
+        total += len(_stamps(cfg, c.rate_hz)) * c.width_px * c.height_px * _BYTES_PER_PX[c.kind]
+    return int(total)
+
+
+def export_problem(cfg: Any, fmt: str) -> str | None:
+    """Why the rendered cameras of ``cfg`` cannot fill the export ``fmt``, or ``None`` if they can
+    (checked before generating, so a doomed export costs nothing)."""
+    kinds = {c.kind for c in cfg.cameras}
+    if fmt == "tum-rgbd" and not {"rgb", "depth"} <= kinds:
+        return (f"--export tum-rgbd needs an RGB and a depth camera; setup {cfg.setup} has "
+                f"{', '.join(sorted(kinds)) or 'no cameras'} (use --setup rgbd or full)")
+    if fmt in ("euroc", "rosbag") and not kinds & {"rgb", "dvs"}:
+        return f"--export {fmt} needs RGB or DVS cameras; setup {cfg.setup} has none"
+    return None
+
+
+def _check_space(cfg: Any, folder: Path) -> None:
+    need = estimate_bytes(cfg)
+    free = shutil.disk_usage(folder).free
+    if need > free:
+        raise IbiscapeError(f"{folder.parent}: not enough disk space for the rendered images (about "
+                            f"{need / 1e9:.2f} GB needed, {free / 1e9:.2f} GB free); free some space, "
+                            "use --resolution to render smaller images or --no-render")
+
+
+def render_cameras(cfg: Any, folder: str | Path, world: Any, motion: Any, weather: Any, *,
+                   scenario: dict[str, Any] | None = None, progress: Progress | None = None
+                   ) -> dict[str, dict[str, Any]]:
+    """Render every camera of ``cfg`` into ``folder`` (the sequence's staging folder).
+
+    Returns
+    -------
+    dict
+        Camera name -> what was written (for ``sequence.yaml``: folders, frame count, DVS counts).
+    """
+    from ibiscape_eval.io.images import (
+        write_depth_carla_log,
+        write_depth_mm,
+        write_frame_timestamps,
+        write_labels,
+        write_labels_cityscapes,
+        write_png,
+    )
+
+    from ..imu import sub_seed
+    from .renderer import Renderer
+
+    out = Path(folder)
+    _check_space(cfg, out)
+    renderer = Renderer.from_config(cfg, world, motion, weather, scenario=scenario)
+    cams = list(cfg.cameras)
+    # work units: pixels rendered (a DVS camera renders ~3 times per frame on average)
+    groups: dict[tuple[Any, ...], list[Any]] = {}
+    for c in cams:
+        if c.kind == "dvs":
+            continue
+        cam = renderer.camera(c.name)
+        key = (cam.model, cam.T_body_cam.round(9).tobytes(), float(c.rate_hz))
+        groups.setdefault(key, []).append(c)
+    work = {c.name: len(_stamps(cfg, c.rate_hz)) * c.width_px * c.height_px * (3 if c.kind == "dvs" else 1)
+            for c in cams}
+    for g in groups.values():
+        for c in g[1:]:
+            work[c.name] = 0
+    total = max(1, sum(work.values()))
+    done = 0.0
+
+    def step(frac_of_cam: float, name: str, label: str) -> None:
+        if progress is not None:
+            progress(min(1.0, (done + frac_of_cam * work[name]) / total), label)
+
+    result: dict[str, dict[str, Any]] = {}
+    glist = list(groups.values())
+    g_stamps = [_stamps(cfg, g[0].rate_hz) for g in glist]
+    for g in glist:
+        for c in g:
+            for sub in ("frames", *{"depth": ("mm",), "semantic": ("labels",)}.get(c.kind, ())):
+                (out / c.name / sub).mkdir(parents=True, exist_ok=True)
+    lead_names = [sorted(g, key=lambda c: c.kind != "rgb")[0].name for g in glist]
+    g_sets = [set(st.tolist()) for st in g_stamps]
+    all_t = sorted(set().union(*g_sets)) if g_sets else []
+
+    def write(g: list[Any], t: int, view: Any) -> None:
+        name = f"{t}.png"
+        for c in g:
+            d = out / c.name
+            if c.kind == "rgb":
+                write_png(d / "frames" / name, view.rgb)
+            elif c.kind == "depth":
+                write_depth_carla_log(d / "frames" / name, view.depth_m)
+                write_depth_mm(d / "mm" / name, view.depth_m)
+            elif c.kind == "semantic":
+                write_labels_cityscapes(d / "frames" / name, view.labels)
+                write_labels(d / "labels" / name, view.labels)
+
+    # the views of one instant (a stereo pair) render on two threads (the ray casts and the numba
+    # kernels release the GIL), and PNG encoding runs on a third while the next instant renders;
+    # at most a few frames wait, and a write error surfaces at once
+    with ThreadPoolExecutor(max_workers=2) as views, ThreadPoolExecutor(max_workers=1) as writer:
+        pending: deque[Future[None]] = deque()
+        for k, t in enumerate(all_t):
+            todo = [gi for gi in range(len(glist)) if t in g_sets[gi]]
+            rendered = list(views.map(lambda gi, t=t: renderer.render(lead_names[gi], t), todo))
+            for gi, view in zip(todo, rendered, strict=True):
+                pending.append(writer.submit(write, glist[gi], t, view))
+                done += work[glist[gi][0].name] / len(g_stamps[gi])
+            while len(pending) > 4 or (pending and pending[0].done()):
+                pending.popleft().result()
+            if progress is not None:
+                progress(min(1.0, done / total), f"render {k + 1}/{len(all_t)}")
+        while pending:
+            pending.popleft().result()
+    for g, stamps in zip(glist, g_stamps, strict=True):
+        for c in g:
+            write_frame_timestamps(out / c.name / "timestamps.csv", stamps)
+            entry: dict[str, Any] = {"folder": c.name, "frames": len(stamps), "timestamps": f"{c.name}/timestamps.csv"}
+            if c.kind == "depth":
+                entry["encoding"] = {"frames": "CARLA logarithmic depth, 8-bit, 3 equal channels",
+                                     "mm": "16-bit PNG, millimetres, 0 = no depth (DepthMapFactor 1000)"}
+            elif c.kind == "semantic":
+                entry["encoding"] = {"frames": "CityScapes palette (CARLA 0.9.10-0.9.13 tags)",
+                                     "labels": "raw CARLA tag per pixel, 8-bit"}
+            result[c.name] = entry
+    for i, c in enumerate(cams):
+        if c.kind != "dvs":
+            continue
+        from ..dvs import write_dvs_camera
+
+        stamps = _stamps(cfg, c.rate_hz)
+        name = c.name
+
+        def gray(t_ns: int, name: str = name) -> Any:
+            return renderer.gray(name, t_ns)
+
+        def dvs_step(frac: float, label: str, name: str = name) -> None:
+            step(frac, name, label)
+
+        res = write_dvs_camera(gray, c, stamps, out / c.name, dvs_config=getattr(cfg, "dvs", None),
+                               weather=weather, rng=np.random.default_rng(sub_seed(cfg.seed, "dvs", i)),
+                               progress=dvs_step)
+        result[c.name] = {"folder": c.name, "frames": len(stamps), "timestamps": f"{c.name}/timestamps.csv",
+                          "dvs": res.to_dict()}
+        done += work[c.name]
+    _association(cfg, out, result)
+    return result
+
+
+def _association(cfg: Any, out: Path, result: dict[str, dict[str, Any]]) -> None:
+    """``association.txt`` for an RGB camera and a depth camera sharing a housing."""
+    from ibiscape_eval.io.images import write_association
+
+    rgb = [c for c in cfg.cameras if c.kind == "rgb" and c.mount and c.name in result]
+    depth = [c for c in cfg.cameras if c.kind == "depth" and c.name in result]
+    for r in rgb:
+        for d in depth:
+            if d.mount == r.mount and d.rate_hz == r.rate_hz:
+                st = _stamps(cfg, r.rate_hz).tolist()
+                write_association(out / "association.txt", st, [f"{r.name}/frames/{t}.png" for t in st],
+                                  st, [f"{d.name}/mm/{t}.png" for t in st])
+                result[r.name]["association"] = "association.txt"
+                return
