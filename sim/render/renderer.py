@@ -130,7 +130,29 @@ class _Hits:
 
 
 class Renderer:
-    """Render the cameras of one sequence (see the package docstring for the API)."""
+    """Render the cameras of one sequence (see the package docstring for the API).
+
+    Parameters
+    ----------
+    world : World
+        Static geometry (built into one open3d scene here, once) and the movers.
+    cameras : tuple of RenderCamera
+        The rig; :meth:`render` and :meth:`gray` take a camera name.
+    motion : optional
+        Anything with ``sample(stamps_ns)`` giving ``pos_m`` and ``quat_xyzw`` of ``T_world_body``.
+    weather : WeatherLog, optional
+        Weather per camera frame, interpolated in time (clear defaults without one).
+    options : RenderOptions, optional
+    seed : int
+        Seeds the sensor noise and the rain drops.
+    extra_cars : Boxes, optional
+        Static cars added to the scene (the accident scenario's obstacle).
+
+    Raises
+    ------
+    IbiscapeError
+        A camera whose distortion does not invert over its image (naming pixels).
+    """
 
     def __init__(self, world: Any, *, cameras: tuple[RenderCamera, ...] = (), motion: Any = None,
                  weather: Any = None, options: RenderOptions | None = None, seed: int = 0,

@@ -11,7 +11,8 @@ Per camera folder ``<name>/`` (``../shared/FORMATS.md``)::
     every one: timestamps.csv (``#timestamp [ns], filename``)
 
 Cameras with the same optics, mounting and rate (the RGB-D housing: ``rgb``, ``depth``,
-``semantic``) share one render per frame.  An RGB camera and a depth camera in the same housing
+``semantic``) share one render per frame; the views of one instant (a stereo pair) render on two
+threads and PNG encoding runs on a third, so the files do not depend on the threads.  An RGB camera and a depth camera in the same housing
 also get ``association.txt`` (``t_rgb rgb/frames/<ns>.png t_depth depth/mm/<ns>.png``, seconds),
 the file ORB-SLAM3's RGB-D examples read.
 """
