@@ -172,6 +172,13 @@ def _linear_translation_init(prob: Problem, st: State, p_cam: list[FloatArray]) 
         vals.append(np.array([1.0 / 0.5]))
         rhs.append((np.array([r0 + a]), np.array([g_mean[a] / 0.5])))
     r0 += 3
+    # the weak prior of the batch problem on t_ci (an unobservable lever arm stays near zero)
+    for c in range(C):
+        for a in range(3):
+            rows.append(np.array([r0]))
+            cols.append(np.array([3 * nc + 3 * c + a]))
+            vals.append(np.array([1.0 / prob.trans_prior_sigma_m]))
+            r0 += 1
     A = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                       shape=(r0, n))
     y = np.zeros(r0)
