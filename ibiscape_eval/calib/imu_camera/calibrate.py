@@ -115,7 +115,6 @@ def _linear_translation_init(prob: Problem, st: State, p_cam: list[FloatArray]) 
     n = 3 * nc + 3 * C + 3 + 3
     rows, cols, vals, rhs = [], [], [], []
     r0 = 0
-    eye = np.eye(3)
     for c in range(C):
         cb = prob.cams[c]
         base, u, inside = prob.locate(cb.t_s + st.shift_s[c])
@@ -192,7 +191,6 @@ def _linear_translation_init(prob: Problem, st: State, p_cam: list[FloatArray]) 
     g = x[ig : ig + 3]
     out.R_g = _align(np.array([0.0, 0.0, -1.0]), g)
     out.bias[:, 3:] = x[ib : ib + 3]
-    del eye
     return out, float(np.sum((A @ x - y) ** 2))
 
 
@@ -479,7 +477,6 @@ def _solve(prob: Problem, st: State, max_iterations: int, step: Callable[[float,
     H, g, c0 = normal_equations(prob, st)
     converged = False
     it = 0
-    n = prob.n_params
     for it in range(1, max_iterations + 1):
         step(span[0] + (span[1] - span[0]) * it / max_iterations, f"iteration {it}, cost {c0:.8g}")
         improved = False
@@ -519,7 +516,6 @@ def _solve(prob: Problem, st: State, max_iterations: int, step: Callable[[float,
         # creeping along a weakly determined direction: the last steps moved the parameters by a
         # small fraction of their standard deviations
         converged = decrease < 10 * ABS_COST_TOL
-    del n
     return st, it, converged, H
 
 
@@ -583,7 +579,6 @@ def _result(prob: Problem, st: State, H: Any, exc: Excitation, warn: list[str], 
         res = ResidualSeries(prob.imu_t_s.copy(), r_imu[:, :3] * prob.sigma_gyro,
                              r_imu[:, 3:] * prob.sigma_accel, reproj)
     bias_t = (prob.bias_t0_s + prob.bias_dt_s * np.arange(prob.n_bias)).astype(np.float64)
-    del observations
     return ImuCameraResult(
         tuple(cams), st.gravity(prob.gravity_m_s2), bias_t, st.bias[:, :3].copy(),
         st.bias[:, 3:].copy(), exc,
@@ -592,6 +587,3 @@ def _result(prob: Problem, st: State, H: Any, exc: Excitation, warn: list[str], 
         chi2_dof, iterations, converged, forced, tuple(warn), prob.dt_s,
         time.perf_counter() - t_start, res)
 
-
-# keep the spline position import referenced for tools that evaluate the trajectory
-_ = position
