@@ -8,9 +8,13 @@ offset (:mod:`.problem`).  The sparse normal equations are solved by a Levenberg
 a sparse LU factorisation; the inverse of ``J^T J`` at the solution gives the parameter standard
 deviations (the residuals are whitened by the IMU densities and the corner noise).
 
-Initialisation: per-frame planar PnP, a coarse time offset maximising the correlation of the
-angular-rate magnitudes of camera and gyroscope, and the hand-eye rotation by Procrustes on the
-angular rates (:mod:`.initial`).
+Initialisation (:mod:`.initial`): per-frame planar PnP (both IPPE solutions), then the time offset
+and ``R_cam_imu`` from the PnP rotations versus the integrated gyroscope (the hand-eye problem
+``A X = Y B`` solved linearly for each offset of a grid, frames weighted by their corner spread), then
+positions, ``t_cam_imu``, gravity and a constant accelerometer bias by one sparse linear least-squares
+solve.  With rotation about one axis only (a flat road, ``force=True``) the hand-eye angle about that
+axis is chosen by the accelerometer fit.  The problem is solved with knots at 20 Hz first, then
+resampled to ``knot_rate_hz`` (50 Hz by default: the suspension's vertical accelerations need it).
 """
 
 from __future__ import annotations
