@@ -6,6 +6,7 @@ The lead wires :func:`run_imu_camera` into ``cli/calib.py`` (after corner detect
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -77,7 +78,9 @@ def run_imu_camera(observations: Sequence[Any], imu: Any, imu_yaml: str, corners
     from ibiscape_eval.io.kalibr_imucam import write_camchain_imucam
 
     noise = load_imu_noise(imu_yaml)
-    with tqdm(total=100, desc="imu-camera", unit="%", leave=False, disable=None) as bar:
+    # like cli.hotpix.progress_bar (stderr, hidden off a terminal or under 2 s), in percent
+    with tqdm(total=100, desc="imu-camera", unit="%", file=sys.stderr, leave=False,
+              disable=not sys.stderr.isatty(), delay=2.0) as bar:
         def progress(frac: float, label: str) -> None:
             bar.set_postfix_str(label)
             bar.update(max(0, round(frac * 100) - bar.n))
