@@ -77,9 +77,9 @@ def test_recovers_planted_extrinsics_and_time_offsets(bumpy, bumpy_result):
     assert [c.name for c in res.cameras] == ["rgbL", "rgbR"]
     for cal in res.cameras:
         rot_deg, trans_m, shift_s = _errors(bumpy, cal)
-        assert rot_deg < 0.1, rot_deg
-        assert trans_m < 0.05, trans_m
-        assert abs(shift_s) < 3e-4, shift_s
+        assert rot_deg < 0.05, rot_deg
+        assert trans_m < 0.03, trans_m
+        assert abs(shift_s) < 2e-4, shift_s
         # the errors agree with the reported uncertainty
         assert rot_deg < 4 * np.linalg.norm(cal.rotation_std_deg)
         assert trans_m < 4 * np.linalg.norm(cal.translation_std_m)

@@ -8,6 +8,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 import yaml
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from ibiscape_eval.cli.calib_imu import load_imu_noise, run_imu_camera
 from ibiscape_eval.core.errors import FormatError
@@ -56,3 +58,22 @@ def test_run_writes_kalibr_yaml_json_and_figures(tmp_path, small, capsys):
     np.testing.assert_allclose(back["cam0"]["T_cam_imu"], res.cameras[0].T_cam_imu)
     assert sorted(f.name for f in (tmp_path / "plots").iterdir()) == [
         "excitation.png", "imu_residuals.png", "reprojection.png"]
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.lists(st.floats(-1e3, 1e3, allow_nan=False), min_size=16, max_size=16),
+       st.floats(-0.05, 0.05, allow_nan=False),
+       st.floats(1e-6, 1.0, allow_nan=False), st.floats(1e-7, 1.0, allow_nan=False))
+def test_camchain_imucam_writer_and_imu_yaml_round_trip(tmp_path_factory, m, shift, nd, rw):
+    from ibiscape_eval.calib.imu_camera import ImuNoiseDensities
+    from ibiscape_eval.io.kalibr_imucam import write_camchain_imucam
+
+    T = [m[4 * i : 4 * i + 4] for i in range(4)]
+    doc = {"cam0": {"camera_model": "pinhole", "intrinsics": [500.0, 500.0, 319.5, 239.5],
+                    "T_cam_imu": T, "timeshift_cam_imu": shift},
+           "cam1": {"T_cn_cnm1": T, "T_cam_imu": T, "timeshift_cam_imu": -shift}}
+    path = tmp_path_factory.mktemp("y") / "camchain-imucam.yaml"
+    write_camchain_imucam(path, doc, comments=["x"])
+    assert yaml.safe_load(path.read_text()) == doc
+    n = ImuNoiseDensities(nd, 2 * nd, rw, 3 * rw, 200.0)
+    assert ImuNoiseDensities.from_kalibr(n.to_kalibr()) == n

@@ -8,9 +8,13 @@ offset (:mod:`.problem`).  The sparse normal equations are solved by a Levenberg
 a sparse LU factorisation; the inverse of ``J^T J`` at the solution gives the parameter standard
 deviations (the residuals are whitened by the IMU densities and the corner noise).
 
-Initialisation: per-frame planar PnP, a coarse time offset maximising the correlation of the
-angular-rate magnitudes of camera and gyroscope, and the hand-eye rotation by Procrustes on the
-angular rates (:mod:`.initial`).
+Initialisation (:mod:`.initial`): per-frame planar PnP (both IPPE solutions), then the time offset
+and ``R_cam_imu`` from the PnP rotations versus the integrated gyroscope (the hand-eye problem
+``A X = Y B`` solved linearly for each offset of a grid, frames weighted by their corner spread), then
+positions, ``t_cam_imu``, gravity and a constant accelerometer bias by one sparse linear least-squares
+solve.  With rotation about one axis only (a flat road, ``force=True``) the hand-eye angle about that
+axis is chosen by the accelerometer fit.  The problem is solved with knots at 20 Hz first, then
+resampled to ``knot_rate_hz`` (50 Hz by default: the suspension's vertical accelerations need it).
 """
 
 from __future__ import annotations
@@ -115,7 +119,6 @@ def _linear_translation_init(prob: Problem, st: State, p_cam: list[FloatArray]) 
     n = 3 * nc + 3 * C + 3 + 3
     rows, cols, vals, rhs = [], [], [], []
     r0 = 0
-    eye = np.eye(3)
     for c in range(C):
         cb = prob.cams[c]
         base, u, inside = prob.locate(cb.t_s + st.shift_s[c])
@@ -172,6 +175,13 @@ def _linear_translation_init(prob: Problem, st: State, p_cam: list[FloatArray]) 
         vals.append(np.array([1.0 / 0.5]))
         rhs.append((np.array([r0 + a]), np.array([g_mean[a] / 0.5])))
     r0 += 3
+    # the weak prior of the batch problem on t_ci (an unobservable lever arm stays near zero)
+    for c in range(C):
+        for a in range(3):
+            rows.append(np.array([r0]))
+            cols.append(np.array([3 * nc + 3 * c + a]))
+            vals.append(np.array([1.0 / prob.trans_prior_sigma_m]))
+            r0 += 1
     A = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                       shape=(r0, n))
     y = np.zeros(r0)
@@ -185,7 +195,6 @@ def _linear_translation_init(prob: Problem, st: State, p_cam: list[FloatArray]) 
     g = x[ig : ig + 3]
     out.R_g = _align(np.array([0.0, 0.0, -1.0]), g)
     out.bias[:, 3:] = x[ib : ib + 3]
-    del eye
     return out, float(np.sum((A @ x - y) ** 2))
 
 
@@ -472,7 +481,6 @@ def _solve(prob: Problem, st: State, max_iterations: int, step: Callable[[float,
     H, g, c0 = normal_equations(prob, st)
     converged = False
     it = 0
-    n = prob.n_params
     for it in range(1, max_iterations + 1):
         step(span[0] + (span[1] - span[0]) * it / max_iterations, f"iteration {it}, cost {c0:.8g}")
         improved = False
@@ -512,7 +520,6 @@ def _solve(prob: Problem, st: State, max_iterations: int, step: Callable[[float,
         # creeping along a weakly determined direction: the last steps moved the parameters by a
         # small fraction of their standard deviations
         converged = decrease < 10 * ABS_COST_TOL
-    del n
     return st, it, converged, H
 
 
@@ -576,7 +583,6 @@ def _result(prob: Problem, st: State, H: Any, exc: Excitation, warn: list[str], 
         res = ResidualSeries(prob.imu_t_s.copy(), r_imu[:, :3] * prob.sigma_gyro,
                              r_imu[:, 3:] * prob.sigma_accel, reproj)
     bias_t = (prob.bias_t0_s + prob.bias_dt_s * np.arange(prob.n_bias)).astype(np.float64)
-    del observations
     return ImuCameraResult(
         tuple(cams), st.gravity(prob.gravity_m_s2), bias_t, st.bias[:, :3].copy(),
         st.bias[:, 3:].copy(), exc,
@@ -585,6 +591,3 @@ def _result(prob: Problem, st: State, H: Any, exc: Excitation, warn: list[str], 
         chi2_dof, iterations, converged, forced, tuple(warn), prob.dt_s,
         time.perf_counter() - t_start, res)
 
-
-# keep the spline position import referenced for tools that evaluate the trajectory
-_ = position

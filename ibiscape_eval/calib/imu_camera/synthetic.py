@@ -3,8 +3,8 @@ clock offset (for known-answer tests, benchmarks and demos without rendering).
 
 The camera stamps a frame ``t_cam``; the image shows the world at ``t_cam + timeshift`` on the
 IMU's clock (Kalibr's ``timeshift_cam_imu``).  A corner is kept when it is in front of the camera,
-inside the image, on the printed side of the board, and the board is large enough in the image for a
-detector (``min_spacing_px`` between neighbouring corners).  Checkerboards are all-or-nothing like
+inside the image, and the board is large enough in the image for a detector (``min_spacing_px``
+between neighbouring corners, from the farthest corner's depth).  Checkerboards are all-or-nothing like
 OpenCV's detector; AprilGrids may be partial.
 """
 
@@ -78,12 +78,8 @@ def observe_target(
         inside = ((z > 0.1) & np.all(np.isfinite(uv), axis=-1)
                   & (uv[..., 0] >= border_px) & (uv[..., 0] <= camera.width_px - 1 - border_px)
                   & (uv[..., 1] >= border_px) & (uv[..., 1] <= camera.height_px - 1 - border_px))
-    # printed side: the board normal must point toward the camera
-    n_w = T_wt[:3, 2]
-    centre = X.mean(axis=0)
-    facing = np.abs((centre - p_wc) @ n_w) > 1e-6
     big = camera.fx * spacing_m / np.where(z > 0, z, np.inf).max(axis=1) >= min_spacing_px
-    keep = inside & (facing & big)[:, None]
+    keep = inside & big[:, None]
     if all_or_none:
         keep &= keep.all(axis=1, keepdims=True)
     rng = np.random.default_rng(seed)
