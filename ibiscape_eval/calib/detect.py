@@ -214,7 +214,7 @@ def detect_many(load: Callable[[int], npt.NDArray[Any] | None], n: int, target: 
     """
     from concurrent.futures import ThreadPoolExecutor
 
-    from ibiscape_eval.core._cpus import usable_cpus
+    from ibiscape_eval.core.cpus import usable_cpus
 
     if n < 0:
         raise IbiscapeError(f"number of images {n}: give >= 0")

@@ -78,7 +78,7 @@ def detect_frames(target: CalibrationTarget, cameras: Sequence[CameraFrames],
     """
     from concurrent.futures import ThreadPoolExecutor
 
-    from ibiscape_eval.core._cpus import usable_cpus
+    from ibiscape_eval.core.cpus import usable_cpus
 
     n_cam = len(cameras)
     if n_cam == 0:
