@@ -22,8 +22,9 @@ import numpy as np
 
 from ibiscape_eval.calib.imu_camera import calibrate_imu_camera, errors_against_truth
 from ibiscape_eval.calib.imu_camera.spline import log_so3
+from ibiscape_eval.calib.imu_camera.synthetic import calibration_scene
 from ibiscape_eval.sim import preset
-from ibiscape_eval.sim.calib_scene import calibration_scene
+from ibiscape_eval.sim.calib_scene import simulate_calibration
 from ibiscape_eval.sim.config import MotionSpec
 
 SHIFTS = {"rgbL": 0.0123, "rgbR": -0.0171}
@@ -39,7 +40,8 @@ def one(size: int, bumps: bool, duration_s: float, seed: int, four: bool = False
         cams = (*cams, *dvs)
         shifts.update({"davisL": 0.0071, "davisR": -0.0034})
     cfg = replace(cfg, cameras=tuple(replace(c, width_px=size, height_px=size) for c in cams))
-    sc = calibration_scene(cfg, timeshifts_s=shifts, noise_px=0.2, min_spacing_px=4.0)
+    sc = calibration_scene(simulate_calibration(cfg, timeshifts_s=shifts), noise_px=0.2,
+                           min_spacing_px=4.0)
     frames = {o.name: o.n_frames_with_target for o in sc.observations}
     t0, c0 = time.perf_counter(), time.process_time()
     res = calibrate_imu_camera(sc.observations, sc.imu, sc.noise, sc.corners_target_m, sigma_px=0.2,

@@ -20,17 +20,18 @@ from ibiscape_eval.calib.imu_camera import (
     camchain_imucam_document,
     errors_against_truth,
 )
+from ibiscape_eval.calib.imu_camera.synthetic import calibration_scene
 from ibiscape_eval.core.errors import CalibrationError
 from ibiscape_eval.sim import preset
-from ibiscape_eval.sim.calib_scene import calibration_scene
+from ibiscape_eval.sim.calib_scene import simulate_calibration
 from ibiscape_eval.sim.config import MotionSpec
 
 
 def scene(bumps: bool):
     cfg = preset("svi", "calibration", "clear", duration_s=24.0, seed=1, motion=MotionSpec(bumps=bumps))
     cfg = replace(cfg, cameras=tuple(replace(c, width_px=768, height_px=768) for c in cfg.cameras))
-    return calibration_scene(cfg, timeshifts_s={"rgbL": 0.0123, "rgbR": -0.0171}, noise_px=0.2,
-                             min_spacing_px=4.0)
+    sim = simulate_calibration(cfg, timeshifts_s={"rgbL": 0.0123, "rgbR": -0.0171})
+    return calibration_scene(sim, noise_px=0.2, min_spacing_px=4.0)
 
 
 sc = scene(bumps=True)

@@ -14,9 +14,10 @@ from ibiscape_eval.calib.imu_camera import (
     calibrate_imu_camera,
 )
 from ibiscape_eval.calib.imu_camera.spline import exp_so3, log_so3, position, rotation
+from ibiscape_eval.calib.imu_camera.synthetic import CalibrationScene, calibration_scene
 from ibiscape_eval.core.errors import CalibrationError, FormatError
 from ibiscape_eval.sim import preset
-from ibiscape_eval.sim.calib_scene import CalibrationScene, calibration_scene
+from ibiscape_eval.sim.calib_scene import simulate_calibration
 from ibiscape_eval.sim.config import MotionSpec
 
 SHIFTS = {"rgbL": 0.0123, "rgbR": -0.0171}
@@ -26,7 +27,8 @@ def _scene(*, bumps: bool = True, duration_s: float = 24.0, size: int = 768) -> 
     cfg = preset("svi", "calibration", "clear", duration_s=duration_s, seed=1,
                  motion=MotionSpec(bumps=bumps))
     cfg = replace(cfg, cameras=tuple(replace(c, width_px=size, height_px=size) for c in cfg.cameras))
-    return calibration_scene(cfg, timeshifts_s=SHIFTS, noise_px=0.2, min_spacing_px=4.0)
+    return calibration_scene(simulate_calibration(cfg, timeshifts_s=SHIFTS), noise_px=0.2,
+                             min_spacing_px=4.0)
 
 
 @pytest.fixture(scope="module")

@@ -11,17 +11,19 @@ import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from ibiscape_eval.calib.imu_camera.synthetic import calibration_scene
 from ibiscape_eval.cli.calib_imu import load_imu_noise, run_imu_camera
 from ibiscape_eval.core.errors import FormatError
 from ibiscape_eval.sim import preset
-from ibiscape_eval.sim.calib_scene import calibration_scene
+from ibiscape_eval.sim.calib_scene import simulate_calibration
 
 
 @pytest.fixture(scope="module")
 def small():
     cfg = preset("svi", "calibration", "clear", duration_s=24.0, seed=2)
     cfg = replace(cfg, cameras=tuple(replace(c, width_px=640, height_px=640) for c in cfg.cameras))
-    return calibration_scene(cfg, timeshifts_s={"rgbL": 0.004, "rgbR": -0.008}, min_spacing_px=4.0)
+    sim = simulate_calibration(cfg, timeshifts_s={"rgbL": 0.004, "rgbR": -0.008})
+    return calibration_scene(sim, min_spacing_px=4.0)
 
 
 def _imu_yaml(tmp_path, noise, **change):
