@@ -3,10 +3,11 @@
     .venv/bin/python examples/calibrate_cameras.py --out calib-example
 
 1. Render a stereo calibration sequence with known cameras (IBISCape layout: ``rgbL/``, ``rgbR/``
-   with ``timestamps.csv`` and ``frames/<ns>.png``, plus a ``sequence.yaml`` holding the truth).
-   Until ``ibiscape-eval sim --kind calibration`` renders its own images, the views come from the
-   test suite's analytic renderer (rays of the distorted camera intersected with the simulator's
-   printed board, supersampled).
+   with ``timestamps.csv`` and ``frames/<ns>.png``, plus a ``sequence.yaml`` holding the truth)
+   with the simulator's renderer in its calibration world (:mod:`ibiscape_eval.sim.calib_views`:
+   the rig held at varied, tilted poses 3-15 m in front of the board).  The simulator's own
+   calibration drive (``ibiscape-eval sim --kind calibration``) approaches the board head-on as in
+   the paper; those nearly fronto-parallel views leave the focal length weakly determined.
 2. Calibrate with the library: detect corners, calibrate the chain, compare with the truth.
 3. The same in one command: ``ibiscape-eval calib <seq> --yaml camchain.yaml --plot plots/``.
 """
@@ -14,38 +15,33 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 import numpy as np
-
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT / "tests" / "calib"))  # the analytic renderer (see the docstring)
+from scipy.spatial.transform import Rotation
 
 from ibiscape_eval.core.camera import CameraModel
+from ibiscape_eval.sim.calib_views import render_calibration_views
 
 LEFT = CameraModel(640, 480, 420.0, 420.0, 319.5, 239.5, "radtan", (-0.12, 0.03, 0.0005, -0.0004))
 RIGHT = CameraModel(640, 480, 421.0, 420.5, 322.0, 237.0, "radtan", (-0.11, 0.025, -0.0003, 0.0002))
 
 
-def render_sequence(out: Path, kind: str = "checkerboard", n_views: int = 16, seed: int = 0) -> Path:
-    """Write a stereo calibration sequence of ``n_views`` board poses; returns ``out``."""
-    import yaml
-    from _calib_render import random_poses, render, sim_target, stereo_extrinsics
-    from _calib_seqs import sequence_yaml, write_camera_folder
+def rig() -> np.ndarray:
+    """``T_cam0_cam1``: the right camera 0.4 m to the right (the paper's RGB baseline), turned 0.5 deg."""
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_euler("yxz", [0.5, 0.3, -0.2], degrees=True).as_matrix()
+    T[:3, 3] = [0.4, 0.01, -0.005]
+    return T
 
-    rng = np.random.default_rng(seed)
-    T_right_left = stereo_extrinsics(0.4, yaw_deg=0.5)  # the paper's RGB baseline
-    poses = random_poses(kind, n_views, rng, distance_m=(4.0, 7.5), spread=0.12, tilt_max_deg=30)
-    stamps = [1_000_000_000 + i * 50_000_000 for i in range(n_views)]
-    write_camera_folder(out / "rgbL", [render(LEFT, T, kind, rng=rng) for T in poses], stamps)
-    write_camera_folder(out / "rgbR", [render(RIGHT, T_right_left @ T, kind, rng=rng) for T in poses],
-                        stamps)
-    doc = sequence_yaml({"rgbL": LEFT, "rgbR": RIGHT},
-                        {"rgbL": np.eye(4), "rgbR": np.linalg.inv(T_right_left)},
-                        sim_target(kind).to_kalibr())
-    (out / "sequence.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
-    return out
+
+def render_sequence(out: Path, kind: str = "checkerboard", n_views: int = 16, seed: int = 0) -> Path:
+    """Write a stereo calibration sequence of ``n_views`` rig poses; returns ``out``."""
+    # AprilTags want ~12 px per tag: at f = 420 px the AprilGrid views stay within 12 m
+    dist = (3.0, 15.0) if kind == "checkerboard" else (3.0, 12.0)
+    return render_calibration_views(out, {"rgbL": LEFT, "rgbR": RIGHT}, {"rgbR": rig()},
+                                    target=kind, n_views=n_views, seed=seed, distance_m=dist,
+                                    overwrite=True)
 
 
 def main() -> None:
