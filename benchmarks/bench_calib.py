@@ -5,9 +5,9 @@
 
 For each target (checkerboard 7x7, AprilGrid 6x6 as the simulator prints them) a stereo pair with
 the paper's cameras (1024 x 1024, f = 512 px, mild radtan distortion, 0.4 m baseline) sees the
-board in ``--frames`` random poses, rendered by the tests' analytic renderer (supersampled
-ray-plane intersection) and written as an IBISCape sequence with a ``sequence.yaml`` holding the
-truth.  Then, in the same run:
+board in ``--frames`` varied poses 4-12 m away, rendered by the simulator's renderer in its
+calibration world (``ibiscape_eval.sim.calib_views``: supersampled board edges, lens blur, sensor
+noise) and written as an IBISCape sequence with a ``sequence.yaml`` holding the truth.  Then, in the same run:
 
 - ours: ``ibiscape-eval calib SEQ --json`` in a fresh process (wall time, peak RSS);
 - peer: the plain OpenCV pipeline (``findChessboardCornersSB`` / ``aruco`` + ``cornerSubPix`` per
@@ -30,9 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-sys.path.insert(0, str(ROOT / "tests" / "calib"))
 
 from _runner import run
 
@@ -44,33 +42,39 @@ CAM_R = CameraModel(1024, 1024, 512.0, 512.0, 511.5, 511.5, "radtan", (-0.04, 0.
 BASELINE_M = 0.4
 
 
-def make_sequence(root: Path, kind: str, n: int, seed: int, ss: int = 2) -> tuple[list, np.ndarray]:
+def rig() -> np.ndarray:
+    """``T_cam0_cam1``: the right camera ``BASELINE_M`` to the right, turned 0.5 deg."""
+    from scipy.spatial.transform import Rotation
+
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_euler("yxz", [0.5, 0.3, -0.2], degrees=True).as_matrix()
+    T[:3, 3] = [BASELINE_M, 0.01, -0.005]
+    return T
+
+
+def make_sequence(root: Path, kind: str, n: int, seed: int) -> np.ndarray:
+    """Render the stereo views with the simulator (sim.calib_views); returns ``T_cam0_cam1``."""
+    from ibiscape_eval.sim.calib_views import render_calibration_views
+
+    T01 = rig()
+    render_calibration_views(root, {"rgbL": CAM_L, "rgbR": CAM_R}, {"rgbR": T01}, target=kind,
+                             n_views=n, seed=seed, distance_m=(4.0, 12.0))
+    return T01
+
+
+def sim_target(root: Path):
     import yaml
-    from _calib_render import random_poses, render, stereo_extrinsics
-    from _calib_seqs import sequence_yaml, write_camera_folder
 
-    rng = np.random.default_rng(seed)
-    T10 = stereo_extrinsics(BASELINE_M, yaw_deg=0.5)
-    poses = random_poses(kind, n, rng, distance_m=(4.0, 9.0), spread=0.12, tilt_max_deg=30)
-    stamps = [1_000_000_000 + i * 50_000_000 for i in range(n)]
-    left = [render(CAM_L, T, kind, ss=ss, rng=rng) for T in poses]
-    write_camera_folder(root / "rgbL", left, stamps)
-    right = [render(CAM_R, T10 @ T, kind, ss=ss, rng=rng) for T in poses]
-    write_camera_folder(root / "rgbR", right, stamps)
-    from _calib_render import sim_target
+    from ibiscape_eval.calib import target_from_kalibr
 
-    doc = sequence_yaml({"rgbL": CAM_L, "rgbR": CAM_R}, {"rgbL": np.eye(4), "rgbR": np.linalg.inv(T10)},
-                        sim_target(kind).to_kalibr())
-    (root / "sequence.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
-    return [*left, *right], T10
+    return target_from_kalibr(yaml.safe_load((root / "sequence.yaml").read_text())["target"])
 
 
 def opencv_pipeline(root: Path, kind: str) -> tuple[float, float, dict]:
     """Plain OpenCV: detect every frame (one thread), calibrateCamera x2, stereoCalibrate."""
     import cv2
-    from _calib_render import sim_target
 
-    target = sim_target(kind)
+    target = sim_target(root)
     obj = target.object_points().astype(np.float32)
     files = sorted((root / "rgbL" / "frames").glob("*.png"))
     t0 = time.perf_counter()
@@ -127,14 +131,13 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=100)
     ap.add_argument("--targets", nargs="+", default=["checkerboard", "aprilgrid"])
     ap.add_argument("--seed", type=int, default=7)
-    ap.add_argument("--ss", type=int, default=2, help="supersampling of the renderer (1 aliases)")
     a = ap.parse_args()
     rows = []
     with tempfile.TemporaryDirectory(prefix="bench_calib_") as d:
         for kind in a.targets:
             seq = Path(d) / kind
             t = time.perf_counter()
-            _, T10 = make_sequence(seq, kind, a.frames, a.seed, a.ss)
+            T10 = make_sequence(seq, kind, a.frames, a.seed)
             print(f"[{kind}] rendered {2 * a.frames} frames in {time.perf_counter() - t:.0f} s", flush=True)
             ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
             r = run([CLI, "calib", str(seq), "--json"])
@@ -144,14 +147,13 @@ def main() -> None:
                 raise SystemExit(f"ibiscape-eval calib failed on {seq}")
             ours = json.loads(r.stdout)
             import cv2
-            from _calib_render import sim_target
 
             from ibiscape_eval.calib.detect import detect_corners
 
             files = sorted((seq / "rgbL" / "frames").glob("*.png"))[:10]
             t = time.perf_counter()
             for f in files:
-                detect_corners(cv2.imread(str(f), cv2.IMREAD_GRAYSCALE), sim_target(kind))
+                detect_corners(cv2.imread(str(f), cv2.IMREAD_GRAYSCALE), sim_target(seq))
             our_det = (time.perf_counter() - t) / len(files)
             c0 = time.process_time()
             cv_wall, cv_det, cv = opencv_pipeline(seq, kind)

@@ -280,7 +280,7 @@ def report(out: Path) -> None:
     seen = check_page(out / "report" / "report.html", screenshot=shot, window=(1500, 2600))
     print(f"headless Chromium: {len(seen.console)} console messages; screenshot {shot}")
 def calib(out: Path) -> None:
-    banner("5. Stereo camera calibration against known cameras (rendered checkerboard views)")
+    banner("5. Stereo camera calibration against known cameras (checkerboard views rendered by the simulator)")
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from calibrate_cameras import render_sequence
 
