@@ -82,13 +82,20 @@ def make_demo_output(root: Path) -> None:
     write_events(root / "events.txt", ev.events, fmt="text")
 
     # the runs folder of `make demo` step 5 (real data and synthetic trials; no simulation here)
+    _example("report_runs").make_runs_folder(out / "runs")
+    # the stereo calibration sequence of the demo's calib step (the simulator's renderer), fewer views
+    _example("calibrate_cameras").render_sequence(out / "stereo_checkerboard", "checkerboard",
+                                                  n_views=10, seed=0)
+
+
+def _example(name: str):
     import importlib.util
 
-    spec = importlib.util.spec_from_file_location("report_runs", ROOT / "examples" / "report_runs.py")
+    spec = importlib.util.spec_from_file_location(name, ROOT / "examples" / f"{name}.py")
     assert spec is not None and spec.loader is not None
-    report_runs = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(report_runs)
-    report_runs.make_runs_folder(out / "runs")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def outputs_of(args: list[str]) -> list[Path]:
