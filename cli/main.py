@@ -40,6 +40,7 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "events": ("events", "events", "Event-camera utilities: accumulation frames, time surfaces."),
     "sim": ("sim", "sim", "Generate a synthetic IBISCape-layout sequence with exact ground truth."),
     "report": ("report", "report", "Evaluate a folder of runs: paper-style table, figures, HTML."),
+    "calib": ("calib", "calib", "Camera calibration (checkerboard/AprilGrid, mono/stereo, RGB/DVS)."),
     "vio": ("vio", "vio", "Stereo visual-inertial odometry baseline (OpenCV + GTSAM) on a sequence."),
 }
 

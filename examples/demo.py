@@ -221,7 +221,7 @@ def imu(out: Path) -> None:
 
 def events(out: Path) -> None:
     banner(
-        "3. DVS hot pixels (generated 1024x1024 stream with 40 planted hot pixels, IBISCape layout)"
+        "4. DVS hot pixels (generated 1024x1024 stream with 40 planted hot pixels, IBISCape layout)"
     )
     from ibiscape_eval.events import synthetic_events
     from ibiscape_eval.io.events import write_events, write_hot_pixels
@@ -290,13 +290,29 @@ def report(out: Path) -> None:
     print(f"headless Chromium: {len(seen.console)} console messages; screenshot {shot}")
 
 
+def calib(out: Path) -> None:
+    banner("6. Stereo camera calibration against known cameras (checkerboard views rendered by the simulator)")
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from calibrate_cameras import render_sequence
+
+    seq = render_sequence(out / "stereo_checkerboard", "checkerboard", n_views=16, seed=0)
+    sh("calib", seq, "--yaml", out / "camchain.yaml", "--plot", out / "calib_plots")
+    sh("calib", seq, "--check", out / "camchain.yaml")
+
+
+def imu_camera(out: Path) -> None:
+    banner("7. Camera-IMU calibration (B-spline, time offset) on simulated corner observations")
+    # the example writes imucam_example/ (camchain-imucam.yaml, figures) into its working folder
+    subprocess.run([sys.executable, str(HERE / "calibrate_imu_camera.py")], cwd=out, check=True)
+
+
 def vio(out: Path) -> None:
-    banner("5. Stereo-VIO baseline on a rendered SVI drive, scored with the project's own ATE")
+    banner("8. Stereo-VIO baseline on a rendered SVI drive, scored with the project's own ATE")
     seq = out / "SVI_vio"
     sh("sim", "--setup", "svi", "--kind", "slam", "--weather", "clear", "--duration-s", "20",
        "--seed", "4", "--resolution", "256", "--out", seq, "--export", "euroc")
     sh("vio", seq, "-o", out / "vio_est.txt", "--plot", out / "vio_top.png")
-    sh("ate", out / "vio_est.txt", seq / "vehicle_gt" / "groundtruth_sync.csv", "--align", "se3",
+    sh("ate", out / "vio_est.txt", seq / "vehicle_gt" / "groundtruth_sync.csv", "--align", "yaw",
        "--plot", out / "vio_ate.png")
 
 
@@ -307,6 +323,8 @@ STEPS: list[tuple[str, Callable[[Path], None]]] = [
     ("imu", imu),
     ("events", events),
     ("report", report),
+    ("calib", calib),
+    ("imu-camera", imu_camera),
     ("vio", vio),
 ]
 

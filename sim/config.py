@@ -208,6 +208,9 @@ class MotionSpec:
         "accident scenario: mean deceleration of the hard stop [m/s^2]"))
     accident_obstacle_gap_m: float = field(default=2.0, metadata=_doc(
         "accident scenario: gap between the stopped car's front and the obstacle [m]"))
+    start_distance_m: float = field(default=0.0, metadata=_doc(
+        "calibration: start the approach this far in front of the board, 12..90 m, for short "
+        "sequences that should see it near (0 = the full 90 m approach, as in the paper)"))
 
 
 @dataclass(frozen=True)
@@ -350,6 +353,7 @@ def validate(cfg: SimConfig) -> None:
     _positive(cfg.motion.max_speed_m_s, "motion.max_speed_m_s")
     _positive(cfg.motion.accident_decel_m_s2, "motion.accident_decel_m_s2")
     _nonneg(cfg.motion.accident_obstacle_gap_m, "motion.accident_obstacle_gap_m")
+    _nonneg(cfg.motion.start_distance_m, "motion.start_distance_m")
     if not isinstance(cfg.motion.town_blocks, int) or cfg.motion.town_blocks < 1:
         raise IbiscapeError(f"config: motion.town_blocks must be an integer >= 1, got {cfg.motion.town_blocks!r}")
     ts = cfg.render.target_supersample

@@ -176,7 +176,7 @@ def plan(cfg: SimConfig) -> tuple[Any, Motion, dict[str, Any]]:
                         town_blocks=cfg.motion.town_blocks, bumps=cfg.motion.bumps)
     motion: Motion = plan_motion(world, duration_s=cfg.duration_s, start_ns=cfg.start_ns,
                                  seed=cfg.seed, max_speed_m_s=cfg.motion.max_speed_m_s,
-                                 target=cfg.target)
+                                 target=cfg.target, start_distance_m=cfg.motion.start_distance_m)
     info: dict[str, Any] = {"name": cfg.scenario}
     if cfg.scenario == "accident":
         motion, info = _accident(cfg, motion)

@@ -263,6 +263,7 @@ def plan_motion(
     seed: int,
     max_speed_m_s: float = 10.0,
     target: str = "checkerboard",
+    start_distance_m: float = 0.0,
 ) -> VehicleMotion:
     """Plan the vehicle's motion through ``world``.
 
@@ -279,6 +280,9 @@ def plan_motion(
         Cruise speed limit, m/s (1..60).  Calibration approaches are capped at 4 m/s.
     target : str
         Calibration: ``"checkerboard"`` or ``"aprilgrid"``, the board to drive toward.
+    start_distance_m : float
+        Calibration: start on the approach this far in front of the board (0: the loop's start,
+        90 m away, as in the paper; see :func:`~ibiscape_eval.sim.route.calibration_route`).
 
     Returns
     -------
@@ -309,7 +313,8 @@ def plan_motion(
     if world.kind == "slam":
         route = town_route(world, length_m=length, rng=rng, max_speed_m_s=max_speed_m_s)
     else:
-        route = calibration_route(world, target=target, length_m=length, max_speed_m_s=max_speed_m_s)
+        route = calibration_route(world, target=target, length_m=length, max_speed_m_s=max_speed_m_s,
+                                  start_distance_m=start_distance_m)
     path = smooth_path(route.waypoints_m, route.cut_m)
     t_knots, s_knots = _time_profile(path, route)
 

@@ -98,8 +98,14 @@ def town_route(world: World, *, length_m: float, rng: np.random.Generator, max_s
     return Route(wp, np.asarray(cut), np.asarray(stop), np.full(len(wp) - 1, max_speed_m_s))
 
 
-def calibration_route(world: World, *, target: str, length_m: float, max_speed_m_s: float) -> Route:
-    """Laps of the approach loop toward ``target`` until at least ``length_m``."""
+def calibration_route(world: World, *, target: str, length_m: float, max_speed_m_s: float,
+                      start_distance_m: float = 0.0) -> Route:
+    """Laps of the approach loop toward ``target`` until at least ``length_m``.
+
+    ``start_distance_m > 0`` starts the first lap on the approach leg that far (along x) in front
+    of the board instead of at the loop's start (90 m away), so that a short sequence sees the
+    board near; the laps after it are the full loop.  0 (the default) is the paper's drive.
+    """
     if world.kind != "calibration" or target not in world.routes:
         raise IbiscapeError(
             f"a calibration route toward {target!r} needs a 'calibration' world "
@@ -112,7 +118,23 @@ def calibration_route(world: World, *, target: str, length_m: float, max_speed_m
     laps = max(1, int(np.ceil(length_m / lap_len)))
     wp = np.vstack([loop[:1]] + [loop[1:]] * laps)
     cuts = np.concatenate([[0.0]] + [loop_cuts(loop)[1:]] * laps)
+    n_approach = 4  # loop[0] .. loop[4]: the approach leg, ending where the loop turns away
+    if start_distance_m:
+        board_x = float(world.target_named(target).T_world_target[0, 3])
+        x0 = board_x - float(start_distance_m)
+        lo, hi = board_x - loop[n_approach, 0], board_x - loop[0, 0]
+        if not lo + 2.0 <= start_distance_m <= hi:
+            raise IbiscapeError(
+                f"motion.start_distance_m = {start_distance_m} m: use 0 (the full approach) or a "
+                f"distance from {lo + 2.0:g} to {hi:g} m (the approach leg)")
+        k = int(np.searchsorted(loop[: n_approach + 1, 0], x0, side="right"))  # next vertex
+        y0 = float(np.interp(x0, loop[: n_approach + 1, 0], loop[: n_approach + 1, 1]))
+        wp = np.vstack(([[x0, y0]], wp[k:]))
+        cuts = np.concatenate(([0.0], cuts[k:]))
     cuts[-1] = 0.0
     caps_lap = np.full(len(loop) - 1, max_speed_m_s)
-    caps_lap[:4] = min(max_speed_m_s, APPROACH_SPEED_M_S)  # the approach leg toward the board
-    return Route(wp, cuts, np.zeros(len(wp)), np.tile(caps_lap, laps))
+    caps_lap[:n_approach] = min(max_speed_m_s, APPROACH_SPEED_M_S)  # the approach leg
+    caps = np.tile(caps_lap, laps)
+    if start_distance_m:
+        caps = caps[len(caps) - (len(wp) - 1):]
+    return Route(wp, cuts, np.zeros(len(wp)), caps)

@@ -23,7 +23,7 @@ from ibiscape_eval.cli.main import cli
 ROOT = Path(__file__).resolve().parents[1]
 # subcommand -> how many leading positional arguments are inputs that must exist
 INPUTS = {"ate": 2, "rpe": 2, "drift": 2, "compare": 3, "convert": 1, "allan": 1, "hotpix": 1, "frames": 1,
-          "sim": 0, "report": 1, "vio": 1}
+          "sim": 0, "report": 1, "calib": 1, "vio": 1}
 # inputs of README commands that are illustrations only (a ROS bag is not generated here)
 ILLUSTRATIVE = {"recording.bag"}
 # options whose value is a file or folder the command must create
@@ -88,13 +88,20 @@ def make_demo_output(root: Path) -> None:
     assert res.exit_code == 0, res.output
 
     # the runs folder of `make demo` step 5 (real data and synthetic trials; no simulation here)
+    _example("report_runs").make_runs_folder(out / "runs")
+    # the stereo calibration sequence of the demo's calib step (the simulator's renderer), fewer views
+    _example("calibrate_cameras").render_sequence(out / "stereo_checkerboard", "checkerboard",
+                                                  n_views=10, seed=0)
+
+
+def _example(name: str):
     import importlib.util
 
-    spec = importlib.util.spec_from_file_location("report_runs", ROOT / "examples" / "report_runs.py")
+    spec = importlib.util.spec_from_file_location(name, ROOT / "examples" / f"{name}.py")
     assert spec is not None and spec.loader is not None
-    report_runs = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(report_runs)
-    report_runs.make_runs_folder(out / "runs")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def outputs_of(args: list[str]) -> list[Path]:

@@ -27,7 +27,7 @@ from typing import IO, Any
 import numpy as np
 import numpy.typing as npt
 
-from ibiscape_eval.core._cpus import usable_cpus
+from ibiscape_eval.core.cpus import usable_cpus
 from ibiscape_eval.core.errors import FormatError
 
 __all__ = ["Table", "decimal_to_ns", "format_lines", "map_bytes", "parse_table", "read_bytes",

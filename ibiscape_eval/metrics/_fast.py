@@ -8,7 +8,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ibiscape_eval.core import Trajectory
-from ibiscape_eval.core._cpus import usable_cpus as _cpus
+from ibiscape_eval.core.cpus import usable_cpus as _cpus
 from ibiscape_eval.core.jit import LazyKernel, lazy_njit
 
 __all__ = ["aligned_errors", "moments", "nearest", "relative_errors", "run_rows", "take",

@@ -214,3 +214,24 @@ def test_world_without_lanes_and_out_of_range_stamps(slam):
         m.sample(np.array([m.end_ns + 1], dtype=np.int64))
     with pytest.raises(IbiscapeError, match="integer"):
         m.sample(np.array([1.5]))
+
+
+@pytest.mark.parametrize("target", ["checkerboard", "aprilgrid"])
+def test_calibration_start_distance_starts_near_the_board(target):
+    w = build_world(kind="calibration", seed=3, target=target)
+    board = w.target_named(target).centre_world_m
+    near = plan_motion(w, duration_s=8.0, seed=3, target=target, start_distance_m=22.0)
+    full = plan_motion(w, duration_s=8.0, seed=3, target=target)
+    p_near = near.sample(_stamps(near)).pos_m
+    p_full = full.sample(_stamps(full)).pos_m
+    assert board[0] - p_near[0, 0] == pytest.approx(22.0, abs=0.5)
+    assert board[0] - p_full[0, 0] == pytest.approx(90.0, abs=0.5)  # the paper's drive is unchanged
+    d = np.linalg.norm(p_near[:, :2] - board[:2], axis=1)
+    assert d.min() < 12.0 and np.linalg.norm(p_full[:, :2] - board[:2], axis=1).min() > 60.0
+
+
+@pytest.mark.parametrize("start", [5.0, 11.0, 91.0])
+def test_calibration_start_distance_outside_the_approach(start):
+    w = build_world(kind="calibration", seed=0, target="checkerboard")
+    with pytest.raises(IbiscapeError, match="start_distance_m"):
+        plan_motion(w, duration_s=5.0, seed=0, target="checkerboard", start_distance_m=start)

@@ -1,0 +1,218 @@
+"""``ibiscape-eval calib``: camera calibration from image folders (checkerboard / AprilGrid)."""
+
+from __future__ import annotations
+
+import re
+import warnings
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import click
+
+from ._common import echo_json, info, user_errors
+
+MODEL_CHOICES = ("pinhole-radtan", "pinhole-equi")
+RECON_CHOICES = ("auto", "accumulate-signed", "accumulate", "time-surface")
+
+
+def _bar(desc: str) -> Any:
+    from .progress import progress_bar
+
+    return progress_bar(0, desc, unit="img", unit_scale=False, delay_s=1.0)
+
+
+def _sensor_size(text: str | None) -> tuple[int, int] | None:
+    from ibiscape_eval.core.errors import IbiscapeError
+
+    if text is None:
+        return None
+    m = re.fullmatch(r"\s*(\d+)\s*[xX,]\s*(\d+)\s*", text)
+    if not m or int(m.group(1)) == 0 or int(m.group(2)) == 0:
+        raise IbiscapeError(f"--sensor-size must look like WIDTHxHEIGHT (e.g. 346x260), got {text!r}")
+    return int(m.group(1)), int(m.group(2))
+
+
+def _reader(paths: Sequence[Path], read: Callable[[Path], Any]) -> Callable[[int], Any]:
+    return lambda i: read(paths[i])
+
+
+def _labeler(paths: Sequence[Path]) -> Callable[[int], str]:
+    return lambda i: str(paths[i])
+
+
+@click.command(context_settings={"help_option_names": ["-h", "--help"]})
+@click.argument("seq", required=False, type=click.Path(path_type=Path))
+@click.option("--target", "target_path", type=click.Path(path_type=Path), default=None,
+              help="Kalibr target yaml (default: the 'target' of SEQ/sequence.yaml).")
+@click.option("--model", type=click.Choice(MODEL_CHOICES), default="pinhole-radtan", show_default=True,
+              help="Camera model (Kalibr's names).")
+@click.option("--images", "image_specs", multiple=True, metavar="NAME=GLOB",
+              help="An image set per camera, in chain order (repeat), e.g. cam0='left*.jpg'; paired "
+              "by a number in the names, else by order.")
+@click.option("--cameras", default=None, metavar="A,B",
+              help="Camera folders of SEQ to use, in chain order (default: all of rgbL, rgbR, rgb, "
+              "davisL, davisR / mav0/camN found).")
+@click.option("--yaml", "yaml_out", type=click.Path(path_type=Path), default=None,
+              help="Write the result as a Kalibr camchain.yaml.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON document on stdout.")
+@click.option("--plot", "plot_dir", type=click.Path(path_type=Path), default=None,
+              help="Folder for residual scatter plots and corner-coverage heat maps per camera.")
+@click.option("--check", "check_path", type=click.Path(path_type=Path), default=None,
+              help="Evaluate this camchain.yaml on the images instead of calibrating.")
+@click.option("--max-views", type=click.IntRange(min=3), default=60, show_default=True,
+              help="Views kept for the solve (chosen for coverage and pose diversity).")
+@click.option("--max-frames", type=click.IntRange(min=3), default=300, show_default=True,
+              help="Frames searched for the target (the sharpest of each time slice of long sequences).")
+@click.option("--reconstruction", type=click.Choice(RECON_CHOICES), default="auto", show_default=True,
+              help="Event cameras: how frames are reconstructed from each event window.")
+@click.option("--sensor-size", default=None, metavar="WxH",
+              help="Event cameras: sensor size when sequence.yaml does not give it.")
+@click.option("--outlier-sigma", type=click.FloatRange(min=1.0), default=5.0, show_default=True,
+              help="Corners beyond this many robust standard deviations are rejected.")
+@click.option("--workers", type=click.IntRange(min=1), default=None,
+              help="Detection threads (default: the usable CPUs).")
+@user_errors
+def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: tuple[str, ...],
+          cameras: str | None, yaml_out: Path | None, as_json: bool, plot_dir: Path | None,
+          check_path: Path | None, max_views: int, max_frames: int, reconstruction: str,
+          sensor_size: str | None, outlier_sigma: float, workers: int | None) -> None:
+    """Calibrate cameras from checkerboard or AprilGrid images (mono, stereo, chains; RGB and DVS).
+
+    SEQ is an IBISCape-layout sequence (camera folders rgbL, rgbR, rgb, davisL, davisR with
+    timestamps.csv) or an EuRoC ASL folder (mav0/camN).  Without SEQ give --images per camera.
+    Prints intrinsics with standard deviations, Kalibr's reprojection error
+    [mean_x, mean_y] +- [std_x, std_y] px, the RMS and the baselines; when SEQ/sequence.yaml holds
+    the true cameras, every estimate beside its truth and error.
+
+    \b
+    Examples:
+      ibiscape-eval calib SVI_calib_checkerboard --yaml camchain.yaml --plot calib_plots/
+      ibiscape-eval calib SVI_calib_aprilgrid --model pinhole-equi --json
+      ibiscape-eval calib --target april_6x6.yaml --images cam0='left/*.png' --images cam1='right/*.png'
+      ibiscape-eval calib SVI_calib_checkerboard --check camchain.yaml
+    """
+    from ibiscape_eval.calib.events import choose_reconstruction, event_frame_loader
+    from ibiscape_eval.calib.pipeline import (
+        CameraFrames,
+        calibrate_frames,
+        check_frames,
+        detect_frames,
+    )
+    from ibiscape_eval.calib.report import compare_with_truth, format_report, truth_from_sequence
+    from ibiscape_eval.calib.targets import target_from_kalibr
+    from ibiscape_eval.core.errors import IbiscapeError, IbiscapeWarning
+    from ibiscape_eval.io.events import read_events
+    from ibiscape_eval.io.image_sets import (
+        find_image_sets,
+        image_sets_from_globs,
+        pair_views,
+        read_image,
+    )
+    from ibiscape_eval.io.kalibr import CameraChain, read_camchain, read_target_yaml, write_camchain
+    from ibiscape_eval.io.sequence import read_sequence_yaml
+
+    if seq is None and not image_specs:
+        raise IbiscapeError("give a sequence folder SEQ or --images NAME=GLOB per camera")
+    if seq is not None and image_specs:
+        raise IbiscapeError("give either SEQ or --images, not both")
+    seq_doc: dict[str, Any] | None = None
+    if seq is not None and (seq / "sequence.yaml").is_file():
+        seq_doc = read_sequence_yaml(seq / "sequence.yaml")
+    if target_path is not None:
+        target = target_from_kalibr(read_target_yaml(target_path), source=str(target_path))
+    elif seq_doc is not None and isinstance(seq_doc.get("target"), dict):
+        target = target_from_kalibr(seq_doc["target"], source=f"{seq}/sequence.yaml: target")
+    else:
+        raise IbiscapeError("no target description: give --target target.yaml (Kalibr's format)"
+                            + ("" if seq is None else f"; {seq}/sequence.yaml has no 'target'"))
+    names = [c.strip() for c in cameras.split(",") if c.strip()] if cameras else None
+    sets = image_sets_from_globs(image_specs) if image_specs else find_image_sets(seq or Path("."), cameras=names)
+    views = pair_views(sets)
+    seq_cams = (seq_doc or {}).get("cameras") or {}
+
+    frames = []
+    recon_used: dict[str, Any] = {}
+    for s in sets:
+        if s.kind == "frames":
+            frames.append(CameraFrames(s.name, len(s), _reader(s.paths, read_image), _labeler(s.paths)))
+            continue
+        size = _sensor_size(sensor_size)
+        if size is None and isinstance(seq_cams.get(s.name), dict):
+            w, h = seq_cams[s.name].get("resolution", (0, 0))
+            size = (int(w), int(h))
+        if size is None:
+            raise IbiscapeError(f"{s.root}: sensor size unknown; pass --sensor-size WxH")
+        paths = s.paths
+
+        def read_window(i: int, p: tuple[Path, ...] = paths) -> Any:
+            try:
+                return read_events(p[i], fmt="npz")
+            except IbiscapeError as e:  # a corrupt window is skipped like a corrupt image
+                warnings.warn(f"{e}; skipped", IbiscapeWarning, stacklevel=1)
+                return None
+
+        assert s.windows_ns is not None
+        method = reconstruction
+        if method == "auto":
+            method, probe = choose_reconstruction(read_window, s.windows_ns, size, target)
+            recon_used[s.name] = {"method": method, **probe}
+        else:
+            recon_used[s.name] = {"method": method}
+        info(f"{s.name}: frames reconstructed from events by {method}")
+        frames.append(CameraFrames(s.name, len(s), event_frame_loader(read_window, s.windows_ns, size, method),
+                                   _labeler(paths), reconstruction=method))
+
+    with _bar("detecting") as bar:
+        summary = detect_frames(target, frames, views, max_detect=max_frames, workers=workers,
+                                progress=bar.update, total=lambda n: bar.reset(total=n))
+    base: dict[str, Any] = {"input": str(seq) if seq is not None else list(image_specs),
+                            "target": target.to_kalibr(), "detection": summary.to_dict(),
+                            "reconstruction": recon_used}
+
+    if check_path is not None:
+        chain = read_camchain(check_path)
+        doc = {**base, "check": str(check_path),
+               **check_frames(target, summary, chain.cameras, chain.T_cn_cnm1)}
+        if as_json:
+            echo_json(doc)
+            return
+        click.echo(f"checking     {check_path} on {doc['n_views']} views")
+        for c in doc["cameras"]:
+            r = c["reprojection_error"]
+            click.echo(f"{c['name']:<12} {c['reprojection_error_kalibr']} px   rms {r['rms_px']:.4f} px "
+                       f"({r['n_views']} views, {r['n_corners']} corners)")
+        click.echo(f"rms          {doc['rms_px']:.4f} px")
+        click.echo(f"outlier views (rms > {doc['outlier_px']} px): {len(doc['outlier_views'])}")
+        for o in doc["outlier_views"][:20]:
+            click.echo(f"  {o['camera']} view {o['view']}: rms {o['rms_px']:.3f} px")
+        return
+
+    with _bar("calibrating") as bar:
+        result = calibrate_frames(target, summary, model=model, max_views=max_views,
+                                  outlier_sigma=outlier_sigma, progress=lambda s: bar.set_description(s))
+    truth = compare_with_truth(result, {k: v for k, v in truth_from_sequence(seq_doc or {}).items()})
+    topics = tuple(str(seq_cams.get(c.name, {}).get("rostopic", f"/{c.name}/image_raw"))
+                   if isinstance(seq_cams.get(c.name), dict) else f"/{c.name}/image_raw"
+                   for c in result.cameras)
+    if yaml_out is not None:
+        write_camchain(yaml_out, CameraChain(tuple(c.name for c in result.cameras),
+                                             tuple(c.camera for c in result.cameras),
+                                             result.T_cn_cnm1, topics))
+    plots: list[str] = []
+    if plot_dir is not None:
+        from ibiscape_eval.calib.plots import calibration_figures
+        from ibiscape_eval.io.kalibr import write_figures
+
+        plots = [str(p) for p in write_figures(plot_dir, calibration_figures(result))]
+    doc = {**base, **result.to_dict(), "ground_truth": None if truth is None else truth.to_dict(),
+           "outputs": {"yaml": None if yaml_out is None else str(yaml_out), "plots": plots}}
+    if as_json:
+        echo_json(doc)
+        return
+    for name, r in recon_used.items():
+        click.echo(f"{name}: frames reconstructed from events by {r['method']}")
+    for line in format_report(result, truth):
+        click.echo(line)
+    if yaml_out is not None:
+        info(f"wrote {yaml_out}")

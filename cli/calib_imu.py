@@ -1,0 +1,100 @@
+"""``calib SEQ --imu imu.yaml``: the camera-IMU part of the calibration command.
+
+The lead wires :func:`run_imu_camera` into ``cli/calib.py`` (after corner detection);
+``calib_imu_options`` lists the click options it adds.  No math here.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import click
+
+from ._common import echo_json, info
+
+__all__ = ["load_imu_noise", "print_result", "run_imu_camera"]
+
+
+def load_imu_noise(path: str) -> Any:
+    """Read ``imu.yaml`` (``yaml.safe_load``) into :class:`ImuNoiseDensities`; errors name the file."""
+    import yaml
+
+    from ibiscape_eval.calib.imu_camera import ImuNoiseDensities
+    from ibiscape_eval.core.errors import FormatError
+
+    with open(path, encoding="utf-8") as fh:
+        try:
+            doc = yaml.safe_load(fh)
+        except yaml.YAMLError as e:
+            raise FormatError(path, f"not valid YAML ({' '.join(str(e).split())})") from None
+    return ImuNoiseDensities.from_kalibr(doc, source=path)
+
+
+def print_result(result: Any, errors: Mapping[str, Mapping[str, float]]) -> None:
+    """One table row per camera (stdout) and the excitation line."""
+    import numpy as np
+
+    click.echo(f"{'camera':<10} {'t_cam_imu [m]':<30} {'shift [ms]':>11} {'rot std [deg]':>14} "
+               f"{'pos std [mm]':>22} {'rms [px]':>9}")
+    for c in result.cameras:
+        t = c.T_cam_imu[:3, 3]
+        click.echo(f"{c.name:<10} {t[0]:9.4f} {t[1]:9.4f} {t[2]:9.4f}   "
+                   f"{c.timeshift_cam_imu_s * 1e3:11.3f} {np.max(c.rotation_std_deg):14.4f} "
+                   f"{' '.join(f'{v * 1e3:6.1f}' for v in c.position_std_imu_m):>22} "
+                   f"{c.reprojection_rms_px:9.3f}")
+        if c.name in errors:
+            e = errors[c.name]
+            click.echo(f"{'':<10} error vs truth: rotation {e['rotation_error_deg']:.4f} deg, "
+                       f"translation {e['translation_error_m'] * 1e3:.2f} mm, "
+                       f"time {e['timeshift_error_s'] * 1e3:.4f} ms")
+    ex = result.excitation
+    click.echo("excitation: angular-rate std "
+               + " ".join(f"{a}={v:.3f}" for a, v in zip("xyz", ex.gyro_std_rad_s, strict=True))
+               + " rad/s, specific-force std "
+               + " ".join(f"{a}={v:.2f}" for a, v in zip("xyz", ex.accel_std_m_s2, strict=True))
+               + " m/s^2" + (" (FORCED)" if result.forced else ""))
+
+
+def run_imu_camera(observations: Sequence[Any], imu: Any, imu_yaml: str, corners_target_m: Any, *,
+                   truth: Mapping[str, Mapping[str, Any]] | None = None, force: bool = False,
+                   sigma_px: float = 0.3, yaml_path: str | None = None, json_out: bool = False,
+                   plot_dir: str | None = None) -> Any:
+    """Calibrate, write ``--yaml`` (camchain-imucam) and print (table or ``--json``).
+
+    ``observations`` (one :class:`CameraObservations` per camera, intrinsics filled from the camera
+    calibration or ``--cams``), ``imu`` (:class:`ImuData`) and ``truth`` (``sequence.yaml``'s
+    cameras) come from the calib command.
+    """
+    from ibiscape_eval.calib.imu_camera import (
+        calibrate_imu_camera,
+        camchain_imucam_document,
+        errors_against_truth,
+    )
+    from ibiscape_eval.io.kalibr_imucam import write_camchain_imucam
+
+    noise = load_imu_noise(imu_yaml)
+    from .progress import fraction_callback, progress_bar
+
+    with progress_bar(1000, "imu-camera", unit="‰", unit_scale=False) as bar:
+        progress = fraction_callback(bar, "imu-camera")
+        result = calibrate_imu_camera(observations, imu, noise, corners_target_m, sigma_px=sigma_px,
+                                      force=force, progress=progress)
+    errors = errors_against_truth(result, truth or {})
+    if yaml_path:
+        write_camchain_imucam(yaml_path, camchain_imucam_document(result),
+                              comments=["camera-IMU calibration by ibiscape-eval calib --imu"])
+    if plot_dir:
+        from ibiscape_eval.calib.imu_camera.plots import figures
+        from ibiscape_eval.io.kalibr_imucam import write_figures
+
+        written = write_figures(Path(plot_dir), figures(result))
+        info(f"wrote {len(written)} figure(s) to {plot_dir}")
+    if json_out:
+        doc = result.to_dict()
+        doc["errors_vs_truth"] = errors
+        echo_json(doc)
+    else:
+        print_result(result, errors)
+    return result

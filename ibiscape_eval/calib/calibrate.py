@@ -1,0 +1,813 @@
+"""Mono and multi-camera (chain) calibration from planar-target detections.
+
+Pipeline (one function, :func:`calibrate`):
+
+1. Per camera, an initial pinhole + radtan estimate with OpenCV's ``calibrateCamera`` (Zhang 2000)
+   on the views with enough corners, then a target pose per view with ``solvePnP``.
+2. Consistent corner numbering across cameras (checkerboards only): a square corner grid has no
+   preferred orientation, so OpenCV may number a view's corners from a different starting corner
+   in each camera.  For every pair of neighbouring cameras and every common view all symmetric
+   renumberings are tried; the relative pose that most views agree on is kept and each view takes
+   the numbering that agrees with it.
+3. Joint refinement of everything by sparse nonlinear least squares (scipy ``least_squares``,
+   trust-region reflective, finite-difference Jacobian with its sparsity pattern): per camera
+   ``fx, fy, cx, cy`` and four distortion coefficients (radtan or equidistant, through
+   :class:`~ibiscape_eval.core.camera.CameraModel`), a target pose per view in camera 0 and the
+   chain ``T_cn_cnm1``.  Corners whose residual exceeds ``outlier_sigma`` robust standard
+   deviations are removed and the problem re-solved until none is.
+4. Parameter standard deviations from the Gauss-Newton covariance ``s^2 (J^T J)^-1`` with
+   ``s^2 = SSR / (m - p)``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ibiscape_eval.core.camera import CameraModel
+from ibiscape_eval.core.errors import CalibrationError, IbiscapeError
+
+from .detect import Detection
+from .targets import CalibrationTarget
+
+__all__ = [
+    "MODELS",
+    "CalibrationResult",
+    "CameraCalibration",
+    "Observations",
+    "ResidualStats",
+    "calibrate",
+    "evaluate",
+]
+
+#: Kalibr's model names -> CameraModel distortion
+MODELS = {"pinhole-radtan": "radtan", "pinhole-equi": "equidistant"}
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+PARAM_NAMES = ("fx", "fy", "cx", "cy", "d0", "d1", "d2", "d3")
+
+
+# --------------------------------------------------------------------------------------- results
+@dataclass(frozen=True)
+class ResidualStats:
+    """Reprojection residuals of one camera [px]: Kalibr's ``[mean_x, mean_y] +- [std_x, std_y]``."""
+
+    mean_px: tuple[float, float]
+    std_px: tuple[float, float]
+    rms_px: float
+    max_px: float
+    n_corners: int
+    n_views: int
+
+    @classmethod
+    def of(cls, res: FloatArray, n_views: int) -> ResidualStats:
+        if len(res) == 0:
+            return cls((0.0, 0.0), (0.0, 0.0), 0.0, 0.0, 0, n_views)
+        m, s = res.mean(axis=0), res.std(axis=0)
+        norm = np.hypot(res[:, 0], res[:, 1])
+        return cls((float(m[0]), float(m[1])), (float(s[0]), float(s[1])),
+                   float(np.sqrt(np.mean(norm**2))), float(norm.max()), len(res), n_views)
+
+    def kalibr(self) -> str:
+        """``[mean_x, mean_y] +- [std_x, std_y]`` as Kalibr prints it."""
+        m = [0.0 if abs(v) < 5e-7 else v for v in self.mean_px]  # no "-0.000000"
+        return f"[{m[0]:.6f}, {m[1]:.6f}] +- [{self.std_px[0]:.6f}, {self.std_px[1]:.6f}]"
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"mean_px": list(self.mean_px), "std_px": list(self.std_px), "rms_px": self.rms_px,
+                "max_px": self.max_px, "n_corners": self.n_corners, "n_views": self.n_views}
+
+
+@dataclass(frozen=True, eq=False)
+class CameraCalibration:
+    """One camera's estimate and its statistics.
+
+    Attributes
+    ----------
+    name : str
+    camera : CameraModel
+    std : dict
+        Standard deviations of ``fx, fy, cx, cy`` [px] and the distortion coefficients (Kalibr's
+        order), named like :meth:`CameraModel.to_kalibr` (``intrinsics``, ``distortion_coeffs``).
+    residuals : ResidualStats
+    residuals_px : ndarray (K, 2)
+        Residuals (projected minus detected) of the corners used.
+    corners_px : ndarray (K, 2)
+        The detected corners used (for coverage plots).
+    view_rms_px : dict
+        RMS residual per view index used.
+    n_rejected : int
+        Corners removed as outliers.
+    """
+
+    name: str
+    camera: CameraModel
+    std: dict[str, list[float]]
+    residuals: ResidualStats
+    residuals_px: FloatArray
+    corners_px: FloatArray
+    view_rms_px: dict[int, float]
+    n_rejected: int
+
+    def to_dict(self) -> dict[str, Any]:
+        d = self.camera.to_kalibr()
+        return {"name": self.name, **d, "intrinsics_std": self.std["intrinsics"],
+                "distortion_coeffs_std": self.std["distortion_coeffs"],
+                "reprojection_error": self.residuals.to_dict(),
+                "reprojection_error_kalibr": self.residuals.kalibr(),
+                "n_rejected_corners": self.n_rejected,
+                "view_rms_px": {str(k): v for k, v in sorted(self.view_rms_px.items())}}
+
+    def __repr__(self) -> str:
+        return f"CameraCalibration({self.name}: {self.camera!r}, rms {self.residuals.rms_px:.3f} px)"
+
+
+@dataclass(frozen=True, eq=False)
+class CalibrationResult:
+    """A calibrated camera chain.
+
+    Attributes
+    ----------
+    model : str
+        ``pinhole-radtan`` or ``pinhole-equi``.
+    target : CalibrationTarget
+    cameras : tuple of CameraCalibration
+    T_cn_cnm1 : tuple of ndarray (4, 4)
+        Camera n-1 to camera n, one per camera after the first.
+    T_cn_cnm1_std : tuple of dict
+        ``rotation_deg`` (3, about the rotation-vector axes) and ``translation_m`` (3) std devs.
+    baselines_m, baselines_std_m : tuple of float
+        ``|t|`` of every ``T_cn_cnm1`` and its standard deviation.
+    n_views : int
+        Views (instants) with at least one camera used.
+    view_ids : tuple of int
+        Indices of the views used (into the input lists).
+    renumbered_views : int
+        Views whose corner numbering was changed to agree across cameras.
+    iterations : int
+        Outlier-rejection rounds.
+    """
+
+    model: str
+    target: CalibrationTarget
+    cameras: tuple[CameraCalibration, ...]
+    T_cn_cnm1: tuple[FloatArray, ...]
+    T_cn_cnm1_std: tuple[dict[str, list[float]], ...]
+    baselines_m: tuple[float, ...]
+    baselines_std_m: tuple[float, ...]
+    n_views: int
+    view_ids: tuple[int, ...]
+    renumbered_views: int = 0
+    iterations: int = 1
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def rms_px(self) -> float:
+        """RMS reprojection error over all cameras [px]."""
+        n = sum(c.residuals.n_corners for c in self.cameras)
+        ss = sum(c.residuals.rms_px**2 * c.residuals.n_corners for c in self.cameras)
+        return float(np.sqrt(ss / n)) if n else 0.0
+
+    def to_dict(self) -> dict[str, Any]:
+        chain = []
+        for i, T in enumerate(self.T_cn_cnm1):
+            chain.append({"from": self.cameras[i].name, "to": self.cameras[i + 1].name,
+                          "T_cn_cnm1": T.tolist(), "baseline_m": self.baselines_m[i],
+                          "baseline_std_m": self.baselines_std_m[i], **self.T_cn_cnm1_std[i]})
+        return {"model": self.model, "target": self.target.to_kalibr(),
+                "cameras": [c.to_dict() for c in self.cameras], "chain": chain,
+                "rms_px": self.rms_px, "n_views": self.n_views,
+                "renumbered_views": self.renumbered_views, "iterations": self.iterations,
+                **self.extra}
+
+    def __repr__(self) -> str:
+        b = ", ".join(f"{1e3 * v:.2f} mm" for v in self.baselines_m)
+        return (f"CalibrationResult({self.model}, {len(self.cameras)} cameras, {self.n_views} views, "
+                f"rms {self.rms_px:.3f} px{', baselines ' + b if b else ''})")
+
+
+@dataclass(frozen=True, eq=False)
+class Observations:
+    """Detections of one camera, one entry per view (None: target not seen)."""
+
+    name: str
+    image_size: tuple[int, int]
+    detections: Sequence[Detection | None]
+
+
+# ------------------------------------------------------------------------------------- geometry
+def _T(rvec: npt.ArrayLike, tvec: npt.ArrayLike) -> FloatArray:
+    from scipy.spatial.transform import Rotation
+
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_rotvec(np.asarray(rvec, np.float64).ravel()).as_matrix()
+    T[:3, 3] = np.asarray(tvec, np.float64).ravel()
+    return T
+
+
+def _rt(T: FloatArray) -> FloatArray:
+    from scipy.spatial.transform import Rotation
+
+    return np.concatenate([Rotation.from_matrix(T[:3, :3]).as_rotvec(), T[:3, 3]])
+
+
+def _rot_angle_deg(R: FloatArray) -> float:
+    c = (np.trace(R) - 1.0) / 2.0
+    return float(np.degrees(np.arccos(np.clip(c, -1.0, 1.0))))
+
+
+def _camera(base: CameraModel, p: FloatArray) -> CameraModel:
+    return replace(base, fx=float(p[0]), fy=float(p[1]), cx=float(p[2]), cy=float(p[3]),
+                   coeffs=(float(p[4]), float(p[5]), float(p[6]), float(p[7])))
+
+
+def _equi_from_radtan(k1: float, k2: float, fmax: float) -> tuple[float, float, float, float]:
+    """Equidistant coefficients whose radial mapping best matches radtan's ``r (1 + k1 r^2 + k2 r^4)``
+    over normalised radii ``[0, fmax]`` (linear least squares in k1..k4)."""
+    r = np.linspace(1e-3, max(fmax, 1e-2), 200)
+    rd = r * (1 + k1 * r**2 + k2 * r**4)
+    th = np.arctan(r)
+    A = np.stack([th**3, th**5, th**7, th**9], axis=1)
+    sol, *_ = np.linalg.lstsq(A, rd - th, rcond=None)
+    return tuple(float(v) for v in sol)  # type: ignore[return-value]
+
+
+# --------------------------------------------------------------------------------- initialisation
+def _usable(det: Detection | None, target: CalibrationTarget, min_corners: int) -> bool:
+    if det is None or len(det) < min_corners:
+        return False
+    if target.target_type == "checkerboard":
+        return True
+    # corners must span two dimensions of the board (not one row of tags)
+    r, c = np.divmod(det.ids, target.corner_cols)
+    return len(np.unique(r)) >= 2 and len(np.unique(c)) >= 2
+
+
+def _init_camera(obs: Observations, target: CalibrationTarget, views: list[int], distortion: str,
+                 max_init_views: int = 40) -> CameraModel:
+    import cv2
+
+    obj = target.object_points().astype(np.float32)
+    pick = views if len(views) <= max_init_views else [
+        views[i] for i in np.linspace(0, len(views) - 1, max_init_views).round().astype(int)]
+    o_pts, i_pts = [], []
+    for v in pick:
+        d = obs.detections[v]
+        assert d is not None
+        o_pts.append(obj[d.ids])
+        i_pts.append(d.corners_px.astype(np.float32))
+    w, h = obs.image_size
+    try:
+        _, K, dist, _, _ = cv2.calibrateCamera(o_pts, i_pts, (w, h), None, None,
+                                               flags=cv2.CALIB_FIX_K3)
+    except cv2.error as e:
+        raise CalibrationError(f"{obs.name}: OpenCV could not initialise the intrinsics "
+                               f"({str(e).strip().splitlines()[-1]}); give more varied views") from None
+    dist = np.asarray(dist, np.float64).ravel()
+    cam = CameraModel(w, h, float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2]),
+                      "radtan", (float(dist[0]), float(dist[1]), float(dist[2]), float(dist[3])))
+    if distortion == "equidistant":
+        corners = np.array([[0, 0], [w - 1, 0], [0, h - 1], [w - 1, h - 1]], np.float64)
+        rmax = float(np.max(np.hypot((corners[:, 0] - cam.cx) / cam.fx, (corners[:, 1] - cam.cy) / cam.fy)))
+        cam = replace(cam, distortion="equidistant",
+                      coeffs=_equi_from_radtan(cam.coeffs[0], cam.coeffs[1], rmax))
+    return cam
+
+
+def _pnp(cam: CameraModel, obj: FloatArray, uv: FloatArray) -> FloatArray | None:
+    """Target pose ``T_cam_target`` from corners: undistort with ``cam``, then planar PnP."""
+    import cv2
+
+    rays, ok = cam.unproject(uv)
+    if ok.sum() < 4:
+        return None
+    good, rvec, tvec = cv2.solvePnP(obj[ok].astype(np.float64), rays[ok, :2].astype(np.float64),
+                                    np.eye(3), None, flags=cv2.SOLVEPNP_IPPE)
+    if not good:
+        return None
+    good, rvec, tvec = cv2.solvePnP(obj[ok], rays[ok, :2], np.eye(3), None, rvec, tvec, True,
+                                    flags=cv2.SOLVEPNP_ITERATIVE)
+    if not good or tvec[2, 0] <= 0:
+        return None
+    return _T(rvec, tvec)
+
+
+# ------------------------------------------------------------------------- numbering consistency
+def _pose_distance(A: FloatArray, B: FloatArray, scale_m: float) -> float:
+    """Rotation difference [deg] plus translation difference in units of 1 % of ``scale_m``."""
+    return _rot_angle_deg(A[:3, :3].T @ B[:3, :3]) + float(np.linalg.norm(A[:3, 3] - B[:3, 3])) / (0.01 * scale_m)
+
+
+def _consistent_numbering(ref_poses: dict[int, FloatArray], dets: list[Detection | None],
+                          cam: CameraModel, target: CalibrationTarget
+                          ) -> tuple[dict[int, Detection], FloatArray | None, int]:
+    """Renumber camera n's detections so that ``T_cn_ref = T_cn_t T_ref_t^-1`` agrees over views.
+
+    Returns the renumbered detections (common views only), the consensus relative pose and the
+    number of views whose numbering changed.
+    """
+    obj = target.object_points()
+    perms = target.symmetries()
+    cands: list[tuple[int, int, FloatArray]] = []  # (view, perm index, T_cn_ref)
+    for v, T_ref in ref_poses.items():
+        d = dets[v]
+        if d is None:
+            continue
+        for k, perm in enumerate(perms):
+            ids = perm[d.ids]
+            T = _pnp(cam, obj[ids], d.corners_px)
+            if T is not None:
+                cands.append((v, k, T @ np.linalg.inv(T_ref)))
+    if not cands:
+        return {}, None, 0
+    scale = float(np.median([np.linalg.norm(T_ref[:3, 3]) for T_ref in ref_poses.values()]))
+    # consensus: the candidate that the most views agree with (within 2 deg + 2 % of the distance)
+    views = np.array([c[0] for c in cands])
+    Rs = np.stack([c[2][:3, :3] for c in cands])
+    ts = np.stack([c[2][:3, 3] for c in cands])
+    best_score, best = -1, cands[0][2]
+    step = max(1, len(cands) // 400)
+    for _, _, Tc in cands[::step]:
+        cos = (np.einsum("ij,nij->n", Tc[:3, :3], Rs) - 1.0) / 2.0
+        d = (np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+             + np.linalg.norm(ts - Tc[:3, 3], axis=1) / (0.01 * scale))
+        score = len(np.unique(views[d < 4.0]))
+        if score > best_score:
+            best_score, best = score, Tc
+    out: dict[int, Detection] = {}
+    changed = 0
+    chosen = []
+    for v in np.unique(views):
+        mine = [c for c in cands if c[0] == v]
+        dist = [_pose_distance(best, c[2], scale) for c in mine]
+        i = int(np.argmin(dist))
+        if dist[i] > 20.0:  # no numbering of this view agrees: leave the view out of the pair
+            continue
+        v_, k, Tc = mine[i]
+        d = dets[v_]
+        assert d is not None
+        ids = perms[k][d.ids]
+        order = np.argsort(ids)
+        out[int(v_)] = Detection(ids[order], d.corners_px[order], d.image_size)
+        changed += int(k != 0)
+        chosen.append(Tc)
+    return out, best, changed
+
+
+# ----------------------------------------------------------------------------- joint refinement
+@dataclass
+class _Problem:
+    cams: list[CameraModel]
+    obj: FloatArray            # (M, 3) target points of all observations
+    uv: FloatArray             # (M, 2) detected corners
+    cam_i: IntArray            # (M,) camera index
+    view_i: IntArray           # (M,) index into the pose block
+    n_views: int
+    free_intrinsics: bool = True
+    free_chain: bool = True
+
+    @property
+    def n_cams(self) -> int:
+        return len(self.cams)
+
+    def layout(self) -> tuple[int, int, int]:
+        ni = 8 * self.n_cams if self.free_intrinsics else 0
+        nc = 6 * (self.n_cams - 1) if self.free_chain else 0
+        return ni, nc, 6 * self.n_views
+
+    def split(self, x: FloatArray, intr: FloatArray, chain: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        ni, nc, _ = self.layout()
+        i = x[:ni].reshape(-1, 8) if self.free_intrinsics else intr
+        c = x[ni:ni + nc].reshape(-1, 6) if self.free_chain else chain
+        return i, c, x[ni + nc:].reshape(-1, 6)
+
+    def residuals(self, intr: FloatArray, chain: FloatArray, poses: FloatArray) -> FloatArray:
+        from scipy.spatial.transform import Rotation
+
+        R = Rotation.from_rotvec(poses[:, :3]).as_matrix()
+        p = np.einsum("mij,mj->mi", R[self.view_i], self.obj) + poses[self.view_i, 3:]
+        out = np.empty_like(self.uv)
+        # chain: T_cn_c0 = T_cn_cnm1 ... T_c1_c0
+        Rn, tn = np.eye(3), np.zeros(3)
+        for n in range(self.n_cams):
+            if n > 0:
+                Rc = Rotation.from_rotvec(chain[n - 1, :3]).as_matrix()
+                Rn, tn = Rc @ Rn, Rc @ tn + chain[n - 1, 3:]
+            sel = self.cam_i == n
+            if not sel.any():
+                continue
+            pc = p[sel] @ Rn.T + tn
+            try:
+                cam = _camera(self.cams[n], intr[n])
+            except IbiscapeError:
+                out[sel] = 1e3
+                continue
+            out[sel] = cam.project(pc) - self.uv[sel]
+        return np.nan_to_num(out, nan=1e3, posinf=1e3, neginf=-1e3)
+
+    def column_groups(self) -> list[tuple[IntArray, list[tuple[int, IntArray]]]]:
+        """Finite-difference groups: ``(columns moved together, [(column, its residual rows)])``.
+
+        Columns that touch disjoint residuals share one function evaluation (Curtis, Powell &
+        Reid 1974): the same intrinsic of different cameras, the same pose entry of all views.
+        """
+        ni, nc, _ = self.layout()
+        obs = np.arange(len(self.uv))
+        groups: list[tuple[IntArray, list[tuple[int, IntArray]]]] = []
+        cam_rows = [obs[self.cam_i == n] for n in range(self.n_cams)]
+        if self.free_intrinsics:
+            for j in range(8):
+                cols = 8 * np.arange(self.n_cams) + j
+                groups.append((cols, [(int(c), cam_rows[n]) for n, c in enumerate(cols)]))
+        if self.free_chain:
+            for n in range(1, self.n_cams):
+                rows = obs[self.cam_i >= n]
+                for j in range(6):
+                    c = ni + 6 * (n - 1) + j
+                    groups.append((np.array([c]), [(c, rows)]))
+        order = np.argsort(self.view_i, kind="stable")
+        bounds = np.searchsorted(self.view_i[order], np.arange(self.n_views + 1))
+        view_rows = [order[bounds[v]:bounds[v + 1]] for v in range(self.n_views)]
+        for j in range(6):
+            cols = ni + nc + 6 * np.arange(self.n_views) + j
+            groups.append((cols, [(int(c), view_rows[v]) for v, c in enumerate(cols)]))
+        return groups
+
+
+def _jacobian(fun: Callable[[FloatArray], FloatArray], x: FloatArray, r0: FloatArray,
+              groups: list[tuple[IntArray, list[tuple[int, IntArray]]]]) -> Any:
+    """Sparse forward-difference Jacobian of the (M, 2) residual function, shape (2M, P)."""
+    from scipy.sparse import csr_matrix
+
+    h = 1e-6 * np.maximum(np.abs(x), 1.0)
+    rows_l, cols_l, vals_l = [], [], []
+    for cols, members in groups:
+        xp = x.copy()
+        xp[cols] += h[cols]
+        d = (fun(xp) - r0)
+        for c, rows in members:
+            if len(rows) == 0:
+                continue
+            g = d[rows] / h[c]
+            rows_l.append(np.concatenate([2 * rows, 2 * rows + 1]))
+            cols_l.append(np.full(2 * len(rows), c))
+            vals_l.append(np.concatenate([g[:, 0], g[:, 1]]))
+    m = 2 * len(r0)
+    return csr_matrix((np.concatenate(vals_l), (np.concatenate(rows_l), np.concatenate(cols_l))),
+                      shape=(m, len(x)))
+
+
+@dataclass(frozen=True, eq=False)
+class _Solution:
+    x: FloatArray
+    jac: Any
+    cost: float  # 0.5 * sum of squares (scipy's convention)
+    iterations: int
+
+
+def _levenberg_marquardt(fun: Callable[[FloatArray], FloatArray], x0: FloatArray,
+                         groups: list[tuple[IntArray, list[tuple[int, IntArray]]]], *,
+                         max_iter: int = 100) -> _Solution:
+    """Levenberg-Marquardt with Marquardt's diagonal scaling on the normal equations (the
+    parameter count stays small: intrinsics, chain and 6 per view)."""
+    import scipy.linalg
+
+    x = x0.copy()
+    r = fun(x)
+    cost = float(np.sum(r * r))
+    lam = 1e-3
+    J = _jacobian(fun, x, r, groups)
+    it = 0
+    for it in range(1, max_iter + 1):  # noqa: B007
+        A = (J.T @ J).toarray()
+        g = J.T @ r.ravel()
+        d = np.maximum(np.diag(A), 1e-12)
+        improved = False
+        while lam < 1e12:
+            try:
+                c, low = scipy.linalg.cho_factor(A + lam * np.diag(d))
+                dx = -scipy.linalg.cho_solve((c, low), g)
+            except np.linalg.LinAlgError:
+                lam *= 10.0
+                continue
+            xn = x + dx
+            rn = fun(xn)
+            cn = float(np.sum(rn * rn))
+            if cn < cost:
+                rel = (cost - cn) / max(cost, 1e-300)
+                x, r, cost = xn, rn, cn
+                lam = max(lam / 5.0, 1e-12)
+                improved = True
+                break
+            lam *= 5.0
+        if not improved:
+            break
+        J = _jacobian(fun, x, r, groups)
+        if rel < 1e-12 or np.max(np.abs(dx) / np.maximum(np.abs(x), 1.0)) < 1e-12:
+            break
+    return _Solution(x, J, 0.5 * cost, it)
+
+
+def _solve(prob: _Problem, intr: FloatArray, chain: FloatArray, poses: FloatArray
+           ) -> tuple[FloatArray, FloatArray, FloatArray, _Solution]:
+    parts = []
+    if prob.free_intrinsics:
+        parts.append(intr.ravel())
+    if prob.free_chain:
+        parts.append(chain.ravel())
+    parts.append(poses.ravel())
+    x0 = np.concatenate(parts)
+
+    def fun(x: FloatArray) -> FloatArray:
+        i, c, p = prob.split(x, intr, chain)
+        return prob.residuals(i, c, p)
+
+    sol = _levenberg_marquardt(fun, x0, prob.column_groups())
+    i, c, p = prob.split(sol.x, intr, chain)
+    return i.copy(), c.copy(), p.copy(), sol
+
+
+def _covariance(sol: _Solution, n_fixed_tail: int) -> tuple[FloatArray, float]:
+    """Covariance ``s^2 (J^T J)^-1`` of the leading (non-pose) parameters, and ``s^2``."""
+    J = sol.jac
+    m, p = J.shape
+    s2 = float(2 * sol.cost / max(m - p, 1))
+    JtJ = (J.T @ J).toarray()
+    cov = np.linalg.pinv(JtJ, rcond=1e-15, hermitian=True) * s2
+    k = p - n_fixed_tail
+    return cov[:k, :k], s2
+
+
+# ----------------------------------------------------------------------------------- public API
+def calibrate(target: CalibrationTarget, observations: Sequence[Observations], *,
+              model: str = "pinhole-radtan", outlier_sigma: float = 5.0, min_corners: int | None = None,
+              max_rounds: int = 4, progress: Callable[[str], Any] | None = None) -> CalibrationResult:
+    """Calibrate one camera or a chain of cameras from per-view detections.
+
+    Parameters
+    ----------
+    target
+        The planar target whose corners were detected.
+    observations
+        One :class:`Observations` per camera in chain order; ``detections[v]`` of every camera is
+        the same instant ``v`` (None where the target was not found).
+    model
+        ``"pinhole-radtan"`` or ``"pinhole-equi"`` (Kalibr's names).
+    outlier_sigma
+        Corners with a residual beyond this many robust standard deviations (1.4826 MAD per axis)
+        are removed, then the problem is solved again.
+    min_corners
+        Corners a view needs to be used (default: all corners of a checkerboard, 8 of an AprilGrid).
+    progress
+        Called with a short stage name.
+
+    Raises
+    ------
+    CalibrationError
+        Too few views, no common views between neighbouring cameras, a failed initialisation.
+    """
+    if model not in MODELS:
+        raise IbiscapeError(f"model {model!r}: use one of {', '.join(MODELS)}")
+    if not observations:
+        raise IbiscapeError("no cameras to calibrate")
+    n_v = len(observations[0].detections)
+    if any(len(o.detections) != n_v for o in observations):
+        raise IbiscapeError("every camera needs one detection entry per view")
+    distortion = MODELS[model]
+    min_c = min_corners or (target.n_corners if target.target_type == "checkerboard" else 8)
+    obj = target.object_points()
+    say = progress or (lambda _s: None)
+
+    usable = [[v for v in range(n_v) if _usable(o.detections[v], target, min_c)] for o in observations]
+    for o, views in zip(observations, usable, strict=True):
+        if len(views) < 3:
+            seen = sum(d is not None for d in o.detections)
+            raise CalibrationError(
+                f"{o.name}: only {len(views)} usable views (target found in {seen} of {n_v} frames, "
+                f"{min_c} corners needed per view); at least 3 varied views are needed, 10+ recommended")
+    say("initialising")
+    cams = [_init_camera(o, target, views, distortion) for o, views in zip(observations, usable, strict=True)]
+    dets: list[list[Detection | None]] = [list(o.detections) for o in observations]
+    for n in range(len(observations)):
+        ok_views = set(usable[n])
+        dets[n] = [d if v in ok_views else None for v, d in enumerate(dets[n])]
+    # per-camera poses
+    poses_cam: list[dict[int, FloatArray]] = []
+    for n, cam in enumerate(cams):
+        pc: dict[int, FloatArray] = {}
+        for v in usable[n]:
+            d = dets[n][v]
+            assert d is not None
+            T = _pnp(cam, obj[d.ids], d.corners_px)
+            if T is not None:
+                pc[v] = T
+        poses_cam.append(pc)
+    # chain initialisation with consistent numbering
+    chain_T: list[FloatArray] = []
+    renumbered = 0
+    for n in range(1, len(cams)):
+        common = {v: T for v, T in poses_cam[n - 1].items() if v in poses_cam[n]}
+        if not common:
+            raise CalibrationError(
+                f"{observations[n - 1].name} and {observations[n].name} share no view in which both "
+                "see the target; the stereo extrinsics need simultaneous views (check the pairing "
+                "of the image sets)")
+        fixed, T_rel, changed = _consistent_numbering(common, dets[n], cams[n], target)
+        if T_rel is None or not fixed:
+            raise CalibrationError(f"{observations[n].name}: no consistent relative pose to "
+                                   f"{observations[n - 1].name} over {len(common)} common views")
+        renumbered += changed
+        for v, d in fixed.items():
+            dets[n][v] = d
+            T = _pnp(cams[n], obj[d.ids], d.corners_px)
+            if T is not None:
+                poses_cam[n][v] = T
+        # views of camera n not shared with n-1: keep their numbering only if no other camera sees
+        # them (their pose is then free); otherwise drop them from camera n
+        for v in list(poses_cam[n]):
+            if v not in fixed and any(dets[k][v] is not None for k in range(n)):
+                dets[n][v] = None
+                del poses_cam[n][v]
+        chain_T.append(T_rel)
+    # views and their initial pose in camera 0
+    T_cn_c0 = [np.eye(4)]
+    for T in chain_T:
+        T_cn_c0.append(T @ T_cn_c0[-1])
+    view_ids: list[int] = []
+    pose0: list[FloatArray] = []
+    for v in range(n_v):
+        for n in range(len(cams)):
+            if v in poses_cam[n]:
+                view_ids.append(v)
+                pose0.append(_rt(np.linalg.inv(T_cn_c0[n]) @ poses_cam[n][v]))
+                break
+    vindex = {v: i for i, v in enumerate(view_ids)}
+    o_pts, uv, cam_i, view_i = [], [], [], []
+    for n in range(len(cams)):
+        for v in view_ids:
+            d = dets[n][v]
+            if d is None or v not in poses_cam[n]:
+                continue
+            o_pts.append(obj[d.ids])
+            uv.append(d.corners_px)
+            cam_i.append(np.full(len(d), n))
+            view_i.append(np.full(len(d), vindex[v]))
+    prob = _Problem(cams, np.concatenate(o_pts), np.concatenate(uv),
+                    np.concatenate(cam_i).astype(np.int64), np.concatenate(view_i).astype(np.int64),
+                    len(view_ids))
+    intr = np.array([[c.fx, c.fy, c.cx, c.cy, *c.coeffs] for c in cams])
+    chain = np.array([_rt(T) for T in chain_T]).reshape(-1, 6)
+    poses = np.array(pose0)
+    keep = np.ones(len(prob.uv), bool)
+    full = prob
+    rounds = 0
+    sol = None
+    for rounds in range(1, max_rounds + 1):
+        say(f"refining (round {rounds})")
+        prob = _Problem(cams, full.obj[keep], full.uv[keep], full.cam_i[keep], full.view_i[keep],
+                        len(view_ids))
+        intr, chain, poses, sol = _solve(prob, intr, chain, poses)
+        res = full.residuals(intr, chain, poses)
+        bad = np.zeros(len(res), bool)
+        for n in range(len(cams)):
+            sel = keep & (full.cam_i == n)
+            r = res[sel]
+            sigma = 1.4826 * np.median(np.abs(r - np.median(r, axis=0)), axis=0)
+            sigma = np.maximum(sigma, 0.02)
+            thr = outlier_sigma * sigma
+            out = np.abs(res - np.median(r, axis=0)) > thr
+            bad |= (full.cam_i == n) & (out[:, 0] | out[:, 1])
+        new_keep = ~bad
+        if np.array_equal(new_keep, keep):
+            break
+        keep = new_keep
+        if any(not (keep & (full.cam_i == n)).any() for n in range(len(cams))):
+            raise CalibrationError("outlier rejection removed every corner of a camera; the "
+                                   "detections are inconsistent (wrong target description?)")
+    assert sol is not None
+    say("uncertainties")
+    ni, _nc, npose = prob.layout()
+    cov, _ = _covariance(sol, npose)
+    res = prob.residuals(intr, chain, poses)
+    cam_results = []
+    for n, o in enumerate(observations):
+        cam = _camera(cams[n], intr[n])
+        sd = np.sqrt(np.clip(np.diag(cov)[8 * n:8 * n + 8], 0, None))
+        sel = prob.cam_i == n
+        r = res[sel]
+        vi = prob.view_i[sel]
+        view_rms = {view_ids[int(k)]: float(np.sqrt(np.mean(np.sum(r[vi == k] ** 2, axis=1))))
+                    for k in np.unique(vi)}
+        cam_results.append(CameraCalibration(
+            o.name, cam, {"intrinsics": [float(v) for v in sd[:4]],
+                          "distortion_coeffs": [float(v) for v in sd[4:]]},
+            ResidualStats.of(r, len(view_rms)), r.copy(), prob.uv[sel].copy(), view_rms,
+            int((~keep & (full.cam_i == n)).sum())))
+    Ts, Tstd, base, base_sd = [], [], [], []
+    for k in range(len(cams) - 1):
+        T = _T(chain[k, :3], chain[k, 3:])
+        C = cov[ni + 6 * k: ni + 6 * k + 6, ni + 6 * k: ni + 6 * k + 6]
+        t = T[:3, 3]
+        u = t / max(float(np.linalg.norm(t)), 1e-12)
+        Ts.append(T)
+        Tstd.append({"rotation_std_deg": [float(v) for v in np.degrees(np.sqrt(np.clip(np.diag(C)[:3], 0, None)))],
+                     "translation_std_m": [float(v) for v in np.sqrt(np.clip(np.diag(C)[3:], 0, None))]})
+        base.append(float(np.linalg.norm(t)))
+        base_sd.append(float(np.sqrt(max(float(u @ C[3:, 3:] @ u), 0.0))))
+    return CalibrationResult(model, target, tuple(cam_results), tuple(Ts), tuple(Tstd), tuple(base),
+                             tuple(base_sd), len(view_ids), tuple(view_ids), renumbered, rounds)
+
+
+def evaluate(target: CalibrationTarget, observations: Sequence[Observations], cameras: Sequence[CameraModel],
+             T_cn_cnm1: Sequence[FloatArray], *, min_corners: int | None = None,
+             outlier_px: float = 1.0) -> dict[str, Any]:
+    """Check a given calibration on detections without re-estimating it (``--check``).
+
+    Only the target pose of every view is estimated (from all cameras jointly, with the given
+    intrinsics and extrinsics); then reprojection statistics per camera and per view.  Views
+    whose RMS exceeds ``outlier_px`` are listed as outliers.
+    """
+    if len(cameras) != len(observations) or len(T_cn_cnm1) != len(cameras) - 1:
+        raise IbiscapeError(f"the calibration has {len(cameras)} cameras but {len(observations)} image "
+                            "sets were given; give one image set per camera of the chain")
+    n_v = len(observations[0].detections)
+    min_c = min_corners or (target.n_corners if target.target_type == "checkerboard" else 8)
+    obj = target.object_points()
+    T_cn_c0 = [np.eye(4)]
+    for T in T_cn_cnm1:
+        T_cn_c0.append(np.asarray(T) @ T_cn_c0[-1])
+    for o, cam in zip(observations, cameras, strict=True):
+        if tuple(o.image_size) != (cam.width_px, cam.height_px):
+            raise IbiscapeError(f"{o.name}: images are {o.image_size[0]}x{o.image_size[1]} but the "
+                                f"calibration says {cam.width_px}x{cam.height_px}; is it the right file?")
+    dets = [[d if _usable(d, target, min_c) else None for d in o.detections] for o in observations]
+    # numbering: align every camera's view to camera 0's pose through the given chain
+    view_ids, pose0 = [], []
+    for v in range(n_v):
+        T0 = None
+        for n, cam in enumerate(cameras):
+            d = dets[n][v]
+            if d is None:
+                continue
+            if T0 is None:
+                Tp = _pnp(cam, obj[d.ids], d.corners_px)
+                if Tp is not None:
+                    T0 = np.linalg.inv(T_cn_c0[n]) @ Tp
+                continue
+            # pick the numbering of camera n that agrees with the pose seen so far
+            best, best_e = None, np.inf
+            for perm in target.symmetries():
+                ids = perm[d.ids]
+                pred = cam.project(obj[ids] @ (T_cn_c0[n] @ T0)[:3, :3].T + (T_cn_c0[n] @ T0)[:3, 3])
+                e = float(np.nanmean(np.sum((pred - d.corners_px) ** 2, axis=1)))
+                if e < best_e:
+                    best, best_e = ids, e
+            assert best is not None
+            order = np.argsort(best)
+            dets[n][v] = Detection(best[order], d.corners_px[order], d.image_size)
+        if T0 is not None:
+            view_ids.append(v)
+            pose0.append(_rt(T0))
+    if not view_ids:
+        raise CalibrationError("the target was not found with enough corners in any view")
+    vindex = {v: i for i, v in enumerate(view_ids)}
+    o_pts, uv, cam_i, view_i = [], [], [], []
+    for n in range(len(cameras)):
+        for v in view_ids:
+            d = dets[n][v]
+            if d is None:
+                continue
+            o_pts.append(obj[d.ids])
+            uv.append(d.corners_px)
+            cam_i.append(np.full(len(d), n))
+            view_i.append(np.full(len(d), vindex[v]))
+    prob = _Problem(list(cameras), np.concatenate(o_pts), np.concatenate(uv),
+                    np.concatenate(cam_i).astype(np.int64), np.concatenate(view_i).astype(np.int64),
+                    len(view_ids), free_intrinsics=False, free_chain=False)
+    intr = np.array([[c.fx, c.fy, c.cx, c.cy, *c.coeffs] for c in cameras])
+    chain = np.array([_rt(np.asarray(T)) for T in T_cn_cnm1]).reshape(-1, 6)
+    _, _, poses, _ = _solve(prob, intr, chain, np.array(pose0))
+    res = prob.residuals(intr, chain, poses)
+    cams_out = []
+    outliers = []
+    for n, o in enumerate(observations):
+        sel = prob.cam_i == n
+        r = res[sel]
+        vi = prob.view_i[sel]
+        per_view = {view_ids[int(k)]: float(np.sqrt(np.mean(np.sum(r[vi == k] ** 2, axis=1))))
+                    for k in np.unique(vi)}
+        stats = ResidualStats.of(r, len(per_view))
+        cams_out.append({"name": o.name, "reprojection_error": stats.to_dict(),
+                         "reprojection_error_kalibr": stats.kalibr(),
+                         "view_rms_px": {str(k): v for k, v in per_view.items()}})
+        outliers += [{"camera": o.name, "view": int(k), "rms_px": v} for k, v in per_view.items()
+                     if v > outlier_px]
+    all_r = res
+    rms = float(np.sqrt(np.mean(np.sum(all_r**2, axis=1))))
+    return {"cameras": cams_out, "rms_px": rms, "n_views": len(view_ids), "outlier_px": outlier_px,
+            "outlier_views": outliers}

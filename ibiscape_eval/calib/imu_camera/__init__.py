@@ -1,0 +1,27 @@
+"""Camera-IMU calibration without ROS: ``T_cam_imu`` and ``timeshift_cam_imu`` of every camera.
+
+Continuous-time B-spline batch estimation (Furgale et al. 2013, Kalibr's method) over target corner
+observations, IMU samples and the IMU's noise densities; see :func:`calibrate_imu_camera`.
+"""
+
+from __future__ import annotations
+
+from .calibrate import calibrate_imu_camera
+from .inputs import CameraObservations, ImuData, ImuNoiseDensities
+from .kalibr import camchain_imucam_document, errors_against_truth
+from .result import CameraImuCalibration, Excitation, ImuCameraResult, ResidualSeries
+from .synthetic import observe_target
+
+__all__ = [
+    "CameraImuCalibration",
+    "CameraObservations",
+    "Excitation",
+    "ImuCameraResult",
+    "ImuData",
+    "ImuNoiseDensities",
+    "ResidualSeries",
+    "calibrate_imu_camera",
+    "camchain_imucam_document",
+    "errors_against_truth",
+    "observe_target",
+]

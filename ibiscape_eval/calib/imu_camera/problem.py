@@ -1,0 +1,378 @@
+"""The batch problem: spline trajectory, biases, gravity and per-camera extrinsics / time offsets;
+whitened residuals and their sparse normal equations.
+
+Unknowns (tangent-space layout of a step)::
+
+    [ rotation control points (3 Nc) | position control points (3 Nc) | bias knots (6 Nb) |
+      gravity direction (2) | per camera: rotation (3), translation (3), time offset (1) ]
+
+- ``T_target_imu(t)``: one cumulative cubic B-spline per *piece* (a stretch of time with target
+  views; long gaps without the target are cut out), knots every ``dt_s``.
+- Biases ``b_g(t), b_a(t)``: linear interpolation between knots every ``bias_knot_s`` with a
+  random-walk prior between consecutive knots (Kalibr's densities).
+- Gravity ``g = R_g (0, 0, -|g|)`` in the target frame; a step rotates ``R_g`` about its x and y axes.
+- Camera ``c``: ``T_cam_imu = [R_ci | t_ci]`` (step: ``R_ci <- R_ci Exp(d)``, ``t_ci += d``) and
+  ``timeshift_cam_imu`` ``s_c``: the image stamped ``t`` on the camera clock shows the pose at
+  ``t + s_c`` on the IMU clock (Kalibr's convention).
+
+Residuals, each divided by its standard deviation:
+
+- gyroscope ``w(t_k) + b_g(t_k) - gyro_k``, sigma ``N_g sqrt(rate)``;
+- accelerometer ``R(t_k)^T (p''(t_k) - g) + b_a(t_k) - accel_k``, sigma ``N_a sqrt(rate)``;
+- reprojection ``pi(R_ci R(t)^T (X - p(t)) + t_ci) - uv`` at ``t = t_frame + s_c``, sigma ``sigma_px``.
+
+Jacobians: analytic where the residual is linear (positions, biases, translations) or simple
+(time offset through the spline's velocity and angular rate, camera rotation), central differences
+for the rotation control points and the projection (any distortion model), all vectorised over
+samples; per-block ``J^T J`` is summed into a sparse matrix (blocks of IMU samples sharing a segment
+are reduced first).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ibiscape_eval.core.camera import CameraModel
+
+from .spline import basis, exp_so3, hat, position, rotation
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+_H_ROT = 1e-6  # rad, central differences on rotation control points
+_ARANGE4 = np.arange(4)
+
+
+@dataclass
+class Piece:
+    """One spline piece: knots ``t0_s + k dt_s``, ``n_seg`` segments, control points from ``offset``."""
+
+    t0_s: float
+    n_seg: int
+    offset: int
+
+    @property
+    def t1_s(self) -> float:
+        return self.t0_s
+
+
+@dataclass
+class CameraBlock:
+    """Static data of one camera: frames with the target, padded corners."""
+
+    name: str
+    camera: CameraModel
+    t_s: FloatArray  # (F,) frame times on the camera clock, s from t_ref
+    X: FloatArray  # (F, M, 3) target corners
+    uv: FloatArray  # (F, M, 2) observations
+    mask: FloatArray  # (F, M) 1 observed, 0 padding
+
+
+@dataclass
+class Problem:
+    dt_s: float
+    pieces: list[tuple[float, int, int]]  # (t0_s, n_seg, offset)
+    n_ctrl: int
+    bias_t0_s: float
+    bias_dt_s: float
+    n_bias: int
+    imu_t_s: FloatArray
+    gyro: FloatArray
+    accel: FloatArray
+    sigma_gyro: float
+    sigma_accel: float
+    bias_walk_sigma: FloatArray  # (6,) per knot interval
+    gravity_m_s2: float
+    cams: list[CameraBlock]
+    sigma_px: float
+    bias_prior_sigma: FloatArray = field(default_factory=lambda: np.array([0.1] * 3 + [2.0] * 3))
+    trans_prior_sigma_m: float = 20.0
+
+    # ---- layout
+    @property
+    def n_params(self) -> int:
+        return 6 * self.n_ctrl + 6 * self.n_bias + 2 + 7 * len(self.cams)
+
+    @property
+    def i_bias(self) -> int:
+        return 6 * self.n_ctrl
+
+    @property
+    def i_grav(self) -> int:
+        return 6 * self.n_ctrl + 6 * self.n_bias
+
+    def i_cam(self, c: int) -> int:
+        return self.i_grav + 2 + 7 * c
+
+    def locate(self, t_s: FloatArray) -> tuple[IntArray, FloatArray, npt.NDArray[np.bool_]]:
+        """Global control-point base index, segment position u and validity for times (n,)."""
+        base = np.zeros(t_s.shape, np.int64)
+        u = np.zeros(t_s.shape)
+        ok = np.zeros(t_s.shape, bool)
+        for t0, n_seg, off in self.pieces:
+            x = (t_s - t0) / self.dt_s
+            inside = (x >= 0) & (x <= n_seg) & ~ok
+            i = np.clip(np.floor(x).astype(np.int64), 0, n_seg - 1)
+            base = np.where(inside, off + i, base)
+            u = np.where(inside, x - i, u)
+            ok |= inside
+        return base, u, ok
+
+    def bias_locate(self, t_s: FloatArray) -> tuple[IntArray, FloatArray]:
+        x = (t_s - self.bias_t0_s) / self.bias_dt_s
+        k = np.clip(np.floor(x).astype(np.int64), 0, self.n_bias - 2)
+        return k, np.clip(x - k, 0.0, 1.0)
+
+
+@dataclass
+class State:
+    R_ctrl: FloatArray  # (Nc, 3, 3) R_target_imu control points
+    P_ctrl: FloatArray  # (Nc, 3)
+    bias: FloatArray  # (Nb, 6) gyro, accel
+    R_g: FloatArray  # (3, 3)
+    R_ci: FloatArray  # (C, 3, 3)
+    t_ci: FloatArray  # (C, 3)
+    shift_s: FloatArray  # (C,)
+
+    def copy(self) -> State:
+        return State(self.R_ctrl.copy(), self.P_ctrl.copy(), self.bias.copy(), self.R_g.copy(),
+                     self.R_ci.copy(), self.t_ci.copy(), self.shift_s.copy())
+
+    def gravity(self, g: float) -> FloatArray:
+        return self.R_g @ np.array([0.0, 0.0, -g])
+
+    def retract(self, prob: Problem, d: FloatArray) -> State:
+        n = prob.n_ctrl
+        s = self.copy()
+        s.R_ctrl = self.R_ctrl @ exp_so3(d[: 3 * n].reshape(n, 3))
+        s.P_ctrl = self.P_ctrl + d[3 * n : 6 * n].reshape(n, 3)
+        s.bias = self.bias + d[prob.i_bias : prob.i_grav].reshape(-1, 6)
+        dg = d[prob.i_grav : prob.i_grav + 2]
+        s.R_g = self.R_g @ exp_so3(np.array([dg[0], dg[1], 0.0]))
+        for c in range(len(prob.cams)):
+            k = prob.i_cam(c)
+            s.R_ci[c] = self.R_ci[c] @ exp_so3(d[k : k + 3])
+            s.t_ci[c] = self.t_ci[c] + d[k + 3 : k + 6]
+            s.shift_s[c] = self.shift_s[c] + d[k + 6]
+        return s
+
+
+# ------------------------------------------------------------------------------------------------
+# residual blocks
+
+
+def _rot_perturbations() -> FloatArray:
+    """(12, 4, 3, 3): Exp(h e_a) placed at local control point j (identity elsewhere), for +h."""
+    out = np.tile(np.eye(3), (12, 4, 1, 1))
+    for j in range(4):
+        for a in range(3):
+            e = np.zeros(3)
+            e[a] = _H_ROT
+            out[3 * j + a, j] = exp_so3(e)
+    return out
+
+
+_PERT_PLUS = _rot_perturbations()
+_PERT_MINUS = np.swapaxes(_PERT_PLUS, -1, -2)
+
+
+def imu_block(prob: Problem, st: State, *, jac: bool
+              ) -> tuple[FloatArray, FloatArray | None, IntArray | None, IntArray | None]:
+    """IMU residuals (n, 6); with ``jac``: local Jacobians (n, 6, 38), their global column indices
+    (n, 38) and a group key per sample (samples with equal keys share all columns)."""
+    t = prob.imu_t_s
+    base, u, _ = prob.locate(t)
+    idx = base[:, None] + _ARANGE4
+    Rl = st.R_ctrl[idx]
+    Pl = st.P_ctrl[idx]
+    R, w = rotation(Rl, u, prob.dt_s)
+    assert w is not None
+    _, _, acc = position(Pl, u, prob.dt_s)
+    k, al = prob.bias_locate(t)
+    b = (1.0 - al)[:, None] * st.bias[k] + al[:, None] * st.bias[k + 1]
+    g = st.gravity(prob.gravity_m_s2)
+    sg, sa = prob.sigma_gyro, prob.sigma_accel
+    r = np.empty((t.size, 6))
+    r[:, :3] = (w + b[:, :3] - prob.gyro) / sg
+    f = np.einsum("nji,nj->ni", R, acc - g)
+    r[:, 3:] = (f + b[:, 3:] - prob.accel) / sa
+    if not jac:
+        return r, None, None, None
+    n = t.size
+    J = np.zeros((n, 6, 38))
+    for col in range(12):  # rotation control points: central differences
+        Rp, wp = rotation(Rl @ _PERT_PLUS[col], u, prob.dt_s)
+        Rm, wm = rotation(Rl @ _PERT_MINUS[col], u, prob.dt_s)
+        assert wp is not None and wm is not None
+        J[:, :3, col] = (wp - wm) / (2 * _H_ROT * sg)
+        J[:, 3:, col] = np.einsum("nji,nj->ni", Rp - Rm, acc - g) / (2 * _H_ROT * sa)
+    _, _, ddb = basis(u)
+    ddb = ddb / prob.dt_s**2
+    for j in range(4):  # positions: f = R^T (sum_j ddb_j P_j - g)
+        J[:, 3:, 12 + 3 * j : 15 + 3 * j] = ddb[:, j, None, None] * np.swapaxes(R, 1, 2) / sa
+    eye = np.eye(3)
+    J[:, :3, 24:27] = (1 - al)[:, None, None] * eye / sg
+    J[:, 3:, 27:30] = (1 - al)[:, None, None] * eye / sa
+    J[:, :3, 30:33] = al[:, None, None] * eye / sg
+    J[:, 3:, 33:36] = al[:, None, None] * eye / sa
+    g0 = np.array([0.0, 0.0, -prob.gravity_m_s2])
+    dg = st.R_g @ hat(g0)  # g(d) = R_g Exp(d) g0  ->  dg/dd = -R_g [g0]x ; r_a has -R^T g
+    for a in range(2):
+        J[:, 3:, 36 + a] = np.einsum("nji,j->ni", R, dg[:, a]) / sa
+    cols = np.empty((n, 38), np.int64)
+    cols[:, :12] = (3 * idx[:, :, None] + np.arange(3)).reshape(n, 12)
+    cols[:, 12:24] = 3 * prob.n_ctrl + cols[:, :12]
+    cols[:, 24:30] = prob.i_bias + 6 * k[:, None] + np.arange(6)
+    cols[:, 30:36] = cols[:, 24:30] + 6
+    cols[:, 36:38] = prob.i_grav + np.arange(2)
+    key = base * (prob.n_bias + 1) + k
+    return r, J, cols, key
+
+
+def camera_block(prob: Problem, st: State, c: int, *, jac: bool
+                 ) -> tuple[FloatArray, FloatArray | None, IntArray | None, npt.NDArray[np.bool_]]:
+    """Reprojection residuals (F, M, 2) of camera ``c`` (zero on padding and outside the spline);
+    with ``jac``: local Jacobians (F, M, 2, 31) and global columns (F, 31)."""
+    cb = prob.cams[c]
+    t = cb.t_s + st.shift_s[c]
+    base, u, inside = prob.locate(t)
+    idx = base[:, None] + _ARANGE4
+    Rl = st.R_ctrl[idx]
+    Pl = st.P_ctrl[idx]
+    R, w = rotation(Rl, u, prob.dt_s)
+    assert w is not None
+    p, v, _ = position(Pl, u, prob.dt_s)
+    Rci, tci = st.R_ci[c], st.t_ci[c]
+    D = cb.X - p[:, None, :]  # (F, M, 3)
+    q = np.einsum("nji,nmj->nmi", R, D)  # R^T (X - p)
+    pc = q @ Rci.T + tci
+    z = pc[..., 2]
+    valid = (cb.mask > 0) & inside[:, None] & (z > 1e-3)
+    uv = cb.camera.project(np.where(valid[..., None], pc, np.array([0.0, 0.0, 1.0])))
+    s = prob.sigma_px
+    r = np.where(valid[..., None], (uv - cb.uv) / s, 0.0)
+    if not jac:
+        return r, None, None, valid
+    F, M = z.shape
+    # projection Jacobian (F, M, 2, 3) by central differences
+    Jp = np.empty((F, M, 2, 3))
+    h = 1e-6 * np.maximum(np.abs(z), 1.0)
+    pcv = np.where(valid[..., None], pc, np.array([0.0, 0.0, 1.0]))
+    for a in range(3):
+        e = np.zeros(3)
+        e[a] = 1.0
+        up = cb.camera.project(pcv + (h[..., None] * e))
+        um = cb.camera.project(pcv - (h[..., None] * e))
+        Jp[..., a] = (up - um) / (2 * h[..., None])
+    Jp *= (valid[..., None, None] / s)
+    dpc = np.empty((F, M, 3, 31))
+    for col in range(12):
+        Rp, _ = rotation(Rl @ _PERT_PLUS[col], u, prob.dt_s, angular_velocity=False)
+        Rm, _ = rotation(Rl @ _PERT_MINUS[col], u, prob.dt_s, angular_velocity=False)
+        dq = np.einsum("nji,nmj->nmi", Rp - Rm, D) / (2 * _H_ROT)
+        dpc[..., col] = dq @ Rci.T
+    b, _, _ = basis(u)
+    A = -np.einsum("ij,nkj->nik", Rci, R)  # -R_ci R^T  (F, 3, 3)
+    for j in range(4):
+        dpc[..., 12 + 3 * j : 15 + 3 * j] = (b[:, j, None, None] * A)[:, None]
+    dpc[..., 24:27] = -np.einsum("ij,nmjk->nmik", Rci, hat(q))
+    dpc[..., 27:30] = np.eye(3)
+    # d q / d t = -[w]x q - R^T v
+    dq_dt = -np.cross(w[:, None, :], q) - np.einsum("nji,nj->ni", R, v)[:, None, :]
+    dpc[..., 30] = dq_dt @ Rci.T
+    J = np.einsum("nmij,nmjk->nmik", Jp, dpc)
+    cols = np.empty((F, 31), np.int64)
+    cols[:, :12] = (3 * idx[:, :, None] + np.arange(3)).reshape(F, 12)
+    cols[:, 12:24] = 3 * prob.n_ctrl + cols[:, :12]
+    cols[:, 24:31] = prob.i_cam(c) + np.arange(7)
+    return r, J, cols, valid
+
+
+def prior_block(prob: Problem, st: State) -> tuple[FloatArray, FloatArray, IntArray]:
+    """Bias random walk between knots, weak priors on biases and translations: (r, J, cols) with
+    one row per residual (dense rows of a few entries)."""
+    rows_r, rows_J, rows_c = [], [], []
+    nb = prob.n_bias
+    if nb > 1:
+        sw = prob.bias_walk_sigma
+        d = (st.bias[1:] - st.bias[:-1]) / sw  # (nb-1, 6)
+        kk = np.arange(nb - 1)
+        for a in range(6):
+            rows_r.append(d[:, a])
+            rows_J.append(np.stack((-np.ones(nb - 1), np.ones(nb - 1)), -1) / sw[a])
+            rows_c.append(np.stack((prob.i_bias + 6 * kk + a, prob.i_bias + 6 * (kk + 1) + a), -1))
+    sp = prob.bias_prior_sigma
+    kb = np.arange(nb)
+    for a in range(6):
+        rows_r.append(st.bias[:, a] / sp[a])
+        rows_J.append(np.stack((np.full(nb, 1.0 / sp[a]), np.zeros(nb)), -1))
+        rows_c.append(np.stack((prob.i_bias + 6 * kb + a, prob.i_bias + 6 * kb + a), -1))
+    for c in range(len(prob.cams)):
+        i0 = prob.i_cam(c) + 3
+        rows_r.append(st.t_ci[c] / prob.trans_prior_sigma_m)
+        rows_J.append(np.tile([1.0 / prob.trans_prior_sigma_m, 0.0], (3, 1)))
+        rows_c.append(np.stack((i0 + np.arange(3), i0 + np.arange(3)), -1))
+    return np.concatenate(rows_r), np.concatenate(rows_J), np.concatenate(rows_c)
+
+
+# ------------------------------------------------------------------------------------------------
+# cost and normal equations
+
+
+def residuals(prob: Problem, st: State) -> dict[str, FloatArray]:
+    """Whitened residuals by kind: ``imu`` (n, 6), ``cam<c>`` (F, M, 2), ``prior``."""
+    out: dict[str, FloatArray] = {"imu": imu_block(prob, st, jac=False)[0]}
+    for c in range(len(prob.cams)):
+        out[f"cam{c}"] = camera_block(prob, st, c, jac=False)[0]
+    out["prior"] = prior_block(prob, st)[0]
+    return out
+
+
+def cost(prob: Problem, st: State) -> float:
+    return 0.5 * float(sum(np.sum(r * r) for r in residuals(prob, st).values()))
+
+
+def normal_equations(prob: Problem, st: State) -> tuple[Any, FloatArray, float]:
+    """Sparse ``H = J^T J`` (csc), gradient ``J^T r`` and the cost at ``st``."""
+    import scipy.sparse as sp
+
+    n = prob.n_params
+    data, ri, ci = [], [], []
+    grad = np.zeros(n)
+    total = 0.0
+    r, J, cols, key = imu_block(prob, st, jac=True)
+    assert J is not None and cols is not None and key is not None
+    total += float(np.sum(r * r))
+    Hl = np.einsum("nrp,nrq->npq", J, J)
+    gl = np.einsum("nrp,nr->np", J, r)
+    starts = np.flatnonzero(np.r_[True, np.diff(key) != 0])
+    Hg = np.add.reduceat(Hl, starts, axis=0)
+    cg = cols[starts]
+    np.add.at(grad, cols.ravel(), gl.ravel())
+    data.append(Hg.ravel())
+    ri.append(np.broadcast_to(cg[:, :, None], Hg.shape).ravel())
+    ci.append(np.broadcast_to(cg[:, None, :], Hg.shape).ravel())
+    for c in range(len(prob.cams)):
+        rc, Jc, colc, _ = camera_block(prob, st, c, jac=True)
+        assert Jc is not None and colc is not None
+        total += float(np.sum(rc * rc))
+        Hc = np.einsum("nmip,nmiq->npq", Jc, Jc)
+        gc = np.einsum("nmip,nmi->np", Jc, rc)
+        np.add.at(grad, colc.ravel(), gc.ravel())
+        data.append(Hc.ravel())
+        ri.append(np.broadcast_to(colc[:, :, None], Hc.shape).ravel())
+        ci.append(np.broadcast_to(colc[:, None, :], Hc.shape).ravel())
+    rp, Jp, colp = prior_block(prob, st)
+    total += float(np.sum(rp * rp))
+    Hp = np.einsum("np,nq->npq", Jp, Jp)
+    np.add.at(grad, colp.ravel(), (Jp * rp[:, None]).ravel())
+    data.append(Hp.ravel())
+    ri.append(np.broadcast_to(colp[:, :, None], Hp.shape).ravel())
+    ci.append(np.broadcast_to(colp[:, None, :], Hp.shape).ravel())
+    H = sp.coo_matrix((np.concatenate(data), (np.concatenate(ri), np.concatenate(ci))),
+                      shape=(n, n)).tocsc()
+    return H, grad, 0.5 * total

@@ -1,0 +1,115 @@
+"""Uniform cumulative cubic B-splines on SO(3) x R^3, evaluated on batches of local control points.
+
+A trajectory ``T_target_imu(t)`` is a rotation spline and a position spline sharing uniform knots
+``t_k = t0 + k dt``.  Segment ``i`` (``u = (t - t_i) / dt`` in [0, 1)) uses control points
+``i .. i+3``.
+
+- Position: the standard uniform cubic B-spline ``p(u) = sum_j b_j(u) P_{i+j}``.
+- Rotation: the cumulative form (Kim et al. 1995; Sommer et al., CVPR 2020, "Efficient derivative
+  computation for cumulative B-splines on Lie groups")::
+
+      R(u) = R_i prod_{j=1..3} Exp(B~_j(u) d_j),   d_j = Log(R_{i+j-1}^T R_{i+j})
+
+  whose body angular velocity (``R^T dR/dt = [w]x``) follows the recursion
+  ``w_1 = B~'_1 d_1``, ``w_j = A_j^T w_{j-1} + B~'_j d_j`` with ``A_j = Exp(B~_j d_j)``.
+
+Every function works on *gathered* control points, shape ``(n, 4, ...)`` (one row per sample), so
+that the solver can perturb one local control point for all samples at once (vectorised numeric
+Jacobians).  ``u`` may leave [0, 1] slightly (a time-offset perturbation): the polynomials extend.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+__all__ = ["basis", "cumulative_basis", "exp_so3", "hat", "log_so3", "position", "rotation"]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+def hat(v: npt.ArrayLike) -> FloatArray:
+    """Skew matrices ``[v]x`` of vectors (..., 3) -> (..., 3, 3)."""
+    v = np.asarray(v, dtype=np.float64)
+    z = np.zeros(v.shape[:-1])
+    return np.stack((np.stack((z, -v[..., 2], v[..., 1]), -1),
+                     np.stack((v[..., 2], z, -v[..., 0]), -1),
+                     np.stack((-v[..., 1], v[..., 0], z), -1)), -2)
+
+
+def exp_so3(phi: npt.ArrayLike) -> FloatArray:
+    """Rodrigues' formula for rotation vectors (..., 3) -> matrices (..., 3, 3)."""
+    phi = np.asarray(phi, dtype=np.float64)
+    th2 = np.einsum("...i,...i->...", phi, phi)
+    th = np.sqrt(th2)
+    small = th2 < 1e-12
+    safe = np.where(small, 1.0, th)
+    # sin(th)/th and (1 - cos th)/th^2 with their Taylor series near 0
+    a = np.where(small, 1.0 - th2 / 6.0, np.sin(safe) / safe)
+    b = np.where(small, 0.5 - th2 / 24.0, (1.0 - np.cos(safe)) / (safe * safe))
+    K = hat(phi)
+    return np.eye(3) + a[..., None, None] * K + b[..., None, None] * (K @ K)
+
+
+def log_so3(R: npt.ArrayLike) -> FloatArray:
+    """Rotation vectors (..., 3) of rotation matrices (..., 3, 3) with angles below pi."""
+    R = np.asarray(R, dtype=np.float64)
+    cos = np.clip((np.trace(R, axis1=-2, axis2=-1) - 1.0) * 0.5, -1.0, 1.0)
+    th = np.arccos(cos)
+    w = np.stack((R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0],
+                  R[..., 1, 0] - R[..., 0, 1]), -1)
+    s = np.sin(th)
+    small = th < 1e-6
+    factor = np.where(small, 0.5 + th * th / 12.0, th / (2.0 * np.where(small, 1.0, s)))
+    return w * factor[..., None]
+
+
+def basis(u: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Cubic B-spline weights and their first two u-derivatives, each (n, 4)."""
+    u2, u3 = u * u, u * u * u
+    b = np.stack(((1 - u) ** 3, 3 * u3 - 6 * u2 + 4, -3 * u3 + 3 * u2 + 3 * u + 1, u3), -1) / 6.0
+    db = np.stack((-3 * (1 - u) ** 2, 9 * u2 - 12 * u, -9 * u2 + 6 * u + 3, 3 * u2), -1) / 6.0
+    ddb = np.stack((6 * (1 - u), 18 * u - 12, -18 * u + 6, 6 * u), -1) / 6.0
+    return b, db, ddb
+
+
+def cumulative_basis(u: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Cumulative weights ``B~_1..3`` and their u-derivatives, each (n, 3)."""
+    u2, u3 = u * u, u * u * u
+    B = np.stack((5 + 3 * u - 3 * u2 + u3, 1 + 3 * u + 3 * u2 - 2 * u3, u3), -1) / 6.0
+    dB = np.stack((3 - 6 * u + 3 * u2, 3 + 6 * u - 6 * u2, 3 * u2), -1) / 6.0
+    return B, dB
+
+
+def rotation(R_ctrl: FloatArray, u: FloatArray, dt_s: float, *,
+             angular_velocity: bool = True) -> tuple[FloatArray, FloatArray | None]:
+    """Rotation (n, 3, 3) and body angular velocity (n, 3) [rad/s] of gathered control points.
+
+    Parameters
+    ----------
+    R_ctrl : ndarray, shape (n, 4, 3, 3)
+        The four control rotations of each sample's segment.
+    u : ndarray, shape (n,)
+        Position in the segment.
+    dt_s : float
+        Knot spacing, seconds.
+    """
+    B, dB = cumulative_basis(u)
+    d = log_so3(np.einsum("njik,njkl->njil", np.swapaxes(R_ctrl[:, :3], -1, -2), R_ctrl[:, 1:]))
+    A = exp_so3(B[..., None] * d)  # (n, 3, 3, 3)
+    R = R_ctrl[:, 0] @ A[:, 0] @ A[:, 1] @ A[:, 2]
+    if not angular_velocity:
+        return R, None
+    w = dB[:, 0, None] * d[:, 0]
+    for j in (1, 2):  # three fixed steps of the recursion, vectorised over samples
+        w = np.einsum("nki,nk->ni", A[:, j], w) + dB[:, j, None] * d[:, j]
+    return R, w / dt_s
+
+
+def position(P_ctrl: FloatArray, u: FloatArray, dt_s: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Position (n, 3) [m], velocity [m/s] and acceleration [m/s^2] of gathered control points."""
+    b, db, ddb = basis(u)
+    p = np.einsum("nj,njk->nk", b, P_ctrl)
+    v = np.einsum("nj,njk->nk", db, P_ctrl) / dt_s
+    a = np.einsum("nj,njk->nk", ddb, P_ctrl) / (dt_s * dt_s)
+    return p, v, a

@@ -1,0 +1,182 @@
+"""From frames to a calibration: frame preselection, parallel detection, view selection, solve.
+
+The caller (the command line) opens the image sets through :mod:`ibiscape_eval.io.image_sets` and hands
+one :class:`CameraFrames` per camera (a loader per frame) plus the view table
+(:func:`ibiscape_eval.io.image_sets.pair_views`); nothing here touches files.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ibiscape_eval.core.errors import CalibrationError, IbiscapeError
+
+from .calibrate import CalibrationResult, Observations, calibrate, evaluate
+from .detect import Detection, detect_corners, sharpness
+from .select import preselect_frames, select_views
+from .targets import CalibrationTarget
+
+__all__ = ["CameraFrames", "DetectionSummary", "calibrate_frames", "check_frames", "detect_frames"]
+
+
+@dataclass(frozen=True, eq=False)
+class CameraFrames:
+    """One camera's frames, loaded on demand.
+
+    Attributes
+    ----------
+    name : str
+    n_frames : int
+    load : callable
+        ``load(i)`` -> image (H, W) or (H, W, 3), or None when unreadable (skipped).
+    label : callable
+        ``label(i)`` -> a file name for messages.
+    reconstruction : str or None
+        For event cameras: how the frames are reconstructed from events.
+    """
+
+    name: str
+    n_frames: int
+    load: Callable[[int], npt.NDArray[Any] | None]
+    label: Callable[[int], str]
+    reconstruction: str | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class DetectionSummary:
+    """What detection saw: per camera frames tried, unreadable, with the target, image size."""
+
+    observations: tuple[Observations, ...]
+    views: tuple[int, ...]            # rows of the input view table that were detected
+    frames_tried: tuple[int, ...]
+    frames_unreadable: tuple[int, ...]
+    frames_detected: tuple[int, ...]
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"cameras": [
+            {"name": o.name, "image_size": list(o.image_size), "frames_tried": t, "unreadable": u,
+             "target_found": d}
+            for o, t, u, d in zip(self.observations, self.frames_tried, self.frames_unreadable,
+                                  self.frames_detected, strict=True)], **self.extra}
+
+
+def detect_frames(target: CalibrationTarget, cameras: Sequence[CameraFrames],
+                  views: Sequence[Sequence[int | None]], *, max_detect: int = 300,
+                  workers: int | None = None, progress: Callable[[int], Any] | None = None,
+                  total: Callable[[int], Any] | None = None) -> DetectionSummary:
+    """Detect the target in (a preselection of) the views, in parallel threads.
+
+    Raises :class:`CalibrationError` when a camera's images differ in size, when too many are
+    unreadable, or when the target is found in none of a camera's frames (naming how many were
+    tried).
+    """
+    from concurrent.futures import ThreadPoolExecutor
+
+    from ibiscape_eval.core.cpus import usable_cpus
+
+    n_cam = len(cameras)
+    if n_cam == 0:
+        raise IbiscapeError("no cameras given")
+    if not views:
+        raise CalibrationError("no frames to calibrate from")
+
+    def first_frame(row: Sequence[int | None]) -> tuple[int, int] | None:
+        for k, i in enumerate(row):
+            if i is not None:
+                return k, i
+        return None
+
+    def sharp(v: int) -> float:
+        ref = first_frame(views[v])
+        if ref is None:
+            return 0.0
+        img = cameras[ref[0]].load(ref[1])
+        return 0.0 if img is None else sharpness(img)
+
+    picked = preselect_frames(len(views), max_detect, sharp if len(views) > max_detect else None)
+    jobs = [(k, vi, views[v][k]) for vi, v in enumerate(picked) for k in range(n_cam)
+            if views[v][k] is not None]
+    if total is not None:
+        total(len(jobs))
+    sizes: list[dict[tuple[int, int], int]] = [{} for _ in range(n_cam)]
+
+    def one(job: tuple[int, int, int | None]) -> tuple[int, int, Detection | None, bool]:
+        k, vi, i = job
+        assert i is not None
+        img = cameras[k].load(i)
+        det = None
+        if img is not None:
+            size = (int(img.shape[1]), int(img.shape[0]))
+            sizes[k].setdefault(size, i)
+            det = detect_corners(img, target)
+        if progress is not None:
+            progress(1)
+        return k, vi, det, img is None
+
+    nw = max(1, workers or usable_cpus())
+    if nw > 1 and len(jobs) > 1:
+        with ThreadPoolExecutor(max_workers=nw) as pool:
+            results = list(pool.map(one, jobs))
+    else:
+        results = [one(j) for j in jobs]
+    dets: list[list[Detection | None]] = [[None] * len(picked) for _ in range(n_cam)]
+    tried = [0] * n_cam
+    bad = [0] * n_cam
+    for k, vi, det, unreadable in results:
+        dets[k][vi] = det
+        tried[k] += 1
+        bad[k] += int(unreadable)
+    obs = []
+    for k, cam in enumerate(cameras):
+        if len(sizes[k]) > 1:
+            (s1, i1), (s2, i2) = list(sizes[k].items())[:2]
+            raise CalibrationError(
+                f"{cam.name}: images of different sizes in one camera: {cam.label(i1)} is "
+                f"{s1[0]}x{s1[1]}, {cam.label(i2)} is {s2[0]}x{s2[1]}; calibrate each size separately")
+        if bad[k] and tried[k] - bad[k] < 3:
+            raise CalibrationError(f"{cam.name}: only {tried[k] - bad[k]} of {tried[k]} images could be "
+                                   "read; at least 3 are needed")
+        found = sum(d is not None for d in dets[k])
+        if found == 0:
+            how = f" (frames reconstructed from events by {cam.reconstruction})" if cam.reconstruction else ""
+            raise CalibrationError(
+                f"{cam.name}: no target found in any of the {tried[k] - bad[k]} frames tried{how}; "
+                f"check the target description ({target!r}) and that the board is fully visible "
+                "(checkerboards) and in focus")
+        size = next(iter(sizes[k]))
+        obs.append(Observations(cam.name, size, dets[k]))
+    return DetectionSummary(tuple(obs), tuple(picked), tuple(tried), tuple(bad),
+                            tuple(sum(d is not None for d in dets[k]) for k in range(n_cam)))
+
+
+def calibrate_frames(target: CalibrationTarget, summary: DetectionSummary, *, model: str = "pinhole-radtan",
+                     max_views: int = 60, outlier_sigma: float = 5.0,
+                     progress: Callable[[str], Any] | None = None) -> CalibrationResult:
+    """Select informative views among the detections and calibrate the chain."""
+    obs = summary.observations
+    chosen = select_views([list(o.detections) for o in obs], max_views)
+    sub = [Observations(o.name, o.image_size, [o.detections[v] for v in chosen]) for o in obs]
+    res = calibrate(target, sub, model=model, outlier_sigma=outlier_sigma, progress=progress)
+    frames = [summary.views[chosen[i]] for i in res.view_ids]
+    extra = {"views_detected": len(summary.views), "views_selected": len(chosen),
+             "view_rows_used": frames}
+    return CalibrationResult(res.model, res.target, res.cameras, res.T_cn_cnm1, res.T_cn_cnm1_std,
+                             res.baselines_m, res.baselines_std_m, res.n_views,
+                             tuple(int(f) for f in frames), res.renumbered_views, res.iterations,
+                             {**res.extra, **extra})
+
+
+def check_frames(target: CalibrationTarget, summary: DetectionSummary, cameras: Sequence[Any],
+                 T_cn_cnm1: Sequence[npt.NDArray[np.float64]], *, outlier_px: float = 1.0) -> dict[str, Any]:
+    """Evaluate a given calibration on the detections (see :func:`ibiscape_eval.calib.calibrate.evaluate`)."""
+    doc = evaluate(target, summary.observations, cameras, T_cn_cnm1, outlier_px=outlier_px)
+    # report view rows of the input table
+    for o in doc["outlier_views"]:
+        o["view"] = int(summary.views[o["view"]])
+    return doc
