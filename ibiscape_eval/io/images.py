@@ -21,7 +21,6 @@ Every writer goes through the atomic staging of :mod:`ibiscape_eval.io`; readers
 
 from __future__ import annotations
 
-import math
 import os
 from collections.abc import Sequence
 from pathlib import Path
@@ -33,6 +32,7 @@ import numpy.typing as npt
 from ibiscape_eval.core.errors import FormatError, IbiscapeError
 
 from .atomic import atomic_output_path, atomic_write
+from .framelists import ns_number, read_stamped_rows, write_stamped_list
 
 __all__ = [
     "CARLA_LOG_DEPTH_SCALE",
@@ -240,44 +240,19 @@ def read_labels_cityscapes(path: str | os.PathLike[str]) -> npt.NDArray[np.uint8
 def write_frame_timestamps(path: str | os.PathLike[str], stamps_ns: npt.ArrayLike,
                            filenames: Sequence[str] | None = None) -> None:
     """``timestamps.csv`` of a camera folder: ``#timestamp [ns], filename`` (default ``<ns>.png``)."""
-    st = np.asarray(stamps_ns, dtype=np.int64).reshape(-1)
-    names = [f"{int(t)}.png" for t in st] if filenames is None else list(filenames)
-    if len(names) != st.size:
-        raise IbiscapeError(f"{path}: {st.size} stamps but {len(names)} file names")
-    with atomic_write(path) as f:
-        f.write("#timestamp [ns], filename\n")
-        f.writelines(f"{int(t)}, {n} \n" for t, n in zip(st, names, strict=True))
+    st = [int(t) for t in np.asarray(stamps_ns, dtype=np.int64).reshape(-1)]
+    names = [f"{t}.png" for t in st] if filenames is None else list(filenames)
+    if len(names) != len(st):
+        raise IbiscapeError(f"{path}: {len(st)} stamps but {len(names)} file names")
+    write_stamped_list(path, "#timestamp [ns], filename\n", st, names, sep=", ", end=" \n")
 
 
 def read_frame_timestamps(path: str | os.PathLike[str]) -> tuple[npt.NDArray[np.int64], list[str]]:
     """Stamps [ns] and file names of a camera ``timestamps.csv`` (``#timestamp [ns], filename``)."""
-    p = Path(path)
-    if not p.is_file():
-        raise FormatError(p, "timestamps.csv not found")
-    stamps: list[int] = []
-    names: list[str] = []
-    with open(p, encoding="utf-8") as fh:
-        for n, line in enumerate(fh, start=1):
-            s = line.strip()
-            if not s or s.startswith("#"):
-                continue
-            parts = [x.strip() for x in s.split(",")]
-            if len(parts) != 2 or not parts[1]:
-                raise FormatError(p, "expected 'timestamp [ns], filename'", line=n)
-            try:
-                v = float(parts[0]) if any(c in parts[0] for c in ".eE") else int(parts[0])
-            except ValueError:
-                raise FormatError(p, f"timestamp {parts[0]!r} is not a number", line=n) from None
-            if isinstance(v, float):
-                if not math.isfinite(v):
-                    raise FormatError(p, f"timestamp {parts[0]!r} is not finite", line=n)
-                v = round(v)
-            if stamps and v <= stamps[-1]:
-                raise FormatError(p, f"timestamp {v} is not after the previous one {stamps[-1]}; "
-                                  "frames must be in increasing time", line=n)
-            stamps.append(int(v))
-            names.append(parts[1])
-    return np.asarray(stamps, dtype=np.int64), names
+    stamps, rows = read_stamped_rows(
+        path, expected="'timestamp [ns], filename'", parse=ns_number, required=(1,),
+        bad_stamp="is not a finite number", increasing=True, missing="timestamps.csv not found")
+    return stamps, [r[1] for r in rows]
 
 
 def _seconds(ns: int) -> str:

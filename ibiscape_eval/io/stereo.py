@@ -24,6 +24,8 @@ import numpy.typing as npt
 
 from ibiscape_eval.core.errors import FormatError
 
+from .framelists import ns_number, read_stamped_rows
+
 __all__ = ["read_euroc_sensor_yaml", "read_frame_list", "read_gray_image", "read_imu_samples",
            "read_kalibr_camchain"]
 
@@ -43,29 +45,11 @@ def read_frame_list(path: str | os.PathLike[str]) -> tuple[npt.NDArray[np.int64]
         A row without two fields, a stamp that is not an integer, stamps that do not increase
         strictly, or no rows at all (naming the line).
     """
-    stamps: list[int] = []
-    names: list[str] = []
-    with open(path, encoding="utf-8", errors="replace") as fh:
-        for no, line in enumerate(fh, start=1):
-            s = line.strip()
-            if not s or s.startswith("#"):
-                continue
-            parts = [p.strip() for p in s.split(",")]
-            if len(parts) < 2 or not parts[1]:
-                raise FormatError(path, "expected '<timestamp [ns]>,<filename>'", line=no)
-            try:
-                t = int(parts[0]) if "." not in parts[0] else round(float(parts[0]))
-            except ValueError:
-                raise FormatError(path, f"timestamp {parts[0]!r} is not an integer (ns)",
-                                  line=no) from None
-            if stamps and t <= stamps[-1]:
-                raise FormatError(path, f"timestamps must increase strictly: {t} ns follows "
-                                  f"{stamps[-1]} ns; sort the file or remove duplicates", line=no)
-            stamps.append(t)
-            names.append(parts[1])
-    if not stamps:
-        raise FormatError(path, "no frames listed")
-    return np.asarray(stamps, dtype=np.int64), names
+    stamps, rows = read_stamped_rows(
+        path, expected="'<timestamp [ns]>,<filename>'", ncols=(2, 1 << 30), required=(1,),
+        parse=ns_number, bad_stamp="is not an integer (ns)", increasing=True,
+        nonempty="no frames listed", errors="replace")
+    return stamps, [r[1] for r in rows]
 
 
 def read_imu_samples(path: str | os.PathLike[str], *, fmt: str = "euroc"
