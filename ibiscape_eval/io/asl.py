@@ -32,6 +32,7 @@ from ._poses import finish_trajectory
 from ._text import decimal_to_ns, parse_table, read_bytes, write_table
 from .atomic import atomic_write
 from .framelists import ns_digits, read_stamped_rows, write_stamped_list
+from .paths import safe_yaml
 
 __all__ = [
     "ASL_GROUNDTRUTH_HEADER",
@@ -186,14 +187,8 @@ def write_asl_sensor_yaml(path: str | os.PathLike[str], *, sensor_type: str, com
 
 def read_asl_sensor_yaml(path: str | os.PathLike[str]) -> dict[str, Any]:
     """Read a ``sensor.yaml`` (``yaml.safe_load``); ``T_BS`` is returned as a (4, 4) array."""
-    import yaml
-
     p = Path(path)
-    with open(p, encoding="utf-8") as fh:
-        try:
-            doc = yaml.safe_load(fh)
-        except yaml.YAMLError as e:
-            raise FormatError(p, f"not valid YAML ({' '.join(str(e).split())})") from None
+    doc = safe_yaml(p, what="EuRoC sensor.yaml")
     if not isinstance(doc, dict) or "sensor_type" not in doc or "T_BS" not in doc:
         raise FormatError(p, "expected a mapping with sensor_type and T_BS (EuRoC sensor.yaml)")
     T = doc["T_BS"]

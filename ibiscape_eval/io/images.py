@@ -33,6 +33,7 @@ from ibiscape_eval.core.errors import FormatError, IbiscapeError
 
 from .atomic import atomic_output_path, atomic_write
 from .framelists import ns_number, read_stamped_rows, write_stamped_list
+from .paths import check_input
 
 __all__ = [
     "CARLA_LOG_DEPTH_SCALE",
@@ -110,8 +111,10 @@ def read_png(path: str | os.PathLike[str]) -> npt.NDArray[Any]:
     import cv2
 
     p = Path(path)
-    if not p.is_file():
-        raise FormatError(p, "image file not found")
+    try:
+        check_input(p, what="image")
+    except FileNotFoundError:
+        raise FormatError(p, "image file not found") from None
     img = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
     if img is None:
         raise FormatError(p, "not a readable image (expected a PNG)")
@@ -277,8 +280,10 @@ def read_association(path: str | os.PathLike[str]) -> tuple[npt.NDArray[np.int64
                                                              npt.NDArray[np.int64], list[str]]:
     """Read an ``association.txt``: rgb stamps [ns], rgb files, depth stamps [ns], depth files."""
     p = Path(path)
-    if not p.is_file():
-        raise FormatError(p, "association file not found")
+    try:
+        check_input(p)
+    except FileNotFoundError:
+        raise FormatError(p, "association file not found") from None
     ta: list[int] = []
     tb: list[int] = []
     fa: list[str] = []

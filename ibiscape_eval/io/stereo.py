@@ -25,6 +25,7 @@ import numpy.typing as npt
 from ibiscape_eval.core.errors import FormatError
 
 from .framelists import ns_number, read_stamped_rows
+from .paths import check_input, safe_yaml
 
 __all__ = ["read_euroc_sensor_yaml", "read_frame_list", "read_gray_image", "read_imu_samples",
            "read_kalibr_camchain"]
@@ -76,11 +77,16 @@ def read_imu_samples(path: str | os.PathLike[str], *, fmt: str = "euroc"
 
     from .imu import mirror_ibiscape_imu
 
+    check_input(path, what="IMU csv")
     try:
         df = pd.read_csv(path, header=None, comment="#", skip_blank_lines=True,
                          dtype=str, engine="c")
     except pd.errors.EmptyDataError:
         raise FormatError(path, "no IMU samples") from None
+    except UnicodeDecodeError:
+        raise FormatError(path, "not UTF-8 text; save the file as UTF-8") from None
+    except pd.errors.ParserError as e:
+        raise FormatError(path, f"not a 7-column IMU csv ({' '.join(str(e).split())[:200]})") from None
     if df.shape[1] < 7:
         raise FormatError(path, f"expected 7 columns (t [ns], w_x, w_y, w_z, a_x, a_y, a_z), "
                           f"got {df.shape[1]}")
@@ -121,8 +127,10 @@ def read_gray_image(path: str | os.PathLike[str]) -> npt.NDArray[np.uint8]:
     import cv2
 
     p = Path(path)
-    if not p.is_file():
-        raise FormatError(p, "image file is missing; check the frame list")
+    try:
+        check_input(p, what="image")
+    except FileNotFoundError:
+        raise FormatError(p, "image file is missing; check the frame list") from None
     img = cv2.imread(str(p), cv2.IMREAD_GRAYSCALE)
     if img is None:
         raise FormatError(p, "not an image OpenCV can read")
@@ -132,13 +140,7 @@ def read_gray_image(path: str | os.PathLike[str]) -> npt.NDArray[np.uint8]:
 
 
 def _yaml(path: str | os.PathLike[str]) -> dict[str, Any]:
-    import yaml
-
-    try:
-        with open(path, encoding="utf-8") as fh:
-            doc = yaml.safe_load(fh)
-    except yaml.YAMLError as e:
-        raise FormatError(path, f"not valid YAML ({' '.join(str(e).split())})") from None
+    doc = safe_yaml(path)
     if not isinstance(doc, dict):
         raise FormatError(path, "expected a mapping at the top level")
     return doc
