@@ -41,6 +41,7 @@ __all__ = [
     "CITYSCAPES_PALETTE",
     "decode_depth_carla_log",
     "encode_depth_carla_log",
+    "imread_checked",
     "read_association",
     "read_depth_carla_log",
     "read_depth_mm",
@@ -106,18 +107,29 @@ def write_png(path: str | os.PathLike[str], image: npt.ArrayLike, *, compression
             raise IbiscapeError(f"{path}: could not write the PNG image (disk full or no permission?)")
 
 
-def read_png(path: str | os.PathLike[str]) -> npt.NDArray[Any]:
-    """Read a PNG unchanged: ``(H, W)`` or RGB ``(H, W, 3)`` (RGBA ``(H, W, 4)``), uint8 or uint16."""
+def imread_checked(path: str | os.PathLike[str], flags: int, *, missing: str,
+                   unreadable: str) -> npt.NDArray[Any]:
+    """``cv2.imread(path, flags)`` after :func:`~ibiscape_eval.io.paths.check_input`: a missing
+    file or one OpenCV cannot decode is a :class:`FormatError` with the given message."""
     import cv2
 
     p = Path(path)
     try:
         check_input(p, what="image")
     except FileNotFoundError:
-        raise FormatError(p, "image file not found") from None
-    img = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
+        raise FormatError(p, missing) from None
+    img = cv2.imread(str(p), flags)
     if img is None:
-        raise FormatError(p, "not a readable image (expected a PNG)")
+        raise FormatError(p, unreadable)
+    return np.asarray(img)
+
+
+def read_png(path: str | os.PathLike[str]) -> npt.NDArray[Any]:
+    """Read a PNG unchanged: ``(H, W)`` or RGB ``(H, W, 3)`` (RGBA ``(H, W, 4)``), uint8 or uint16."""
+    import cv2
+
+    img = imread_checked(path, cv2.IMREAD_UNCHANGED, missing="image file not found",
+                         unreadable="not a readable image (expected a PNG)")
     if img.ndim == 3:
         img = img[..., [2, 1, 0]] if img.shape[2] == 3 else img[..., [2, 1, 0, 3]]
     return np.ascontiguousarray(img)

@@ -16,7 +16,6 @@ Every reader uses ``yaml.safe_load`` and raises :class:`FormatError` naming the 
 from __future__ import annotations
 
 import os
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -126,14 +125,11 @@ def read_gray_image(path: str | os.PathLike[str]) -> npt.NDArray[np.uint8]:
     """An 8-bit grey image ``(H, W)`` (colour images are converted with OpenCV's weights)."""
     import cv2
 
-    p = Path(path)
-    try:
-        check_input(p, what="image")
-    except FileNotFoundError:
-        raise FormatError(p, "image file is missing; check the frame list") from None
-    img = cv2.imread(str(p), cv2.IMREAD_GRAYSCALE)
-    if img is None:
-        raise FormatError(p, "not an image OpenCV can read")
+    from .images import imread_checked
+
+    img = imread_checked(path, cv2.IMREAD_GRAYSCALE,
+                         missing="image file is missing; check the frame list",
+                         unreadable="not an image OpenCV can read")
     if img.dtype != np.uint8:
         img = cv2.convertScaleAbs(img, alpha=255.0 / max(float(img.max()), 1.0))
     return np.asarray(img, dtype=np.uint8)
