@@ -46,10 +46,10 @@ Examples:
 @click.argument("sequence", type=click.Path(path_type=Path))
 @click.option("-o", "--out", "out", type=click.Path(path_type=Path, dir_okay=False), required=True,
               help="Estimate in TUM format (seconds): IMU0/body pose in the world per frame.")
-@click.option("--calib", type=click.Path(path_type=Path, dir_okay=False), default=None,
+@click.option("--calib", type=click.Path(path_type=Path), default=None,
               help="Kalibr camchain-imucam.yaml (cam0 left, cam1 right); default: the "
               "sequence's own sequence.yaml (EuRoC: cam0/cam1 sensor.yaml).")
-@click.option("--imu", "imu_yaml", type=click.Path(path_type=Path, dir_okay=False), default=None,
+@click.option("--imu", "imu_yaml", type=click.Path(path_type=Path), default=None,
               help="Kalibr imu.yaml with the noise densities (e.g. from `ibiscape-eval allan`).")
 @click.option("--max-frames", type=click.IntRange(min=2), default=None,
               help="Process only the first N stereo frames.")

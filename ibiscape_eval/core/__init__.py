@@ -1,4 +1,12 @@
-"""Core value types and batched geometry: numpy/scipy only, no I/O."""
+"""Core value types and batched geometry: numpy/scipy only, no I/O.
+
+The value types are exported lazily (:mod:`ibiscape_eval.core.lazy`), so importing a light core
+module (``errors``, ``lazy``) does not load numpy.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
 
 from .errors import (
     CalibrationError,
@@ -7,10 +15,17 @@ from .errors import (
     IbiscapeError,
     IbiscapeWarning,
 )
-from .gnss import GnssFixes
-from .imu import ImuRecord, ImuTiming
-from .time import NS_PER_S, ns_from_s, s_from_ns
-from .trajectory import Trajectory
+from .lazy import lazy_exports
+
+_EXPORTS: dict[str, str] = {
+    "GnssFixes": "gnss",
+    "ImuRecord": "imu",
+    "ImuTiming": "imu",
+    "NS_PER_S": "time",
+    "ns_from_s": "time",
+    "s_from_ns": "time",
+    "Trajectory": "trajectory",
+}
 
 __all__ = [
     "NS_PER_S",
@@ -26,3 +41,11 @@ __all__ = [
     "ns_from_s",
     "s_from_ns",
 ]
+
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .gnss import GnssFixes
+    from .imu import ImuRecord, ImuTiming
+    from .time import NS_PER_S, ns_from_s, s_from_ns
+    from .trajectory import Trajectory

@@ -31,6 +31,8 @@ from ibiscape_eval.core.trajectory import Trajectory
 from ._poses import finish_trajectory
 from ._text import decimal_to_ns, parse_table, read_bytes, write_table
 from .atomic import atomic_write
+from .framelists import ns_digits, read_stamped_rows, write_stamped_list
+from .paths import safe_yaml
 
 __all__ = [
     "ASL_GROUNDTRUTH_HEADER",
@@ -57,30 +59,16 @@ ASL_GROUNDTRUTH_HEADER = (
 
 def write_asl_image_list(path: str | os.PathLike[str], stamps_ns: npt.ArrayLike) -> None:
     """Write a camera ``data.csv``: ``#timestamp [ns],filename`` then ``<ns>,<ns>.png`` rows."""
-    st = np.asarray(stamps_ns, dtype=np.int64).reshape(-1)
-    with atomic_write(path) as f:
-        f.write("#timestamp [ns],filename\n")
-        f.writelines(f"{int(t)},{int(t)}.png\n" for t in st)
+    st = [int(t) for t in np.asarray(stamps_ns, dtype=np.int64).reshape(-1)]
+    write_stamped_list(path, "#timestamp [ns],filename\n", st, [f"{t}.png" for t in st])
 
 
 def read_asl_image_list(path: str | os.PathLike[str]) -> tuple[npt.NDArray[np.int64], list[str]]:
     """Stamps [ns] and file names of a camera ``data.csv``."""
-    p = Path(path)
-    if not p.is_file():
-        raise FormatError(p, "data.csv not found; is this an ASL camera folder (mav0/camN)?")
-    stamps: list[int] = []
-    names: list[str] = []
-    with open(p, encoding="utf-8") as fh:
-        for n, line in enumerate(fh, start=1):
-            s = line.strip()
-            if not s or s.startswith("#"):
-                continue
-            parts = [x.strip() for x in s.split(",")]
-            if len(parts) != 2 or not parts[0].isdigit():
-                raise FormatError(p, "expected 'timestamp [ns],filename'", line=n)
-            stamps.append(int(parts[0]))
-            names.append(parts[1])
-    return np.asarray(stamps, dtype=np.int64), names
+    stamps, rows = read_stamped_rows(
+        path, expected="'timestamp [ns],filename'", parse=ns_digits,
+        missing="data.csv not found; is this an ASL camera folder (mav0/camN)?")
+    return stamps, [r[1] for r in rows]
 
 
 def write_asl_imu(path: str | os.PathLike[str], stamps_ns: npt.ArrayLike, gyro_rad_s: npt.ArrayLike,
@@ -199,14 +187,8 @@ def write_asl_sensor_yaml(path: str | os.PathLike[str], *, sensor_type: str, com
 
 def read_asl_sensor_yaml(path: str | os.PathLike[str]) -> dict[str, Any]:
     """Read a ``sensor.yaml`` (``yaml.safe_load``); ``T_BS`` is returned as a (4, 4) array."""
-    import yaml
-
     p = Path(path)
-    with open(p, encoding="utf-8") as fh:
-        try:
-            doc = yaml.safe_load(fh)
-        except yaml.YAMLError as e:
-            raise FormatError(p, f"not valid YAML ({' '.join(str(e).split())})") from None
+    doc = safe_yaml(p, what="EuRoC sensor.yaml")
     if not isinstance(doc, dict) or "sensor_type" not in doc or "T_BS" not in doc:
         raise FormatError(p, "expected a mapping with sensor_type and T_BS (EuRoC sensor.yaml)")
     T = doc["T_BS"]

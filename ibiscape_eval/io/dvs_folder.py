@@ -100,22 +100,11 @@ class DvsFolderWriter:
 def read_dvs_frame_list(folder: str | os.PathLike[str]) -> tuple[npt.NDArray[np.int64], list[Path]]:
     """End stamps [ns] and PNG paths of a DVS camera's accumulated frames
     (``<folder>/frames/timestamps.csv``, three columns)."""
-    from ibiscape_eval.core.errors import FormatError
+    from .framelists import ns_integer, read_stamped_rows
 
     csv = Path(folder) / "frames" / "timestamps.csv"
-    if not csv.is_file():
-        raise FormatError(csv, "not found: this DVS camera has no accumulated frames")
-    stamps: list[int] = []
-    paths: list[Path] = []
-    with open(csv, encoding="utf-8") as fh:
-        for n, line in enumerate(fh, start=1):
-            s = line.strip()
-            if not s or s.startswith("#"):
-                continue
-            parts = [x.strip() for x in s.split(",")]
-            if len(parts) != 3 or not parts[1].lstrip("-").isdigit():
-                raise FormatError(csv, "expected 'timestamp_start [ns], timestamp_end [ns], "
-                                  "filename'", line=n)
-            stamps.append(int(parts[1]))
-            paths.append(csv.parent / parts[2])
-    return np.asarray(stamps, dtype=np.int64), paths
+    stamps, rows = read_stamped_rows(
+        csv, expected="'timestamp_start [ns], timestamp_end [ns], filename'", ncols=3,
+        stamp_col=1, parse=ns_integer,
+        missing="not found: this DVS camera has no accumulated frames")
+    return stamps, [csv.parent / r[2] for r in rows]

@@ -21,7 +21,6 @@ Every writer goes through the atomic staging of :mod:`ibiscape_eval.io`; readers
 
 from __future__ import annotations
 
-import math
 import os
 from collections.abc import Sequence
 from pathlib import Path
@@ -33,6 +32,8 @@ import numpy.typing as npt
 from ibiscape_eval.core.errors import FormatError, IbiscapeError
 
 from .atomic import atomic_output_path, atomic_write
+from .framelists import ns_number, read_stamped_rows, write_stamped_list
+from .paths import check_input
 
 __all__ = [
     "CARLA_LOG_DEPTH_SCALE",
@@ -40,6 +41,7 @@ __all__ = [
     "CITYSCAPES_PALETTE",
     "decode_depth_carla_log",
     "encode_depth_carla_log",
+    "imread_checked",
     "read_association",
     "read_depth_carla_log",
     "read_depth_mm",
@@ -105,16 +107,29 @@ def write_png(path: str | os.PathLike[str], image: npt.ArrayLike, *, compression
             raise IbiscapeError(f"{path}: could not write the PNG image (disk full or no permission?)")
 
 
+def imread_checked(path: str | os.PathLike[str], flags: int, *, missing: str,
+                   unreadable: str) -> npt.NDArray[Any]:
+    """``cv2.imread(path, flags)`` after :func:`~ibiscape_eval.io.paths.check_input`: a missing
+    file or one OpenCV cannot decode is a :class:`FormatError` with the given message."""
+    import cv2
+
+    p = Path(path)
+    try:
+        check_input(p, what="image")
+    except FileNotFoundError:
+        raise FormatError(p, missing) from None
+    img = cv2.imread(str(p), flags)
+    if img is None:
+        raise FormatError(p, unreadable)
+    return np.asarray(img)
+
+
 def read_png(path: str | os.PathLike[str]) -> npt.NDArray[Any]:
     """Read a PNG unchanged: ``(H, W)`` or RGB ``(H, W, 3)`` (RGBA ``(H, W, 4)``), uint8 or uint16."""
     import cv2
 
-    p = Path(path)
-    if not p.is_file():
-        raise FormatError(p, "image file not found")
-    img = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
-    if img is None:
-        raise FormatError(p, "not a readable image (expected a PNG)")
+    img = imread_checked(path, cv2.IMREAD_UNCHANGED, missing="image file not found",
+                         unreadable="not a readable image (expected a PNG)")
     if img.ndim == 3:
         img = img[..., [2, 1, 0]] if img.shape[2] == 3 else img[..., [2, 1, 0, 3]]
     return np.ascontiguousarray(img)
@@ -240,44 +255,19 @@ def read_labels_cityscapes(path: str | os.PathLike[str]) -> npt.NDArray[np.uint8
 def write_frame_timestamps(path: str | os.PathLike[str], stamps_ns: npt.ArrayLike,
                            filenames: Sequence[str] | None = None) -> None:
     """``timestamps.csv`` of a camera folder: ``#timestamp [ns], filename`` (default ``<ns>.png``)."""
-    st = np.asarray(stamps_ns, dtype=np.int64).reshape(-1)
-    names = [f"{int(t)}.png" for t in st] if filenames is None else list(filenames)
-    if len(names) != st.size:
-        raise IbiscapeError(f"{path}: {st.size} stamps but {len(names)} file names")
-    with atomic_write(path) as f:
-        f.write("#timestamp [ns], filename\n")
-        f.writelines(f"{int(t)}, {n} \n" for t, n in zip(st, names, strict=True))
+    st = [int(t) for t in np.asarray(stamps_ns, dtype=np.int64).reshape(-1)]
+    names = [f"{t}.png" for t in st] if filenames is None else list(filenames)
+    if len(names) != len(st):
+        raise IbiscapeError(f"{path}: {len(st)} stamps but {len(names)} file names")
+    write_stamped_list(path, "#timestamp [ns], filename\n", st, names, sep=", ", end=" \n")
 
 
 def read_frame_timestamps(path: str | os.PathLike[str]) -> tuple[npt.NDArray[np.int64], list[str]]:
     """Stamps [ns] and file names of a camera ``timestamps.csv`` (``#timestamp [ns], filename``)."""
-    p = Path(path)
-    if not p.is_file():
-        raise FormatError(p, "timestamps.csv not found")
-    stamps: list[int] = []
-    names: list[str] = []
-    with open(p, encoding="utf-8") as fh:
-        for n, line in enumerate(fh, start=1):
-            s = line.strip()
-            if not s or s.startswith("#"):
-                continue
-            parts = [x.strip() for x in s.split(",")]
-            if len(parts) != 2 or not parts[1]:
-                raise FormatError(p, "expected 'timestamp [ns], filename'", line=n)
-            try:
-                v = float(parts[0]) if any(c in parts[0] for c in ".eE") else int(parts[0])
-            except ValueError:
-                raise FormatError(p, f"timestamp {parts[0]!r} is not a number", line=n) from None
-            if isinstance(v, float):
-                if not math.isfinite(v):
-                    raise FormatError(p, f"timestamp {parts[0]!r} is not finite", line=n)
-                v = round(v)
-            if stamps and v <= stamps[-1]:
-                raise FormatError(p, f"timestamp {v} is not after the previous one {stamps[-1]}; "
-                                  "frames must be in increasing time", line=n)
-            stamps.append(int(v))
-            names.append(parts[1])
-    return np.asarray(stamps, dtype=np.int64), names
+    stamps, rows = read_stamped_rows(
+        path, expected="'timestamp [ns], filename'", parse=ns_number, required=(1,),
+        bad_stamp="is not a finite number", increasing=True, missing="timestamps.csv not found")
+    return stamps, [r[1] for r in rows]
 
 
 def _seconds(ns: int) -> str:
@@ -302,8 +292,10 @@ def read_association(path: str | os.PathLike[str]) -> tuple[npt.NDArray[np.int64
                                                              npt.NDArray[np.int64], list[str]]:
     """Read an ``association.txt``: rgb stamps [ns], rgb files, depth stamps [ns], depth files."""
     p = Path(path)
-    if not p.is_file():
-        raise FormatError(p, "association file not found")
+    try:
+        check_input(p)
+    except FileNotFoundError:
+        raise FormatError(p, "association file not found") from None
     ta: list[int] = []
     tb: list[int] = []
     fa: list[str] = []

@@ -104,6 +104,8 @@ def safe_yaml(path: str | os.PathLike[str], *, what: str = "") -> object:
         return yaml.safe_load(text)
     except RecursionError:
         raise FormatError(path, "YAML nested too deeply") from None
+    except ValueError as e:  # e.g. an integer of more than 4300 digits
+        raise FormatError(path, f"not valid YAML ({' '.join(str(e).split())[:200]})") from None
     except yaml.YAMLError as e:
         mark = getattr(e, "problem_mark", None)
         raise FormatError(path, f"not valid YAML ({' '.join(str(e).split())[:200]})",

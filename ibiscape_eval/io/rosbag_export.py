@@ -21,6 +21,7 @@ import numpy.typing as npt
 from ibiscape_eval.core.errors import IbiscapeError
 
 from .atomic import discard, publish, staging_path
+from .paths import check_input
 
 __all__ = ["RosbagWriter", "read_bag_images", "read_bag_imu"]
 
@@ -130,7 +131,7 @@ def read_bag_images(path: str | os.PathLike[str], topic: str) -> tuple[npt.NDArr
 
     stamps: list[int] = []
     images: list[np.ndarray] = []
-    with AnyReader([Path(path)]) as r:
+    with AnyReader([check_input(path, "any", what="ROS bag")]) as r:
         conns = [c for c in r.connections if c.topic == topic]
         if not conns:
             raise IbiscapeError(f"{path}: no topic {topic}; topics: "
@@ -152,7 +153,7 @@ def read_bag_imu(path: str | os.PathLike[str], topic: str) -> tuple[npt.NDArray[
     from rosbags.highlevel import AnyReader
 
     rows: list[tuple[int, float, float, float, float, float, float]] = []
-    with AnyReader([Path(path)]) as r:
+    with AnyReader([check_input(path, "any", what="ROS bag")]) as r:
         conns = [c for c in r.connections if c.topic == topic]
         if not conns:
             raise IbiscapeError(f"{path}: no topic {topic}")

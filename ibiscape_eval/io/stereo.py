@@ -16,13 +16,15 @@ Every reader uses ``yaml.safe_load`` and raises :class:`FormatError` naming the 
 from __future__ import annotations
 
 import os
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
 from ibiscape_eval.core.errors import FormatError
+
+from .framelists import ns_number, read_stamped_rows
+from .paths import check_input, safe_yaml
 
 __all__ = ["read_euroc_sensor_yaml", "read_frame_list", "read_gray_image", "read_imu_samples",
            "read_kalibr_camchain"]
@@ -43,29 +45,11 @@ def read_frame_list(path: str | os.PathLike[str]) -> tuple[npt.NDArray[np.int64]
         A row without two fields, a stamp that is not an integer, stamps that do not increase
         strictly, or no rows at all (naming the line).
     """
-    stamps: list[int] = []
-    names: list[str] = []
-    with open(path, encoding="utf-8", errors="replace") as fh:
-        for no, line in enumerate(fh, start=1):
-            s = line.strip()
-            if not s or s.startswith("#"):
-                continue
-            parts = [p.strip() for p in s.split(",")]
-            if len(parts) < 2 or not parts[1]:
-                raise FormatError(path, "expected '<timestamp [ns]>,<filename>'", line=no)
-            try:
-                t = int(parts[0]) if "." not in parts[0] else round(float(parts[0]))
-            except ValueError:
-                raise FormatError(path, f"timestamp {parts[0]!r} is not an integer (ns)",
-                                  line=no) from None
-            if stamps and t <= stamps[-1]:
-                raise FormatError(path, f"timestamps must increase strictly: {t} ns follows "
-                                  f"{stamps[-1]} ns; sort the file or remove duplicates", line=no)
-            stamps.append(t)
-            names.append(parts[1])
-    if not stamps:
-        raise FormatError(path, "no frames listed")
-    return np.asarray(stamps, dtype=np.int64), names
+    stamps, rows = read_stamped_rows(
+        path, expected="'<timestamp [ns]>,<filename>'", ncols=(2, 1 << 30), required=(1,),
+        parse=ns_number, bad_stamp="is not an integer (ns)", increasing=True,
+        nonempty="no frames listed", errors="replace")
+    return stamps, [r[1] for r in rows]
 
 
 def read_imu_samples(path: str | os.PathLike[str], *, fmt: str = "euroc"
@@ -92,11 +76,16 @@ def read_imu_samples(path: str | os.PathLike[str], *, fmt: str = "euroc"
 
     from .imu import mirror_ibiscape_imu
 
+    check_input(path, what="IMU csv")
     try:
         df = pd.read_csv(path, header=None, comment="#", skip_blank_lines=True,
                          dtype=str, engine="c")
     except pd.errors.EmptyDataError:
         raise FormatError(path, "no IMU samples") from None
+    except UnicodeDecodeError:
+        raise FormatError(path, "not UTF-8 text; save the file as UTF-8") from None
+    except pd.errors.ParserError as e:
+        raise FormatError(path, f"not a 7-column IMU csv ({' '.join(str(e).split())[:200]})") from None
     if df.shape[1] < 7:
         raise FormatError(path, f"expected 7 columns (t [ns], w_x, w_y, w_z, a_x, a_y, a_z), "
                           f"got {df.shape[1]}")
@@ -136,25 +125,18 @@ def read_gray_image(path: str | os.PathLike[str]) -> npt.NDArray[np.uint8]:
     """An 8-bit grey image ``(H, W)`` (colour images are converted with OpenCV's weights)."""
     import cv2
 
-    p = Path(path)
-    if not p.is_file():
-        raise FormatError(p, "image file is missing; check the frame list")
-    img = cv2.imread(str(p), cv2.IMREAD_GRAYSCALE)
-    if img is None:
-        raise FormatError(p, "not an image OpenCV can read")
+    from .images import imread_checked
+
+    img = imread_checked(path, cv2.IMREAD_GRAYSCALE,
+                         missing="image file is missing; check the frame list",
+                         unreadable="not an image OpenCV can read")
     if img.dtype != np.uint8:
         img = cv2.convertScaleAbs(img, alpha=255.0 / max(float(img.max()), 1.0))
     return np.asarray(img, dtype=np.uint8)
 
 
 def _yaml(path: str | os.PathLike[str]) -> dict[str, Any]:
-    import yaml
-
-    try:
-        with open(path, encoding="utf-8") as fh:
-            doc = yaml.safe_load(fh)
-    except yaml.YAMLError as e:
-        raise FormatError(path, f"not valid YAML ({' '.join(str(e).split())})") from None
+    doc = safe_yaml(path)
     if not isinstance(doc, dict):
         raise FormatError(path, "expected a mapping at the top level")
     return doc

@@ -20,9 +20,8 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-from ibiscape_eval.core.errors import FormatError
-
 from .atomic import atomic_write
+from .framelists import read_stamped_rows, seconds_exact, write_stamped_list
 
 __all__ = ["read_tum_list", "stamp_text", "write_association", "write_tum_list"]
 
@@ -38,33 +37,17 @@ def stamp_text(stamps_ns: npt.ArrayLike) -> list[str]:
 def write_tum_list(path: str | os.PathLike[str], stamps_ns: npt.ArrayLike, files: list[str], *,
                    what: str) -> None:
     """Write ``rgb.txt`` / ``depth.txt``: three ``#`` lines, then ``timestamp filename``."""
-    st = stamp_text(stamps_ns)
-    with atomic_write(path) as f:
-        f.write(f"# {what}\n# file: '{Path(path).parent.name}' written by ibiscape-eval\n"
-                "# timestamp filename\n")
-        f.writelines(f"{t} {name}\n" for t, name in zip(st, files, strict=True))
+    write_stamped_list(path, f"# {what}\n# file: '{Path(path).parent.name}' written by ibiscape-eval\n"
+                       "# timestamp filename\n", stamp_text(stamps_ns), files, sep=" ")
 
 
 def read_tum_list(path: str | os.PathLike[str]) -> tuple[npt.NDArray[np.int64], list[str]]:
     """Stamps [ns] (parsed exactly from the decimal text) and file names of ``rgb.txt`` /
     ``depth.txt``."""
-    p = Path(path)
-    stamps: list[int] = []
-    names: list[str] = []
-    with open(p, encoding="utf-8") as fh:
-        for n, line in enumerate(fh, start=1):
-            s = line.strip()
-            if not s or s.startswith("#"):
-                continue
-            parts = s.split()
-            sec, _, frac = parts[0].partition(".")
-            if len(parts) != 2 or not sec.isdigit() or not (frac.isdigit() or frac == "") \
-                    or len(frac) > 9:
-                raise FormatError(p, "expected 'timestamp filename' with the time in seconds",
-                                  line=n)
-            stamps.append(int(sec) * 1_000_000_000 + int(frac.ljust(9, "0") or 0))
-            names.append(parts[1])
-    return np.asarray(stamps, dtype=np.int64), names
+    stamps, rows = read_stamped_rows(
+        path, expected="'timestamp filename' with the time in seconds", sep=None,
+        parse=seconds_exact)
+    return stamps, [r[1] for r in rows]
 
 
 def write_association(path: str | os.PathLike[str], rgb_ns: npt.ArrayLike, rgb_files: list[str],

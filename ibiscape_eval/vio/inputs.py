@@ -230,7 +230,10 @@ def _rig_from_camchain(calib: str | os.PathLike[str]) -> StereoRig:
         raise CalibrationError(f"{calib}: cam1 lacks T_cam_imu and T_cn_cnm1")
     left = _camera(c0, Path(calib), "cam0")
     right = _camera(c1, Path(calib), "cam1")
-    return StereoRig(left, right, T_b_c0, T_b_c1)
+    try:
+        return StereoRig(left, right, T_b_c0, T_b_c1)
+    except CalibrationError as e:
+        raise CalibrationError(f"{calib}: {e}") from None
 
 
 # ---------------------------------------------------------------------------------------------

@@ -55,7 +55,10 @@ class ImuNoiseDensities:
         # Ideal (noise-free) sequences write zeros: keep GTSAM's information finite with a floor.
         floor = (1e-5, 1e-6, 1e-4, 1e-5)
         vals = [max(v, f) for v, f in zip(vals, floor, strict=True)]
-        return cls(vals[0], vals[1], vals[2], vals[3], rate)
+        try:
+            return cls(vals[0], vals[1], vals[2], vals[3], rate)
+        except IbiscapeError as e:
+            raise IbiscapeError(f"{where}: {e}") from None
 
 
 @dataclass(frozen=True)

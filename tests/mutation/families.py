@@ -206,6 +206,75 @@ def _sim_yaml_seed(folder: Path) -> Path:
     return p
 
 
+#: the generated VIO sequence, built once per campaign and copied into each VIO family's seed
+_VIO_TEMPLATE: dict[str, Path] = {}
+VIO_FRAMES = 20  # the fewest frames the VIO initialises from (standstill) on the seed: ~0.2 s a run
+
+
+def _vio_sequence(folder: Path) -> Path:
+    """A 3 s generated SVI sequence with 20 rendered 160 px street frames per camera, its Kalibr
+    camchain-imucam.yaml (cam0 = left) and imu.yaml, copied to ``folder / "SVI_1_town"``."""
+    key = str(folder.parent)
+    if key not in _VIO_TEMPLATE:
+        sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "vio"))
+        from _walls import W, render_street
+
+        from ibiscape_eval.io.imu.kalibr import write_kalibr_imu_yaml
+        from ibiscape_eval.sim.config import preset
+        from ibiscape_eval.sim.generate import generate
+        from ibiscape_eval.vio.inputs import load_sequence
+        from ibiscape_eval.vio.rig import StereoRig
+
+        d = folder.parent / ".vio_template" / "SVI_1_town"
+        generate(preset("svi", "slam", "clear", duration_s=3.0, seed=3), d)
+        seq = load_sequence(d, require_images=False)
+        r = seq.rig
+        rig = StereoRig(r.left.scaled(W, W), r.right.scaled(W, W), r.T_body_left, r.T_body_right)
+        gt = seq.groundtruth
+        assert gt is not None
+        render_street(d, gt, rig, gt.stamps_ns[: 10 * VIO_FRAMES : 10],
+                      origin_xy=(gt.pos_m[0, 0], gt.pos_m[0, 1]), direction_xy=(1.0, 0.0))
+        write_kalibr_imu_yaml(d / "imu.yaml", accelerometer_noise_density=0.02,
+                              accelerometer_random_walk=4e-4, gyroscope_noise_density=2e-3,
+                              gyroscope_random_walk=2e-5, update_rate_hz=200.0)
+        _VIO_TEMPLATE[key] = d
+    dst = folder / "SVI_1_town"
+    shutil.copytree(_VIO_TEMPLATE[key], dst)
+    return dst
+
+
+def _vio_seq_seed(folder: Path) -> Path:
+    return _vio_sequence(folder)
+
+
+def _vio_calib_seed(folder: Path) -> Path:
+    return _vio_sequence(folder) / "camchain-imucam.yaml"
+
+
+def _vio_imu_yaml_seed(folder: Path) -> Path:
+    return _vio_sequence(folder) / "imu.yaml"
+
+
+def _vio_argv(seq: Path, out: Path, calib: Path | None = None, *extra: str) -> list[str]:
+    calib = seq / "camchain-imucam.yaml" if calib is None else calib
+    return ["vio", str(seq), "-o", str(out / "est.txt"), "--calib", str(calib), "--max-frames",
+            str(VIO_FRAMES), "--json", *extra]
+
+
+def _report_seed(folder: Path) -> Path:
+    """runs/seq1/groundtruth.txt and runs/seq1/{alpha,beta}/t1/est.txt (TUM); the mutated file is
+    alpha's trajectory."""
+    from ibiscape_eval.io import write_trajectory
+
+    runs = folder / "runs"
+    (runs / "seq1" / "alpha" / "t1").mkdir(parents=True)
+    (runs / "seq1" / "beta" / "t1").mkdir(parents=True)
+    write_trajectory(runs / "seq1" / "groundtruth.txt", _traj(1), fmt="tum")
+    write_trajectory(runs / "seq1" / "alpha" / "t1" / "est.txt", _traj(2), fmt="tum")
+    write_trajectory(runs / "seq1" / "beta" / "t1" / "est.txt", _traj(3), fmt="tum")
+    return runs
+
+
 FAMILIES: dict[str, Family] = {
     "tum": Family(_tum_seed, lambda p, o: ["ate", str(p), str(p.parent / "ref.txt"), "--json",
                                            "--save-aligned", str(o / "aligned.txt")]),
@@ -240,4 +309,16 @@ FAMILIES: dict[str, Family] = {
     "sim_yaml": Family(_sim_yaml_seed, lambda p, o: ["sim", "--config", str(p), "--out",
                                                      str(o / "seq"), "--no-render", "--json"],
                        also_names=("seq",)),
+    # the VIO's inputs: the sequence's sequence.yaml, the Kalibr camchain and imu.yaml (a vio run
+    # on the 20-frame seed costs ~0.2 s, so every family gets its full share of mutants)
+    "vio_sequence_yaml": Family(_vio_seq_seed, lambda p, o: _vio_argv(p, o),
+                                mutable=lambda p: p / "sequence.yaml"),
+    "vio_camchain": Family(_vio_calib_seed, lambda p, o: _vio_argv(p.parent, o, p)),
+    "vio_imu_yaml": Family(_vio_imu_yaml_seed,
+                           lambda p, o: _vio_argv(p.parent, o, None, "--imu", str(p))),
+    # the report command's runs folder: one mutated trajectory among the runs
+    "report_runs": Family(_report_seed, lambda p, o: ["report", str(p), "--json", "--no-figures",
+                                                      "--no-cache", "--workers", "1", "--out",
+                                                      str(o / "report")],
+                          mutable=lambda p: p / "seq1" / "alpha" / "t1" / "est.txt"),
 }
