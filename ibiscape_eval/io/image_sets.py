@@ -78,29 +78,18 @@ class ImageSet:
 
 
 def _read_frame_csv(csv: Path, folder: Path) -> tuple[list[Path], npt.NDArray[np.int64]]:
-    paths: list[Path] = []
-    stamps: list[int] = []
-    with open(csv, encoding="utf-8") as f:
-        for n, raw in enumerate(f, start=1):
-            line = raw.strip()
-            if not line or line.startswith("#"):
-                continue
-            cols = [c.strip() for c in line.split(",")]
-            if len(cols) < 2:
-                raise FormatError(csv, f"expected 2 columns (timestamp [ns], filename), got {len(cols)}",
-                                  line=n)
-            try:
-                t = int(cols[0]) if re.fullmatch(r"[+-]?\d+", cols[0]) else round(float(cols[0]))
-            except ValueError:
-                raise FormatError(csv, f"timestamp {cols[0]!r} is not a number of ns", line=n) from None
-            name = cols[-1]
-            cand = [folder / name, csv.parent / name]
-            hit = next((c for c in cand if c.is_file()), cand[0])
-            paths.append(hit)
-            stamps.append(t)
-    if not paths:
+    """A camera's ``timestamps.csv`` (the one reader of :mod:`ibiscape_eval.io.images`), names resolved
+    in ``folder`` first, then beside the csv."""
+    from .images import read_frame_timestamps
+
+    stamps, names = read_frame_timestamps(csv)
+    if not names:
         raise FormatError(csv, "lists no frames")
-    return paths, np.array(stamps, np.int64)
+    paths = []
+    for name in names:
+        cand = [folder / name, csv.parent / name]
+        paths.append(next((c for c in cand if c.is_file()), cand[0]))
+    return paths, stamps
 
 
 def _ibiscape_set(name: str, folder: Path) -> ImageSet | None:

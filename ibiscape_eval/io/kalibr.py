@@ -78,22 +78,13 @@ class CameraChain:
 
 
 def read_yaml_mapping(path: str | os.PathLike[str]) -> dict[str, Any]:
-    """``yaml.safe_load`` a file that must hold a mapping; FormatError naming the file otherwise."""
-    import yaml
+    """A YAML file that must hold a mapping (through :func:`ibiscape_eval.io.paths.safe_yaml`: checked
+    path, UTF-8, bounded size and depth, ``yaml.safe_load``); FormatError naming the file otherwise."""
+    from .paths import safe_yaml
 
-    p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except UnicodeDecodeError:
-        raise FormatError(p, "is not a UTF-8 text file; give a YAML file") from None
-    try:
-        doc = yaml.safe_load(text)
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        line = None if mark is None else int(mark.line) + 1
-        raise FormatError(p, f"is not valid YAML ({getattr(e, 'problem', e)})", line=line) from None
+    doc = safe_yaml(path)
     if not isinstance(doc, dict):
-        raise FormatError(p, f"expected a YAML mapping, got {type(doc).__name__}")
+        raise FormatError(path, f"expected a YAML mapping, got {type(doc).__name__}")
     return doc
 
 
