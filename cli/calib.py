@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import re
 import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -20,17 +19,6 @@ def _bar(desc: str) -> Any:
     from .progress import progress_bar
 
     return progress_bar(0, desc, unit="img", unit_scale=False, delay_s=1.0)
-
-
-def _sensor_size(text: str | None) -> tuple[int, int] | None:
-    from ibiscape_eval.core.errors import IbiscapeError
-
-    if text is None:
-        return None
-    m = re.fullmatch(r"\s*(\d+)\s*[xX,]\s*(\d+)\s*", text)
-    if not m or int(m.group(1)) == 0 or int(m.group(2)) == 0:
-        raise IbiscapeError(f"--sensor-size must look like WIDTHxHEIGHT (e.g. 346x260), got {text!r}")
-    return int(m.group(1)), int(m.group(2))
 
 
 def _reader(paths: Sequence[Path], read: Callable[[Path], Any]) -> Callable[[int], Any]:
@@ -131,13 +119,15 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
     views = pair_views(sets)
     seq_cams = (seq_doc or {}).get("cameras") or {}
 
+    from .hotpix import parse_sensor_size
+
     frames = []
     recon_used: dict[str, Any] = {}
     for s in sets:
         if s.kind == "frames":
             frames.append(CameraFrames(s.name, len(s), _reader(s.paths, read_image), _labeler(s.paths)))
             continue
-        size = _sensor_size(sensor_size)
+        size = parse_sensor_size(sensor_size)
         if size is None and isinstance(seq_cams.get(s.name), dict):
             w, h = seq_cams[s.name].get("resolution", (0, 0))
             size = (int(w), int(h))
