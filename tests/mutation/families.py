@@ -275,6 +275,26 @@ def _report_seed(folder: Path) -> Path:
     return runs
 
 
+def _calib_sequence(folder: Path) -> Path:
+    """A small rendered stereo checkerboard sequence (6 views, 320x240) and its camchain.yaml, built once
+    per campaign through the calib command itself."""
+    from click.testing import CliRunner
+
+    from ibiscape_eval.cli.main import cli
+    from ibiscape_eval.core.camera import CameraModel
+    from ibiscape_eval.sim.calib_views import render_calibration_views
+
+    seq = folder / "calib_seq"
+    cam = CameraModel(320, 240, 210.0, 210.0, 159.5, 119.5, "radtan", (-0.1, 0.02, 0.0, 0.0))
+    T = np.eye(4)
+    T[0, 3] = 0.4
+    render_calibration_views(seq, {"rgbL": cam, "rgbR": cam}, {"rgbR": T}, target="checkerboard",
+                             n_views=6, seed=0, distance_m=(3.0, 7.0))
+    res = CliRunner().invoke(cli, ["calib", str(seq), "--yaml", str(seq / "camchain.yaml")])
+    assert res.exit_code == 0, res.output
+    return seq
+
+
 FAMILIES: dict[str, Family] = {
     "tum": Family(_tum_seed, lambda p, o: ["ate", str(p), str(p.parent / "ref.txt"), "--json",
                                            "--save-aligned", str(o / "aligned.txt")]),
@@ -321,4 +341,12 @@ FAMILIES: dict[str, Family] = {
                                                       "--no-cache", "--workers", "1", "--out",
                                                       str(o / "report")],
                           mutable=lambda p: p / "seq1" / "alpha" / "t1" / "est.txt"),
+    # the calibration's inputs: a Kalibr camchain given to --check, and the sequence.yaml that holds
+    # the target and the true cameras
+    "calib_camchain": Family(_calib_sequence, lambda p, o: ["calib", str(p), "--check",
+                                                            str(p / "camchain.yaml"), "--json"],
+                             mutable=lambda p: p / "camchain.yaml"),
+    "calib_sequence_yaml": Family(_calib_sequence, lambda p, o: ["calib", str(p), "--json", "--yaml",
+                                                                 str(o / "camchain.yaml")],
+                                  mutable=lambda p: p / "sequence.yaml"),
 }
