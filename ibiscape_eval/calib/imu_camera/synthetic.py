@@ -14,7 +14,7 @@ OpenCV's detector; AprilGrids may be partial.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Protocol
 
 import numpy as np
@@ -160,11 +160,28 @@ class CalibrationScene:
     observations: tuple[CameraObservations, ...]
     imu: ImuData
     noise: ImuNoiseDensities
-    corners_target_m: FloatArray
-    T_cam_imu: dict[str, FloatArray]
-    timeshift_cam_imu_s: dict[str, float]
-    gravity_target_m_s2: FloatArray
-    target: dict[str, Any] = field(default_factory=dict)
+    #: the simulated drive the observations come from: the truth is read from it, not copied
+    sim: SimulatedCalibrationLike
+
+    @property
+    def corners_target_m(self) -> FloatArray:
+        return self.sim.corners_target_m
+
+    @property
+    def T_cam_imu(self) -> dict[str, FloatArray]:
+        return self.sim.T_cam_imu
+
+    @property
+    def timeshift_cam_imu_s(self) -> dict[str, float]:
+        return self.sim.timeshift_cam_imu_s
+
+    @property
+    def gravity_target_m_s2(self) -> FloatArray:
+        return self.sim.gravity_target_m_s2
+
+    @property
+    def target(self) -> dict[str, Any]:
+        return self.sim.target
 
     def __repr__(self) -> str:
         return (f"CalibrationScene({len(self.imu)} IMU samples, "
@@ -187,5 +204,4 @@ def calibration_scene(sim: SimulatedCalibrationLike, *, noise_px: float = 0.2,
                               max(sim.gyro_random_walk_rad_s2_sqrt_hz, 1e-7),
                               max(sim.accel_random_walk_m_s3_sqrt_hz, 1e-6), sim.imu_rate_hz)
     imu = ImuData(sim.imu_stamps_ns, sim.gyro_rad_s, sim.accel_m_s2)
-    return CalibrationScene(obs, imu, noise, sim.corners_target_m.copy(), dict(sim.T_cam_imu),
-                            dict(sim.timeshift_cam_imu_s), sim.gravity_target_m_s2, dict(sim.target))
+    return CalibrationScene(obs, imu, noise, sim)
