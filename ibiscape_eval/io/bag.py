@@ -15,6 +15,7 @@ from __future__ import annotations
 import contextlib
 import os
 import warnings
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -70,6 +71,24 @@ def _open(path: Path) -> Any:
     return reader
 
 
+@contextlib.contextmanager
+def _reading(path: str | os.PathLike[str]) -> Iterator[tuple[Any, Path]]:
+    """Open the bag at ``path`` (checked, a ROS 2 storage file resolved to its folder) and yield
+    ``(reader, bag path)``; any rosbags failure while reading becomes one "damaged ROS bag"
+    FormatError, and the reader is closed whatever happens."""
+    p = _bag_path(path)
+    reader = _open(p)
+    try:
+        yield reader, p
+    except IbiscapeError:
+        raise
+    except Exception as e:  # rosbags raises many unrelated types on damaged bags
+        raise _damaged(p, e) from None
+    finally:
+        with contextlib.suppress(Exception):
+            reader.close()
+
+
 def _frame(name: str) -> str:
     return name.lstrip("/")
 
@@ -89,19 +108,10 @@ def _tf_pairs(reader: Any) -> list[str]:
 
 def list_pose_topics(path: str | os.PathLike[str]) -> list[str]:
     """Topics of supported pose messages, then ``/tf:parent.child`` ids of TF transforms."""
-    p = _bag_path(path)
-    reader = _open(p)
-    try:
+    with _reading(path) as (reader, _p):
         topics = sorted({c.topic for c in reader.connections
                          if c.msgtype in POSE_MSGTYPES and c.msgcount > 0})
         return topics + _tf_pairs(reader)
-    except IbiscapeError:
-        raise
-    except Exception as e:
-        raise _damaged(p, e) from None
-    finally:
-        with contextlib.suppress(Exception):
-            reader.close()
 
 
 def _split_tf_id(topic: str) -> tuple[str, str, str] | None:
@@ -142,17 +152,8 @@ def read_bag(
         Unreadable bag, unknown or ambiguous topic, unsupported message type, no messages,
         non-unit quaternions; the message names the bag and the message index.
     """
-    p = _bag_path(path)
-    reader = _open(p)
-    try:
+    with _reading(path) as (reader, p):
         return _read(reader, p, topic, name)
-    except IbiscapeError:
-        raise
-    except (Exception, RecursionError) as e:
-        raise _damaged(p, e) from None
-    finally:
-        with contextlib.suppress(Exception):
-            reader.close()
 
 
 def _read(reader: Any, p: Path, topic: str | None, name: str | None) -> Trajectory:
@@ -233,16 +234,7 @@ def read_imu_bag(path: str | os.PathLike[str],
 
     :func:`ibiscape_eval.io.imu.read_imu` builds the record (timing checks) from these arrays.
     """
-    from rosbags.highlevel import AnyReader
-
-    p = Path(path)
-    bag_path = _bag_path(p)
-    try:
-        reader_cm = AnyReader([bag_path])
-        reader = reader_cm.__enter__()
-    except Exception as e:
-        raise FormatError(p, f"not a readable ROS bag ({type(e).__name__}: {e})") from None
-    try:
+    with _reading(path) as (reader, p):
         imu_topics = sorted({c.topic for c in reader.connections if c.msgtype == IMU_MSGTYPE})
         if rostopic is None:
             if len(imu_topics) != 1:
@@ -267,11 +259,4 @@ def read_imu_bag(path: str | os.PathLike[str],
             w, a = msg.angular_velocity, msg.linear_acceleration
             data[i] = (w.x, w.y, w.z, a.x, a.y, a.z)
             i += 1
-    except IbiscapeError:
-        raise
-    except Exception as e:
-        raise _damaged(p, e) from None
-    finally:
-        with contextlib.suppress(Exception):
-            reader_cm.__exit__(None, None, None)
     return stamps[:i], data[:i], rostopic
