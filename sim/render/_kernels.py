@@ -1,11 +1,19 @@
-"""numba kernels of the per-ray work around the ray casts (one fused pass instead of ~40 numpy
-passes over the image): hit attributes from the triangle tables, surface albedo, final shading
-with sky and fog, texture sampling, sensor noise.
+"""numba kernels of the per-ray work around the ray casts: two fused passes per image instead of
+~40 numpy passes over a million pixels.
+
+- :func:`surfaces` (after the casts): nearer hit of the static scene and the movers, the hit
+  triangle's material, label and texture coordinates, the procedural albedo, the sun and sky terms
+  of the shading and, for every lit pixel facing the sun, its shadow ray (written compactly, with a
+  flag saying whether a mover may cast that shadow).
+- :func:`finish` (after the shadow rays): sun + sky shading, the wet road, puddles mirroring the
+  sky, Koschmieder fog, exposure.
+- :func:`quantize`: sensor noise and rounding to 8 bits in one pass.
 
 They run on one thread: measured on the shared two-core machine, threaded kernels (OpenMP) fight
 with Embree's TBB workers that keep spinning after each cast, and cost more wall AND CPU time
-(1024 x 1024 view: 1.9 s wall / 0.51 s CPU threaded, 1.4 s / 0.39 s single).  Every iteration
-touches one ray only, so switching ``prange`` back on cannot change a result.
+(1024 x 1024 view: 1.9 s wall / 0.51 s CPU threaded, 1.4 s / 0.39 s single).  The stereo views of
+one instant render on two threads instead (the kernels release the GIL).  Every iteration touches
+one ray only, so a result never depends on the threads.
 """
 
 from __future__ import annotations
@@ -13,92 +21,37 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-
-@nb.njit(cache=True, nogil=True)
-def hit_attributes(t, prim, bary, normal, rays, map2, t2, prim2, bary2, normal2,
-                   material, variant, label, uv_m, material2, variant2, label2, uv_m2, sentinel):
-    """Nearer hit of two scenes -> per-ray material, variant, label, uv [m], unit normal facing
-    the viewer, front-face flag of the geometric normal, hit point and ray length |d|.
-
-    The second scene was cast for a subset of the rays: ray ``i`` is its row ``map2[i]`` (-1: not
-    cast)."""
-    n = t.shape[0]
-    mat = np.empty(n, np.uint8)
-    var = np.empty(n, np.uint8)
-    lab = np.empty(n, np.uint8)
-    uv = np.empty((n, 2), np.float32)
-    nrm = np.empty((n, 3), np.float32)
-    facing = np.empty(n, np.bool_)
-    pts = np.empty((n, 3), np.float32)
-    dn = np.empty(n, np.float32)
-    depth = np.empty(n, np.float32)
-    for i in nb.prange(n):
-        dx, dy, dz = rays[i, 3], rays[i, 4], rays[i, 5]
-        dn[i] = np.sqrt(dx * dx + dy * dy + dz * dz)
-        j = map2[i] if map2.shape[0] > 1 else -1
-        if j >= 0 and t2[j] < t[i]:
-            ti, p, b1, b2 = t2[j], prim2[j], bary2[j, 0], bary2[j, 1]
-            nx, ny, nz = normal2[j, 0], normal2[j, 1], normal2[j, 2]
-            mat[i], var[i], lab[i] = material2[p], variant2[p], label2[p]
-            u0, v0 = uv_m2[p, 0, 0], uv_m2[p, 0, 1]
-            u1, v1 = uv_m2[p, 1, 0], uv_m2[p, 1, 1]
-            u2, v2 = uv_m2[p, 2, 0], uv_m2[p, 2, 1]
-        else:
-            ti = t[i]
-            p = prim[i] if np.isfinite(ti) else sentinel
-            b1, b2 = bary[i, 0], bary[i, 1]
-            nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
-            mat[i], var[i], lab[i] = material[p], variant[p], label[p]
-            u0, v0 = uv_m[p, 0, 0], uv_m[p, 0, 1]
-            u1, v1 = uv_m[p, 1, 0], uv_m[p, 1, 1]
-            u2, v2 = uv_m[p, 2, 0], uv_m[p, 2, 1]
-        depth[i] = ti
-        b0 = 1.0 - b1 - b2
-        uv[i, 0] = b0 * u0 + b1 * u1 + b2 * u2
-        uv[i, 1] = b0 * v0 + b1 * v1 + b2 * v2
-        f = nx * dx + ny * dy + nz * dz < 0.0
-        facing[i] = f
-        s = 1.0 if f else -1.0
-        nrm[i, 0], nrm[i, 1], nrm[i, 2] = s * nx, s * ny, s * nz
-        if np.isfinite(ti):
-            pts[i, 0] = rays[i, 0] + ti * dx
-            pts[i, 1] = rays[i, 1] + ti * dy
-            pts[i, 2] = rays[i, 2] + ti * dz
-        else:
-            pts[i, 0] = pts[i, 1] = pts[i, 2] = 0.0
-    return depth, mat, var, lab, uv, nrm, facing, pts, dn
+# material ids (scene.MAT) and CARLA tags used by the albedo (frozen at compile time)
+_GROUND, _SIDEWALK, _FACADE, _CROWN, _CAR, _PED, _TARGET, _CAR_ROOF = 1, 3, 4, 7, 9, 10, 11, 13
+_TAG_ROADLINE, _TAG_ROAD, _TAG_TERRAIN = 6, 7, 22
 
 
 @nb.njit(cache=True, nogil=True)
-def shade_all(albedo, nrm, visible, depth, rays, dn, sun, e_sun, e_sky, zenith, horizon, overcast,
-              cloud, sky_level, beta, airlight, sky_distance):
-    """Radiance (N, 3): lit surfaces ``albedo (e_sun max(0, n.s) V + e_sky (0.6 + 0.4 n_z))``, the
-    sky gradient where nothing was hit, then Koschmieder fog ``J t + A (1 - t)``."""
-    n = depth.shape[0]
-    out = np.empty((n, 3), np.float32)
-    for i in nb.prange(n):
-        d = depth[i]
-        if np.isfinite(d):
-            ndl = nrm[i, 0] * sun[0] + nrm[i, 1] * sun[1] + nrm[i, 2] * sun[2]
-            if ndl < 0.0 or not visible[i]:
-                ndl = 0.0
-            e = e_sun * ndl + e_sky * (0.6 + 0.4 * nrm[i, 2])
-            for c in range(3):
-                out[i, c] = albedo[i, c] * e
-            dist = d * dn[i]
-        else:
-            ez = rays[i, 5] / dn[i]
-            ez = min(max(ez, 0.0), 1.0)
-            s = np.sqrt(ez)
-            for c in range(3):
-                clear = horizon[c] + (zenith[c] - horizon[c]) * s
-                out[i, c] = ((1.0 - cloud) * clear + cloud * overcast[c]) * sky_level
-            dist = sky_distance
-        if beta > 0.0:
-            tr = np.exp(-beta * min(dist, sky_distance))
-            for c in range(3):
-                out[i, c] = out[i, c] * tr + airlight[c] * (1.0 - tr)
+def transform_rays(dirs, R, origin, out):
+    """``out[i] = [origin, R dirs[i]]`` for camera-frame directions (N, 3) -> world rays (N, 6)."""
+    for i in range(dirs.shape[0]):
+        x, y, z = dirs[i, 0], dirs[i, 1], dirs[i, 2]
+        out[i, 0], out[i, 1], out[i, 2] = origin[0], origin[1], origin[2]
+        out[i, 3] = R[0, 0] * x + R[0, 1] * y + R[0, 2] * z
+        out[i, 4] = R[1, 0] * x + R[1, 1] * y + R[1, 2] * z
+        out[i, 5] = R[2, 0] * x + R[2, 1] * y + R[2, 2] * z
     return out
+
+
+@nb.njit(cache=True, nogil=True)
+def rect_mask(dirs, rects, mask):
+    """``mask[i] |= (x_i, y_i)`` inside any rectangle ``[x0, x1, y0, y1]`` of ``rects`` (K, 4),
+    for camera-frame directions ``(x, y, 1)`` (N, 3) (normalised image coordinates)."""
+    k = rects.shape[0]
+    for i in range(dirs.shape[0]):
+        if mask[i]:
+            continue
+        x, y = dirs[i, 0], dirs[i, 1]
+        for j in range(k):
+            if rects[j, 0] <= x <= rects[j, 1] and rects[j, 2] <= y <= rects[j, 3]:
+                mask[i] = True
+                break
+    return mask
 
 
 @nb.njit(cache=True, nogil=True)
@@ -108,7 +61,7 @@ def bilinear(table, x, y, wrap):
     h, w, nc = table.shape
     n = x.shape[0]
     out = np.empty((n, nc), np.float32)
-    for i in nb.prange(n):
+    for i in range(n):
         fx, fy = x[i], y[i]
         if wrap:
             fx = fx - w * np.floor(fx / w)
@@ -144,51 +97,69 @@ def _mix64(z):
 
 
 @nb.njit(cache=True, nogil=True)
-def sensor_noise(image, gain, key):
-    """``image + sigma N(0, 1)`` with ``sigma = sqrt((0.6 gain)^2 + 0.04 gain I)`` per value; the
-    normal deviates come from a counter-based generator (splitmix64 of ``key`` and the value's
-    index, Box-Muller), so they do not depend on the number of threads."""
+def quantize(image, gain, key, normal, noise, out):
+    """8-bit sensor output of a 0..255 float image (any shape, C order) into ``out`` (uint8, same
+    size): ``rint(clip(I + sigma z, 0, 255))`` with ``sigma = sqrt((0.6 gain)^2 + 0.04 gain I)``
+    when ``noise``, else ``rint(clip(I, 0, 255))``.
+
+    The standard normal deviates ``z`` come from a counter-based generator: value ``i`` takes the
+    16-bit field ``i mod 4`` of ``splitmix64(key + (i div 4) phi)`` as an index into ``normal``, a
+    table of the normal quantiles at ``(k + 0.5) / 65536`` (:func:`normal_table`), so the noise
+    depends on ``key`` and the pixel only (not on threads, tiles or the image size) and costs
+    one hash per four values.
+    """
+    flat = image.ravel()
+    dst = out.ravel()
+    n = flat.shape[0]
+    read2 = np.float32((0.6 * gain) ** 2)
+    shot = np.float32(0.04 * gain)
+    k = np.uint64(key)
+    h = np.uint64(0)
+    for i in range(n):
+        v = flat[i]
+        if noise:
+            q = i & 3
+            if q == 0 or i == 0:
+                h = _mix64(k + np.uint64(i >> 2) * np.uint64(0x9E3779B97F4A7C15))
+            z = normal[(h >> np.uint64(16 * q)) & np.uint64(0xFFFF)]
+            v = v + np.sqrt(read2 + shot * max(v, np.float32(0.0))) * z
+        v = min(max(v, np.float32(0.0)), np.float32(255.0))
+        dst[i] = np.uint8(np.rint(v))
+    return out
+
+
+@nb.njit(cache=True, nogil=True)
+def sensor_noise(image, gain, key, normal):
+    """``image + sigma z`` (float32, same shape) with the deviates of :func:`quantize`."""
     flat = image.ravel()
     n = flat.shape[0]
     out = np.empty(n, np.float32)
-    read2 = (0.6 * gain) ** 2
-    shot = 0.04 * gain
+    read2 = np.float32((0.6 * gain) ** 2)
+    shot = np.float32(0.04 * gain)
     k = np.uint64(key)
-    for j in nb.prange((n + 1) // 2):
-        a = _mix64(k + np.uint64(2 * j) * np.uint64(0x9E3779B97F4A7C15))
-        b = _mix64(a + np.uint64(0x632BE59BD9B4E019))
-        u1 = ((a >> np.uint64(11)) + np.uint64(1)) * (1.0 / 9007199254740993.0)
-        u2 = (b >> np.uint64(11)) * (1.0 / 9007199254740992.0)
-        r = np.sqrt(-2.0 * np.log(u1))
-        z0 = r * np.cos(2.0 * np.pi * u2)
-        z1 = r * np.sin(2.0 * np.pi * u2)
-        i0 = 2 * j
-        v = flat[i0]
-        out[i0] = v + np.sqrt(read2 + shot * max(v, 0.0)) * z0
-        if i0 + 1 < n:
-            v = flat[i0 + 1]
-            out[i0 + 1] = v + np.sqrt(read2 + shot * max(v, 0.0)) * z1
+    h = np.uint64(0)
+    for i in range(n):
+        q = i & 3
+        if q == 0 or i == 0:
+            h = _mix64(k + np.uint64(i >> 2) * np.uint64(0x9E3779B97F4A7C15))
+        z = normal[(h >> np.uint64(16 * q)) & np.uint64(0xFFFF)]
+        v = flat[i]
+        out[i] = v + np.sqrt(read2 + shot * max(v, np.float32(0.0))) * z
     return out.reshape(image.shape)
-
-
-# material ids (scene.MAT) and CARLA tags used by the albedo kernel (frozen at compile time)
-_GROUND, _SIDEWALK, _FACADE, _CROWN, _CAR, _PED, _TARGET, _CAR_ROOF = 1, 3, 4, 7, 9, 10, 11, 13
-_TAG_ROADLINE, _TAG_ROAD, _TAG_TERRAIN = 6, 7, 22
 
 
 @nb.njit(cache=True, inline="always")
 def _noise(tab, x, y):
+    # periodic bilinear sample of a table whose sides are powers of two (texel centres at integers)
     h, w = tab.shape
-    fx = x - w * np.floor(x / w)
-    fy = y - h * np.floor(y / h)
-    x0 = int(fx)
-    y0 = int(fy)
-    ax = fx - x0
-    ay = fy - y0
-    x0 %= w
-    y0 %= h
-    x1 = (x0 + 1) % w
-    y1 = (y0 + 1) % h
+    fx = np.floor(x)
+    fy = np.floor(y)
+    ax = x - fx
+    ay = y - fy
+    x0 = int(fx) & (w - 1)
+    y0 = int(fy) & (h - 1)
+    x1 = (x0 + 1) & (w - 1)
+    y1 = (y0 + 1) & (h - 1)
     top = tab[y0, x0] * (1.0 - ax) + tab[y0, x1] * ax
     bot = tab[y1, x0] * (1.0 - ax) + tab[y1, x1] * ax
     return top * (1.0 - ay) + bot * ay
@@ -200,26 +171,28 @@ def _frac(x):
 
 
 @nb.njit(cache=True, nogil=True)
-def albedo_all(mat, var, uv, tab, fine_per_m, coarse_per_m, gmap, gx0, gy0, gres, plain, amp_f, amp_c,
-               facades, cars, clothes, crowns):
-    """Albedo (N, 3), label corrections (N,) (0: keep) and paved weight (N,) of every hit (see
-    ``textures.albedo``; calibration targets are left black for the caller)."""
-    n = mat.shape[0]
-    col = np.zeros((n, 3), np.float32)
-    lab = np.zeros(n, np.uint8)
-    paved = np.zeros(n, np.float32)
-    gh, gw = gmap.shape[0], gmap.shape[1]
-    for i in nb.prange(n):
+def albedo_into(mat, var, uv, tab, fine_per_m, coarse_per_m, gmap, gx0, gy0, gres, plain, amp_f, amp_c,
+                facades, cars, clothes, crowns, col, labels, paved):
+    """Albedo into ``col`` (N, 3), the ground map's label corrections into ``labels`` (N,) (left
+    alone elsewhere) and the paved weight into ``paved`` (N,) of every hit (see
+    ``textures.albedo``; the sky and calibration boards get black: the caller looks boards up).
+    The noise table's sides must be powers of two."""
+    for i in range(mat.shape[0]):
         m = mat[i]
         if m == 0 or m == _TARGET:
+            col[i, 0] = col[i, 1] = col[i, 2] = 0.0
+            paved[i] = 0.0
             continue
         u, v = uv[i, 0], uv[i, 1]
         vi = var[i]
+        lab = 0
+        pv = 0.0
         fine = _noise(tab, u * fine_per_m, v * fine_per_m)
         coarse = _noise(tab, u * coarse_per_m + 97.0, v * coarse_per_m + 31.0)
         mod = min(max(1.0 + amp_f[m] * fine + amp_c[m] * coarse, 0.15), 2.5)
         r, g, b = plain[m, 0], plain[m, 1], plain[m, 2]
         if m == _GROUND:
+            gh, gw = gmap.shape[0], gmap.shape[1]
             fx = min(max((u - gx0) / gres - 0.5, 0.0), gw - 1.0)
             fy = min(max((v - gy0) / gres - 0.5, 0.0), gh - 1.0)
             x0 = int(fx)
@@ -228,12 +201,16 @@ def albedo_all(mat, var, uv, tab, fine_per_m, coarse_per_m, gmap, gx0, gy0, gres
             y1 = min(y0 + 1, gh - 1)
             ax = fx - x0
             ay = fy - y0
-            cov = np.empty(3, np.float32)
-            for c in range(3):
-                top = gmap[y0, x0, c] * (1.0 - ax) + gmap[y0, x1, c] * ax
-                bot = gmap[y1, x0, c] * (1.0 - ax) + gmap[y1, x1, c] * ax
-                cov[c] = (top * (1.0 - ay) + bot * ay) / 255.0
-            asphalt, pad, mark = cov[0], cov[1], cov[2]
+            w00 = (1.0 - ax) * (1.0 - ay)
+            w01 = ax * (1.0 - ay)
+            w10 = (1.0 - ax) * ay
+            w11 = ax * ay
+            asphalt = (gmap[y0, x0, 0] * w00 + gmap[y0, x1, 0] * w01 + gmap[y1, x0, 0] * w10
+                       + gmap[y1, x1, 0] * w11) / 255.0
+            pad = (gmap[y0, x0, 1] * w00 + gmap[y0, x1, 1] * w01 + gmap[y1, x0, 1] * w10
+                   + gmap[y1, x1, 1] * w11) / 255.0
+            mark = (gmap[y0, x0, 2] * w00 + gmap[y0, x1, 2] * w01 + gmap[y1, x0, 2] * w10
+                    + gmap[y1, x1, 2] * w11) / 255.0
             road = max(asphalt, pad)
             gr = 1.0 + 0.25 * coarse
             r = 0.22 * gr * (1.0 - road) + 0.19 * asphalt + 0.46 * pad
@@ -242,8 +219,8 @@ def albedo_all(mat, var, uv, tab, fine_per_m, coarse_per_m, gmap, gx0, gy0, gres
             r = r * (1.0 - mark) + 0.85 * mark
             g = g * (1.0 - mark) + 0.85 * mark
             b = b * (1.0 - mark) + 0.80 * mark
-            paved[i] = road
-            lab[i] = _TAG_ROADLINE if mark > 0.5 else (_TAG_ROAD if road > 0.5 else _TAG_TERRAIN)
+            pv = road
+            lab = _TAG_ROADLINE if mark > 0.5 else (_TAG_ROAD if road > 0.5 else _TAG_TERRAIN)
         elif m == _SIDEWALK:
             if min(_frac(u * 2.0), _frac(v * 2.0)) < 0.04:  # 0.5 m paving slabs, dark joints
                 r, g, b = 0.6 * r, 0.6 * g, 0.6 * b
@@ -277,7 +254,160 @@ def albedo_all(mat, var, uv, tab, fine_per_m, coarse_per_m, gmap, gx0, gy0, gres
                 r, g, b = 0.55, 0.40, 0.32
             elif v < 0.85:
                 r, g, b = 0.12, 0.12, 0.16
-        col[i, 0] = r * mod
-        col[i, 1] = g * mod
-        col[i, 2] = b * mod
+        col[i, 0], col[i, 1], col[i, 2] = r * mod, g * mod, b * mod
+        if lab > 0:
+            labels[i] = lab
+        paved[i] = pv
+
+
+@nb.njit(cache=True, nogil=True)
+def albedo_all(mat, var, uv, tab, fine_per_m, coarse_per_m, gmap, gx0, gy0, gres, plain, amp_f, amp_c,
+               facades, cars, clothes, crowns):
+    """Albedo (N, 3), label corrections (N,) (0: keep) and paved weight (N,) of every hit
+    (:func:`albedo_into` into new arrays)."""
+    n = mat.shape[0]
+    col = np.empty((n, 3), np.float32)
+    lab = np.zeros(n, np.uint8)
+    paved = np.empty(n, np.float32)
+    albedo_into(mat, var, uv, tab, fine_per_m, coarse_per_m, gmap, gx0, gy0, gres, plain, amp_f, amp_c,
+                facades, cars, clothes, crowns, col, lab, paved)
     return col, lab, paved
+
+
+@nb.njit(cache=True, nogil=True)
+def surfaces(t, prim, bary, normal, rays, map2, t2, prim2, bary2, normal2,
+             material, variant, label, uv_m, material2, variant2, label2, uv_m2, sentinel, board_flip,
+             tab, fine_per_m, coarse_per_m, gmap, gx0, gy0, gres, plain, amp_f, amp_c,
+             facades, cars, clothes, crowns, sun, shadows, eps, sgrid, sa0, sb0, scell, e1, e2):
+    """Everything of the hits the shading needs, in one pass over the rays (N).
+
+    The second scene (movers) was cast for a subset of the rays: ray ``i`` is its row ``map2[i]``
+    (-1: not cast).  ``board_flip[var]`` says for each calibration board whether its triangle
+    normal points away from the observed side.
+
+    Returns
+    -------
+    depth (N,) (``inf``: sky), mat (N,), var (N,), labels (N,) (with the ground map's
+    corrections), uv (N, 2) [m], front (N,) (the observed side of a board), albedo (N, 3) (boards
+    black: the caller looks them up), paved (N,), ndl (N,) ``max(0, n.s)`` of the unit normal
+    facing the viewer, amb (N,) ``0.6 + 0.4 n_z``, shadow rays (N, 6) of which the first
+    ``count`` are used (the lit pixels facing the sun, when ``shadows``), their pixels (N,),
+    whether a mover may shade them (N,) (the point's cell in ``sgrid``, a raster of the movers'
+    outlines seen along the sun: ``a = p.e1``, ``b = p.e2``), and ``count``.
+    """
+    n = t.shape[0]
+    depth = np.empty(n, np.float32)
+    mat = np.empty(n, np.uint8)
+    var = np.empty(n, np.uint8)
+    lab = np.empty(n, np.uint8)
+    uv = np.empty((n, 2), np.float32)
+    front = np.empty(n, np.bool_)
+    alb = np.empty((n, 3), np.float32)
+    paved = np.empty(n, np.float32)
+    ndl_out = np.empty(n, np.float32)
+    amb = np.empty(n, np.float32)
+    srays = np.empty((n, 6), np.float32)
+    spix = np.empty(n, np.int32)
+    smov = np.empty(n, np.bool_)
+    sx, sy, sz = sun[0], sun[1], sun[2]
+    gh, gw = sgrid.shape[0], sgrid.shape[1]
+    has2 = map2.shape[0] > 1
+    count = 0
+    for i in range(n):
+        dx, dy, dz = rays[i, 3], rays[i, 4], rays[i, 5]
+        j = map2[i] if has2 else -1
+        if j >= 0 and t2[j] < t[i]:
+            ti, p, b1, b2 = t2[j], prim2[j], bary2[j, 0], bary2[j, 1]
+            nx, ny, nz = normal2[j, 0], normal2[j, 1], normal2[j, 2]
+            m, vi, lb = material2[p], variant2[p], label2[p]
+            u0, v0 = uv_m2[p, 0, 0], uv_m2[p, 0, 1]
+            u1, v1 = uv_m2[p, 1, 0], uv_m2[p, 1, 1]
+            u2, v2 = uv_m2[p, 2, 0], uv_m2[p, 2, 1]
+        else:
+            ti = t[i]
+            p = prim[i] if np.isfinite(ti) else sentinel
+            b1, b2 = bary[i, 0], bary[i, 1]
+            nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
+            m, vi, lb = material[p], variant[p], label[p]
+            u0, v0 = uv_m[p, 0, 0], uv_m[p, 0, 1]
+            u1, v1 = uv_m[p, 1, 0], uv_m[p, 1, 1]
+            u2, v2 = uv_m[p, 2, 0], uv_m[p, 2, 1]
+        depth[i] = ti
+        mat[i] = m
+        var[i] = vi
+        b0 = 1.0 - b1 - b2
+        u = b0 * u0 + b1 * u1 + b2 * u2
+        v = b0 * v0 + b1 * v1 + b2 * v2
+        uv[i, 0] = u
+        uv[i, 1] = v
+        f = nx * dx + ny * dy + nz * dz < 0.0
+        s = 1.0 if f else -1.0
+        nx, ny, nz = s * nx, s * ny, s * nz
+        front[i] = f != board_flip[vi] if m == _TARGET else f
+        lab[i] = lb
+        amb[i] = 0.6 + 0.4 * nz
+        ndl = nx * sx + ny * sy + nz * sz
+        if ndl < 0.0 or not np.isfinite(ti):
+            ndl = 0.0
+        ndl_out[i] = ndl
+        if shadows and ndl > 0.0:
+            px = rays[i, 0] + ti * dx + eps * nx
+            py = rays[i, 1] + ti * dy + eps * ny
+            pz = rays[i, 2] + ti * dz + eps * nz
+            srays[count, 0], srays[count, 1], srays[count, 2] = px, py, pz
+            srays[count, 3], srays[count, 4], srays[count, 5] = sx, sy, sz
+            spix[count] = i
+            ga = int(np.floor((px * e1[0] + py * e1[1] + pz * e1[2] - sa0) / scell))
+            gb = int(np.floor((px * e2[0] + py * e2[1] + pz * e2[2] - sb0) / scell))
+            smov[count] = 0 <= ga < gw and 0 <= gb < gh and sgrid[gb, ga]
+            count += 1
+    albedo_into(mat, var, uv, tab, fine_per_m, coarse_per_m, gmap, gx0, gy0, gres, plain, amp_f, amp_c,
+                facades, cars, clothes, crowns, alb, lab, paved)
+    return depth, mat, var, lab, uv, front, alb, paved, ndl_out, amb, srays, spix, smov, count
+
+
+@nb.njit(cache=True, nogil=True)
+def finish(alb, ndl, amb, depth, rays, paved, uv, tab, e_sun, e_sky, zenith, horizon, overcast, cloud,
+           sky_level, wet, puddle_level, beta, airlight, sky_distance, scale):
+    """Radiance (N, 3) times ``scale``: lit surfaces ``albedo (1 - 0.45 wet paved) (e_sun n.s V +
+    e_sky (0.6 + 0.4 n_z))`` (``ndl`` already 0 in shadow), the sky gradient where nothing was hit,
+    puddles on paved ground mirroring the sky (where a coarse noise exceeds ``puddle_level``; none
+    when it is ``inf``), then Koschmieder fog ``J t + A (1 - t)`` (no fog when ``beta`` is 0)."""
+    n = depth.shape[0]
+    out = np.empty((n, 3), np.float32)
+    puddling = np.isfinite(puddle_level)
+    for i in range(n):
+        d = depth[i]
+        dn = np.sqrt(rays[i, 3] * rays[i, 3] + rays[i, 4] * rays[i, 4] + rays[i, 5] * rays[i, 5])
+        if np.isfinite(d):
+            pv = paved[i]
+            e = (e_sun * ndl[i] + e_sky * amb[i]) * (1.0 - 0.45 * wet * pv)
+            r, g, b = alb[i, 0] * e, alb[i, 1] * e, alb[i, 2] * e
+            if puddling and pv > 0.0:
+                pn = _noise(tab, uv[i, 0] * 0.45 + 11.0, uv[i, 1] * 0.45 + 5.0)
+                k = 0.65 * min(max((pn - puddle_level) * 3.0, 0.0), 1.0) * pv
+                ez = min(max(-rays[i, 5] / dn, 0.0), 1.0)  # the mirrored ray's elevation
+                sq = np.sqrt(ez)
+                sr = ((1.0 - cloud) * (horizon[0] + (zenith[0] - horizon[0]) * sq) + cloud * overcast[0]) * sky_level
+                sg = ((1.0 - cloud) * (horizon[1] + (zenith[1] - horizon[1]) * sq) + cloud * overcast[1]) * sky_level
+                sb = ((1.0 - cloud) * (horizon[2] + (zenith[2] - horizon[2]) * sq) + cloud * overcast[2]) * sky_level
+                r = r * (1.0 - k) + sr * k
+                g = g * (1.0 - k) + sg * k
+                b = b * (1.0 - k) + sb * k
+            dist = min(d * dn, sky_distance)
+        else:
+            ez = min(max(rays[i, 5] / dn, 0.0), 1.0)
+            sq = np.sqrt(ez)
+            r = ((1.0 - cloud) * (horizon[0] + (zenith[0] - horizon[0]) * sq) + cloud * overcast[0]) * sky_level
+            g = ((1.0 - cloud) * (horizon[1] + (zenith[1] - horizon[1]) * sq) + cloud * overcast[1]) * sky_level
+            b = ((1.0 - cloud) * (horizon[2] + (zenith[2] - horizon[2]) * sq) + cloud * overcast[2]) * sky_level
+            dist = sky_distance
+        if beta > 0.0:
+            tr = np.exp(-beta * dist)
+            r = r * tr + airlight[0] * (1.0 - tr)
+            g = g * tr + airlight[1] * (1.0 - tr)
+            b = b * tr + airlight[2] * (1.0 - tr)
+        out[i, 0] = r * scale
+        out[i, 1] = g * scale
+        out[i, 2] = b * scale
+    return out

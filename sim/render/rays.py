@@ -57,12 +57,13 @@ def world_rays(dirs_cam: npt.ArrayLike, T_world_cam: npt.ArrayLike) -> F32:
 
     The rotation keeps ``|d|``, so hit distances stay z-depths.
     """
+    from ._kernels import transform_rays
+
     d = np.asarray(dirs_cam, dtype=np.float32)
     T = np.asarray(T_world_cam, dtype=np.float64)
-    R = T[:3, :3].astype(np.float32)
     out = np.empty((*d.shape[:-1], 6), dtype=np.float32)
-    out[..., :3] = T[:3, 3].astype(np.float32)
-    np.matmul(d, R.T, out=out[..., 3:])
+    transform_rays(np.ascontiguousarray(d).reshape(-1, 3), T[:3, :3].astype(np.float32),
+                   T[:3, 3].astype(np.float32), out.reshape(-1, 6))
     return out
 
 

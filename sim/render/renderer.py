@@ -3,10 +3,14 @@
 One :class:`Renderer` per sequence holds the static scene (built once), the cameras and the
 weather log.  Per view it casts one ray per pixel (``cast_rays(nthreads=0)``), takes the nearer of
 the static and the movers' hit, interpolates the hit triangle's texture coordinates with the
-barycentric coordinates open3d returns, shades (one shadow ray toward the sun per lit pixel, an
-``test_occlusions`` any-hit query), adds the weather and, for RGB, the sensor's noise.  Pixels that
-see a calibration target are rendered again with ``s x s`` rays each and averaged (antialiasing
-where it matters, at a fraction of the cost of supersampling the whole image).
+barycentric coordinates open3d returns, shades (one shadow ray toward the sun per lit pixel
+facing it, a ``test_occlusions`` any-hit query; against the movers only where a mover's outline
+seen along the sun covers the point), adds the weather and, for RGB, the sensor's noise.  Pixels
+that see a calibration target are rendered again with ``s x s`` rays each and averaged
+(antialiasing where it matters, at a fraction of the cost of supersampling the whole image).
+
+The per-ray work around the casts is two fused numba passes (``_kernels.surfaces`` before the
+shadow rays, ``_kernels.finish`` after them) and one for the sensor (``_kernels.quantize``).
 """
 
 from __future__ import annotations
@@ -23,7 +27,7 @@ from ibiscape_eval.core.camera import CameraModel
 from ibiscape_eval.core.errors import IbiscapeError
 from ibiscape_eval.core.rotations import matrix_from_quat
 
-from .optics import _SKY_DISTANCE_M, add_sensor_noise, fog, fog_beta_per_m, puddles, rain_streaks
+from .optics import _SKY_DISTANCE_M, fog_beta_per_m, rain_streaks, sensor_output
 from .rays import camera_model, camera_rays, subpixel_rays, world_rays
 from .scene import MAT, StaticScene, TriangleTables, build_static_scene, mover_mesh, open3d, tensor
 from .shading import (
@@ -34,15 +38,16 @@ from .shading import (
     WeatherState,
     horizon_radiance,
     lighting,
-    sky_radiance,
 )
-from .textures import albedo, noise_table, sample_bilinear
+from .textures import board_albedo, kernel_tables
 
 __all__ = ["RenderCamera", "RenderOptions", "RenderedView", "Renderer"]
 
 F32 = npt.NDArray[np.float32]
 GRAY_WEIGHTS = np.array([0.2989, 0.587, 0.114], np.float32)
 _SHADOW_EPS_M = 0.02
+_MOVER_SHADOW_MARGIN_M = 0.3  # a mover's outline seen along the sun, grown by this
+_NEAR_PLANE_M = 0.05  # movers are clipped here when they straddle the camera plane
 
 
 @dataclass(frozen=True)
@@ -112,21 +117,6 @@ class RenderCamera:
     kind: str
     model: CameraModel
     T_body_cam: npt.NDArray[np.float64]
-
-
-@dataclass(frozen=True, eq=False)
-class _Hits:
-    """Per-ray results of the nearer hit of the static and the movers' scene (``inf`` t: sky)."""
-
-    t: F32
-    mat: npt.NDArray[np.uint8]
-    var: npt.NDArray[np.uint8]
-    label: npt.NDArray[np.uint8]
-    uv: F32
-    normal: F32  # unit, facing the viewer
-    facing: npt.NDArray[np.bool_]  # the geometric normal faced the viewer
-    points: F32
-    dn: F32  # |d| of the ray (distance = t |d|)
 
 
 class Renderer:
@@ -246,16 +236,15 @@ class Renderer:
                     noise_key: int = 0, weather: WeatherState | None = None) -> RenderedView:
         """Render any camera at any pose (``T_world_cam`` 4x4, OpenCV camera frame)."""
         T = np.asarray(T_world_cam, dtype=np.float64)
-        rad, depth, labels = self._radiance_image(model, T, int(t_ns), weather)
-        img = rad
+        w = weather or self.weather_at(t_ns)
+        rad, depth, labels = self._radiance_image(model, T, int(t_ns), w)
+        key = 0
         if self.options.noise:
-            light = lighting(weather or self.weather_at(t_ns))
             key = int(np.random.default_rng([self.seed, 0x5E75, noise_key, int(t_ns) & 0xFFFFFFFFFFFF])
                       .integers(0, 2**63))
-            with warnings.catch_warnings():
-                warnings.filterwarnings("ignore", message=".*TBB threading layer.*")
-                img = add_sensor_noise(rad, light.gain, key)
-        rgb = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message=".*TBB threading layer.*")
+            rgb = sensor_output(rad, lighting(w).gain, key, noise=self.options.noise)
         return RenderedView(rgb, depth, labels, rad)
 
     # ------------------------------------------------------------------------------ internals
@@ -274,14 +263,15 @@ class Renderer:
         H, W = model.height_px, model.width_px
         w = weather or self.weather_at(t_ns)
         light = lighting(w)
-        dirs = camera_rays(model)
-        rays = world_rays(dirs, T).reshape(-1, 6)
-        rad, hits, labels = self._radiance(rays, t_ns, w, light, self._mover_pixels(model, T, t_ns))
+        rays = world_rays(camera_rays(model).reshape(-1, 3), T)
+        scale = 255.0 * light.gain
+        rad, depth, mat, labels = self._radiance(rays, t_ns, w, light, self._mover_pixels(model, T, t_ns),
+                                                 scale=scale)
         s = self.options.target_supersample
         if s > 1 and self.static.targets:
             import cv2
 
-            on = (hits.mat == MAT["target"]).reshape(H, W).astype(np.uint8)
+            on = (mat == MAT["target"]).reshape(H, W).astype(np.uint8)
             if on.any():
                 # only where the pixel may cover an edge: the board's outline, or a 3x3
                 # neighbourhood whose centre samples differ (inside a printed square the
@@ -290,13 +280,13 @@ class Renderer:
                 g = (rad @ GRAY_WEIGHTS).reshape(H, W)
                 spread = cv2.dilate(g, k) - cv2.erode(g, k)
                 grown = cv2.dilate(on, k)
-                edge = (grown > 0) & ((spread > 0.004) | (cv2.erode(on, k) == 0))
+                edge = (grown > 0) & ((spread > 0.004 * scale) | (cv2.erode(on, k) == 0))
                 rows, cols = np.nonzero(edge)
                 sub = world_rays(subpixel_rays(model, rows, cols, s), T).reshape(-1, 6)
-                rs, _, _ = self._radiance(sub, t_ns, w, light)
+                rs = self._radiance(sub, t_ns, w, light, scale=scale)[0]
                 rad[rows * W + cols] = rs.reshape(len(rows), s * s, 3).mean(axis=1)
-        img = (rad * np.float32(255.0 * light.gain)).reshape(H, W, 3)
-        depth = hits.t.reshape(H, W)
+        img = rad.reshape(H, W, 3)
+        depth = depth.reshape(H, W)
         if rain and self.options.weather_optics and w.precipitation > 0:
             glow = float(np.clip(255.0 * light.gain * horizon_radiance(w, light).mean() * 1.3, 0, 255))
             cov = rain_streaks(model, T, depth, t_ns, w, seed=self.seed, brightness=1.0)
@@ -309,7 +299,9 @@ class Renderer:
             img = np.asarray(cv2.GaussianBlur(np.ascontiguousarray(img, dtype=np.float32), (0, 0),
                                               self.options.psf_sigma_px,
                                               borderType=cv2.BORDER_REFLECT), dtype=np.float32)
-        return np.clip(img, 0.0, 255.0).astype(np.float32), depth, labels.reshape(H, W)
+        img = np.asarray(img, dtype=np.float32)
+        np.clip(img, 0.0, 255.0, out=img)
+        return img, depth, labels.reshape(H, W)
 
     def _mover_scene(self, t_ns: int) -> tuple[Any, TriangleTables] | None:
         if len(self.world.agents) == 0:
@@ -322,13 +314,16 @@ class Renderer:
                 self._movers, self._movers_t = (sc, tables), t_ns
             return self._movers
 
-    def _cast(self, rays: F32, t_ns: int, mover_rays: npt.NDArray[np.bool_] | None = None) -> _Hits:
-        """Nearer hit of the static scene and the movers for every ray.
+    def _radiance(self, rays: F32, t_ns: int, w: WeatherState, light: Lighting,
+                  mover_rays: npt.NDArray[np.bool_] | None = None, *, scale: float = 1.0
+                  ) -> tuple[F32, F32, npt.NDArray[np.uint8], npt.NDArray[np.uint8]]:
+        """Radiance (N, 3) times ``scale`` of rays (N, 6) with shadows, fog and wet road; the
+        z-depth (``inf``: sky), material and label of every ray.
 
         ``mover_rays`` (N,) bool limits the movers' cast to the rays that may see one (the renderer
-        passes the pixels inside the movers' projected bounding boxes); ``None`` casts all.
+        passes the pixels inside the movers' projected outlines); ``None`` casts all.
         """
-        from ._kernels import hit_attributes
+        from ._kernels import finish, surfaces
 
         r = self.static.scene.cast_rays(tensor(rays), nthreads=0)
         n = len(rays)
@@ -349,114 +344,106 @@ class Renderer:
             t2 = m["t_hit"].numpy()
             p2 = m["primitive_ids"].numpy()
             b2, n2 = m["primitive_uvs"].numpy(), m["primitive_normals"].numpy()
-        depth, mat, var, lab, uv, nrm, facing, pts, dn = hit_attributes(
-            r["t_hit"].numpy(), r["primitive_ids"].numpy(), r["primitive_uvs"].numpy(),
-            r["primitive_normals"].numpy(), rays, map2, t2, p2, b2, n2,
-            st.material, st.variant, st.label, st.uv_m, mt.material, mt.variant, mt.label, mt.uv_m,
-            self.static.n_triangles)
-        return _Hits(depth, mat, var, lab, uv, nrm, facing, pts, dn)
+        sun = np.asarray(light.sun_dir, np.float32)
+        shadows = self.options.shadows and light.e_sun > 0.0
+        grid, a0, b0, cell, e1, e2 = self._sun_grid(t_ns, sun, movers is not None and shadows)
+        targets = self.static.targets
+        flip = np.array([not t.z_toward_observer for t in targets] or [False], bool)
+        args = (r["t_hit"].numpy(), r["primitive_ids"].numpy(), r["primitive_uvs"].numpy(),
+                r["primitive_normals"].numpy(), rays, map2, t2, p2, b2, n2,
+                st.material, st.variant, st.label, st.uv_m, mt.material, mt.variant, mt.label, mt.uv_m,
+                self.static.n_triangles, flip, *kernel_tables(self.static.ground),
+                sun, shadows, np.float32(_SHADOW_EPS_M), grid, a0, b0, cell, e1, e2)
+        depth, mat, var, labels, uv, front, alb, paved, ndl, amb, srays, spix, smov, count = surfaces(*args)
+        if targets:
+            board_albedo(mat, uv, var, targets, front, alb)
+        if count:
+            occ = self._occluded(srays[:count], smov[:count], t_ns)
+            ndl[spix[:count][occ]] = 0.0
+        optics = self.options.weather_optics
+        wet = w.wetness / 100.0 if optics else 0.0
+        puddle_level = 1.6 - 2.2 * w.precipitation_deposits / 100.0  # more deposits: more water
+        if not (optics and w.precipitation_deposits > 0):
+            puddle_level = np.inf
+        beta = fog_beta_per_m(w.fog_density) if optics else 0.0
+        rad = finish(alb, ndl, amb, depth, rays, paved, uv, kernel_tables(self.static.ground)[0],
+                     np.float32(light.e_sun), np.float32(light.e_sky), _ZENITH, _HORIZON, _OVERCAST,
+                     np.float32(w.cloudiness / 100.0), np.float32(1.6 * light.e_sky + 0.25 * light.e_sun),
+                     np.float32(wet), np.float32(puddle_level), np.float32(beta), horizon_radiance(w, light),
+                     np.float32(_SKY_DISTANCE_M), np.float32(scale))
+        return rad, depth, mat, labels
 
-    def _occluded(self, rays: F32, t_ns: int) -> npt.NDArray[np.bool_]:
+    def _occluded(self, rays: F32, mover_may: npt.NDArray[np.bool_], t_ns: int) -> npt.NDArray[np.bool_]:
+        """Shadow rays (N, 6) that hit something; the movers' scene is asked only for the rays
+        flagged in ``mover_may`` that the static scene left free."""
         occ = self.static.scene.test_occlusions(tensor(rays), nthreads=0).numpy().astype(bool)
         movers = self._mover_scene(t_ns)
         if movers is not None:
-            near = self._near_movers(rays[:, :3], t_ns)
-            if near.any():
-                sel = np.flatnonzero(near)
-                occ[sel] |= movers[0].test_occlusions(tensor(rays[sel]), nthreads=0).numpy().astype(bool)
+            sel = np.flatnonzero(mover_may & ~occ)
+            if sel.size:
+                occ[sel] = movers[0].test_occlusions(tensor(rays[sel]), nthreads=0).numpy().astype(bool)
         return occ
 
-    def _near_movers(self, pts: F32, t_ns: int, reach_m: float = 25.0) -> npt.NDArray[np.bool_]:
-        """Points roughly within ``reach_m`` of a mover (where its shadow may fall): a grid of
-        ``reach_m`` cells, each mover marking its cell and the eight around it."""
-        pos, _ = self.world.agents.poses_at(np.array([t_ns], dtype=np.int64))
-        c = pos[:, 0, :2]
-        lo = c.min(axis=0) - 2 * reach_m
-        nx, ny = (np.ceil((c.max(axis=0) + 2 * reach_m - lo) / reach_m)).astype(int) + 1
-        grid = np.zeros((ny, nx), bool)
-        ci = np.floor((c - lo) / reach_m).astype(int)
-        for dy in (-1, 0, 1):
-            for dx in (-1, 0, 1):
-                grid[ci[:, 1] + dy, ci[:, 0] + dx] = True
-        ix = np.floor((pts[:, 0] - np.float32(lo[0])) / np.float32(reach_m)).astype(np.int64)
-        iy = np.floor((pts[:, 1] - np.float32(lo[1])) / np.float32(reach_m)).astype(np.int64)
-        inside = (ix >= 0) & (ix < nx) & (iy >= 0) & (iy < ny)
-        out = np.zeros(len(pts), bool)
-        out[inside] = grid[iy[inside], ix[inside]]
-        return out
+    def _sun_grid(self, t_ns: int, sun: F32, want: bool) -> tuple[Any, ...]:
+        """Where the movers may cast shadows: their bounding boxes (grown by a margin) seen along
+        the sun, rasterised on a plane across the sun direction with axes ``e1, e2``.  Returns the
+        raster (rows along ``e2``) with its origin ``a0, b0`` and cell size [m] and ``e1, e2``
+        (an empty raster when ``want`` is false)."""
+        z = np.float32(0.0)
+        e = np.zeros(3, np.float32)
+        empty = (np.zeros((1, 1), np.bool_), z, z, np.float32(1.0), e, e)
+        ag = self.world.agents
+        if not want or len(ag) == 0:
+            return empty
+        s = np.asarray(sun, np.float64)
+        e1 = np.cross(s, [0.0, 0.0, 1.0])
+        if np.linalg.norm(e1) < 1e-6:  # sun at the zenith
+            e1 = np.array([1.0, 0.0, 0.0])
+        e1 /= np.linalg.norm(e1)
+        e2 = np.cross(s, e1)
+        pts = self._mover_boxes(t_ns, _MOVER_SHADOW_MARGIN_M).reshape(-1, 3)
+        a = (pts @ e1).reshape(-1, 8)
+        b = (pts @ e2).reshape(-1, 8)
+        lo_a, lo_b = float(a.min()), float(b.min())
+        cell = max(0.5, (a.max() - lo_a) / 2048.0, (b.max() - lo_b) / 2048.0)
+        ia0 = np.floor((a.min(axis=1) - lo_a) / cell).astype(int)
+        ia1 = np.floor((a.max(axis=1) - lo_a) / cell).astype(int)
+        ib0 = np.floor((b.min(axis=1) - lo_b) / cell).astype(int)
+        ib1 = np.floor((b.max(axis=1) - lo_b) / cell).astype(int)
+        grid = np.zeros((ib1.max() + 1, ia1.max() + 1), np.bool_)
+        for k in range(len(ia0)):  # one rectangle per mover
+            grid[ib0[k]:ib1[k] + 1, ia0[k]:ia1[k] + 1] = True
+        return (grid, np.float32(lo_a), np.float32(lo_b), np.float32(cell), e1.astype(np.float32),
+                e2.astype(np.float32))
 
-    def _radiance(self, rays: F32, t_ns: int, w: WeatherState, light: Lighting,
-                  mover_rays: npt.NDArray[np.bool_] | None = None
-                  ) -> tuple[F32, _Hits, npt.NDArray[np.uint8]]:
-        """Linear radiance (N, 3) of rays (N, 6) with fog and wet road, the hits, the labels."""
-        from ._kernels import shade_all
-
-        hits = self._cast(rays, t_ns, mover_rays)
-        hit = np.isfinite(hits.t)
-        n = len(rays)
-        front = hits.facing
-        tgt = hits.mat == MAT["target"]
-        if tgt.any():
-            flags = np.array([t.z_toward_observer for t in self.static.targets], bool)
-            front = front.copy()
-            front[tgt] = hits.facing[tgt] == flags[hits.var[tgt]]
-        alb, lab_fix, paved = albedo(hits.mat, hits.var, hits.uv, self.static.ground,
-                                     self.static.targets, front)
-        labels = np.where(lab_fix > 0, lab_fix, hits.label).astype(np.uint8)
-        visible = np.ones(n, bool)
-        sun = np.asarray(light.sun_dir, np.float32)
-        if self.options.shadows and light.e_sun > 0.0:
-            lit = hit & ((hits.normal @ sun) > 0.0)
-            li = np.flatnonzero(lit)
-            if li.size:
-                sr = np.empty((li.size, 6), np.float32)
-                sr[:, :3] = hits.points[li] + np.float32(_SHADOW_EPS_M) * hits.normal[li]
-                sr[:, 3:] = sun
-                visible[li] = ~self._occluded(sr, t_ns)
-        optics = self.options.weather_optics
-        wet = w.wetness / 100.0 if optics else 0.0
-        if wet > 0:
-            alb *= (1.0 - np.float32(0.45 * wet) * paved)[:, None]
-        c = np.float32(w.cloudiness / 100.0)
-        level = np.float32(1.6 * light.e_sky + 0.25 * light.e_sun)
-        beta = fog_beta_per_m(w.fog_density) if optics else 0.0
-        wet_puddles = optics and w.precipitation_deposits > 0
-        rad = shade_all(alb, hits.normal, visible, hits.t, rays, hits.dn, sun, np.float32(light.e_sun),
-                        np.float32(light.e_sky), _ZENITH, _HORIZON, _OVERCAST, c, level,
-                        np.float32(0.0 if wet_puddles else beta), horizon_radiance(w, light),
-                        np.float32(_SKY_DISTANCE_M))
-        if wet_puddles:
-            pv = np.flatnonzero(paved > 0)
-            if pv.size:
-                uvp = hits.uv[pv]
-                pn = sample_bilinear(noise_table(), uvp[:, 0] * 0.45 + 11.0, uvp[:, 1] * 0.45 + 5.0, wrap=True)
-                d = rays[pv, 3:]
-                refl = sky_radiance(-d[:, 2] / hits.dn[pv], w, light)
-                rad[pv] = puddles(rad[pv], paved[pv], pn, refl, w)
-        if wet_puddles and beta > 0:
-            dist = np.where(hit, hits.t * hits.dn, np.float32(np.inf)).astype(np.float32)
-            rad = fog(rad, dist, beta, horizon_radiance(w, light))
-        return rad, hits, labels
+    def _mover_boxes(self, t_ns: int, margin_m: float = 0.0) -> npt.NDArray[np.float64]:
+        """Corners (A, 8, 3) of boxes around the movers at ``t_ns`` (upright, as wide as their
+        diagonal, grown by ``margin_m``); corner ``4 i + 2 j + k`` has signs ``(i, j)`` in x, y
+        and the top when ``k``."""
+        ag = self.world.agents
+        pos, _ = ag.poses_at(np.array([t_ns], dtype=np.int64))
+        r = 0.5 * np.hypot(ag.size_m[:, 0], ag.size_m[:, 1]) + margin_m
+        corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (0, 1)], float)
+        half = np.stack([r, r, ag.size_m[:, 2] + 2.0 * margin_m], -1)
+        base = pos[:, 0, :] - np.array([0.0, 0.0, margin_m])
+        return np.asarray(base[:, None, :] + corners[None] * half[:, None, :])
 
     def _mover_pixels(self, model: CameraModel, T: np.ndarray, t_ns: int) -> npt.NDArray[np.bool_] | None:
         """Pixels (H W,) inside the projected bounding boxes of the movers (with a margin), or
-        ``None`` when a mover straddles the camera plane (then every ray is cast)."""
+        ``None`` when a projection fails (then every ray is cast).  A mover straddling the
+        camera plane is clipped at the near plane and marks the pixels whose ray direction falls
+        inside its outline in normalised image coordinates (exact for any distortion)."""
+        from ._kernels import rect_mask
+
         H, W = model.height_px, model.width_px
         mask = np.zeros((H, W), bool)
-        ag = self.world.agents
-        if len(ag) == 0:
+        if len(self.world.agents) == 0:
             return mask.ravel()
-        pos, _ = ag.poses_at(np.array([t_ns], dtype=np.int64))
-        r = 0.5 * np.hypot(ag.size_m[:, 0], ag.size_m[:, 1])
-        corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (0, 1)], float)
-        pts = pos[:, 0, None, :] + corners[None] * np.stack([r, r, ag.size_m[:, 2]], -1)[:, None, :]
+        pts = self._mover_boxes(t_ns)
         Tcw = np.linalg.inv(T)
         pc = pts @ Tcw[:3, :3].T + Tcw[:3, 3]  # (A, 8, 3)
-        dist = np.linalg.norm(pc, axis=2).min(axis=1)
-        front = (pc[..., 2] > 0.05).all(axis=1)
-        behind = (pc[..., 2] <= 0.05).all(axis=1)
-        if np.any(~front & ~behind & (dist < 1e4)):
-            return None
+        front = (pc[..., 2] > _NEAR_PLANE_M).all(axis=1)
+        behind = (pc[..., 2] <= _NEAR_PLANE_M).all(axis=1)
         margin = 2 + 0.02 * max(H, W)
         for k in np.flatnonzero(front):
             uv = model.project(pc[k])
@@ -467,5 +454,27 @@ class Renderer:
             if u1 < 0 or v1 < 0 or u0 >= W or v0 >= H:
                 continue
             mask[max(v0, 0):min(v1 + 1, H), max(u0, 0):min(u1 + 1, W)] = True
+        straddle = np.flatnonzero(~front & ~behind)
+        if straddle.size:
+            rects = np.array([_clipped_outline(pc[k], _NEAR_PLANE_M) for k in straddle])
+            m = margin / min(model.fx, model.fy)
+            rects += np.array([-m, m, -m, m])
+            rect_mask(camera_rays(model).reshape(-1, 3), rects.astype(np.float32), mask.reshape(-1))
         return mask.ravel()
 
+
+def _clipped_outline(corners: np.ndarray, near: float) -> tuple[float, float, float, float]:
+    """``(x0, x1, y0, y1)``: bounding rectangle in normalised image coordinates ``(x/z, y/z)`` of
+    the part of a box (8 camera-frame corners, :meth:`Renderer._mover_boxes` order) in front of
+    the plane ``z = near`` (its corners there and where its edges cross the plane)."""
+    z = corners[:, 2]
+    pts = [corners[z >= near]]
+    for i in range(8):
+        for bit in (1, 2, 4):
+            j = i | bit
+            if j != i and (z[i] - near) * (z[j] - near) < 0:
+                f = (near - z[i]) / (z[j] - z[i])
+                pts.append((corners[i] + f * (corners[j] - corners[i]))[None])
+    p = np.concatenate(pts)
+    x, y = p[:, 0] / p[:, 2], p[:, 1] / p[:, 2]
+    return float(x.min()), float(x.max()), float(y.min()), float(y.max())

@@ -21,7 +21,7 @@ import numpy.typing as npt
 
 from .scene import MAT, GroundMap
 
-__all__ = ["TARGET_PX_PER_M", "albedo", "noise_table", "sample_bilinear"]
+__all__ = ["TARGET_PX_PER_M", "albedo", "board_albedo", "kernel_tables", "noise_table", "sample_bilinear"]
 
 F32 = npt.NDArray[np.float32]
 
@@ -93,33 +93,43 @@ def _tables() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return plain, amp_f, amp_c
 
 
+def kernel_tables(ground: GroundMap) -> tuple[Any, ...]:
+    """The texture arguments of the albedo kernels (``_kernels.albedo_all`` and
+    ``_kernels.surfaces``), in their order: noise table, fine and coarse noise texels per metre,
+    the ground map with its origin and resolution, per-material base colours and noise amplitudes,
+    facade, car, clothes and tree-crown colours."""
+    plain, amp_f, amp_c = _tables()
+    g = ground
+    return (noise_table(), np.float32(_FINE_PER_M), np.float32(_COARSE_PER_M), g.image,
+            np.float32(g.origin_m[0]), np.float32(g.origin_m[1]), np.float32(g.res_m), plain, amp_f, amp_c,
+            _FACADES, _CARS, _CLOTHES, _CROWNS)
+
+
 def albedo(mat: np.ndarray, var: np.ndarray, uv: np.ndarray, ground: GroundMap, targets: tuple[Any, ...],
            front: np.ndarray) -> tuple[F32, np.ndarray, np.ndarray]:
     """Albedo ``(N, 3)`` float32, label corrections ``(N,)`` (0 = keep the triangle's label) and a
     'paved road' weight ``(N,)`` 0..1 (wet-road effects) for hits with material ``mat`` (N,),
     variant ``var`` (N,), texture coordinates ``uv`` (N, 2) [m] and a front-face flag (N,).
 
-    Every surface but the boards is one pass of a numba kernel (``_kernels.albedo_all``): base
-    colour per material and variant, window grids, paving joints, car windows, clothes, the ground
-    map (asphalt, pad, markings, grass) and two noise octaves.  Boards are looked up here.
+    Every surface but the boards is one pass of a numba kernel (``_kernels.albedo_all``; the
+    renderer's fused ``_kernels.surfaces`` computes the same per hit): base colour per material and
+    variant, window grids, paving joints, car windows, clothes, the ground map (asphalt, pad,
+    markings, grass) and two noise octaves.  Boards are looked up by :func:`board_albedo`.
     """
     from ._kernels import albedo_all
 
-    plain, amp_f, amp_c = _tables()
-    g = ground
-    col, label, paved = albedo_all(mat, var, np.ascontiguousarray(uv, dtype=np.float32), noise_table(),
-                                   np.float32(_FINE_PER_M), np.float32(_COARSE_PER_M), g.image,
-                                   np.float32(g.origin_m[0]), np.float32(g.origin_m[1]),
-                                   np.float32(g.res_m), plain, amp_f, amp_c, _FACADES, _CARS, _CLOTHES,
-                                   _CROWNS)
-    idx = np.flatnonzero(mat == MAT["target"])
-    if idx.size:
-        _target(idx, uv, var, targets, front, col)
+    col, label, paved = albedo_all(mat, var, np.ascontiguousarray(uv, dtype=np.float32), *kernel_tables(ground))
+    board_albedo(mat, uv, var, targets, front, col)
     return col, label, paved
 
 
-def _target(idx: np.ndarray, uv: np.ndarray, var: np.ndarray, targets: tuple[Any, ...],
-            front: np.ndarray, col: np.ndarray) -> None:
+def board_albedo(mat: np.ndarray, uv: np.ndarray, var: np.ndarray, targets: tuple[Any, ...],
+                 front: np.ndarray, col: np.ndarray) -> None:
+    """Fill ``col`` (N, 3) in place where ``mat`` is a calibration board: the nearest texel of the
+    board's printed texture on its observed side (``front``), plain grey on its back."""
+    idx = np.flatnonzero(mat == MAT["target"])
+    if idx.size == 0:
+        return
     for k in np.unique(var[idx]).tolist():
         sel = idx[var[idx] == k]
         t = targets[k]
