@@ -1,27 +1,42 @@
-"""Renderer speed: stereo steps per second per image size, and a rendered SVI sequence.
+"""Renderer speed: stereo steps per second per image size, where the time goes, and a rendered SVI
+sequence.
 
     .venv/bin/python benchmarks/bench_render.py                  # sizes 256, 512, 1024; SVI 10 s
     .venv/bin/python benchmarks/bench_render.py --svi-seconds 60 # the issue's 60 s sequence
+    .venv/bin/python benchmarks/bench_render.py --sizes 1024 --stages --svi-seconds 0
 
 A *stereo step* renders two RGB views (left and right camera of the SVI rig, 0.4 m apart) with
-depth and segmentation, one after the other and on two threads as ``sim`` does per frame: rays, static + movers casts, textures, shadows,
-weather, sensor noise.  The peer is open3d's raycaster alone: ``cast_rays(nthreads=0)`` of the same
-rays against the same static scene, twice (one per view).  RATIO = render time / raw cast time
-(1 would be a renderer that adds nothing to the ray cast).  The sequence row runs the command line
-(``ibiscape-eval sim --setup svi --resolution 1024``) in a fresh process; ISSUE TARGETS: a stereo
-step at 1024 x 1024 <= 0.3 s, a 60 s SVI sequence at 1024 x 1024 <= 10 min.
+depth and segmentation: rays, static + movers casts, textures, shadows, weather, sensor noise (PNG
+writing is not part of it: the SVI row includes it).  It runs once with the views one after the
+other and once on two threads as ``sim`` does per frame.  Every row gives the best wall time and
+the CPU time of that run (all threads; what an idle machine would need when other jobs share this
+one: on two idle cores the two-thread step takes about half its CPU time).  The peer is open3d's
+raycaster alone: ``cast_rays(nthreads=0)`` of the same rays against the same static scene, twice
+(one per view).  RATIO = render time / raw cast time (1 would be a renderer that adds nothing to
+the ray cast).  ``--stages`` adds the CPU time per stage of the sequential 1024 step (the casts, the
+fused numba passes, blur, noise; inclusive times, benchmark-only instrumentation of internals).
+
+The sequence row runs the command line (``ibiscape-eval sim --setup svi --resolution 1024``, PNG
+writing included) in fresh processes, once for 0.5 s and once for ``--svi-seconds``: the difference
+is the cost per stereo frame, the short run the fixed cost (imports, world, scene), and a 60 s
+sequence (1201 frames) extrapolates to fixed + 1201 x per frame.  ISSUE TARGETS: a stereo step at
+1024 x 1024 <= 0.3 s, a 60 s SVI sequence at 1024 x 1024 <= 10 min.
 """
 
 from __future__ import annotations
 
 import argparse
+import collections
+import functools
 import resource
 import shutil
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -30,6 +45,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _runner import run
 
 CLI = str(Path(sys.executable).with_name("ibiscape-eval"))
+T_NS = 1_000_000_000_000
 
 
 def _stereo_poses(world_kind: str) -> tuple[np.ndarray, np.ndarray]:
@@ -43,9 +59,8 @@ def _stereo_poses(world_kind: str) -> tuple[np.ndarray, np.ndarray]:
     return TL, TR
 
 
-def _time(fn, repeat: int) -> tuple[float, float]:
-    """Best wall time and the CPU time (all threads) of that run [s].  The CPU time says what an
-    idle machine would do when other jobs share this one."""
+def _time(fn: Callable[[], Any], repeat: int) -> tuple[float, float]:
+    """Best wall time and the CPU time (all threads) of that run [s]."""
     fn()  # warm up (caches: rays, textures, compiled kernels)
     best, cpu = float("inf"), float("inf")
     for _ in range(repeat):
@@ -57,10 +72,81 @@ def _time(fn, repeat: int) -> tuple[float, float]:
     return best, cpu
 
 
+def _stages(r: Any, step: Callable[[], None], repeat: int) -> list[tuple[str, float]]:
+    """CPU time per stage of ``step`` [s per step], by wrapping the renderer's internals (the views
+    must run one after the other: process CPU time is charged to the stage running)."""
+    from ibiscape_eval.sim.render import _kernels, renderer
+
+    acc: dict[str, float] = collections.defaultdict(float)
+
+    def timed(fn: Callable[..., Any], label: str) -> Callable[..., Any]:
+        @functools.wraps(fn)
+        def wrapper(*a: Any, **k: Any) -> Any:
+            c0 = time.process_time()
+            try:
+                return fn(*a, **k)
+            finally:
+                acc[label] += time.process_time() - c0
+        return wrapper
+
+    class Scene:  # the static scene's casts
+        def __init__(self, scene: Any) -> None:
+            self.scene = scene
+            self.cast_rays = timed(scene.cast_rays, "open3d: primary rays, static scene")
+            self.test_occlusions = timed(scene.test_occlusions, "open3d: shadow rays, static scene")
+
+    patches = [(renderer, "world_rays", "world rays"), (renderer, "subpixel_rays", "target supersample rays"),
+               (renderer, "rain_streaks", "rain streaks"), (renderer, "board_albedo", "board textures"),
+               (renderer, "sensor_output", "sensor noise + 8 bit (quantize)"),
+               (_kernels, "surfaces", "numba: hits, albedo, shadow rays (surfaces)"),
+               (_kernels, "finish", "numba: shading, wet road, fog (finish)"),
+               (renderer.Renderer, "_occluded", "shadow rays (static + movers)"),
+               (renderer.Renderer, "_mover_pixels", "movers' pixels"),
+               (renderer.Renderer, "_radiance", "per-ray work (casts + kernels)"),
+               (renderer.Renderer, "render_pose", "whole view")]
+    import cv2
+
+    patches.append((cv2, "GaussianBlur", "lens blur (cv2.GaussianBlur)"))
+    saved = [(obj, name, getattr(obj, name)) for obj, name, _ in patches]
+    static = r.static
+    try:
+        for obj, name, label in patches:
+            setattr(obj, name, timed(getattr(obj, name), label))
+        object.__setattr__(static, "scene", Scene(static.scene))
+        step()
+        acc.clear()
+        c0 = time.process_time()
+        for _ in range(repeat):
+            step()
+        acc["TOTAL stereo step"] = time.process_time() - c0
+    finally:
+        for obj, name, fn in saved:
+            setattr(obj, name, fn)
+        object.__setattr__(static, "scene", static.scene.scene)
+    return sorted(((k, v / repeat) for k, v in acc.items()), key=lambda kv: -kv[1])
+
+
+def _svi(seconds: float) -> tuple[float, float, float, int]:
+    """Wall, CPU [s], peak RSS [MB] and stereo frames of ``sim --setup svi`` at 1024 px."""
+    with tempfile.TemporaryDirectory(prefix="bench_render_") as d:
+        out = Path(d) / "svi"
+        ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        res = run([CLI, "sim", "--setup", "svi", "--kind", "slam", "--duration-s", str(seconds),
+                   "--resolution", "1024", "--seed", "1", "--out", str(out)])
+        ru1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        if not res.ok:
+            raise SystemExit("ibiscape-eval sim --setup svi failed")
+        frames = len(list((out / "rgbL" / "frames").glob("*.png")))
+        shutil.rmtree(out, ignore_errors=True)
+    cpu = (ru1.ru_utime - ru0.ru_utime) + (ru1.ru_stime - ru0.ru_stime)
+    return res.wall_s, cpu, res.peak_mb, frames
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", default="256,512,1024")
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--stages", action="store_true", help="CPU time per stage of the largest step")
     ap.add_argument("--svi-seconds", type=float, default=10.0,
                     help="duration of the rendered SVI sequence (0: skip)")
     a = ap.parse_args()
@@ -72,24 +158,26 @@ def main() -> None:
     from ibiscape_eval.sim.render.shading import WeatherState
     from ibiscape_eval.sim.world import build_world
 
+    sizes = [int(s) for s in a.sizes.split(",")]
     rows = []
+    stages: dict[str, list[tuple[str, float]]] = {}
     for kind, scene in (("slam", "dynamic"), ("calibration", "clear")):
         world = build_world(kind=kind, seed=1, scene=scene)
         t0 = time.perf_counter()
         r = Renderer(world)
         build_s = time.perf_counter() - t0
         TL, TR = _stereo_poses(kind)
-        for n in (int(s) for s in a.sizes.split(",")):
+        for n in sizes:
             model = CameraModel.from_fov(n, n, 90.0)
             w = WeatherState(fog_density=20.0, precipitation=30.0, wetness=40.0) if scene == "dynamic" else None
 
-            def step(model=model, w=w, r=r, TL=TL, TR=TR) -> None:
-                r.render_pose(model, TL, 1_000_000_000_000, weather=w)
-                r.render_pose(model, TR, 1_000_000_000_000, noise_key=1, weather=w)
+            def step(model: Any = model, w: Any = w, r: Any = r, TL: Any = TL, TR: Any = TR) -> None:
+                r.render_pose(model, TL, T_NS, weather=w)
+                r.render_pose(model, TR, T_NS, noise_key=1, weather=w)
 
             rays = [tensor(world_rays(camera_rays(model), T).reshape(-1, 6)) for T in (TL, TR)]
 
-            def cast(rays=rays, r=r) -> None:
+            def cast(rays: Any = rays, r: Any = r) -> None:
                 for rt in rays:
                     r.static.scene.cast_rays(rt, nthreads=0)
 
@@ -98,15 +186,16 @@ def main() -> None:
             rows.append((f"{kind} ({scene}) {n}x{n}", t_step, c_step, t_cast, c_cast))
             with ThreadPoolExecutor(max_workers=2) as pool:  # as ``sim`` does: one thread per view
 
-                def step2(model=model, w=w, r=r, TL=TL, TR=TR, pool=pool) -> None:
-                    a_ = pool.submit(r.render_pose, model, TL, 1_000_000_000_000, weather=w)
-                    b_ = pool.submit(r.render_pose, model, TR, 1_000_000_000_000, noise_key=1, weather=w)
+                def step2(model: Any = model, w: Any = w, r: Any = r, TL: Any = TL, TR: Any = TR,
+                          pool: Any = pool) -> None:
+                    a_ = pool.submit(r.render_pose, model, TL, T_NS, weather=w)
+                    b_ = pool.submit(r.render_pose, model, TR, T_NS, noise_key=1, weather=w)
                     a_.result()
                     b_.result()
 
                 t_par, c_par = _time(step2, a.repeat)
             rows.append(("  same, views on two threads", t_par, c_par, t_cast, c_cast))
-            if n == max(int(v) for v in a.sizes.split(",")):  # what the shadow rays cost
+            if n == max(sizes):  # what the shadow rays cost
                 from dataclasses import replace
 
                 keep = r.options
@@ -114,29 +203,30 @@ def main() -> None:
                 t_flat, c_flat = _time(step, a.repeat)
                 r.options = keep
                 rows.append(("  same without shadows", t_flat, c_flat, t_cast, c_cast))
+                if a.stages:
+                    stages[f"{kind} ({scene}) {n}x{n}"] = _stages(r, step, a.repeat)
         print(f"{kind} world: {r.static.n_triangles} triangles, scene built in {build_s:.2f} s", flush=True)
     print(f"\n{'stereo step (2 RGB + depth + seg)':<36} {'step [s]':>9} {'cpu [s]':>8} {'steps/s':>8} "
           f"{'raw cast x2 [s]':>16} {'cpu [s]':>8} {'RATIO wall':>11} {'RATIO cpu':>10}")
     for name, ts, cs, tc, cc in rows:
         print(f"{name:<36} {ts:>9.3f} {cs:>8.3f} {1 / ts:>8.2f} {tc:>16.3f} {cc:>8.3f} {ts / tc:>11.1f} "
               f"{cs / cc:>10.1f}")
+    for name, st in stages.items():
+        print(f"\nCPU per stage, {name} stereo step, views one after the other (inclusive) [ms]")
+        for label, v in st:
+            print(f"  {label:<46} {1000 * v:8.1f}")
     if a.svi_seconds > 0:
-        with tempfile.TemporaryDirectory(prefix="bench_render_") as d:
-            out = Path(d) / "svi"
-            ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-            res = run([CLI, "sim", "--setup", "svi", "--kind", "slam", "--duration-s", str(a.svi_seconds),
-                       "--resolution", "1024", "--seed", "1", "--out", str(out)])
-            ru1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-            cpu = (ru1.ru_utime - ru0.ru_utime) + (ru1.ru_stime - ru0.ru_stime)
-            if not res.ok:
-                raise SystemExit("ibiscape-eval sim --setup svi failed")
-            frames = int(a.svi_seconds * 20) + 1
-            shutil.rmtree(out, ignore_errors=True)
-        print(f"\nSVI {a.svi_seconds:g} s at 1024x1024 ({frames} stereo frames): {res.wall_s:.1f} s wall, "
-              f"{cpu:.1f} s CPU, {res.peak_mb:.0f} MB peak; {res.wall_s / frames:.3f} s wall and "
-              f"{cpu / frames:.3f} s CPU per stereo frame; a 60 s sequence extrapolates to "
-              f"{res.wall_s / frames * 1201 / 60:.1f} min wall here, {cpu / frames * 1201 / 60:.1f} min of "
-              "CPU (target <= 10 min wall)")
+        w0, c0, _, f0 = _svi(0.5)
+        w1, c1, peak, f1 = _svi(a.svi_seconds)
+        per_w, per_c = (w1 - w0) / (f1 - f0), (c1 - c0) / (f1 - f0)
+        fix_w, fix_c = w0 - f0 * per_w, c0 - f0 * per_c
+        print(f"\nSVI at 1024x1024: {a.svi_seconds:g} s ({f1} stereo frames) {w1:.1f} s wall, {c1:.1f} s CPU, "
+              f"{peak:.0f} MB peak; 0.5 s ({f0} frames) {w0:.1f} s wall, {c0:.1f} s CPU")
+        print(f"  per stereo frame (PNG writing included): {per_w:.3f} s wall, {per_c:.3f} s CPU; fixed "
+              f"{fix_w:.1f} s wall, {fix_c:.1f} s CPU")
+        print(f"  a 60 s sequence (1201 frames) extrapolates to {(fix_w + 1201 * per_w) / 60:.1f} min wall here, "
+              f"{(fix_c + 1201 * per_c) / 60:.1f} min of CPU (on two idle cores about half of that in wall "
+              "time; target <= 10 min wall)")
 
 
 if __name__ == "__main__":
