@@ -16,6 +16,9 @@
   signal ``I``), so dark scenes are noisier.  The deviates are seeded and counter-based: a
   splitmix64 hash of the key and the value's index picks one of 65536 normal quantiles
   (:func:`normal_table`; tails end at 4.3 sigma), four values per hash.
+
+:func:`fog` and :func:`puddles` are the numpy forms of the formulas; the renderer applies them per
+pixel inside its fused shading pass (``_kernels.finish``), which the tests compare with them.
 """
 
 from __future__ import annotations
