@@ -119,7 +119,7 @@ def quantize(image, gain, key, normal, noise, out):
         v = flat[i]
         if noise:
             q = i & 3
-            if q == 0 or i == 0:
+            if q == 0:
                 h = _mix64(k + np.uint64(i >> 2) * np.uint64(0x9E3779B97F4A7C15))
             z = normal[(h >> np.uint64(16 * q)) & np.uint64(0xFFFF)]
             v = v + np.sqrt(read2 + shot * max(v, np.float32(0.0))) * z
@@ -140,7 +140,7 @@ def sensor_noise(image, gain, key, normal):
     h = np.uint64(0)
     for i in range(n):
         q = i & 3
-        if q == 0 or i == 0:
+        if q == 0:
             h = _mix64(k + np.uint64(i >> 2) * np.uint64(0x9E3779B97F4A7C15))
         z = normal[(h >> np.uint64(16 * q)) & np.uint64(0xFFFF)]
         v = flat[i]
