@@ -73,10 +73,20 @@ def camera_calibration(seq: str, cameras: Sequence[str], model: str = "pinhole-r
     """Calibrate ``cameras`` of the sequence ``seq`` and compare with its true cameras.
 
     Returns the calibration's summary (``rms_px``, ``n_views``, the reconstruction used for event
-    cameras) and ``truth``: per camera the errors of ``fx, fy, cx, cy`` [px] and the largest
-    distortion-coefficient error; per neighbouring pair the baseline error [mm] and the rotation
-    error [deg].
+    cameras), per camera the errors of ``fx, fy, cx, cy`` [px] and the largest
+    distortion-coefficient error, per neighbouring pair the baseline error [mm] and the rotation
+    error [deg].  The library's warnings (empty event windows, views dropped) are not repeated:
+    the numbers say how well it went.
     """
+    from ibiscape_eval.core.errors import IbiscapeWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IbiscapeWarning)
+        return _camera_calibration(seq, cameras, model, max_views, max_frames)
+
+
+def _camera_calibration(seq: str, cameras: Sequence[str], model: str, max_views: int,
+                        max_frames: int) -> dict[str, Any]:
     from ibiscape_eval.calib.events import choose_reconstruction, event_frame_loader
     from ibiscape_eval.calib.pipeline import CameraFrames, calibrate_frames, detect_frames
     from ibiscape_eval.calib.report import compare_with_truth, truth_from_sequence
@@ -117,10 +127,8 @@ def camera_calibration(seq: str, cameras: Sequence[str], model: str = "pinhole-r
         frames.append(CameraFrames(s.name, len(s), event_frame_loader(read_window, s.windows_ns,
                                                                       size, method),
                                    lambda i, p=paths: str(p[i]), reconstruction=method))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", IbiscapeWarning)
-        summary = detect_frames(target, frames, views, max_detect=max_frames, workers=1)
-        result = calibrate_frames(target, summary, model=model, max_views=max_views)
+    summary = detect_frames(target, frames, views, max_detect=max_frames, workers=1)
+    result = calibrate_frames(target, summary, model=model, max_views=max_views)
     truth = compare_with_truth(result, truth_from_sequence(doc))
     rd = result.to_dict()
     cams = []

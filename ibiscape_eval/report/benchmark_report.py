@@ -156,7 +156,8 @@ def benchmark_tables(res: BenchmarkResult) -> list[Table]:
         if s["step"] == "vio":
             rows.append((s["sequence"], f"not applicable: {s['reason']}", "", "", "", ""))
     t.append(Table("vio", "VIO baseline on the SLAM sequences",
-                   "table:evaluation: ATE RMSE [m] after SE(3) alignment, RPE over 1 s (mean).",
+                   "table:evaluation: ATE RMSE [m] after 4-DoF (position + yaw) alignment, RPE over "
+                   "1 s (mean).",
                    ("sequence", "frames estimated", "failure spans", "ATE [m]", "RPE [m]",
                     "RPE [deg]"), tuple(rows)))
     rows = [(k, _f(v, ".1f"), str(len(res.steps.get(k, []))),
