@@ -169,7 +169,7 @@ def test_run_suite_only_writes_the_manifest(tmp_path) -> None:
 
 
 def test_read_manifest_errors(tmp_path) -> None:
-    with pytest.raises(IbiscapeError, match="suite.json: not found"):
+    with pytest.raises(IbiscapeError, match=r"suite\.json: not found"):
         read_manifest(tmp_path)
     (tmp_path / "suite.json").write_text('{"sequences": [{"name": 1}]}')
     with pytest.raises(IbiscapeError, match="not a suite manifest"):
