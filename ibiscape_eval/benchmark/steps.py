@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -85,6 +85,14 @@ def camera_calibration(seq: str, cameras: Sequence[str], model: str = "pinhole-r
         return _camera_calibration(seq, cameras, model, max_views, max_frames)
 
 
+def _reader(paths: Sequence[Path], read: Callable[[Path], Any]) -> Callable[[int], Any]:
+    return lambda i: read(paths[i])
+
+
+def _labeler(paths: Sequence[Path]) -> Callable[[int], str]:
+    return lambda i: str(paths[i])
+
+
 def _camera_calibration(seq: str, cameras: Sequence[str], model: str, max_views: int,
                         max_frames: int) -> dict[str, Any]:
     from ibiscape_eval.calib.events import choose_reconstruction, event_frame_loader
@@ -107,8 +115,8 @@ def _camera_calibration(seq: str, cameras: Sequence[str], model: str, max_views:
     for s in sets:
         if s.kind == "frames":
             paths = s.paths
-            frames.append(CameraFrames(s.name, len(s), lambda i, p=paths: read_image(p[i]),
-                                       lambda i, p=paths: str(p[i])))
+            frames.append(CameraFrames(s.name, len(s), _reader(paths, read_image),
+                                       _labeler(paths)))
             continue
         w, h = seq_cams.get(s.name, {}).get("resolution", (0, 0))
         size = (int(w), int(h))
@@ -126,7 +134,7 @@ def _camera_calibration(seq: str, cameras: Sequence[str], model: str, max_views:
         recon[s.name] = method
         frames.append(CameraFrames(s.name, len(s), event_frame_loader(read_window, s.windows_ns,
                                                                       size, method),
-                                   lambda i, p=paths: str(p[i]), reconstruction=method))
+                                   _labeler(paths), reconstruction=method))
     summary = detect_frames(target, frames, views, max_detect=max_frames, workers=1)
     result = calibrate_frames(target, summary, model=model, max_views=max_views)
     truth = compare_with_truth(result, truth_from_sequence(doc))
