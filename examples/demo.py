@@ -344,6 +344,9 @@ def main() -> None:
             print(f"  {p}/  ({sum(1 for q in p.rglob('*') if q.is_file())} files)")
         else:
             print(f"  {p}  ({p.stat().st_size / 1e3:,.0f} kB)")
+    page = args.out / "bench" / "report" / "report.html"
+    if page.is_file():
+        print(f"\nthe benchmark's report (every step of the paper on generated data): {page}")
 
 
 if __name__ == "__main__":
