@@ -184,8 +184,9 @@ def imu_camera_calibration(entry: Mapping[str, Any], noise_px: float = 0.2) -> d
             res = calibrate_imu_camera(sc.observations, sc.imu, sc.noise, sc.corners_target_m,
                                        sigma_px=noise_px)
     except CalibrationError as err:
-        raise CalibrationError(f"{e.name} ({e.duration_s:g} s drive): {err}; longer drives over "
-                               "the bumps excite roll and pitch (a larger --scale)") from None
+        raise CalibrationError(f"{e.name} ({e.duration_s:g} s drive, {e.side_px} px): {err}; a "
+                               "larger --scale gives longer drives over the bumps (roll and "
+                               "pitch) and larger images of the board") from None
     truth = {k: {"T_cam_imu": sc.T_cam_imu[k], "timeshift_cam_imu": sc.timeshift_cam_imu_s[k]}
              for k in sc.T_cam_imu}
     errs = errors_against_truth(res, truth)

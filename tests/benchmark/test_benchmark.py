@@ -106,7 +106,7 @@ def test_camera_imu_step_has_a_record(bench) -> None:
     if rec["status"] == "ok":
         assert [c["camera"] for c in rec["value"]["cameras"]] == ["rgbL", "rgbR"]
     else:  # a 3 s drive: too few views or no bumps, refused with the reason and the remedy
-        assert rec["error"].startswith("CalibrationError: SVI_calib_1 (3 s drive): ")
+        assert rec["error"].startswith("CalibrationError: SVI_calib_1 (3 s drive, 128 px): ")
         assert "--scale" in rec["error"]
 
 
