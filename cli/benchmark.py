@@ -66,11 +66,12 @@ Examples:
 @click.option("--cache", "cache_dir", type=click.Path(path_type=Path), default=None,
               help="Cache of finished analysis jobs (default ~/.cache/ibiscape-eval/jobs).")
 @click.option("--no-cache", is_flag=True, help="Recompute every job, store nothing.")
+@click.option("--no-figures", is_flag=True, help="Leave out the VIO figures (top views, box plots).")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as one JSON document.")
 @user_errors
 def benchmark(out_dir: Path, scale: float, suite_dir: Path | None, seed: int, only: tuple[str, ...],
               scheduler: str | None, workers: int | None, cache_dir: Path | None, no_cache: bool,
-              as_json: bool) -> None:
+              no_figures: bool, as_json: bool) -> None:
     """Run the whole IBISCape paper on generated data and write one report into DIR/report.
 
     Generates the paper's 34-sequence suite (scaled), calibrates the cameras of every calibration
@@ -98,7 +99,7 @@ def benchmark(out_dir: Path, scale: float, suite_dir: Path | None, seed: int, on
     try:
         res = run_benchmark(out_dir, scale=scale, suite_dir=suite_dir, seed=seed,
                             executor=executor, cache=cache, progress=bar,
-                            sequences=list(only) or None)
+                            sequences=list(only) or None, figures=not no_figures)
     finally:
         bar.close()
         executor.close()

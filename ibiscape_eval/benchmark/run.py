@@ -71,6 +71,9 @@ class BenchmarkResult:
         could be scored.
     wall_s : dict
         Step name -> wall time [s].
+    figures : tuple of (file name, caption, png bytes)
+        Top views of the VIO runs over the ground truth and GNSS, and error box plots (the
+        ``report`` command's figures); not part of :meth:`to_dict`.
     """
 
     out: str
@@ -80,6 +83,7 @@ class BenchmarkResult:
     skipped: list[dict[str, str]] = field(default_factory=list)
     evaluation: dict[str, Any] | None = None
     wall_s: dict[str, float] = field(default_factory=dict)
+    figures: tuple[tuple[str, str, bytes], ...] = field(default=(), repr=False)
 
     @property
     def n_failed(self) -> int:
@@ -165,7 +169,7 @@ def run_benchmark(out_dir: str | os.PathLike[str], *, scale: float = 0.05,
                   suite_dir: str | os.PathLike[str] | None = None, seed: int = 0,
                   executor: Executor | None = None, cache: ContentCache | None = None,
                   progress: StepProgress | None = None,
-                  sequences: Sequence[str] | None = None) -> BenchmarkResult:
+                  sequences: Sequence[str] | None = None, figures: bool = True) -> BenchmarkResult:
     """Generate (or reuse) a suite and run every step of the paper on it.
 
     Parameters
@@ -185,6 +189,8 @@ def run_benchmark(out_dir: str | os.PathLike[str], *, scale: float = 0.05,
         ``progress(step, done, failed, remaining)``.
     sequences : sequence of str, optional
         Only these suite sequences (quick runs, tests).
+    figures : bool
+        Draw the VIO figures (top views, error box plots).
 
     Returns
     -------
@@ -246,18 +252,19 @@ def run_benchmark(out_dir: str | os.PathLike[str], *, scale: float = 0.05,
             steps[step] = _records(jobs[step], results)
             wall[step] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        evaluation = _evaluate(out, sroot, steps, ex, cache, tick("evaluation"))
+        evaluation, figs = _evaluate(out, sroot, steps, ex, cache, tick("evaluation"), figures)
         wall["evaluation"] = time.perf_counter() - t0
     finally:
         if own:
             ex.close()
     return BenchmarkResult(str(out), str(sroot), float(scale), steps, skipped,
-                           evaluation, {k: round(v, 3) for k, v in wall.items()})
+                           evaluation, {k: round(v, 3) for k, v in wall.items()}, tuple(figs))
 
 
 def _evaluate(out: Path, suite_dir: Path, steps: dict[str, list[dict[str, Any]]],
               executor: Executor, cache: ContentCache | None,
-              progress: Callable[[int, int, int], None] | None) -> dict[str, Any] | None:
+              progress: Callable[[int, int, int], None] | None, figures: bool
+              ) -> tuple[dict[str, Any] | None, list[tuple[str, str, bytes]]]:
     """Write the VIO estimates as a runs folder and score them with the report's evaluation."""
     from ibiscape_eval.io.atomic import atomic_write
     from ibiscape_eval.report.evaluate import EvaluationOptions, evaluate_runs
@@ -277,7 +284,7 @@ def _evaluate(out: Path, suite_dir: Path, steps: dict[str, list[dict[str, Any]]]
         n += 1
     if n == 0:
         steps["evaluation"] = []
-        return None
+        return None, []
     layout = discover_runs(runs, sequences_dir=suite_dir)
     ev = evaluate_runs(layout, EvaluationOptions(align=VIO_ALIGN, max_diff_s=0.02, rpe_delta=1.0,
                                                  rpe_delta_unit="seconds"),
@@ -290,10 +297,20 @@ def _evaluate(out: Path, suite_dir: Path, steps: dict[str, list[dict[str, Any]]]
                                       "rpe_deg": _get(r, "rpe", "rotation_deg", "mean"),
                                       "n_matched": r.get("n_matched")}}
                            for r in ev.runs]
+    figs = []
+    if figures:
+        import warnings
+
+        from ibiscape_eval.core.errors import IbiscapeWarning
+        from ibiscape_eval.report.batch_report import sequence_figures
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", IbiscapeWarning)
+            figs = sequence_figures(ev)
     table = PaperTable.from_runs(ev.runs)
     return {"table": json.loads(json.dumps(table.to_dict())), "markdown": table.to_markdown(),
             "html": table.to_html(),
-            "latex": table.to_latex(caption="Stereo-VIO baseline on the generated SLAM sequences.")}
+            "latex": table.to_latex(caption="Stereo-VIO baseline on the generated SLAM sequences.")}, figs
 
 
 def _get(doc: Any, *path: str) -> Any:

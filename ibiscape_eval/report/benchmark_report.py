@@ -11,7 +11,6 @@ from __future__ import annotations
 import html
 import json
 import os
-from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -186,8 +185,8 @@ def benchmark_markdown(res: BenchmarkResult) -> str:
     return "\n".join(parts) + "\n"
 
 
-def benchmark_html(res: BenchmarkResult, figures: Sequence[tuple[str, bytes]] = ()) -> str:
-    """The report as one self-contained HTML page."""
+def benchmark_html(res: BenchmarkResult) -> str:
+    """The report as one self-contained HTML page (figures embedded as PNG data)."""
     import base64
 
     e = html.escape
@@ -198,7 +197,9 @@ def benchmark_html(res: BenchmarkResult, figures: Sequence[tuple[str, bytes]] = 
     if res.evaluation:
         parts += ["<h2>VIO in the paper's table layout</h2>",
                   res.evaluation["html"]]
-    for caption, png in figures:
+    if res.figures:
+        parts.append("<h2>VIO figures</h2>")
+    for _, caption, png in res.figures:
         data = base64.b64encode(png).decode("ascii")
         parts.append(f'<figure><img src="data:image/png;base64,{data}" alt="{e(caption)}">'
                      f"<figcaption>{e(caption)}</figcaption></figure>")
@@ -214,8 +215,9 @@ def benchmark_html(res: BenchmarkResult, figures: Sequence[tuple[str, bytes]] = 
 
 
 def write_benchmark_report(out_dir: str | os.PathLike[str], res: BenchmarkResult) -> list[Path]:
-    """Write ``report.html``, ``report.md``, ``report.json`` (and ``table_vio.tex``) into
-    ``out_dir`` (created; earlier files of the same names are replaced atomically)."""
+    """Write ``report.html``, ``report.md``, ``report.json`` (and ``table_vio.tex``, the VIO
+    figures as ``figures/<name>.png``) into ``out_dir`` (created; earlier files of the same names
+    are replaced atomically)."""
     from ibiscape_eval.batch.files import atomic_write
 
     out = Path(out_dir)
@@ -229,4 +231,10 @@ def write_benchmark_report(out_dir: str | os.PathLike[str], res: BenchmarkResult
         with atomic_write(out / name) as f:
             f.write(text)
         written.append(out / name)
+    if res.figures:
+        (out / "figures").mkdir(exist_ok=True)
+    for fname, _, png in res.figures:
+        with atomic_write(out / "figures" / fname, "wb") as fb:
+            fb.write(png)
+        written.append(out / "figures" / fname)
     return written

@@ -46,6 +46,8 @@ def test_every_step_ran_and_the_report_is_written(bench) -> None:
         assert (out / "report" / name).is_file()
     html = (out / "report" / "report.html").read_text()
     assert "<script" not in html and "Camera-IMU calibration" in html
+    assert html.count('src="data:image/png;base64,') == 2  # VIO top view and error box plots
+    assert (out / "report" / "figures" / "errors_boxplot.png").is_file()
     assert f"report: {out / 'report' / 'report.html'}" in err
     assert json.loads((out / "report" / "report.json").read_text())["steps"] == doc["steps"]
     assert (out / "suite" / "suite.json").is_file()
@@ -160,7 +162,8 @@ def _tables(doc):
 def test_local_and_dask_give_identical_tables(bench, scheduler, tmp_path) -> None:
     out, _, _ = bench
     only = _only(("IMU_calib_1", "SVI_calib_1", "ESVI_slam_dyn_1"))
-    base = ["benchmark", "--suite", str(out / "suite"), "--no-cache", "--json", *only]
+    base = ["benchmark", "--suite", str(out / "suite"), "--no-cache", "--json", "--no-figures",
+            *only]
     local = CliRunner().invoke(cli, [*base[:1], str(tmp_path / "local"), *base[1:], "--workers", "2"])
     dask = CliRunner().invoke(cli, [*base[:1], str(tmp_path / "dask"), *base[1:],
                                     "--scheduler", scheduler])
