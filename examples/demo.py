@@ -298,8 +298,8 @@ def imu_camera(out: Path) -> None:
 def vio(out: Path) -> None:
     banner("8. A rendered SVI drive exported to EuRoC; the stereo-VIO baseline on the export, scored with ATE")
     seq = out / "SVI_vio"
-    sh("sim", "--setup", "svi", "--kind", "slam", "--weather", "clear", "--duration-s", "12",
-       "--seed", "4", "--resolution", "256", "--out", seq, "--export", "euroc")
+    sh("sim", "--setup", "svi", "--kind", "slam", "--weather", "clear", "--duration-s", "10",
+       "--seed", "4", "--resolution", "192", "--out", seq, "--export", "euroc")
     sh("vio", out / "SVI_vio_euroc", "-o", out / "vio_est.txt", "--plot", out / "vio_top.png")
     sh("ate", out / "vio_est.txt", seq / "vehicle_gt" / "groundtruth_sync.csv", "--align", "yaw",
        "--plot", out / "vio_ate.png")
