@@ -46,11 +46,27 @@ class Table:
     def to_html(self) -> str:
         e = html.escape
         head = "".join(f"<th>{e(h)}</th>" for h in self.header)
-        body = "".join("<tr>" + "".join(f"<td>{e(c)}</td>" for c in r) + "</tr>" for r in self.rows)
+        body = "".join(_html_row(r) for r in self.rows)
         if not self.rows:
             body = f'<tr><td colspan="{len(self.header)}">(none)</td></tr>'
         return (f"<h2>{e(self.title)}</h2><p>{e(self.note)}</p>"
                 f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>")
+
+
+_NOTES = ("FAILED: ", "not applicable: ")
+_EXTRA_CSS = "td.note { white-space: normal; text-align: left; max-width: 70em; }"
+
+
+def _html_row(row: tuple[str, ...]) -> str:
+    """A row; a failure or "not applicable" note spans the remaining columns and wraps."""
+    e = html.escape
+    cells = []
+    for i, c in enumerate(row):
+        if c.startswith(_NOTES):
+            cells.append(f'<td class="note" colspan="{len(row) - i}">{e(c)}</td>')
+            break
+        cells.append(f"<td>{e(c)}</td>")
+    return "<tr>" + "".join(cells) + "</tr>"
 
 
 def _f(v: Any, fmt: str = ".3f") -> str:
@@ -191,7 +207,7 @@ def benchmark_html(res: BenchmarkResult) -> str:
 
     e = html.escape
     parts = ["<!DOCTYPE html>", '<html lang="en">', "<head>", '<meta charset="utf-8">',
-             "<title>IBISCape benchmark</title>", f"<style>{_CSS}</style>", "</head>", "<body>",
+             "<title>IBISCape benchmark</title>", f"<style>{_CSS}{_EXTRA_CSS}</style>", "</head>", "<body>",
              "<h1>IBISCape benchmark on generated data</h1>", f'<p class="meta">{e(_meta(res))}</p>']
     parts += [t.to_html() for t in benchmark_tables(res)]
     if res.evaluation:
