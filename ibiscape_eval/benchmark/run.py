@@ -202,6 +202,13 @@ def run_benchmark(out_dir: str | os.PathLike[str], *, scale: float = 0.05,
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise IbiscapeError(f"{out}: exists and is not a folder; choose another benchmark folder")
+    # refuse what cannot run before anything is written
+    known = (read_manifest(suite_dir)[1] if suite_dir is not None
+             else suite_entries(scale, seed=seed))
+    unknown = sorted(set(sequences or ()) - {e.name for e in known})
+    if unknown:
+        raise IbiscapeError(f"unknown suite sequence(s) {', '.join(unknown)}; the suite has "
+                            f"{', '.join(e.name for e in known)}")
     out.mkdir(parents=True, exist_ok=True)
     own = executor is None
     ex: Executor = LocalExecutor() if executor is None else executor

@@ -216,3 +216,9 @@ def test_missing_suite_manifest_is_one_line(tmp_path) -> None:
     assert r.exit_code == 2 and "suite.json: not found" in r.stderr
     r = CliRunner().invoke(cli, ["benchmark", str(tmp_path / "b"), "--scale", "3"])
     assert r.exit_code == 2 and "scale must be a number in (0, 1]" in r.stderr
+
+
+def test_unknown_sequence_is_refused_before_anything_is_written(tmp_path) -> None:
+    r = CliRunner().invoke(cli, ["benchmark", str(tmp_path / "b"), "--only", "SVI_calib_9"])
+    assert r.exit_code == 2 and "unknown suite sequence(s) SVI_calib_9" in r.stderr
+    assert not (tmp_path / "b").exists()
