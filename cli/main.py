@@ -42,6 +42,20 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
     "report": ("report", "report", "Evaluate a folder of runs: paper-style table, figures, HTML."),
     "calib": ("calib", "calib", "Camera calibration (checkerboard/AprilGrid, mono/stereo, RGB/DVS)."),
     "vio": ("vio", "vio", "Stereo visual-inertial odometry baseline (OpenCV + GTSAM) on a sequence."),
+    "benchmark": (
+        "benchmark",
+        "benchmark",
+        "The whole paper on generated data: suite, calibrations, IMU noise, hot pixels, VIO, report.",
+    ),
+}
+
+# "<command> <word>" pairs that run another command (``sim suite`` beside ``sim [options]``)
+SUBCOMMANDS: dict[tuple[str, str], tuple[str, str, str]] = {
+    ("sim", "suite"): (
+        "sim",
+        "sim_suite",
+        "Generate the paper's 34-sequence table as batch jobs (--scale for quick runs).",
+    ),
 }
 
 
@@ -59,8 +73,19 @@ class LazyGroup(click.Group):
         cmd: click.Command = getattr(mod, attr)
         return cmd
 
+    def resolve_command(
+        self, ctx: click.Context, args: list[str]
+    ) -> tuple[str | None, click.Command | None, list[str]]:
+        if len(args) >= 2 and (args[0], args[1]) in SUBCOMMANDS:
+            module, attr, _ = SUBCOMMANDS[(args[0], args[1])]
+            mod = importlib.import_module(f"{__package__}.{module}")
+            return f"{args[0]} {args[1]}", getattr(mod, attr), args[2:]
+        return super().resolve_command(ctx, args)
+
     def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
         rows = [(name, COMMANDS[name][2]) for name in self.list_commands(ctx)]
+        rows += [(" ".join(k), v[2]) for k, v in SUBCOMMANDS.items()]
+        rows.sort()
         with formatter.section("Commands"):
             formatter.write_dl(rows)
 

@@ -50,6 +50,7 @@ Examples:
   ibiscape-eval sim --setup full --print-config > sim.yaml ; ibiscape-eval sim --config sim.yaml --out X
   ibiscape-eval sim --setup svi --kind calibration --resolution 256 --duration-s 10 --out SVI_small
   ibiscape-eval sim --setup rgbd --resolution 640x480 --export tum-rgbd --out RGBD_1_town
+  ibiscape-eval sim suite --out suite/ --scale 0.05   (the paper's 34 sequences; see sim suite --help)
 """,
 )
 @click.option("--setup", type=click.Choice(_SETUPS), help="Sensor setup (default svi).")
@@ -157,3 +158,107 @@ def sim(setup: str | None, kind: str | None, weather: str | None, scenario: str 
         click.echo(_summary_text(summary, rendered))
         if exported is not None:
             click.echo(f"export     {export_fmt}: {exported.path}")
+
+
+class _BatchBar:
+    """The public progress bar driven by a batch callback: jobs done, failed and remaining."""
+
+    def __init__(self, desc: str, unit: str) -> None:
+        self.bar: Any = None
+        self.desc = desc
+        self.unit = unit
+
+    def __call__(self, done: int, failed: int, remaining: int) -> None:
+        if self.bar is None:
+            from .progress import progress_bar
+
+            self.bar = progress_bar(done + remaining, self.desc, unit=self.unit, unit_scale=False,
+                                    delay_s=0.0)
+        self.bar.update(done - self.bar.n)
+        self.bar.set_postfix_str(f"failed {failed}, remaining {remaining}", refresh=False)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+@click.command(
+    "sim suite",
+    epilog="""\b
+Examples:
+  ibiscape-eval sim suite --out suite/ --scale 0.05           (quick: 3 s runs, 224 px, 8.4 h IMU)
+  ibiscape-eval sim suite --out suite/ --scale 1              (the paper's sizes; hours of CPU)
+  ibiscape-eval sim suite --out suite/ --only SVI_slam_dyn_1 --only SVI_calib_1 --scale 0.25
+  ibiscape-eval sim suite --out suite/ --scheduler tcp://10.0.0.5:8786
+""",
+)
+@click.option("--out", "out", type=click.Path(file_okay=False), default=None,
+              help="(required) Suite folder: one sequence folder per entry and suite.json (the manifest).")
+@click.option("--scale", type=float, default=1.0, show_default=True,
+              help="In (0, 1]: durations x F (at least 3 s; still IMU at least 30 min), image "
+              "sides 1024 x sqrt(F) (at least 128 px).")
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
+              help="Base seed (sequence i gets seed + i).")
+@click.option("--render/--no-render", "render", default=True, show_default=True,
+              help="Render the cameras; --no-render writes ground truth, IMU and GNSS only.")
+@click.option("--only", multiple=True, metavar="NAME",
+              help="Generate only this sequence (repeat); the manifest lists every entry.")
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="Run the jobs on this Dask scheduler (tcp://host:port) instead of locally.")
+@click.option("--workers", type=click.IntRange(min=1), default=None,
+              help="Local worker processes (default: the usable CPUs).")
+@click.option("--list", "list_only", is_flag=True,
+              help="Print the suite's entries (name, preset, duration, image side) and exit.")
+@click.option("--json", "as_json", is_flag=True, help="Print the manifest as one JSON document.")
+@user_errors
+def sim_suite(out: str | None, scale: float, seed: int, render: bool, only: tuple[str, ...],
+              scheduler: str | None, workers: int | None, list_only: bool, as_json: bool) -> None:
+    """Generate the paper's sequence table (34 sequences: calibration and SLAM runs across setups
+    and weathers) as batch jobs, named like the paper's (SVI_calib_1, ESVI_slam_dyn_2).
+
+    Every sequence is one job: locally on a pool of processes, or on an existing Dask cluster
+    with --scheduler.  Sequences already complete in OUT (same entry) are kept, so a re-run
+    resumes; a sequence that fails is reported with its error and the others carry on.
+    """
+    from ibiscape_eval.batch import make_executor
+    from ibiscape_eval.sim.suite import run_suite, suite_entries
+
+    from ._common import info
+
+    entries = suite_entries(scale, seed=seed)
+    if list_only:
+        if as_json:
+            echo_json({"scale": scale, "sequences": [e.to_dict() for e in entries]})
+            return
+        for e in entries:
+            click.echo(f"{e.name:<18} {e.setup:<5} {e.kind:<12} {e.weather:<9} "
+                       f"{e.duration_s:>9g} s  {e.side_px or '-'!s:>5} px  "
+                       f"{e.target or '':<12} seed {e.seed}")
+        return
+    if out is None:
+        raise click.UsageError("Missing option '--out' (the suite folder).")
+    executor = make_executor(scheduler=scheduler, workers=workers)
+    n = len(only) if only else len(entries)
+    info(f"{n} sequences at scale {scale:g}" + (f" on the Dask scheduler {scheduler}" if scheduler else ""))
+    bar = _BatchBar("sim suite", "seq")
+    try:
+        res = run_suite(out, scale=scale, seed=seed, render=render, executor=executor, progress=bar,
+                        only=list(only) or None)
+    finally:
+        bar.close()
+        executor.close()
+    for s in res.failed:
+        info(f"warning: {s['name']} failed: {s['error']}")
+    if as_json:
+        echo_json(res.to_dict())
+        return
+    for s in res.sequences:
+        summ = s.get("summary") or {}
+        how = "kept" if s.get("reused") else f"{s.get('seconds', 0.0):.1f} s"
+        what = (f"{summ.get('length_m', 0.0):8.1f} m  {summ.get('frames', 0):5d} frames"
+                if s["status"] == "ok" else f"FAILED: {s['error']}")
+        click.echo(f"{s['name']:<18} {s['status']:<6} {what}  ({how})")
+    ok = res.summary["n_ok"]
+    click.echo(f"{ok}/{len(res.sequences)} sequences in {out} (manifest {out}/suite.json)")
+    if ok == 0:
+        fail("every sequence failed; nothing usable was written")

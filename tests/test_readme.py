@@ -23,7 +23,7 @@ from ibiscape_eval.cli.main import cli
 ROOT = Path(__file__).resolve().parents[1]
 # subcommand -> how many leading positional arguments are inputs that must exist
 INPUTS = {"ate": 2, "rpe": 2, "drift": 2, "compare": 3, "convert": 1, "allan": 1, "hotpix": 1, "frames": 1,
-          "sim": 0, "report": 1, "calib": 1, "vio": 1}
+          "sim": 0, "report": 1, "calib": 1, "vio": 1, "benchmark": 0}
 # inputs of README commands that are illustrations only (a ROS bag is not generated here)
 ILLUSTRATIVE = {"recording.bag"}
 # options whose value is a file or folder the command must create

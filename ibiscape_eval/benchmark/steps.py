@@ -1,0 +1,300 @@
+"""The benchmark's job functions: one per step and sequence (JSON in, JSON out).
+
+Each function is a :class:`~ibiscape_eval.batch.Job` target (named by import path), so it runs in
+this process, in a local pool or on a Dask worker and gives the same result everywhere.  Each
+reads one sequence of the suite, calls the library that does the work and compares the result
+with the truth the simulator wrote into ``sequence.yaml``:
+
+- :func:`camera_calibration`: ``ibiscape_eval.calib`` on the sequence's images (or events), errors
+  of focal length, principal point, distortion, baseline and relative rotation against the true
+  cameras (the paper's ``table:camerasintrinsics`` and ``table:baselines``);
+- :func:`imu_camera_calibration`: ``T_cam_imu`` and ``timeshift_cam_imu`` per camera against the
+  simulator's mounting (rotation deg, translation mm, time offset ms);
+- :func:`imu_noise`: the Allan deviation fit against the configured densities (``table:imuvalues``);
+- :func:`hot_pixels`: the n-sigma hot-pixel filter on a DVS camera: fraction of events removed,
+  precision and recall against the pixels the simulated rain and fog made noisy;
+- :func:`vio`: the stereo-VIO baseline; the estimate travels back as TUM text and is scored by
+  :mod:`ibiscape_eval.report.evaluate` like any other run.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from ibiscape_eval.core.errors import IbiscapeError
+
+__all__ = [
+    "camera_calibration",
+    "hot_pixels",
+    "imu_camera_calibration",
+    "imu_noise",
+    "vio",
+]
+
+#: Cameras calibrated per setup, in chain order (depth and segmentation have no target image).
+CALIBRATION_CAMERAS: dict[str, tuple[str, ...]] = {
+    "svi": ("rgbL", "rgbR"),
+    "esvi": ("davisL", "davisR"),
+    "rgbd": ("rgb",),
+    "full": ("rgbL", "rgbR"),
+}
+KALIBR_NOISE_KEYS = ("gyroscope_noise_density", "gyroscope_random_walk",
+                     "accelerometer_noise_density", "accelerometer_random_walk")
+
+
+def _sequence_doc(seq: str) -> dict[str, Any]:
+    from ibiscape_eval.io.sequence import read_sequence_yaml
+
+    path = Path(seq) / "sequence.yaml"
+    if not path.is_file():
+        raise IbiscapeError(f"{path}: not found; the benchmark needs the truth of a simulated "
+                            "sequence (generate it with 'ibiscape-eval sim suite')")
+    return read_sequence_yaml(path)
+
+
+def _finite(x: Any) -> float | None:
+    try:
+        v = float(x)
+    except (TypeError, ValueError):
+        return None
+    return v if math.isfinite(v) else None
+
+
+# ---------------------------------------------------------------------------------------------
+# cameras
+
+
+def camera_calibration(seq: str, cameras: Sequence[str], model: str = "pinhole-radtan",
+                       max_views: int = 40, max_frames: int = 150) -> dict[str, Any]:
+    """Calibrate ``cameras`` of the sequence ``seq`` and compare with its true cameras.
+
+    Returns the calibration's summary (``rms_px``, ``n_views``, the reconstruction used for event
+    cameras), per camera the errors of ``fx, fy, cx, cy`` [px] and the largest
+    distortion-coefficient error, per neighbouring pair the baseline error [mm] and the rotation
+    error [deg].  The library's warnings (empty event windows, views dropped) are not repeated:
+    the numbers say how well it went.
+    """
+    from ibiscape_eval.core.errors import IbiscapeWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IbiscapeWarning)
+        return _camera_calibration(seq, cameras, model, max_views, max_frames)
+
+
+def _reader(paths: Sequence[Path], read: Callable[[Path], Any]) -> Callable[[int], Any]:
+    return lambda i: read(paths[i])
+
+
+def _labeler(paths: Sequence[Path]) -> Callable[[int], str]:
+    return lambda i: str(paths[i])
+
+
+def _camera_calibration(seq: str, cameras: Sequence[str], model: str, max_views: int,
+                        max_frames: int) -> dict[str, Any]:
+    from ibiscape_eval.calib.events import choose_reconstruction, event_frame_loader
+    from ibiscape_eval.calib.pipeline import CameraFrames, calibrate_frames, detect_frames
+    from ibiscape_eval.calib.report import compare_with_truth, truth_from_sequence
+    from ibiscape_eval.calib.targets import target_from_kalibr
+    from ibiscape_eval.core.errors import IbiscapeWarning
+    from ibiscape_eval.io.events import read_events
+    from ibiscape_eval.io.image_sets import find_image_sets, pair_views, read_image
+
+    doc = _sequence_doc(seq)
+    if not isinstance(doc.get("target"), dict):
+        raise IbiscapeError(f"{seq}/sequence.yaml has no 'target': not a calibration sequence")
+    target = target_from_kalibr(doc["target"], source=f"{seq}/sequence.yaml: target")
+    sets = find_image_sets(Path(seq), cameras=list(cameras))
+    views = pair_views(sets)
+    seq_cams = doc.get("cameras") or {}
+    frames = []
+    recon: dict[str, str] = {}
+    for s in sets:
+        if s.kind == "frames":
+            paths = s.paths
+            frames.append(CameraFrames(s.name, len(s), _reader(paths, read_image),
+                                       _labeler(paths)))
+            continue
+        w, h = seq_cams.get(s.name, {}).get("resolution", (0, 0))
+        size = (int(w), int(h))
+        paths = s.paths
+
+        def read_window(i: int, p: tuple[Path, ...] = paths) -> Any:
+            try:
+                return read_events(p[i], fmt="npz")
+            except IbiscapeError as e:  # a corrupt window is skipped like a corrupt image
+                warnings.warn(f"{e}; skipped", IbiscapeWarning, stacklevel=1)
+                return None
+
+        assert s.windows_ns is not None
+        method, _ = choose_reconstruction(read_window, s.windows_ns, size, target)
+        recon[s.name] = method
+        frames.append(CameraFrames(s.name, len(s), event_frame_loader(read_window, s.windows_ns,
+                                                                      size, method),
+                                   _labeler(paths), reconstruction=method))
+    summary = detect_frames(target, frames, views, max_detect=max_frames, workers=1)
+    result = calibrate_frames(target, summary, model=model, max_views=max_views)
+    truth = compare_with_truth(result, truth_from_sequence(doc))
+    rd = result.to_dict()
+    cams = []
+    for c in (truth.cameras if truth is not None else []):
+        err = c["error"]
+        cams.append({"camera": c["name"], "fx_error_px": err["fx"], "fy_error_px": err["fy"],
+                     "cx_error_px": err["cx"], "cy_error_px": err["cy"],
+                     "distortion_max_error": max(abs(v) for v in err["distortion_coeffs"]),
+                     "fx_px": c["estimate"]["fx"], "fx_truth_px": c["truth"]["fx"]})
+    chain = [{"from": c["from"], "to": c["to"], "baseline_error_mm": c["baseline_error_mm"],
+              "baseline_truth_m": c["baseline_truth_m"], "rotation_error_deg": c["rotation_error_deg"]}
+             for c in (truth.chain if truth is not None else [])]
+    return {"sequence": Path(seq).name, "target": target.to_kalibr().get("target_type"),
+            "model": model, "cameras": cams, "chain": chain, "rms_px": _finite(rd.get("rms_px")),
+            "n_views": rd.get("n_views"), "reconstruction": recon}
+
+
+def imu_camera_calibration(entry: Mapping[str, Any], noise_px: float = 0.2) -> dict[str, Any]:
+    """Camera-IMU extrinsics and time offsets of a suite calibration drive, against the truth.
+
+    Returns per camera ``rotation_error_deg``, ``translation_error_mm``, ``timeshift_error_ms``
+    and the reprojection RMS.
+    """
+    # LEAD: switch to calib.imu_camera.calibrate_sequence
+    # Until the sequence-level function lands, this wrapper uses today's public API as
+    # examples/calibrate_imu_camera.py does: the drive of the suite entry is simulated again
+    # (same config, same seed), the target corners are projected into every RGB/DVS camera
+    # with noise_px of noise, and calibrate_imu_camera solves for T_cam_imu and the time offset.
+    from dataclasses import replace
+
+    from ibiscape_eval.calib.imu_camera import calibrate_imu_camera, errors_against_truth
+    from ibiscape_eval.calib.imu_camera.synthetic import calibration_scene
+    from ibiscape_eval.core.errors import CalibrationError, IbiscapeWarning
+    from ibiscape_eval.sim.calib_scene import simulate_calibration
+    from ibiscape_eval.sim.suite import SuiteEntry
+
+    e = SuiteEntry.from_dict(entry)
+    cfg = e.config()
+    cfg = replace(cfg, cameras=tuple(c for c in cfg.cameras if c.kind in ("rgb", "dvs")))
+    sim = simulate_calibration(cfg)
+    sc = calibration_scene(sim, noise_px=noise_px, min_spacing_px=4.0)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", IbiscapeWarning)
+            res = calibrate_imu_camera(sc.observations, sc.imu, sc.noise, sc.corners_target_m,
+                                       sigma_px=noise_px)
+    except CalibrationError as err:
+        raise CalibrationError(f"{e.name} ({e.duration_s:g} s drive, {e.side_px} px): {err}; a "
+                               "larger --scale gives longer drives over the bumps (roll and "
+                               "pitch) and larger images of the board") from None
+    truth = {k: {"T_cam_imu": sc.T_cam_imu[k], "timeshift_cam_imu": sc.timeshift_cam_imu_s[k]}
+             for k in sc.T_cam_imu}
+    errs = errors_against_truth(res, truth)
+    rows = []
+    for c in res.cameras:
+        er = errs.get(c.name, {})
+        rows.append({"camera": c.name,
+                     "rotation_error_deg": _finite(er.get("rotation_error_deg")),
+                     "translation_error_mm": _finite(1e3 * er.get("translation_error_m", math.nan)),
+                     "timeshift_error_ms": _finite(1e3 * er.get("timeshift_error_s", math.nan)),
+                     "reprojection_rms_px": _finite(c.reprojection_rms_px)})
+    return {"sequence": e.name, "cameras": rows, "forced": bool(res.forced),
+            "method": "simulated corner observations of the suite drive (calibrate_imu_camera)"}
+
+
+# ---------------------------------------------------------------------------------------------
+# IMU noise
+
+
+def imu_noise(seq: str) -> dict[str, Any]:
+    """Allan-deviation noise fit of IMU0 of a still sequence against its configured densities.
+
+    Returns one row per Kalibr key (``truth``, ``estimate``, ``error_pct``); the estimate is the
+    largest of the three axes, as ``allan --yaml`` writes it.
+    """
+    from ibiscape_eval.imu import allan_deviation, fit_noise_model
+    from ibiscape_eval.io.imu import read_imu
+
+    doc = _sequence_doc(seq)
+    imu0 = (doc.get("imus") or {}).get("imu0")
+    if not isinstance(imu0, dict) or "file" not in imu0:
+        raise IbiscapeError(f"{seq}/sequence.yaml: no imu0 with its file and noise densities")
+    path = Path(seq) / str(imu0["file"])
+    rate = float(imu0.get("update_rate", 200.0))
+    rec = read_imu(path, rate_hz=rate if path.suffix == ".npy" else None)
+    res = allan_deviation(rec, rec.rate_hz, names=rec.names)
+    model = fit_noise_model(res)
+    est = model.kalibr(gyro=rec.names[:3], accel=rec.names[3:])
+    rows = []
+    for key in KALIBR_NOISE_KEYS:
+        t, v = _finite(imu0.get(key)), _finite(est.get(key))
+        rows.append({"key": key, "truth": t, "estimate": v,
+                     "error_pct": None if t in (None, 0.0) or v is None else 100.0 * (v / t - 1.0)})
+    return {"sequence": Path(seq).name, "n_samples": int(rec.n_samples),
+            "duration_h": rec.n_samples / rec.rate_hz / 3600.0, "rate_hz": rec.rate_hz, "rows": rows}
+
+
+# ---------------------------------------------------------------------------------------------
+# DVS hot pixels
+
+
+def hot_pixels(seq: str, camera: str, n_sigma: float = 5.0) -> dict[str, Any]:
+    """The n-sigma hot-pixel filter on one DVS camera of ``seq``.
+
+    Returns the fraction of events removed and, against the pixels the simulator made noisy
+    (``sequence.yaml``: ``cameras.<camera>.dvs.noisy_pixels``), precision and recall of the
+    detected set (None when there is nothing to compare: clear weather plants no noisy pixel).
+    """
+    import numpy as np
+
+    from ibiscape_eval.events.hotpix import PixelCounter
+    from ibiscape_eval.io.events import iter_event_chunks, open_events
+
+    doc = _sequence_doc(seq)
+    cam = (doc.get("cameras") or {}).get(camera)
+    if not isinstance(cam, dict):
+        raise IbiscapeError(f"{seq}/sequence.yaml: no camera {camera!r}")
+    w, h = (int(v) for v in cam.get("resolution", (0, 0)))
+    src = open_events(Path(seq) / camera, fmt="ibiscape")
+    counter = PixelCounter(sensor_size=(w, h))
+    for chunk in iter_event_chunks(src):
+        counter.add(chunk.events, chunk)
+    res = counter.result(n_sigma=n_sigma)
+    planted = np.asarray((cam.get("dvs") or {}).get("noisy_pixels") or [], dtype=np.int64)
+    found = np.asarray(res.pixels, dtype=np.int64).reshape(-1, 2)
+    a = {tuple(p) for p in found.tolist()}
+    b = {tuple(p) for p in planted.reshape(-1, 2).tolist()}
+    tp = len(a & b)
+    return {"sequence": Path(seq).name, "camera": camera, "n_events": int(res.n_events),
+            "n_hot_pixels": len(a), "n_noisy_pixels": len(b),
+            "fraction_removed": _finite(res.fraction_discarded),
+            "precision": tp / len(a) if a and b else None,
+            "recall": tp / len(b) if b else None}
+
+
+# ---------------------------------------------------------------------------------------------
+# VIO
+
+
+def vio(seq: str, max_frames: int | None = None) -> dict[str, Any]:
+    """The stereo-VIO baseline on ``seq``: statistics and the estimate as TUM text."""
+    import tempfile
+
+    from ibiscape_eval.io import write_trajectory
+    from ibiscape_eval.vio.inputs import load_sequence
+    from ibiscape_eval.vio.pipeline import run_vio
+
+    gt = Path(seq) / "vehicle_gt" / "groundtruth_sync.csv"
+    if not gt.is_file():
+        raise IbiscapeError(f"{gt}: no ground truth; the VIO estimate cannot be scored")
+    s = load_sequence(Path(seq))
+    res = run_vio(s, max_frames=max_frames)
+    with tempfile.TemporaryDirectory() as d:
+        p = Path(d) / "est.txt"
+        write_trajectory(p, res.trajectory, "tum")
+        text = p.read_text(encoding="utf-8")
+    stats = res.to_dict()
+    keep = {k: stats[k] for k in ("frames", "keyframes", "frames_estimated", "failures",
+                                  "init_method", "cpu_realtime_factor") if k in stats}
+    return {"sequence": Path(seq).name, "stats": keep, "n_poses": len(res.trajectory),
+            "estimate_tum": text}

@@ -1,0 +1,224 @@
+"""``ibiscape-eval benchmark`` end to end on a tiny suite: every step, failures, Dask parity."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import pytest
+from click.testing import CliRunner
+
+from ibiscape_eval.batch import LocalExecutor
+from ibiscape_eval.benchmark import STEPS, run_benchmark
+from ibiscape_eval.cli.main import cli
+from ibiscape_eval.report.benchmark_report import benchmark_tables, write_benchmark_report
+
+# one sequence per step: still IMU (Allan), an SVI calibration drive (camera and camera-IMU
+# calibration), a dynamic-weather ESVI run (hot pixels; no stereo RGB: VIO not applicable) and a
+# clear SVI run (VIO, ATE/RPE)
+SUBSET = ("IMU_calib_1", "SVI_calib_1", "ESVI_slam_dyn_1", "SVI_slam_clear_1")
+SCALE = "0.002"  # 128 px cameras, 3 s runs, 30 min of still IMU
+
+
+def _only(names):
+    return [a for n in names for a in ("--only", n)]
+
+
+@pytest.fixture(scope="module")
+def bench(tmp_path_factory):
+    root = tmp_path_factory.mktemp("bench")
+    r = CliRunner().invoke(cli, ["benchmark", str(root / "b"), "--scale", SCALE, "--workers", "2",
+                                 "--no-cache", "--json", *_only(SUBSET)])
+    assert r.exit_code == 0, r.output
+    return root / "b", json.loads(r.stdout), r.stderr
+
+
+def _rec(doc, step, key):
+    return next(r for r in doc["steps"][step] if r["key"] == key)
+
+
+def test_every_step_ran_and_the_report_is_written(bench) -> None:
+    out, doc, err = bench
+    assert list(doc["steps"]) == list(STEPS)
+    assert sorted(r["key"] for r in doc["steps"]["suite"]) == sorted(SUBSET)
+    assert all(r["status"] == "ok" for r in doc["steps"]["suite"])
+    for name in ("report.html", "report.md", "report.json"):
+        assert (out / "report" / name).is_file()
+    html = (out / "report" / "report.html").read_text()
+    assert "<script" not in html and "Camera-IMU calibration" in html
+    assert html.count('src="data:image/png;base64,') == 2  # VIO top view and error box plots
+    assert (out / "report" / "figures" / "errors_boxplot.png").is_file()
+    assert f"report: {out / 'report' / 'report.html'}" in err
+    assert json.loads((out / "report" / "report.json").read_text())["steps"] == doc["steps"]
+    assert (out / "suite" / "suite.json").is_file()
+    assert set(doc["wall_s"]) == set(STEPS)
+
+
+def test_imu_noise_against_the_configured_truth(bench) -> None:
+    _, doc, _ = bench
+    rec = _rec(doc, "imu_noise", "IMU_calib_1")
+    assert rec["status"] == "ok", rec["error"]
+    rows = {r["key"]: r for r in rec["value"]["rows"]}
+    assert rec["value"]["duration_h"] == pytest.approx(0.5, rel=1e-4)
+    # white-noise densities of a known simulated IMU: recovered within 10 % from 30 min
+    for key in ("gyroscope_noise_density", "accelerometer_noise_density"):
+        assert abs(rows[key]["error_pct"]) < 10.0, rows[key]
+    assert rows["gyroscope_noise_density"]["truth"] == pytest.approx(1.6968e-4)
+
+
+def test_camera_calibration_step_on_the_suite_drive(bench) -> None:
+    _, doc, _ = bench
+    rec = _rec(doc, "camera_calibration", "SVI_calib_1")
+    if rec["status"] == "ok":
+        v = rec["value"]
+        assert [c["camera"] for c in v["cameras"]] == ["rgbL", "rgbR"]
+        assert all(c["fx_truth_px"] == pytest.approx(64.0) for c in v["cameras"])  # 128 px, 90 deg
+    else:  # a 3 s head-on drive at 128 px sees a few-pixel board: refused, naming the camera
+        assert rec["error"].startswith("CalibrationError: rgbL: no target found")
+
+
+def test_camera_calibration_job_recovers_known_cameras(tmp_path) -> None:
+    """The job on tilted views of a rendered checkerboard (sim.calib_views) with known cameras."""
+    import numpy as np
+
+    from ibiscape_eval.benchmark.steps import camera_calibration
+    from ibiscape_eval.core.camera import CameraModel
+    from ibiscape_eval.sim.calib_views import render_calibration_views
+
+    left = CameraModel(320, 240, 210.0, 210.0, 159.5, 119.5, "radtan", (-0.1, 0.02, 0.0, 0.0))
+    right = CameraModel(320, 240, 211.0, 210.5, 161.0, 118.0, "radtan", (-0.1, 0.02, 0.0, 0.0))
+    T = np.eye(4)
+    T[0, 3] = 0.4  # right camera 0.4 m to the right of the left one
+    seq = render_calibration_views(tmp_path / "cal", {"rgbL": left, "rgbR": right}, {"rgbR": T},
+                                   target="checkerboard", n_views=9, seed=1, distance_m=(3.0, 7.0))
+    v = camera_calibration(str(seq), ["rgbL", "rgbR"])
+    assert [c["camera"] for c in v["cameras"]] == ["rgbL", "rgbR"]
+    for c in v["cameras"]:
+        assert abs(c["fx_error_px"]) < 1.0 and abs(c["fy_error_px"]) < 1.0, c
+        assert abs(c["cx_error_px"]) < 1.5 and abs(c["cy_error_px"]) < 1.5, c
+    (pair,) = v["chain"]
+    assert pair["baseline_truth_m"] == pytest.approx(0.4)
+    assert abs(pair["baseline_error_mm"]) < 5.0 and pair["rotation_error_deg"] < 0.2
+    assert v["rms_px"] < 0.5 and v["target"] == "checkerboard"
+
+
+def test_camera_imu_step_has_a_record(bench) -> None:
+    _, doc, _ = bench
+    rec = _rec(doc, "imu_camera", "SVI_calib_1")
+    if rec["status"] == "ok":
+        assert [c["camera"] for c in rec["value"]["cameras"]] == ["rgbL", "rgbR"]
+    else:  # a 3 s drive: too few views or no bumps, refused with the reason and the remedy
+        assert rec["error"].startswith("CalibrationError: SVI_calib_1 (3 s drive, 128 px): ")
+        assert "--scale" in rec["error"]
+
+
+def test_hot_pixels_against_the_planted_noisy_pixels(bench) -> None:
+    _, doc, _ = bench
+    for cam in ("davisL", "davisR"):
+        rec = _rec(doc, "hot_pixels", f"ESVI_slam_dyn_1/{cam}")
+        assert rec["status"] == "ok", rec["error"]
+        v = rec["value"]
+        assert v["n_events"] > 0 and v["n_noisy_pixels"] > 0  # dynamic weather plants them
+        assert 0.0 <= v["fraction_removed"] < 1.0
+        # the weather's noisy pixels stand out from the scene's events
+        assert v["precision"] >= 0.9 and v["recall"] >= 0.5, v
+
+
+def test_vio_on_stereo_sequences_only(bench) -> None:
+    _, doc, _ = bench
+    assert [r["key"] for r in doc["steps"]["vio"]] == ["SVI_slam_clear_1"]
+    assert {"step": "vio", "sequence": "ESVI_slam_dyn_1",
+            "reason": "ESVI has no stereo RGB pair"} in doc["skipped"]
+    rec = doc["steps"]["vio"][0]
+    assert rec["status"] == "ok", rec["error"]
+    assert "estimate_tum" not in rec["value"]  # written to runs/, not kept in the report
+    assert rec["value"]["stats"]["frames"] == 61 and not rec["value"]["stats"]["failures"]
+    (ev,) = doc["steps"]["evaluation"]
+    assert ev["status"] == "ok", ev["error"]
+    assert 0.0 < ev["value"]["ate_rmse_m"] < 0.5  # 3 s of clear-weather driving at 128 px
+    assert doc["evaluation"]["table"]["cells"][0]["sequence"] == "SVI_slam_clear_1"
+    out, _, _ = bench
+    assert (out / "runs" / "SVI_slam_clear_1" / "vio-baseline" / "1" / "estimate.txt").is_file()
+
+
+@pytest.fixture(scope="module")
+def scheduler():
+    import distributed  # a dependency: missing it is a failure, not a skip
+
+    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                       host="127.0.0.1", dashboard_address=None)
+    try:
+        yield cluster.scheduler_address
+    finally:
+        cluster.close()
+
+
+def _tables(doc):
+    steps = {k: [{x: r[x] for x in ("key", "status", "error", "value")} for r in v]
+             for k, v in doc["steps"].items() if k != "suite"}
+    return {"steps": steps, "skipped": doc["skipped"], "evaluation": doc["evaluation"]}
+
+
+def test_local_and_dask_give_identical_tables(bench, scheduler, tmp_path) -> None:
+    out, _, _ = bench
+    only = _only(("IMU_calib_1", "SVI_calib_1", "ESVI_slam_dyn_1"))
+    base = ["benchmark", "--suite", str(out / "suite"), "--no-cache", "--json", "--no-figures",
+            *only]
+    local = CliRunner().invoke(cli, [*base[:1], str(tmp_path / "local"), *base[1:], "--workers", "2"])
+    dask = CliRunner().invoke(cli, [*base[:1], str(tmp_path / "dask"), *base[1:],
+                                    "--scheduler", scheduler])
+    assert local.exit_code == 0, local.output
+    assert dask.exit_code == 0, dask.output
+    assert f"on the Dask scheduler {scheduler}" in dask.stderr
+    d_local, d_dask = json.loads(local.stdout), json.loads(dask.stdout)
+    assert _tables(d_local) == _tables(d_dask)  # every number, bit for bit
+    assert d_local["steps"]["imu_noise"][0]["status"] == "ok"
+
+
+def test_unreachable_scheduler_fails_fast_naming_the_address(tmp_path) -> None:
+    addr = "tcp://127.0.0.1:9"
+    r = CliRunner().invoke(cli, ["benchmark", str(tmp_path / "b"), "--scheduler", addr])
+    assert r.exit_code == 2
+    assert addr in r.stderr and r.stderr.count("\n") == 1
+    assert not (tmp_path / "b").exists()
+    r = CliRunner().invoke(cli, ["sim", "suite", "--out", str(tmp_path / "s"), "--scheduler", addr])
+    assert r.exit_code == 2 and addr in r.stderr
+
+
+def test_failing_steps_are_recorded_and_the_rest_continue(bench, tmp_path) -> None:
+    out, _, _ = bench
+    suite = tmp_path / "suite"
+    shutil.copytree(out / "suite", suite)
+    # a still-IMU file cut in the middle of a row, and a SLAM sequence without ground truth
+    imu = suite / "IMU_calib_1" / "other_sensors" / "imu.csv"
+    data = imu.read_bytes()
+    imu.write_bytes(data[: len(data) // 2 - 7])
+    shutil.rmtree(suite / "SVI_slam_clear_1" / "vehicle_gt")
+    res = run_benchmark(tmp_path / "b", suite_dir=suite, executor=LocalExecutor(1),
+                        sequences=["IMU_calib_1", "ESVI_slam_dyn_1", "SVI_slam_clear_1"])
+    imu_rec = res.steps["imu_noise"][0]
+    assert imu_rec["status"] == "failed" and "imu.csv" in imu_rec["error"]
+    vio_rec = res.steps["vio"][0]
+    assert vio_rec["status"] == "failed"
+    assert "groundtruth_sync.csv: no ground truth" in vio_rec["error"]
+    assert all(r["status"] == "ok" for r in res.steps["hot_pixels"])
+    assert res.evaluation is None and res.n_failed == 2
+    assert {f["step"] for f in res.failed()} == {"imu_noise", "vio"}
+    files = write_benchmark_report(tmp_path / "report", res)
+    md = (tmp_path / "report" / "report.md").read_text()
+    assert "FAILED: " in md and "no ground truth" in md and len(files) == 3
+    titles = [t.title for t in benchmark_tables(res)]
+    assert titles[0].startswith("Camera calibration") and titles[-1] == "Wall time per step"
+
+
+def test_missing_suite_manifest_is_one_line(tmp_path) -> None:
+    r = CliRunner().invoke(cli, ["benchmark", str(tmp_path / "b"), "--suite", str(tmp_path)])
+    assert r.exit_code == 2 and "suite.json: not found" in r.stderr
+    r = CliRunner().invoke(cli, ["benchmark", str(tmp_path / "b"), "--scale", "3"])
+    assert r.exit_code == 2 and "scale must be a number in (0, 1]" in r.stderr
+
+
+def test_unknown_sequence_is_refused_before_anything_is_written(tmp_path) -> None:
+    r = CliRunner().invoke(cli, ["benchmark", str(tmp_path / "b"), "--only", "SVI_calib_9"])
+    assert r.exit_code == 2 and "unknown suite sequence(s) SVI_calib_9" in r.stderr
+    assert not (tmp_path / "b").exists()
