@@ -69,6 +69,8 @@ SCENARIOS = ("default", "accident")
 CAMERA_KINDS = ("rgb", "depth", "semantic", "dvs")
 TARGETS = ("checkerboard", "aprilgrid")
 CAM_HEIGHT_M = 2.8
+#: largest camera clock offset the simulator accepts [s] (Kalibr searches offsets of this order)
+MAX_TIMESHIFT_S = 0.1
 
 
 def _doc(text: str) -> Any:
@@ -137,6 +139,9 @@ class CameraSpec:
     distortion_coeffs: tuple[float, float, float, float] = field(
         default=(0.0, 0.0, 0.0, 0.0), metadata=_doc(
             "radtan [k1, k2, p1, p2] or equidistant [k1, k2, k3, k4]"))
+    timeshift_cam_imu_s: float = field(default=0.0, metadata=_doc(
+        "camera clock offset, Kalibr's timeshift_cam_imu (t_imu = t_cam + shift): a frame "
+        "stamped t_cam shows the scene at t_cam + shift [s], within +-0.1"))
 
     @property
     def focal_px(self) -> float:
@@ -333,6 +338,11 @@ def validate(cfg: SimConfig) -> None:
         _vec3(c.position_m, f"cameras.{c.name}.position_m")
         _vec3(c.rpy_deg, f"cameras.{c.name}.rpy_deg")
         _check_camera_optics(c)
+        ts = c.timeshift_cam_imu_s
+        if not (isinstance(ts, int | float) and not isinstance(ts, bool) and math.isfinite(ts)
+                and abs(ts) <= MAX_TIMESHIFT_S):
+            raise IbiscapeError(f"config: cameras.{c.name}.timeshift_cam_imu_s must be a number of "
+                                f"seconds within +-{MAX_TIMESHIFT_S:g}, got {ts!r}")
     g = cfg.gnss
     _positive(g.rate_hz, "gnss.rate_hz")
     _nonneg(g.sigma_horizontal_m, "gnss.sigma_horizontal_m")
