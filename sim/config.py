@@ -214,8 +214,11 @@ class MotionSpec:
     accident_obstacle_gap_m: float = field(default=2.0, metadata=_doc(
         "accident scenario: gap between the stopped car's front and the obstacle [m]"))
     start_distance_m: float = field(default=0.0, metadata=_doc(
-        "calibration: start the approach this far in front of the board, 12..90 m, for short "
+        "calibration loop: start the approach this far in front of the board, 12..90 m, for short "
         "sequences that should see it near (0 = the full 90 m approach, as in the paper)"))
+    calibration_drive: str = field(default="shuttle", metadata=_doc(
+        "calibration: shuttle (forward and reverse legs 5-15 m in front of the board, seen from "
+        "-33..33 deg off its normal, in view nearly all the time) | loop (the paper's approach loop)"))
 
 
 @dataclass(frozen=True)
@@ -364,6 +367,10 @@ def validate(cfg: SimConfig) -> None:
     _positive(cfg.motion.accident_decel_m_s2, "motion.accident_decel_m_s2")
     _nonneg(cfg.motion.accident_obstacle_gap_m, "motion.accident_obstacle_gap_m")
     _nonneg(cfg.motion.start_distance_m, "motion.start_distance_m")
+    _choice(cfg.motion.calibration_drive, ("shuttle", "loop"), "motion.calibration_drive")
+    if cfg.motion.start_distance_m and cfg.motion.calibration_drive != "loop" and cfg.kind == "calibration":
+        raise IbiscapeError("config: motion.start_distance_m applies to the loop drive; set "
+                            "motion.calibration_drive: loop or remove start_distance_m")
     if not isinstance(cfg.motion.town_blocks, int) or cfg.motion.town_blocks < 1:
         raise IbiscapeError(f"config: motion.town_blocks must be an integer >= 1, got {cfg.motion.town_blocks!r}")
     ts = cfg.render.target_supersample
