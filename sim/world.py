@@ -50,7 +50,8 @@ CALIBRATION_DRIVES = ("shuttle", "loop")
 #: the shuttle drive in front of a board (see :func:`shuttle_legs`): sweep of viewing angles off the
 #: board's normal [deg], near and far distances [m], straight run-in and run-out [m], legs per lap
 SHUTTLE_SWEEP_DEG = (-30.0, -20.0, -10.0, 0.0, 10.0, 20.0, 30.0, 20.0, 10.0, 0.0, -10.0, -20.0)
-SHUTTLE_NEAR_M = (5.5, 7.0)
+SHUTTLE_NEAR_M = (4.5, 6.5)
+SHUTTLE_AIM_M = 1.6
 SHUTTLE_FAR_M = (12.0, 15.0)
 SHUTTLE_RUN_IN_M = 2.0
 SHUTTLE_RUN_OUT_M = 2.0
@@ -271,8 +272,9 @@ def shuttle_legs(target: str, seed: int, pairs: int = SHUTTLE_PAIRS) -> tuple[Fl
     a line through the board's centre, runs ``SHUTTLE_RUN_IN_M`` straight at it, crosses over to
     the line of the next viewing angle of ``SHUTTLE_SWEEP_DEG`` (off the board's normal, jittered
     +-3 deg) and ends on that line ``SHUTTLE_NEAR_M`` from the board after a straight
-    ``SHUTTLE_RUN_OUT_M``, looking at the board's centre; the reverse leg backs straight out along
-    that line to the far distance.  The car stops at every end (a cusp: the heading is continuous).
+    ``SHUTTLE_RUN_OUT_M``; the reverse leg backs straight out along that line to the far distance.
+    Each line is aimed up to ``SHUTTLE_AIM_M`` beside the board's centre, so that the board is
+    also seen off the image centre (for the camera calibration on the same drive).  The car stops at every end (a cusp: the heading is continuous).
     Distances are drawn per leg from the seed; after ``pairs`` (a multiple of the sweep) the drive
     is back at its start, so the legs can be driven again.
     """
@@ -288,14 +290,21 @@ def shuttle_legs(target: str, seed: int, pairs: int = SHUTTLE_PAIRS) -> tuple[Fl
 
     far = rng.uniform(*SHUTTLE_FAR_M, pairs)
     near = rng.uniform(*SHUTTLE_NEAR_M, pairs)
+    aim = rng.uniform(-SHUTTLE_AIM_M, SHUTTLE_AIM_M, pairs)
+
+    def on_line(k: int, r: float) -> FloatArray:
+        """``r`` metres out along line ``k``: at angle ``phi[k]``, aimed ``aim[k]`` beside the centre
+        (the board then sits off the image centre, which the camera calibration needs)."""
+        u = out(phi[k])
+        return c + aim[k] * np.array([-u[1], u[0]]) + r * u
+
     legs: list[FloatArray] = []
     for k in range(pairs):
         j = (k + 1) % pairs
-        f = c + far[k] * out(phi[k])
-        nk = c + near[k] * out(phi[j])
-        legs.append(np.array([f, f - SHUTTLE_RUN_IN_M * out(phi[k]),
-                              c + (near[k] + SHUTTLE_RUN_OUT_M) * out(phi[j]), nk]))
-        legs.append(np.array([nk, c + far[j] * out(phi[j])]))
+        nk = on_line(j, near[k])
+        legs.append(np.array([on_line(k, far[k]), on_line(k, far[k] - SHUTTLE_RUN_IN_M),
+                              on_line(j, near[k] + SHUTTLE_RUN_OUT_M), nk]))
+        legs.append(np.array([nk, on_line(j, far[j])]))
     return tuple(legs)
 
 

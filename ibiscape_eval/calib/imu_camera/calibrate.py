@@ -468,6 +468,59 @@ def _refine(prob: Problem, st: State, dt: float) -> tuple[Problem, State]:
     return new, st2
 
 
+class _BandedSchur:
+    """Factorisation of the SPD normal matrix ``H``: the control points (interleaved rotation and
+    position of each knot) form a banded block, the rest (biases, gravity, cameras) a small dense
+    border; banded Cholesky plus the Schur complement of the border (a few ms where a general
+    sparse LU takes seconds).  Raises ``numpy.linalg.LinAlgError`` when ``H`` is not positive
+    definite."""
+
+    def __init__(self, prob: Problem, H: Any):
+        import scipy.linalg as la
+        import scipy.sparse as sp
+
+        nc = prob.n_ctrl
+        k = np.arange(nc)
+        ctrl = np.stack([3 * k, 3 * k + 1, 3 * k + 2, 3 * nc + 3 * k, 3 * nc + 3 * k + 1,
+                         3 * nc + 3 * k + 2], -1).ravel()
+        glob = np.arange(6 * nc, prob.n_params)
+        Hc = sp.csr_matrix(H)
+        A = Hc[ctrl][:, ctrl].tocoo()
+        lower = A.row >= A.col
+        bw = int((A.row[lower] - A.col[lower]).max(initial=0))
+        ab = np.zeros((bw + 1, ctrl.size))
+        ab[(A.row - A.col)[lower], A.col[lower]] = A.data[lower]
+        self.cf = la.cholesky_banded(ab, lower=True, check_finite=False)
+        self.B = Hc[ctrl][:, glob].toarray()
+        self.AiB = la.cho_solve_banded((self.cf, True), self.B, check_finite=False)
+        S = Hc[glob][:, glob].toarray() - self.B.T @ self.AiB
+        self.S = la.cho_factor(S, check_finite=False)
+        self.ctrl, self.glob, self.n = ctrl, glob, prob.n_params
+
+    def solve(self, rhs: FloatArray) -> FloatArray:
+        import scipy.linalg as la
+
+        r = rhs.reshape(self.n, -1)
+        ra, rg = r[self.ctrl], r[self.glob]
+        Ai_ra = la.cho_solve_banded((self.cf, True), ra, check_finite=False)
+        xg = la.cho_solve(self.S, rg - self.B.T @ Ai_ra, check_finite=False)
+        xa = Ai_ra - self.AiB @ xg
+        x = np.empty_like(r)
+        x[self.ctrl], x[self.glob] = xa, xg
+        return x.reshape(rhs.shape)
+
+
+def _factor(prob: Problem, A: Any) -> Any:
+    """A solver of the damped normal equations: banded Schur, else a sparse LU."""
+    try:
+        return _BandedSchur(prob, A)
+    except (np.linalg.LinAlgError, ValueError):
+        import scipy.sparse as sp
+        from scipy.sparse.linalg import splu
+
+        return splu(sp.csc_matrix(A), permc_spec="COLAMD")
+
+
 def _solve(prob: Problem, st: State, max_iterations: int, step: Callable[[float, str], None],
            span: tuple[float, float] = (0.1, 0.95), rel_tol: float = 0.0
            ) -> tuple[State, int, bool, Any]:
@@ -475,7 +528,6 @@ def _solve(prob: Problem, st: State, max_iterations: int, step: Callable[[float,
     parameter by a noticeable fraction of its standard deviation) or by less than ``rel_tol``
     relative."""
     import scipy.sparse as sp
-    from scipy.sparse.linalg import splu
 
     lam = 1e-4
     H, g, c0 = normal_equations(prob, st)
@@ -488,7 +540,7 @@ def _solve(prob: Problem, st: State, max_iterations: int, step: Callable[[float,
             d_h = np.asarray(H.diagonal())
             A = H + sp.diags(lam * d_h + 1e-9, format="csc")
             try:
-                delta = splu(sp.csc_matrix(A), permc_spec="COLAMD").solve(-g)
+                delta = _factor(prob, A).solve(-g)
             except RuntimeError:
                 lam *= 10
                 continue
@@ -527,14 +579,13 @@ def _result(prob: Problem, st: State, H: Any, exc: Excitation, warn: list[str], 
             converged: bool, forced: bool, t_start: float, observations: Sequence[CameraObservations],
             keep_residuals: bool) -> ImuCameraResult:
     import scipy.sparse as sp
-    from scipy.sparse.linalg import splu
 
     C = len(prob.cams)
     gl = np.r_[prob.i_grav : prob.i_grav + 2 + 7 * C]
     Hs = sp.csc_matrix(H) + sp.identity(prob.n_params, format="csc") * 1e-12
     E = np.zeros((prob.n_params, gl.size))
     E[gl, np.arange(gl.size)] = 1.0
-    cov = splu(Hs, permc_spec="COLAMD").solve(E)[gl]
+    cov = _factor(prob, Hs).solve(E)[gl]
     r_imu, _, _, _ = imu_block(prob, st, jac=False)
     n_res = r_imu.size
     chi2 = float(np.sum(r_imu**2))
