@@ -257,6 +257,7 @@ def calibrate_imu_camera(
     min_rate_std_rad_s: float = 0.02,
     gravity_m_s2: float = 9.81,
     force: bool = False,
+    refine_intrinsics: bool = False,
     max_iterations: int = 40,
     rate_tolerance: float = 0.05,
     keep_residuals: bool = True,
@@ -291,6 +292,9 @@ def calibrate_imu_camera(
     force : bool
         Estimate even when fewer than two rotation axes are excited (the translation is then not
         observable); the result carries warnings naming the weak directions.
+    refine_intrinsics : bool
+        Also estimate each camera's focal lengths and principal point (distortion held), from
+        the given intrinsics: for intrinsics from a camera calibration of weakly tilted views.
     progress : callable(fraction, label), optional
 
     Returns
@@ -397,7 +401,7 @@ def calibrate_imu_camera(
                     + [noise.accel_random_walk_m_s3_sqrt_hz] * 3) * math.sqrt(bias_dt)
     prob = Problem(dt, pieces, n_ctrl, span_lo, bias_dt, n_bias, imu_t[in_piece],
                    imu.gyro_rad_s[in_piece], imu.accel_m_s2[in_piece], sg, sa, walk,
-                   gravity_m_s2, blocks, sigma_px)
+                   gravity_m_s2, blocks, sigma_px, n_intr=4 if refine_intrinsics else 0)
 
     # ---- initial trajectory: rotation from the aligned gyro integral, positions from PnP (t_ci = 0)
     ts, ps = [], []
@@ -417,8 +421,10 @@ def calibrate_imu_camera(
         for c in range(1, len(observations)):
             a = int(np.argmin(np.linalg.norm(R_tw0[c] @ Rks - R_tw0[0], axis=(1, 2))))
             R_ci0[c] = R_ci0[c] @ Rks[a]
+    intr0 = np.array([[b.camera.fx, b.camera.fy, b.camera.cx, b.camera.cy] for b in blocks])
     st = State(R_ctrl, P_ctrl, np.zeros((n_bias, 6)), np.eye(3), np.asarray(R_ci0),
-               np.zeros((len(observations), 3)), np.asarray(shifts, dtype=np.float64))
+               np.zeros((len(observations), 3)), np.asarray(shifts, dtype=np.float64),
+               intr0 if refine_intrinsics else None)
     st, _ = _linear_translation_init(prob, st, ps)
     if len(exc.weak_rotation_axes) >= 2:  # rotation about one axis only (a flat road, --force)
         st = _resolve_single_axis(prob, st, ps)
@@ -581,7 +587,8 @@ def _result(prob: Problem, st: State, H: Any, exc: Excitation, warn: list[str], 
     import scipy.sparse as sp
 
     C = len(prob.cams)
-    gl = np.r_[prob.i_grav : prob.i_grav + 2 + 7 * C]
+    w = prob.cam_width
+    gl = np.r_[prob.i_grav : prob.i_grav + 2 + w * C]
     Hs = sp.csc_matrix(H) + sp.identity(prob.n_params, format="csc") * 1e-12
     E = np.zeros((prob.n_params, gl.size))
     E[gl, np.arange(gl.size)] = 1.0
@@ -596,7 +603,7 @@ def _result(prob: Problem, st: State, H: Any, exc: Excitation, warn: list[str], 
         chi2 += float(np.sum(rc**2))
         n_res += 2 * int(valid.sum())
         e_px = rc[valid] * prob.sigma_px
-        k = 2 + 7 * c
+        k = 2 + w * c
         cc = cov[k : k + 7, k : k + 7]
         var = np.clip(np.diag(cc), 0.0, None)
         R_ci = st.R_ci[c]
@@ -605,7 +612,7 @@ def _result(prob: Problem, st: State, H: Any, exc: Excitation, warn: list[str], 
         T[:3, :3] = R_ci
         T[:3, 3] = st.t_ci[c]
         cams.append(CameraImuCalibration(
-            prob.cams[c].name, prob.cams[c].camera, T, float(st.shift_s[c]),
+            prob.cams[c].name, st.camera(prob, c), T, float(st.shift_s[c]),
             np.degrees(np.sqrt(var[:3])), np.sqrt(var[3:6]),
             np.sqrt(np.clip(np.diag(cov_pos), 0.0, None)), float(math.sqrt(var[6])),
             float(np.sqrt(np.mean(np.sum(e_px**2, axis=1)))) if len(e_px) else float("nan"),

@@ -211,6 +211,7 @@ def calibrate_sequence(sequence: str | os.PathLike[str],
                        progress: Progress | None = None,
                        imu_data: str | os.PathLike[str] | None = None,
                        target: Any = None, frame_step: int = 1, sigma_px: float = 0.3,
+                       refine_intrinsics: bool | None = None,
                        workers: int | None = None) -> SequenceCalibration:
     """Calibrate ``T_cam_imu`` and ``timeshift_cam_imu`` of every camera of a sequence.
 
@@ -236,6 +237,9 @@ def calibrate_sequence(sequence: str | os.PathLike[str],
         Default: ``sequence.yaml``'s target.
     frame_step : int
         Use every n-th frame of each camera (1: all).
+    refine_intrinsics : bool, optional
+        Also estimate focal lengths and principal points (default: when they come from the camera
+        calibration of the same frames, not with ``camchain``).
 
     Raises
     ------
@@ -384,9 +388,12 @@ def calibrate_sequence(sequence: str | os.PathLike[str],
         step(0.5 + 0.5 * frac, label)
 
     corners = target.object_points()
+    # intrinsics from a calibration on the drive's own (weakly tilted) views are refined with the
+    # extrinsics; those of --cams are taken as they are (Kalibr's way)
+    refine = camchain is None if refine_intrinsics is None else bool(refine_intrinsics)
     try:
         result = calibrate_imu_camera(obs, imu, noise, corners, sigma_px=sigma_px, force=force,
-                                      progress=solve_progress)
+                                      refine_intrinsics=refine, progress=solve_progress)
     except CalibrationError as e:
         msg = str(e)
         if "update_rate" in msg or "IMU stream" in msg:
@@ -394,6 +401,14 @@ def calibrate_sequence(sequence: str | os.PathLike[str],
         raise
     truth = _truth(doc, names)
     errors = errors_against_truth(result, truth)
+    from ibiscape_eval.calib.report import truth_from_sequence
+
+    true_cams = truth_from_sequence(doc)
+    for cal in result.cameras:
+        if cal.name in errors and cal.name in true_cams:
+            t_cam = true_cams[cal.name][0]
+            errors[cal.name].update({f"{k}_error_px": float(a - b) for k, a, b in zip(
+                ("fx", "fy", "cx", "cy"), cal.camera.intrinsics, t_cam.intrinsics, strict=True)})
     t_end = time.perf_counter()
     detection = {"frame_step": frame_step, "cameras": [
         {"name": n, "frames": int(stamps[k].size), "frames_with_target": int(obs[k].n_frames_with_target),
