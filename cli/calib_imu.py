@@ -37,7 +37,7 @@ def run_sequence(seq: Path, imu_yaml: Path, *, camchain: Path | None, imu_data: 
 
     from .progress import fraction_callback, progress_bar
 
-    noise = read_imu_noise(imu_yaml)  # a bad imu.yaml fails before any image is read
+    read_imu_noise(imu_yaml)  # a bad imu.yaml fails before anything else is read
     target = None
     if target_path is not None:
         from ibiscape_eval.calib.targets import target_from_kalibr
@@ -45,7 +45,7 @@ def run_sequence(seq: Path, imu_yaml: Path, *, camchain: Path | None, imu_data: 
 
         target = target_from_kalibr(read_target_yaml(target_path), source=str(target_path))
     with progress_bar(1000, "calib --imu", unit="‰", unit_scale=False) as bar:
-        res = calibrate_sequence(seq, noise, camchain=camchain, cameras=cameras, force=force,
+        res = calibrate_sequence(seq, imu_yaml, camchain=camchain, cameras=cameras, force=force,
                                  progress=fraction_callback(bar, "calib --imu"), imu_data=imu_data,
                                  target=target, frame_step=frame_step, workers=workers)
     if yaml_path is not None:
@@ -94,7 +94,10 @@ def print_result(result: Any, errors: Mapping[str, Mapping[str, float]]) -> None
             e = errors[c.name]
             click.echo(f"{'':<10} error vs truth: rotation {e['rotation_error_deg']:.4f} deg, "
                        f"translation {e['translation_error_m'] * 1e3:.2f} mm, "
-                       f"time {e['timeshift_error_s'] * 1e3:.4f} ms")
+                       f"time {e['timeshift_error_s'] * 1e3:.4f} ms"
+                       + ("; intrinsics " + ", ".join(f"{k} {e[f'{k}_error_px']:+.2f}"
+                                                      for k in ("fx", "fy", "cx", "cy")) + " px"
+                          if "fx_error_px" in e else ""))
     ex = result.excitation
     click.echo("excitation: angular-rate std "
                + " ".join(f"{a}={v:.3f}" for a, v in zip("xyz", ex.gyro_std_rad_s, strict=True))

@@ -88,20 +88,18 @@ def test_cli_recovers_planted_extrinsics_and_offsets(seq, tmp_path):
         doc["cameras"][1]["timeshift_cam_imu_s"])
     assert sorted(p.name for p in (tmp_path / "plots").iterdir()) == [
         "excitation.png", "imu_residuals.png", "reprojection.png"]
-    # the table on stdout, and --cams with the camchain just written gives the same answer
-    r2 = _run(str(seq), "--imu", str(imu), "--cams", str(out))
-    assert r2.exit_code == 0, r2.output
-    assert "error vs truth" in r2.stdout and "intrinsics from " + str(out) in r2.stdout
 
 
 def test_library_call_with_intrinsics_from_the_camera_calibration(seq, tmp_path):
-    res = calibrate_sequence(seq, read_imu_noise(_imu_yaml(seq, tmp_path)), frame_step=2)
+    res = calibrate_sequence(seq, read_imu_noise(_imu_yaml(seq, tmp_path)), frame_step=3)
     text = json.dumps(res.to_dict(), allow_nan=False)
-    assert "NaN" not in text and res.detection["frame_step"] == 2
+    assert "NaN" not in text and res.detection["frame_step"] == 3
     assert res.intrinsics_source == {"rgbL": "camera calibration", "rgbR": "camera calibration"}
     gt = res.camera_calibration["ground_truth"]["cameras"]  # the intrinsics' errors vs the truth
     assert [c["name"] for c in gt] == ["rgbL", "rgbR"] and all(abs(c["error"]["fx"]) < 40 for c in gt)
-    assert set(res.errors_vs_truth) == {"rgbL", "rgbR"}
+    for e in res.errors_vs_truth.values():  # intrinsics refined in the joint solve
+        assert e["rotation_error_deg"] < 0.6 and e["translation_error_m"] < 0.04, e
+        assert abs(e["fx_error_px"]) < 1.0 and abs(e["cx_error_px"]) < 1.5, e
     assert "SequenceCalibration(" in repr(res) and len(repr(res)) < 300
 
 
@@ -126,7 +124,7 @@ def test_bad_imu_yaml_missing_keys_and_wrong_rate(seq, tmp_path):
 
 
 def test_imu_stream_that_does_not_cover_the_images(seq, tmp_path):
-    lines = (seq / "other_sensors" / "imu0.csv").read_text().splitlines()
+    lines = next((seq / "other_sensors").glob("imu*.csv")).read_text().splitlines()
     short = tmp_path / "imu_short.csv"
     short.write_text("\n".join(lines[: len(lines) // 3]) + "\n")
     out = tmp_path / "out.yaml"
