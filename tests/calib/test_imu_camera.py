@@ -117,7 +117,7 @@ def test_flat_road_is_refused_then_flagged_by_the_standard_deviations(bumpy_resu
     assert set(res.excitation.weak_rotation_axes) == {"x", "y"}
     assert res.excitation.gyro_std_rad_s[:2].max() < 0.01 < res.excitation.gyro_std_rad_s[2]
     assert bumpy_result.excitation.translation_observable
-    assert bumpy_result.excitation.gyro_std_rad_s.min() > 0.1
+    assert bumpy_result.excitation.gyro_std_rad_s.min() > 0.05  # the shuttle: pitch rate std ~0.09
     for fl, bu in zip(res.cameras, bumpy_result.cameras, strict=True):
         # without roll and pitch the lever arm along the vertical (IMU z) is not observable ...
         assert fl.position_std_imu_m[2] > 0.5 > 20 * bu.position_std_imu_m[2]
