@@ -121,8 +121,9 @@ def test_flat_road_is_refused_then_flagged_by_the_standard_deviations(bumpy_resu
     for fl, bu in zip(res.cameras, bumpy_result.cameras, strict=True):
         # without roll and pitch the lever arm along the vertical (IMU z) is not observable ...
         assert fl.position_std_imu_m[2] > 0.5 > 20 * bu.position_std_imu_m[2]
-        # ... and the rotation about the vertical rests on the accelerometer alone
-        assert fl.rotation_std_deg[2] > 5 * bu.rotation_std_deg[2]
+        # ... and the rotation about the vertical rests on the accelerometer alone (the shuttle's
+        # turns and stops still give it lateral and longitudinal accelerations)
+        assert fl.rotation_std_deg[2] > 1.3 * bu.rotation_std_deg[2]
         assert bu.timeshift_std_s < fl.timeshift_std_s
         assert any(f"camera {fl.name}: translation along IMU z" in w for w in res.warnings)
         assert not any(f"camera {bu.name}: rotation" in w for w in bumpy_result.warnings)
