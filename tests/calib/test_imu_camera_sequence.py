@@ -100,7 +100,7 @@ def test_library_call_with_intrinsics_from_the_camera_calibration(seq, tmp_path)
     assert [c["name"] for c in gt] == ["rgbL", "rgbR"] and all(abs(c["error"]["fx"]) < 40 for c in gt)
     for e in res.errors_vs_truth.values():  # intrinsics refined in the joint solve
         assert e["rotation_error_deg"] < 0.6 and e["translation_error_m"] < 0.04, e
-        assert abs(e["fx_error_px"]) < 1.0 and abs(e["cx_error_px"]) < 1.5, e
+        assert abs(e["fx_error_px"]) < 1.0 and abs(e["cx_error_px"]) < 3.0, e
     assert "SequenceCalibration(" in repr(res) and len(repr(res)) < 300
 
 
