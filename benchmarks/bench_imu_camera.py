@@ -3,6 +3,11 @@ and run time.
 
     .venv/bin/python benchmarks/bench_imu_camera.py                 # 1024 px and 512 px, bumps
     .venv/bin/python benchmarks/bench_imu_camera.py --size 512 --flat --four
+    ibiscape-eval sim --config calib60.yaml --resolution 512 --out SVI_calib   # rendered drive
+    .venv/bin/python benchmarks/bench_imu_camera.py --size 0 --seq SVI_calib [--cams camchain.yaml]
+
+``--seq`` runs the whole ``calib SEQ --imu`` (corner detection on the rendered frames, intrinsics
+from the drive's own camera calibration or ``--cams``, the solve) and prints the same table.
 
 The simulator plans the calibration world and drive (bubbles and waves on the road), simulates
 IMU0 (200 Hz, the default continuous-time noise) and projects the checkerboard's corners into the
@@ -55,9 +60,16 @@ def one(size: int, bumps: bool, duration_s: float, seed: int, four: bool = False
           f"seed {seed}: target frames {frames}, {res.excitation.duration_s:.1f} s of spline, "
           f"{res.iterations} iterations, wall {wall:.1f} s, cpu {cpu:.1f} s, "
           f"RATIO {120.0 / wall:.2f} (2 min budget / wall)")
+    table(res, sc.T_cam_imu, sc.timeshift_cam_imu_s, err)
+
+
+def table(res, T_truth, shift_truth, err) -> None:  # type: ignore[no-untyped-def]
+    """Truth, estimate, error and std per parameter and camera."""
     print(f"{'camera':<6} {'parameter':<16} {'truth':>12} {'estimate':>12} {'error':>10} {'std':>9}")
     for cal in res.cameras:
-        T = sc.T_cam_imu[cal.name]
+        if cal.name not in T_truth:
+            continue
+        T = np.asarray(T_truth[cal.name], dtype=float)
         rv_true = log_so3(T[:3, :3])
         rv_est = log_so3(cal.T_cam_imu[:3, :3])
         for k, ax in enumerate("xyz"):
@@ -68,7 +80,7 @@ def one(size: int, bumps: bool, duration_s: float, seed: int, four: bool = False
             print(f"{cal.name:<6} {'t ' + ax + ' [mm]':<16} {T[k, 3] * 1e3:12.2f} "
                   f"{cal.T_cam_imu[k, 3] * 1e3:12.2f} {(cal.T_cam_imu[k, 3] - T[k, 3]) * 1e3:10.2f} "
                   f"{cal.translation_std_m[k] * 1e3:9.2f}")
-        ts = sc.timeshift_cam_imu_s[cal.name]
+        ts = shift_truth[cal.name]
         print(f"{cal.name:<6} {'shift [ms]':<16} {ts * 1e3:12.4f} {cal.timeshift_cam_imu_s * 1e3:12.4f} "
               f"{(cal.timeshift_cam_imu_s - ts) * 1e3:10.4f} {cal.timeshift_std_s * 1e3:9.4f}")
         e = err[cal.name]
@@ -80,15 +92,53 @@ def one(size: int, bumps: bool, duration_s: float, seed: int, four: bool = False
         print("  warning:", w)
 
 
+def on_sequence(seq: str, cams: str | None, frame_step: int) -> None:
+    """``calib SEQ --imu`` end to end on a generated (rendered) sequence: detection, intrinsics
+    (the drive's own camera calibration, or ``cams``), the solve; truth from sequence.yaml."""
+    from pathlib import Path
+
+    import yaml
+
+    from ibiscape_eval.calib.imu_camera import calibrate_sequence
+
+    doc = yaml.safe_load((Path(seq) / "sequence.yaml").read_text())
+    imu = doc["imus"]["imu0"]
+    noise = Path(seq).parent / "bench_imu.yaml"
+    noise.write_text(yaml.safe_dump({k: imu[k] for k in (
+        "accelerometer_noise_density", "accelerometer_random_walk", "gyroscope_noise_density",
+        "gyroscope_random_walk", "update_rate", "rostopic")}))
+    res = calibrate_sequence(seq, noise, camchain=cams, frame_step=frame_step)
+    t = res.timing_s
+    det = {d["name"]: f"{d['frames_with_target']}/{d['frames']}" for d in res.detection["cameras"]}
+    print(f"\n{seq}: end to end (intrinsics from {', '.join(sorted(set(res.intrinsics_source.values())))}), "
+          f"frames with the target {det}; wall: detection {t['detection']:.1f} s, intrinsics "
+          f"{t['intrinsics']:.1f} s, camera-IMU {t['imu_camera']:.1f} s, total {t['total']:.1f} s; "
+          f"CPU {t['cpu']:.1f} s; RATIO {120.0 / t['total']:.2f} (2 min budget / wall), "
+          f"{120.0 / t['cpu']:.2f} (2 min / CPU)")
+    if res.camera_calibration and res.camera_calibration.get("ground_truth"):
+        for c in res.camera_calibration["ground_truth"]["cameras"]:
+            print(f"{c['name']:<6} intrinsics error (drive's own camera calibration): "
+                  + ", ".join(f"{k} {c['error'][k]:+.2f} px" for k in ("fx", "fy", "cx", "cy")))
+    T_truth = {k: v["T_cam_imu"] for k, v in res.truth.items()}
+    shift_truth = {k: v["timeshift_cam_imu"] for k, v in res.truth.items()}
+    table(res.result, T_truth, shift_truth, res.errors_vs_truth)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seq", action="append", help="also (or only, with --size 0) calibrate this "
+                    "generated sequence end to end (ibiscape-eval sim --kind calibration ...)")
+    ap.add_argument("--cams", default=None, help="with --seq: Kalibr camchain.yaml of the intrinsics")
+    ap.add_argument("--frame-step", type=int, default=1)
     ap.add_argument("--size", type=int, action="append", help="image size (default 1024 and 512)")
     ap.add_argument("--duration-s", type=float, default=60.0)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--flat", action="store_true", help="also the same drive without bumps")
     ap.add_argument("--four", action="store_true", help="also RGB + DVS stereo pairs in one problem")
     a = ap.parse_args()
-    for size in a.size or [1024, 512]:
+    for seq in a.seq or []:
+        on_sequence(seq, a.cams, a.frame_step)
+    for size in [s for s in (a.size or [1024, 512]) if s > 0]:
         one(size, True, a.duration_s, a.seed)
         if a.flat:
             one(size, False, a.duration_s, a.seed)

@@ -60,11 +60,28 @@ def _labeler(paths: Sequence[Path]) -> Callable[[int], str]:
               help="Corners beyond this many robust standard deviations are rejected.")
 @click.option("--workers", type=click.IntRange(min=1), default=None,
               help="Detection threads (default: the usable CPUs).")
+@click.option("--imu", "imu_yaml", type=click.Path(path_type=Path), default=None,
+              help="Camera-IMU calibration: the IMU's Kalibr imu.yaml (the allan command's output); "
+              "estimates T_cam_imu and timeshift_cam_imu of every camera (--yaml writes "
+              "camchain-imucam.yaml).")
+@click.option("--cams", "cams_path", type=click.Path(path_type=Path), default=None,
+              help="With --imu: take the intrinsics from this Kalibr camchain.yaml (default: "
+              "calibrate the cameras on the same frames).")
+@click.option("--imu-data", "imu_data", type=click.Path(path_type=Path), default=None,
+              help="With --imu: IMU csv (#timestamp [ns], w_xyz, a_xyz) instead of SEQ's "
+              "other_sensors/imu0.csv.")
+@click.option("--force", is_flag=True,
+              help="With --imu: estimate even when the rotation excites too few axes to observe the "
+              "translation (the weak directions are marked).")
+@click.option("--frame-step", type=click.IntRange(min=1), default=1, show_default=True,
+              help="With --imu: use every n-th frame.")
 @user_errors
 def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: tuple[str, ...],
           cameras: str | None, yaml_out: Path | None, as_json: bool, plot_dir: Path | None,
           check_path: Path | None, max_views: int, max_frames: int, reconstruction: str,
-          sensor_size: str | None, outlier_sigma: float, workers: int | None) -> None:
+          sensor_size: str | None, outlier_sigma: float, workers: int | None,
+          imu_yaml: Path | None = None, cams_path: Path | None = None, imu_data: Path | None = None,
+          force: bool = False, frame_step: int = 1) -> None:
     """Calibrate cameras from checkerboard or AprilGrid images (mono, stereo, chains; RGB and DVS).
 
     SEQ is an IBISCape-layout sequence (camera folders rgbL, rgbR, rgb, davisL, davisR with
@@ -79,6 +96,7 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
       ibiscape-eval calib SVI_calib_aprilgrid --model pinhole-equi --json
       ibiscape-eval calib --target april_6x6.yaml --images cam0='left/*.png' --images cam1='right/*.png'
       ibiscape-eval calib SVI_calib_checkerboard --check camchain.yaml
+      ibiscape-eval calib SVI_1_calib --imu imu.yaml --yaml camchain-imucam.yaml --plot imu_plots/
     """
     from ibiscape_eval.calib.events import choose_reconstruction, event_frame_loader
     from ibiscape_eval.calib.pipeline import (
@@ -100,6 +118,19 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
     from ibiscape_eval.io.kalibr import CameraChain, read_camchain, read_target_yaml, write_camchain
     from ibiscape_eval.io.sequence import read_sequence_yaml
 
+    if imu_yaml is None and (cams_path or imu_data or force or frame_step != 1):
+        raise IbiscapeError("--cams, --imu-data, --force and --frame-step belong to the camera-IMU "
+                            "calibration: add --imu imu.yaml")
+    if imu_yaml is not None:
+        if seq is None or image_specs or check_path is not None:
+            raise IbiscapeError("--imu calibrates a sequence folder: give SEQ (not --images or --check)")
+        from .calib_imu import run_sequence
+
+        names_imu = [c.strip() for c in cameras.split(",") if c.strip()] if cameras else None
+        run_sequence(seq, imu_yaml, camchain=cams_path, imu_data=imu_data, cameras=names_imu,
+                     target_path=target_path, force=force, frame_step=frame_step, yaml_path=yaml_out,
+                     json_out=as_json, plot_dir=plot_dir, workers=workers)
+        return
     if seq is None and not image_specs:
         raise IbiscapeError("give a sequence folder SEQ or --images NAME=GLOB per camera")
     if seq is not None and image_specs:

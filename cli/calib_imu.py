@@ -1,7 +1,8 @@
 """``calib SEQ --imu imu.yaml``: the camera-IMU part of the calibration command.
 
-The lead wires :func:`run_imu_camera` into ``cli/calib.py`` (after corner detection);
-``calib_imu_options`` lists the click options it adds.  No math here.
+``cli/calib.py`` hands ``--imu`` runs to :func:`run_sequence` (the library's
+:func:`ibiscape_eval.calib.imu_camera.calibrate_sequence` does the work); :func:`run_imu_camera`
+is the same on observations already in memory.  No math here.
 """
 
 from __future__ import annotations
@@ -14,22 +15,67 @@ import click
 
 from ._common import echo_json, info
 
-__all__ = ["load_imu_noise", "print_result", "run_imu_camera"]
+__all__ = ["load_imu_noise", "print_result", "run_imu_camera", "run_sequence"]
 
 
 def load_imu_noise(path: str) -> Any:
     """Read ``imu.yaml`` (``yaml.safe_load``) into :class:`ImuNoiseDensities`; errors name the file."""
-    import yaml
+    from ibiscape_eval.calib.imu_camera.sequence import read_imu_noise
 
-    from ibiscape_eval.calib.imu_camera import ImuNoiseDensities
-    from ibiscape_eval.core.errors import FormatError
+    return read_imu_noise(path)
 
-    with open(path, encoding="utf-8") as fh:
-        try:
-            doc = yaml.safe_load(fh)
-        except yaml.YAMLError as e:
-            raise FormatError(path, f"not valid YAML ({' '.join(str(e).split())})") from None
-    return ImuNoiseDensities.from_kalibr(doc, source=path)
+
+def run_sequence(seq: Path, imu_yaml: Path, *, camchain: Path | None, imu_data: Path | None,
+                 cameras: Sequence[str] | None, target_path: Path | None, force: bool,
+                 frame_step: int, yaml_path: Path | None, json_out: bool, plot_dir: Path | None,
+                 workers: int | None) -> Any:
+    """``calib SEQ --imu imu.yaml``: calibrate, write ``--yaml`` (camchain-imucam) and ``--plot``
+    figures, print the table (or ``--json``)."""
+    from ibiscape_eval.calib.imu_camera import calibrate_sequence, camchain_imucam_document
+    from ibiscape_eval.calib.imu_camera.sequence import read_imu_noise
+    from ibiscape_eval.io.kalibr_imucam import write_camchain_imucam
+
+    from .progress import fraction_callback, progress_bar
+
+    read_imu_noise(imu_yaml)  # a bad imu.yaml fails before anything else is read
+    target = None
+    if target_path is not None:
+        from ibiscape_eval.calib.targets import target_from_kalibr
+        from ibiscape_eval.io.kalibr import read_target_yaml
+
+        target = target_from_kalibr(read_target_yaml(target_path), source=str(target_path))
+    with progress_bar(1000, "calib --imu", unit="‰", unit_scale=False) as bar:
+        res = calibrate_sequence(seq, imu_yaml, camchain=camchain, cameras=cameras, force=force,
+                                 progress=fraction_callback(bar, "calib --imu"), imu_data=imu_data,
+                                 target=target, frame_step=frame_step, workers=workers)
+    if yaml_path is not None:
+        write_camchain_imucam(yaml_path, camchain_imucam_document(res.result),
+                              comments=["camera-IMU calibration by ibiscape-eval calib --imu"])
+    plots: list[str] = []
+    if plot_dir is not None:
+        from ibiscape_eval.calib.imu_camera.plots import figures
+        from ibiscape_eval.io.kalibr_imucam import write_figures
+
+        plots = [str(p) for p in write_figures(plot_dir, figures(res.result))]
+    if json_out:
+        echo_json({**res.to_dict(), "outputs": {"yaml": None if yaml_path is None else str(yaml_path),
+                                               "plots": plots}})
+        return res
+    det = res.detection["cameras"]
+    click.echo("frames with the target: " + ", ".join(
+        f"{d['name']} {d['frames_with_target']}/{d['frames']}" for d in det)
+        + "; intrinsics from " + ", ".join(sorted(set(res.intrinsics_source.values()))))
+    print_result(res.result, res.errors_vs_truth)
+    for w in res.result.warnings:
+        click.echo(f"weak: {w}")
+    t = res.timing_s
+    click.echo(f"time: detection {t['detection']:.1f} s, intrinsics {t['intrinsics']:.1f} s, "
+               f"camera-IMU {t['imu_camera']:.1f} s, total {t['total']:.1f} s (CPU {t['cpu']:.1f} s)")
+    if yaml_path is not None:
+        info(f"wrote {yaml_path}")
+    if plots:
+        info(f"wrote {len(plots)} figure(s) to {plot_dir}")
+    return res
 
 
 def print_result(result: Any, errors: Mapping[str, Mapping[str, float]]) -> None:
@@ -48,7 +94,10 @@ def print_result(result: Any, errors: Mapping[str, Mapping[str, float]]) -> None
             e = errors[c.name]
             click.echo(f"{'':<10} error vs truth: rotation {e['rotation_error_deg']:.4f} deg, "
                        f"translation {e['translation_error_m'] * 1e3:.2f} mm, "
-                       f"time {e['timeshift_error_s'] * 1e3:.4f} ms")
+                       f"time {e['timeshift_error_s'] * 1e3:.4f} ms"
+                       + ("; intrinsics " + ", ".join(f"{k} {e[f'{k}_error_px']:+.2f}"
+                                                      for k in ("fx", "fy", "cx", "cy")) + " px"
+                          if "fx_error_px" in e else ""))
     ex = result.excitation
     click.echo("excitation: angular-rate std "
                + " ".join(f"{a}={v:.3f}" for a, v in zip("xyz", ex.gyro_std_rad_s, strict=True))

@@ -11,8 +11,10 @@ and does not import them.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -27,7 +29,7 @@ from .rig import T_body_camera, T_body_imu
 from .still import n_samples, uniform_stamps
 from .types import GRAVITY_M_S2
 
-__all__ = ["SimulatedCalibration", "SimulatedCamera", "simulate_calibration"]
+__all__ = ["SimulatedCalibration", "SimulatedCamera", "simulate_calibration", "write_board_frames"]
 
 FloatArray = npt.NDArray[np.float64]
 PoseAt = Callable[[npt.NDArray[np.int64]], tuple[FloatArray, FloatArray]]
@@ -132,3 +134,63 @@ def simulate_calibration(cfg: SimConfig, *, timeshifts_s: dict[str, float] | Non
         float(p.random_walk[0]), float(p.random_walk[3]),
         tuple(cams), pose_at, target.target_type, np.asarray(target.T_world_target, float),
         target.corners_target_m.copy(), spacing, T_ci, shift_out, g_target, target.to_dict())
+
+
+def write_board_frames(cfg: SimConfig, folder: str | os.PathLike[str], *, supersample: int = 3,
+                       background: int = 110) -> dict[str, int]:
+    """Board-only camera frames of a generated calibration sequence (a fast stand-in for rendering
+    when only the target matters: tests, README examples).
+
+    For every camera of ``cfg`` (``kind: calibration``, generated into ``folder`` with
+    ``render=False``), the frame stamped ``t_cam`` shows the target's printed texture warped by the
+    exact homography of the camera pose at ``t_cam + timeshift_cam_imu_s`` (Kalibr's convention)
+    onto a plain grey background, drawn ``supersample`` times larger and averaged down
+    (antialiased); ``<camera>/frames/<ns>.png`` and ``timestamps.csv`` as the renderer writes them.
+    Distortion is not drawn (pinhole cameras only).  Returns camera name -> frames written.
+    """
+    import cv2
+
+    from ibiscape_eval.core.rotations import matrix_from_quat
+    from ibiscape_eval.io.images import write_frame_timestamps, write_png
+
+    from .generate import plan
+    from .render.rays import camera_model
+    from .render.sequence import camera_stamps
+
+    if cfg.kind != "calibration":
+        raise IbiscapeError("write_board_frames needs a config of kind 'calibration'")
+    if any(c.distortion_model != "none" for c in cfg.cameras):
+        raise IbiscapeError("write_board_frames draws pinhole cameras only (distortion_model: none)")
+    ss = int(supersample)
+    world, motion, _ = plan(cfg)
+    tgt = world.target_named(cfg.target)
+    ppm = 200.0
+    tex = tgt.texture(ppm)
+    xy = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    uv = tgt.texture_px_from_target(xy, ppm)
+    A = np.linalg.solve(np.c_[uv, np.ones(3)], np.c_[xy, np.ones(3)]).T  # (x, y, 1) = A (u, v, 1)
+    # pixel centres at integers: pixel p of the ss-times larger image is ss (p + 0.5) - 0.5
+    S = np.array([[ss, 0.0, 0.5 * (ss - 1)], [0.0, ss, 0.5 * (ss - 1)], [0.0, 0.0, 1.0]])
+    out: dict[str, int] = {}
+    root = Path(folder)
+    for cam in cfg.cameras:
+        K = camera_model(cam).K
+        st = camera_stamps(cfg, cam)
+        s = motion.sample(st + round(cam.timeshift_cam_imu_s * 1e9))
+        T_wb = np.tile(np.eye(4), (st.size, 1, 1))
+        T_wb[:, :3, :3] = matrix_from_quat(s.quat_xyzw)
+        T_wb[:, :3, 3] = s.pos_m
+        T_ct = np.linalg.inv(T_wb @ T_body_camera(cam)) @ tgt.T_world_target
+        depth = np.einsum("nj,mj->nm", T_ct[:, 2, :3], tgt.corners_target_m) + T_ct[:, 2, 3, None]
+        (root / cam.name / "frames").mkdir(parents=True, exist_ok=True)
+        for k, t in enumerate(st.tolist()):
+            big = np.full((ss * cam.height_px, ss * cam.width_px), background, np.uint8)
+            if depth[k].min() > 1.0:
+                H = S @ K @ np.c_[T_ct[k, :3, :2], T_ct[k, :3, 3]] @ A
+                cv2.warpPerspective(tex, H, big.shape[::-1], dst=big, flags=cv2.INTER_LINEAR,
+                                    borderMode=cv2.BORDER_TRANSPARENT)
+            img = cv2.resize(big, (cam.width_px, cam.height_px), interpolation=cv2.INTER_AREA)
+            write_png(root / cam.name / "frames" / f"{t}.png", img)
+        write_frame_timestamps(root / cam.name / "timestamps.csv", st)
+        out[cam.name] = int(st.size)
+    return out

@@ -69,6 +69,8 @@ SCENARIOS = ("default", "accident")
 CAMERA_KINDS = ("rgb", "depth", "semantic", "dvs")
 TARGETS = ("checkerboard", "aprilgrid")
 CAM_HEIGHT_M = 2.8
+#: largest camera clock offset the simulator accepts [s] (Kalibr searches offsets of this order)
+MAX_TIMESHIFT_S = 0.1
 
 
 def _doc(text: str) -> Any:
@@ -137,6 +139,9 @@ class CameraSpec:
     distortion_coeffs: tuple[float, float, float, float] = field(
         default=(0.0, 0.0, 0.0, 0.0), metadata=_doc(
             "radtan [k1, k2, p1, p2] or equidistant [k1, k2, k3, k4]"))
+    timeshift_cam_imu_s: float = field(default=0.0, metadata=_doc(
+        "camera clock offset, Kalibr's timeshift_cam_imu (t_imu = t_cam + shift): a frame "
+        "stamped t_cam shows the scene at t_cam + shift [s], within +-0.1"))
 
     @property
     def focal_px(self) -> float:
@@ -209,8 +214,11 @@ class MotionSpec:
     accident_obstacle_gap_m: float = field(default=2.0, metadata=_doc(
         "accident scenario: gap between the stopped car's front and the obstacle [m]"))
     start_distance_m: float = field(default=0.0, metadata=_doc(
-        "calibration: start the approach this far in front of the board, 12..90 m, for short "
+        "calibration loop: start the approach this far in front of the board, 12..90 m, for short "
         "sequences that should see it near (0 = the full 90 m approach, as in the paper)"))
+    calibration_drive: str = field(default="shuttle", metadata=_doc(
+        "calibration: shuttle (forward and reverse legs 5-15 m in front of the board, seen from "
+        "-33..33 deg off its normal, in view nearly all the time) | loop (the paper's approach loop)"))
 
 
 @dataclass(frozen=True)
@@ -333,6 +341,11 @@ def validate(cfg: SimConfig) -> None:
         _vec3(c.position_m, f"cameras.{c.name}.position_m")
         _vec3(c.rpy_deg, f"cameras.{c.name}.rpy_deg")
         _check_camera_optics(c)
+        ts = c.timeshift_cam_imu_s
+        if not (isinstance(ts, int | float) and not isinstance(ts, bool) and math.isfinite(ts)
+                and abs(ts) <= MAX_TIMESHIFT_S):
+            raise IbiscapeError(f"config: cameras.{c.name}.timeshift_cam_imu_s must be a number of "
+                                f"seconds within +-{MAX_TIMESHIFT_S:g}, got {ts!r}")
     g = cfg.gnss
     _positive(g.rate_hz, "gnss.rate_hz")
     _nonneg(g.sigma_horizontal_m, "gnss.sigma_horizontal_m")
@@ -354,6 +367,10 @@ def validate(cfg: SimConfig) -> None:
     _positive(cfg.motion.accident_decel_m_s2, "motion.accident_decel_m_s2")
     _nonneg(cfg.motion.accident_obstacle_gap_m, "motion.accident_obstacle_gap_m")
     _nonneg(cfg.motion.start_distance_m, "motion.start_distance_m")
+    _choice(cfg.motion.calibration_drive, ("shuttle", "loop"), "motion.calibration_drive")
+    if cfg.motion.start_distance_m and cfg.motion.calibration_drive != "loop" and cfg.kind == "calibration":
+        raise IbiscapeError("config: motion.start_distance_m applies to the loop drive; set "
+                            "motion.calibration_drive: loop or remove start_distance_m")
     if not isinstance(cfg.motion.town_blocks, int) or cfg.motion.town_blocks < 1:
         raise IbiscapeError(f"config: motion.town_blocks must be an integer >= 1, got {cfg.motion.town_blocks!r}")
     ts = cfg.render.target_supersample

@@ -173,10 +173,12 @@ def plan(cfg: SimConfig) -> tuple[Any, Motion, dict[str, Any]]:
     from .world import build_world
 
     world = build_world(kind=cfg.kind, seed=cfg.seed, target=cfg.target, scene=cfg.weather,
-                        town_blocks=cfg.motion.town_blocks, bumps=cfg.motion.bumps)
+                        town_blocks=cfg.motion.town_blocks, bumps=cfg.motion.bumps,
+                        calibration_drive=cfg.motion.calibration_drive)
     motion: Motion = plan_motion(world, duration_s=cfg.duration_s, start_ns=cfg.start_ns,
                                  seed=cfg.seed, max_speed_m_s=cfg.motion.max_speed_m_s,
-                                 target=cfg.target, start_distance_m=cfg.motion.start_distance_m)
+                                 target=cfg.target, start_distance_m=cfg.motion.start_distance_m,
+                                 drive=cfg.motion.calibration_drive)
     info: dict[str, Any] = {"name": cfg.scenario}
     if cfg.scenario == "accident":
         motion, info = _accident(cfg, motion)

@@ -29,7 +29,7 @@ import numpy.typing as npt
 from ibiscape_eval.core.errors import IbiscapeError
 
 from ._path import SmoothPath, smooth_path
-from .route import Route, calibration_route, town_route
+from .route import Route, calibration_route, shuttle_route, town_route
 from .targets import TARGET_KINDS
 from .types import Controls, MotionState
 from .world import World
@@ -37,7 +37,7 @@ from .world import World
 if TYPE_CHECKING:
     from scipy.interpolate import BSpline
 
-__all__ = ["VehicleMotion", "plan_motion"]
+__all__ = ["LegPath", "VehicleMotion", "plan_motion"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -51,6 +51,7 @@ ACCEL_M_S2 = 1.5
 DECEL_M_S2 = 2.5
 START_HOLD_S = 1.0
 SMOOTH_WINDOW_S = 1.0
+SHUTTLE_LENGTH_M_PER_S = 2.5  # the shuttle drive's distance per second is below this
 GRID_HZ = 1000
 # controls model
 THROTTLE_FULL_M_S2 = 3.5
@@ -80,7 +81,7 @@ class VehicleMotion:
         start_ns: int,
         end_ns: int,
         spline: BSpline | None = None,
-        path: SmoothPath | None = None,
+        path: SmoothPath | LegPath | None = None,
     ) -> None:
         self.kind = kind
         self.start_ns = int(start_ns)
@@ -187,6 +188,65 @@ class VehicleMotion:
         return float(s[1] - s[0])
 
 
+class LegPath:
+    """Smooth paths driven one after the other, each forward or in reverse, stopping between them.
+
+    Arc length ``s`` runs over the legs end to end.  ``heading_rad`` is the car's yaw: the path's
+    tangent, plus pi on reverse legs, unwrapped so that it is continuous at every cusp (a reverse
+    leg starts exactly against the direction the previous leg ended in).  ``curvature_1_m`` is
+    the curvature the steering sees (negated on reverse legs: backing along a left bend needs
+    right lock).
+    """
+
+    def __init__(self, paths: list[SmoothPath], reverse: list[bool]):
+        if not paths or len(paths) != len(reverse):
+            raise IbiscapeError("a leg path needs one direction per leg and at least one leg")
+        self.paths = list(paths)
+        self.reverse = np.asarray(reverse, dtype=bool)
+        lengths = np.array([p.total_length_m for p in paths])
+        self.s0_m = np.concatenate(([0.0], np.cumsum(lengths)[:-1]))
+        self.total_length_m = float(lengths.sum())
+        offsets = []
+        prev: float | None = None
+        for p, rev in zip(self.paths, self.reverse, strict=True):
+            off = math.pi if rev else 0.0
+            h0 = float(p.heading_rad(np.array([0.0]))[0])
+            if prev is not None:
+                off += 2.0 * math.pi * round((prev - h0 - off) / (2.0 * math.pi))
+                if abs(h0 + off - prev) > 1e-6:
+                    raise IbiscapeError("a leg does not start in line with the previous one's end")
+            offsets.append(off)
+            prev = float(p.heading_rad(np.array([p.total_length_m]))[0]) + off
+        self.offset_rad = np.array(offsets)
+
+    def _legs(self, s_m: npt.ArrayLike) -> tuple[npt.NDArray[np.intp], FloatArray]:
+        s = np.asarray(s_m, dtype=np.float64).ravel()
+        idx = np.clip(np.searchsorted(self.s0_m, s, side="right") - 1, 0, len(self.paths) - 1)
+        return idx, s - self.s0_m[idx]
+
+    def _per_leg(self, s_m: npt.ArrayLike, fn: str, width: int) -> FloatArray:
+        idx, u = self._legs(s_m)
+        out = np.empty((u.size, width)) if width > 1 else np.empty(u.size)
+        for i in np.unique(idx):
+            m = idx == i
+            out[m] = getattr(self.paths[i], fn)(u[m])
+        return out
+
+    def xy_m(self, s_m: npt.ArrayLike) -> FloatArray:
+        """Positions ``(N, 2)`` at arc lengths ``s_m``."""
+        return self._per_leg(s_m, "xy_m", 2)
+
+    def heading_rad(self, s_m: npt.ArrayLike) -> FloatArray:
+        """The car's (unwrapped) yaw at arc lengths ``s_m``."""
+        idx, _ = self._legs(s_m)
+        return self._per_leg(s_m, "heading_rad", 1) + self.offset_rad[idx]
+
+    def curvature_1_m(self, s_m: npt.ArrayLike) -> FloatArray:
+        """Signed curvature of the car's own motion (> 0: left lock)."""
+        idx, _ = self._legs(s_m)
+        return self._per_leg(s_m, "curvature_1_m", 1) * np.where(self.reverse[idx], -1.0, 1.0)
+
+
 def _speed_limits(path: SmoothPath, route: Route, s: npt.NDArray[np.floating]) -> FloatArray:
     idx, _ = path._piece(s)
     seg = path.piece_segment[idx]
@@ -199,10 +259,16 @@ def _speed_limits(path: SmoothPath, route: Route, s: npt.NDArray[np.floating]) -
     return np.minimum(cap, np.sqrt(LATERAL_ACC_M_S2 / np.maximum(kappa, 1e-12)))
 
 
-def _time_profile(path: SmoothPath, route: Route) -> tuple[FloatArray, FloatArray]:
-    """Knots ``(t_s, s_m)`` of a piecewise-linear ``s(t)``: holds, accel-limited speeds."""
+def _time_profile(path: SmoothPath, route: Route, *, exact_end: bool = False
+                  ) -> tuple[FloatArray, FloatArray]:
+    """Knots ``(t_s, s_m)`` of a piecewise-linear ``s(t)``: holds, accel-limited speeds.
+
+    ``exact_end``: the grid ends exactly at the path's end (legs stopping at a cusp)."""
     ds = 0.1
     n = int(path.total_length_m / ds)
+    if exact_end:
+        n = max(1, math.ceil(path.total_length_m / ds))
+        ds = path.total_length_m / n
     s = np.arange(n + 1) * ds
     w_lim = _speed_limits(path, route, s) ** 2
     w_lim[0] = 0.0
@@ -264,6 +330,7 @@ def plan_motion(
     max_speed_m_s: float = 10.0,
     target: str = "checkerboard",
     start_distance_m: float = 0.0,
+    drive: str = "shuttle",
 ) -> VehicleMotion:
     """Plan the vehicle's motion through ``world``.
 
@@ -283,6 +350,11 @@ def plan_motion(
     start_distance_m : float
         Calibration: start on the approach this far in front of the board (0: the loop's start,
         90 m away, as in the paper; see :func:`~ibiscape_eval.sim.route.calibration_route`).
+        Loop drive only.
+    drive : str
+        Calibration: ``"shuttle"`` (forward and reverse legs in front of the board, which stays in
+        view; :func:`~ibiscape_eval.sim.route.shuttle_route`) or ``"loop"`` (the paper's approach
+        loop, the board detectable only near its end).
 
     Returns
     -------
@@ -310,13 +382,34 @@ def plan_motion(
         raise IbiscapeError(f"the {world.kind!r} world has no lanes to drive on; cannot build a route")
     rng = np.random.default_rng([int(seed), 3])
     length = max_speed_m_s * (duration_s + SMOOTH_WINDOW_S + 2.0) + 100.0
-    if world.kind == "slam":
-        route = town_route(world, length_m=length, rng=rng, max_speed_m_s=max_speed_m_s)
+    if drive not in ("shuttle", "loop"):
+        raise IbiscapeError(f"calibration drive {drive!r} is unknown; use shuttle or loop")
+    path: SmoothPath | LegPath
+    if world.kind == "calibration" and drive == "shuttle":
+        if start_distance_m:
+            raise IbiscapeError("motion.start_distance_m applies to the loop drive; the shuttle drive "
+                                "starts in front of the board (set calibration_drive: loop or remove it)")
+        legs = shuttle_route(world, target=target, max_speed_m_s=max_speed_m_s,
+                             length_m=SHUTTLE_LENGTH_M_PER_S * (duration_s + 2.0) + 20.0)
+        paths = [smooth_path(r.waypoints_m, r.cut_m) for r, _ in legs]
+        t_parts, s_parts = [], []
+        t_off = s_off = 0.0
+        for p, (r, _) in zip(paths, legs, strict=True):
+            tk, sk = _time_profile(p, r, exact_end=True)
+            t_parts.append(tk + t_off)
+            s_parts.append(sk + s_off)
+            t_off += float(tk[-1])
+            s_off += p.total_length_m
+        t_knots, s_knots = np.concatenate(t_parts), np.concatenate(s_parts)
+        path = LegPath(paths, [rev for _, rev in legs])
     else:
-        route = calibration_route(world, target=target, length_m=length, max_speed_m_s=max_speed_m_s,
-                                  start_distance_m=start_distance_m)
-    path = smooth_path(route.waypoints_m, route.cut_m)
-    t_knots, s_knots = _time_profile(path, route)
+        if world.kind == "slam":
+            route = town_route(world, length_m=length, rng=rng, max_speed_m_s=max_speed_m_s)
+        else:
+            route = calibration_route(world, target=target, length_m=length,
+                                      max_speed_m_s=max_speed_m_s, start_distance_m=start_distance_m)
+        path = smooth_path(route.waypoints_m, route.cut_m)
+        t_knots, s_knots = _time_profile(path, route)
 
     # s(t) on the grid, smoothed by a Hann window (monotone; stops stay exactly still inside)
     n = math.ceil(duration_s * GRID_HZ)

@@ -3,7 +3,10 @@
 - SLAM: a seeded random walk over the town's intersections (no U-turns), on the lane centrelines
   for right-hand traffic; the polyline turns at the intersection of the incoming and outgoing lane
   centrelines; some intersections get a stop line 8 m before the crossing.
-- Calibration: laps of the world's approach loop toward the chosen target (slow on the approach).
+- Calibration, ``shuttle`` (default): the world's shuttle legs in front of the chosen target,
+  forward and in reverse in turn (:func:`shuttle_route`).
+- Calibration, ``loop``: laps of the world's approach loop toward the chosen target (slow on the
+  approach), the paper's drive.
 """
 
 from __future__ import annotations
@@ -17,13 +20,16 @@ from ibiscape_eval.core.errors import IbiscapeError
 
 from .world import LANE_OFFSET_M, ROAD_HALF_WIDTH_M, World, loop_cuts
 
-__all__ = ["Route", "calibration_route", "town_route"]
+__all__ = ["Route", "calibration_route", "shuttle_route", "town_route"]
 
 FloatArray = npt.NDArray[np.float64]
 
 _DIRS = np.array([[1, 0], [0, 1], [-1, 0], [0, -1]])  # E, N, W, S
 STOP_PROBABILITY = 0.3
 APPROACH_SPEED_M_S = 4.0
+SHUTTLE_SPEED_M_S = 3.0  # forward legs of the shuttle drive
+SHUTTLE_REVERSE_SPEED_M_S = 2.5
+SHUTTLE_CUT_M = 2.0
 RIGHT_TURN_CUT_M = 6.0
 LEFT_TURN_CUT_M = 9.0
 
@@ -138,3 +144,31 @@ def calibration_route(world: World, *, target: str, length_m: float, max_speed_m
     if start_distance_m:
         caps = caps[len(caps) - (len(wp) - 1):]
     return Route(wp, cuts, np.zeros(len(wp)), caps)
+
+
+def shuttle_route(world: World, *, target: str, length_m: float,
+                  max_speed_m_s: float) -> list[tuple[Route, bool]]:
+    """The shuttle legs in front of ``target`` (:func:`~ibiscape_eval.sim.world.shuttle_legs`),
+    repeated until at least ``length_m``: ``(route, reverse)`` per leg, the car stopping at the
+    end of each (forward legs at most 3 m/s, reverse legs 2.5 m/s)."""
+    shuttles = getattr(world, "shuttles", {})
+    if world.kind != "calibration" or target not in shuttles:
+        raise IbiscapeError(
+            f"a calibration shuttle toward {target!r} needs a 'calibration' world "
+            f"(build_world(kind='calibration')); this world is {world.kind!r}"
+        )
+    world.target_named(target)
+    legs = shuttles[target]
+    out: list[tuple[Route, bool]] = []
+    total = 0.0
+    k = 0
+    while total < length_m:
+        wp = np.asarray(legs[k % len(legs)], dtype=np.float64)
+        reverse = k % 2 == 1
+        cap = min(max_speed_m_s, SHUTTLE_REVERSE_SPEED_M_S if reverse else SHUTTLE_SPEED_M_S)
+        cut = np.full(len(wp), SHUTTLE_CUT_M)
+        cut[[0, -1]] = 0.0
+        out.append((Route(wp, cut, np.zeros(len(wp)), np.full(len(wp) - 1, cap)), reverse))
+        total += float(np.hypot(*np.diff(wp, axis=0).T).sum())
+        k += 1
+    return out

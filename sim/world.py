@@ -30,7 +30,7 @@ from .agents import AGENT_CAR, AGENT_PEDESTRIAN, Agents
 from .targets import TARGET_KINDS, Target, board_pose, make_target
 from .terrain import Bump, Terrain
 
-__all__ = ["SCENES", "WORLD_KINDS", "Boxes", "World", "build_world"]
+__all__ = ["CALIBRATION_DRIVES", "SCENES", "WORLD_KINDS", "Boxes", "World", "build_world", "shuttle_legs"]
 
 FloatArray = npt.NDArray[np.float64]
 WORLD_KINDS = ("slam", "calibration", "still")
@@ -46,6 +46,16 @@ TARGET_X_M = 90.0  # calibration boards stand at this x, facing -x
 TARGET_CENTRE_Z_M = 3.0
 TARGET_Y_M = {"checkerboard": -4.0, "aprilgrid": 4.0}
 CORNER_CUT_M = {"weave": 6.0, "turn": 9.0}
+CALIBRATION_DRIVES = ("shuttle", "loop")
+#: the shuttle drive in front of a board (see :func:`shuttle_legs`): sweep of viewing angles off the
+#: board's normal [deg], near and far distances [m], straight run-in and run-out [m], legs per lap
+SHUTTLE_SWEEP_DEG = (-30.0, -20.0, -10.0, 0.0, 10.0, 20.0, 30.0, 20.0, 10.0, 0.0, -10.0, -20.0)
+SHUTTLE_NEAR_M = (4.5, 6.5)
+SHUTTLE_AIM_M = 1.6
+SHUTTLE_FAR_M = (12.0, 15.0)
+SHUTTLE_RUN_IN_M = 2.0
+SHUTTLE_RUN_OUT_M = 2.0
+SHUTTLE_PAIRS = 24
 
 # kind ids (documented for the renderer)
 ROAD_ASPHALT, ROAD_CALIBRATION_PAD = 0, 1
@@ -110,6 +120,12 @@ class World:
         Distance between neighbouring road centrelines, metres.
     routes : dict
         Calibration: target kind -> closed loop polyline ``(K, 2)`` driven toward that target.
+    shuttles : dict
+        Calibration: target kind -> the legs of the shuttle drive in front of it (polylines
+        ``(K, 2)``; even legs are driven forward, odd legs in reverse; the last ends where the
+        first starts), see :func:`shuttle_legs`.
+    calibration_drive : str
+        ``"shuttle"`` or ``"loop"``: which drive the bumps were laid along.
     """
 
     kind: str
@@ -130,6 +146,8 @@ class World:
     town_blocks: int = 0
     block_m: float = BLOCK_M
     routes: dict[str, FloatArray] = field(default_factory=dict)
+    shuttles: dict[str, tuple[FloatArray, ...]] = field(default_factory=dict)
+    calibration_drive: str = "shuttle"
 
     def target_named(self, kind: str) -> Target:
         """The target of the given kind, or an :class:`IbiscapeError` if the world has none."""
@@ -150,6 +168,7 @@ class World:
             "target": self.target if self.targets else None,
             "targets": [t.to_dict() for t in self.targets],
             "terrain": self.terrain.to_dict(),
+            "calibration_drive": self.calibration_drive if self.kind == "calibration" else None,
             "town_blocks": int(self.town_blocks),
             "block_m": float(self.block_m),
             "counts": {
@@ -246,17 +265,102 @@ def _loop_bumps(loop: FloatArray, rng: np.random.Generator) -> list[Bump]:
     return bumps
 
 
-def _calibration_world(seed: int, scene: str, target: str, bumps: bool) -> dict[str, Any]:
+def shuttle_legs(target: str, seed: int, pairs: int = SHUTTLE_PAIRS) -> tuple[FloatArray, ...]:
+    """The shuttle drive in front of ``target``: ``2 pairs`` polylines, forward and reverse in turn.
+
+    The car keeps the board in view: each forward leg starts ``SHUTTLE_FAR_M`` from the board on
+    a line through the board's centre, runs ``SHUTTLE_RUN_IN_M`` straight at it, crosses over to
+    the line of the next viewing angle of ``SHUTTLE_SWEEP_DEG`` (off the board's normal, jittered
+    +-3 deg) and ends on that line ``SHUTTLE_NEAR_M`` from the board after a straight
+    ``SHUTTLE_RUN_OUT_M``; the reverse leg backs straight out along that line to the far distance.
+    Each line is aimed up to ``SHUTTLE_AIM_M`` beside the board's centre, so that the board is
+    also seen off the image centre (for the camera calibration on the same drive).  The car stops at every end (a cusp: the heading is continuous).
+    Distances are drawn per leg from the seed; after ``pairs`` (a multiple of the sweep) the drive
+    is back at its start, so the legs can be driven again.
+    """
+    rng = np.random.default_rng([seed, 7, TARGET_KINDS.index(target)])
+    c = np.array([TARGET_X_M, TARGET_Y_M[target]])
+    n = len(SHUTTLE_SWEEP_DEG)
+    pairs = max(n, n * math.ceil(pairs / n))
+    phi = np.radians(np.array([SHUTTLE_SWEEP_DEG[k % n] for k in range(pairs)])
+                     + rng.uniform(-3.0, 3.0, pairs))
+
+    def out(a: float) -> FloatArray:  # unit vector from the board toward the observer at angle a
+        return np.array([-math.cos(a), math.sin(a)])
+
+    far = rng.uniform(*SHUTTLE_FAR_M, pairs)
+    near = rng.uniform(*SHUTTLE_NEAR_M, pairs)
+    aim = rng.uniform(-SHUTTLE_AIM_M, SHUTTLE_AIM_M, pairs)
+
+    def on_line(k: int, r: float) -> FloatArray:
+        """``r`` metres out along line ``k``: at angle ``phi[k]``, aimed ``aim[k]`` beside the centre
+        (the board then sits off the image centre, which the camera calibration needs)."""
+        u = out(phi[k])
+        return c + aim[k] * np.array([-u[1], u[0]]) + r * u
+
+    legs: list[FloatArray] = []
+    for k in range(pairs):
+        j = (k + 1) % pairs
+        nk = on_line(j, near[k])
+        legs.append(np.array([on_line(k, far[k]), on_line(k, far[k] - SHUTTLE_RUN_IN_M),
+                              on_line(j, near[k] + SHUTTLE_RUN_OUT_M), nk]))
+        legs.append(np.array([nk, on_line(j, far[j])]))
+    return tuple(legs)
+
+
+def _shuttle_bumps(legs: tuple[FloatArray, ...], rng: np.random.Generator) -> list[Bump]:
+    """A bubble under one side's wheels (roll) halfway along every forward leg's cross-over, a wave
+    across every reverse leg (pitch) and a bubble further out, skipping any that would overlap an
+    earlier bump."""
+    bumps: list[Bump] = []
+    centres: list[FloatArray] = []
+
+    def free(p: FloatArray) -> bool:
+        return all(float(np.hypot(*(p - q))) > 2.2 for q in centres)
+
+    for i, leg in enumerate(legs):
+        if i % 2 == 0:
+            a, b = leg[1], leg[2]
+            d = (b - a) / np.linalg.norm(b - a)
+            side = 1.0 if rng.random() < 0.5 else -1.0
+            p = 0.5 * (a + b) + 0.8 * side * np.array([-d[1], d[0]])
+            if free(p):
+                centres.append(p)
+                bumps.append(Bump("bubble", (p[0], p[1]), float(rng.uniform(0.16, 0.24)),
+                                  radius_m=float(rng.uniform(1.0, 1.3))))
+        else:
+            a, b = leg[0], leg[1]
+            d = (b - a) / np.linalg.norm(b - a)
+            p = a + float(rng.uniform(0.25, 0.4)) * (b - a)
+            if free(p):
+                centres.append(p)
+                bumps.append(Bump("wave", (p[0], p[1]), float(rng.uniform(0.14, 0.2)),
+                                  width_m=float(rng.uniform(1.8, 2.4)), length_m=2.6,
+                                  heading_rad=float(math.atan2(d[1], d[0]))))
+            side = 1.0 if rng.random() < 0.5 else -1.0
+            p = a + float(rng.uniform(0.65, 0.8)) * (b - a) + 0.8 * side * np.array([-d[1], d[0]])
+            if free(p):
+                centres.append(p)
+                bumps.append(Bump("bubble", (p[0], p[1]), float(rng.uniform(0.16, 0.24)),
+                                  radius_m=float(rng.uniform(1.0, 1.3))))
+    return bumps
+
+
+def _calibration_world(seed: int, scene: str, target: str, bumps: bool,
+                       drive: str = "shuttle") -> dict[str, Any]:
     rng = np.random.default_rng([seed, 1])
     loops = {k: calibration_loop(k) for k in TARGET_KINDS}
+    shuttles = {k: shuttle_legs(k, seed) for k in TARGET_KINDS}
     targets = tuple(
         make_target(k, T_world_target=board_pose(k, [TARGET_X_M, TARGET_Y_M[k], TARGET_CENTRE_Z_M], math.pi))
         for k in TARGET_KINDS
     )
     bump_list: list[Bump] = []
-    if bumps:
+    if bumps and drive == "loop":
         for k in TARGET_KINDS:
             bump_list += _loop_bumps(loops[k], rng)
+    elif bumps:  # the shuttles of the two boards overlap: bumps along the driven one only
+        bump_list += _shuttle_bumps(shuttles[target], np.random.default_rng([seed, 8]))
     pad = Boxes.from_rows([(35.0, 0.0, 0.0, 150.0, 80.0, 0.0, 0.0, ROAD_CALIBRATION_PAD)])
     stands = []
     for t in targets:
@@ -298,6 +402,8 @@ def _calibration_world(seed: int, scene: str, target: str, bumps: bool) -> dict[
         "targets": targets,
         "agents": agents,
         "routes": loops,
+        "shuttles": shuttles,
+        "calibration_drive": drive,
     }
 
 
@@ -446,6 +552,7 @@ def build_world(
     scene: str = "clear",
     town_blocks: int = 4,
     bumps: bool = True,
+    calibration_drive: str = "shuttle",
 ) -> World:
     """Build a deterministic world.
 
@@ -464,6 +571,10 @@ def build_world(
         SLAM: blocks per side of the town grid (1..20), each ``BLOCK_M`` = 80 m.
     bumps : bool
         Whether the road has bubbles and waves (SLAM: a few speed bumps; calibration: many).
+    calibration_drive : str
+        Calibration: ``"shuttle"`` (forward and reverse legs in front of the board, which stays in
+        view; :func:`shuttle_legs`) or ``"loop"`` (the paper's approach loop); the bumps are laid
+        along it.
 
     Returns
     -------
@@ -486,7 +597,10 @@ def build_world(
         parts = _town_world(seed, scene, int(town_blocks), bumps)
         return World(kind, seed, scene, target=target, town_blocks=int(town_blocks), **parts)
     if kind == "calibration":
-        parts = _calibration_world(seed, scene, target, bumps)
+        if calibration_drive not in CALIBRATION_DRIVES:
+            raise IbiscapeError(f"calibration_drive {calibration_drive!r} is unknown; use one of "
+                                f"{CALIBRATION_DRIVES}")
+        parts = _calibration_world(seed, scene, target, bumps, calibration_drive)
         return World(kind, seed, scene, target=target, **parts)
     empty = Boxes.from_rows([])
     return World(

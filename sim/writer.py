@@ -110,7 +110,7 @@ def sequence_document(cfg: SimConfig, *, world: dict[str, Any] | None, target: d
             "fov_deg": c.fov_deg,
             "T_body_cam": T_bc,
             "T_cam_imu": np.linalg.inv(T_bc) @ T_b_imu0,
-            "timeshift_cam_imu": 0.0,
+            "timeshift_cam_imu": float(c.timeshift_cam_imu_s),
             "rendered": c.name in rendered,
         }
         entry.update(rendered.get(c.name, {}))

@@ -92,6 +92,8 @@ def make_demo_output(root: Path) -> None:
     # the stereo calibration sequence of the demo's calib step (the simulator's renderer), fewer views
     _example("calibrate_cameras").render_sequence(out / "stereo_checkerboard", "checkerboard",
                                                   n_views=10, seed=0)
+    # the camera-IMU calibration drive of `calib --imu` (board frames, with imu.yaml and camchain.yaml)
+    _example("calibrate_imu_camera").make_sequence(out / "SVI_calib_imu", duration_s=10.0, size=320)
 
 
 def _example(name: str):

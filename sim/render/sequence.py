@@ -31,11 +31,28 @@ __all__ = ["export_problem", "render_cameras"]
 
 Progress = Callable[[float, str], None]
 
-# bytes per pixel of a written frame (PNG of a noisy image compresses little; labels a lot)
 def _stamps(cfg: Any, rate_hz: float) -> np.ndarray:
     from ..still import n_samples, uniform_stamps
 
     return uniform_stamps(cfg.start_ns, rate_hz, 0, n_samples(cfg.duration_s, rate_hz))
+
+
+def shift_ns(cam: Any) -> int:
+    """The camera's clock offset ``timeshift_cam_imu`` in integer nanoseconds."""
+    return round(float(getattr(cam, "timeshift_cam_imu_s", 0.0)) * 1e9)
+
+
+def camera_stamps(cfg: Any, cam: Any) -> np.ndarray:
+    """Frame stamps of ``cam`` on its own clock: the uniform grid at its rate, without the frames
+    whose scene instant ``t_cam + timeshift_cam_imu`` (Kalibr's ``t_imu = t_cam + shift``) falls
+    outside the sequence (a shifted camera loses at most a frame at one end)."""
+    st = _stamps(cfg, cam.rate_hz)
+    d = shift_ns(cam)
+    if d == 0:
+        return st
+    end = cfg.start_ns + round(cfg.duration_s * 1e9)
+    keep = (st + d >= cfg.start_ns) & (st + d <= end)
+    return st[keep]
 
 
 def export_problem(cfg: Any, fmt: str) -> str | None:
@@ -81,9 +98,9 @@ def render_cameras(cfg: Any, folder: str | Path, world: Any, motion: Any, weathe
         if c.kind == "dvs":
             continue
         cam = renderer.camera(c.name)
-        key = (cam.model, cam.T_body_cam.round(9).tobytes(), float(c.rate_hz))
+        key = (cam.model, cam.T_body_cam.round(9).tobytes(), float(c.rate_hz), shift_ns(c))
         groups.setdefault(key, []).append(c)
-    work = {c.name: len(_stamps(cfg, c.rate_hz)) * c.width_px * c.height_px * (3 if c.kind == "dvs" else 1)
+    work = {c.name: len(camera_stamps(cfg, c)) * c.width_px * c.height_px * (3 if c.kind == "dvs" else 1)
             for c in cams}
     for g in groups.values():
         for c in g[1:]:
@@ -97,7 +114,8 @@ def render_cameras(cfg: Any, folder: str | Path, world: Any, motion: Any, weathe
 
     result: dict[str, dict[str, Any]] = {}
     glist = list(groups.values())
-    g_stamps = [_stamps(cfg, g[0].rate_hz) for g in glist]
+    g_stamps = [camera_stamps(cfg, g[0]) for g in glist]
+    g_shift = [shift_ns(g[0]) for g in glist]
     for g in glist:
         for c in g:
             for sub in ("frames", *{"depth": ("mm",), "semantic": ("labels",)}.get(c.kind, ())):
@@ -126,7 +144,9 @@ def render_cameras(cfg: Any, folder: str | Path, world: Any, motion: Any, weathe
         pending: deque[Future[None]] = deque()
         for k, t in enumerate(all_t):
             todo = [gi for gi in range(len(glist)) if t in g_sets[gi]]
-            rendered = list(views.map(lambda gi, t=t: renderer.render(lead_names[gi], t), todo))
+            # a frame stamped t on the camera's clock shows the scene at t + timeshift_cam_imu
+            rendered = list(views.map(lambda gi, t=t: renderer.render(lead_names[gi], t + g_shift[gi]),
+                                      todo))
             for gi, view in zip(todo, rendered, strict=True):
                 pending.append(writer.submit(write, glist[gi], t, view))
                 done += work[glist[gi][0].name] / len(g_stamps[gi])
@@ -152,11 +172,11 @@ def render_cameras(cfg: Any, folder: str | Path, world: Any, motion: Any, weathe
             continue
         from ..dvs import write_dvs_camera
 
-        stamps = _stamps(cfg, c.rate_hz)
+        stamps = camera_stamps(cfg, c)
         name = c.name
 
-        def gray(t_ns: int, name: str = name) -> Any:
-            return renderer.gray(name, t_ns)
+        def gray(t_ns: int, name: str = name, d: int = shift_ns(c)) -> Any:
+            return renderer.gray(name, t_ns + d)  # events stamped on the camera's clock
 
         def dvs_step(frac: float, label: str, name: str = name) -> None:
             step(frac, name, label)
@@ -180,7 +200,7 @@ def _association(cfg: Any, out: Path, result: dict[str, dict[str, Any]]) -> None
     for r in rgb:
         for d in depth:
             if d.mount == r.mount and d.rate_hz == r.rate_hz:
-                st = _stamps(cfg, r.rate_hz).tolist()
+                st = camera_stamps(cfg, r).tolist()
                 write_association(out / "association.txt", st, [f"{r.name}/frames/{t}.png" for t in st],
                                   st, [f"{d.name}/mm/{t}.png" for t in st])
                 result[r.name]["association"] = "association.txt"

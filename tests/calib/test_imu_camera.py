@@ -117,12 +117,13 @@ def test_flat_road_is_refused_then_flagged_by_the_standard_deviations(bumpy_resu
     assert set(res.excitation.weak_rotation_axes) == {"x", "y"}
     assert res.excitation.gyro_std_rad_s[:2].max() < 0.01 < res.excitation.gyro_std_rad_s[2]
     assert bumpy_result.excitation.translation_observable
-    assert bumpy_result.excitation.gyro_std_rad_s.min() > 0.1
+    assert bumpy_result.excitation.gyro_std_rad_s.min() > 0.05  # the shuttle: pitch rate std ~0.09
     for fl, bu in zip(res.cameras, bumpy_result.cameras, strict=True):
         # without roll and pitch the lever arm along the vertical (IMU z) is not observable ...
         assert fl.position_std_imu_m[2] > 0.5 > 20 * bu.position_std_imu_m[2]
-        # ... and the rotation about the vertical rests on the accelerometer alone
-        assert fl.rotation_std_deg[2] > 5 * bu.rotation_std_deg[2]
+        # ... and the rotation about the vertical rests on the accelerometer alone (the shuttle's
+        # turns and stops still give it lateral and longitudinal accelerations)
+        assert fl.rotation_std_deg[2] > 1.3 * bu.rotation_std_deg[2]
         assert bu.timeshift_std_s < fl.timeshift_std_s
         assert any(f"camera {fl.name}: translation along IMU z" in w for w in res.warnings)
         assert not any(f"camera {bu.name}: rotation" in w for w in bumpy_result.warnings)

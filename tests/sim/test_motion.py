@@ -218,10 +218,10 @@ def test_world_without_lanes_and_out_of_range_stamps(slam):
 
 @pytest.mark.parametrize("target", ["checkerboard", "aprilgrid"])
 def test_calibration_start_distance_starts_near_the_board(target):
-    w = build_world(kind="calibration", seed=3, target=target)
+    w = build_world(kind="calibration", seed=3, target=target, calibration_drive="loop")
     board = w.target_named(target).centre_world_m
-    near = plan_motion(w, duration_s=8.0, seed=3, target=target, start_distance_m=22.0)
-    full = plan_motion(w, duration_s=8.0, seed=3, target=target)
+    near = plan_motion(w, duration_s=8.0, seed=3, target=target, start_distance_m=22.0, drive="loop")
+    full = plan_motion(w, duration_s=8.0, seed=3, target=target, drive="loop")
     p_near = near.sample(_stamps(near)).pos_m
     p_full = full.sample(_stamps(full)).pos_m
     assert board[0] - p_near[0, 0] == pytest.approx(22.0, abs=0.5)
@@ -232,6 +232,43 @@ def test_calibration_start_distance_starts_near_the_board(target):
 
 @pytest.mark.parametrize("start", [5.0, 11.0, 91.0])
 def test_calibration_start_distance_outside_the_approach(start):
-    w = build_world(kind="calibration", seed=0, target="checkerboard")
+    w = build_world(kind="calibration", seed=0, target="checkerboard", calibration_drive="loop")
     with pytest.raises(IbiscapeError, match="start_distance_m"):
-        plan_motion(w, duration_s=5.0, seed=0, target="checkerboard", start_distance_m=start)
+        plan_motion(w, duration_s=5.0, seed=0, target="checkerboard", start_distance_m=start,
+                    drive="loop")
+    with pytest.raises(IbiscapeError, match="start_distance_m applies to the loop drive"):
+        plan_motion(w, duration_s=5.0, seed=0, target="checkerboard", start_distance_m=22.0)
+
+
+def _board_in_view(w, m, target, max_dist_m=16.0):
+    """Fraction of 20 Hz frames with the board centre inside a 90 deg camera, nearer than max_dist_m."""
+    frames = m.sample(_stamps(m, 50_000_000))
+    R = matrix_from_quat(frames.quat_xyzw)
+    c = w.target_named(target).centre_world_m
+    p = np.einsum("nji,nj->ni", R, c - frames.pos_m) - np.array([0.0, 0.0, 2.8])
+    ahead = p[:, 0] > 0.5
+    off = np.maximum(np.abs(p[:, 1]), np.abs(p[:, 2])) / np.where(ahead, p[:, 0], 1.0)
+    return float(np.mean(ahead & (off < 0.75) & (np.linalg.norm(p, axis=1) < max_dist_m)))
+
+
+@pytest.mark.parametrize("target", ["checkerboard", "aprilgrid"])
+def test_shuttle_keeps_the_board_in_view_and_reverses(target, calib):
+    w = build_world(kind="calibration", seed=4, target=target)
+    m = plan_motion(w, duration_s=60.0, seed=4, target=target)
+    loop_w = build_world(kind="calibration", seed=4, target=target, calibration_drive="loop")
+    loop = plan_motion(loop_w, duration_s=60.0, seed=4, target=target, drive="loop")
+    # measured: shuttle 0.99-1.0 of the frames, the paper's loop 0.04 (board beyond 16 m)
+    assert _board_in_view(w, m, target) > 0.95 > 0.2 > _board_in_view(loop_w, loop, target)
+    st = m.sample(_stamps(m))
+    R = matrix_from_quat(st.quat_xyzw)
+    v_fwd = np.einsum("nj,nj->n", R[:, :, 0], st.vel_m_s)  # speed along the body's x
+    assert v_fwd.min() < -1.5 and v_fwd.max() > 2.0  # reverse legs are driven backwards
+    assert np.linalg.norm(st.vel_m_s, axis=1).max() < 3.2
+    pitch, roll = _euler_deg(st.quat_xyzw)
+    assert pitch.std() >= 1.0 and roll.std() >= 1.0
+    c = m.controls(_stamps(m))
+    assert np.abs(c.steer).max() < 1.0  # corners a car can steer
+    flat = plan_motion(build_world(kind="calibration", seed=4, target=target, bumps=False),
+                       duration_s=60.0, seed=4, target=target)
+    fp, fr = _euler_deg(flat.sample(_stamps(flat)).quat_xyzw)
+    assert fp.std() < 0.05 and fr.std() < 0.05

@@ -73,7 +73,7 @@ def test_slam_world_layout():
 
 
 def test_calibration_world_targets_and_bumps():
-    w = build_world(kind="calibration", seed=1, target="aprilgrid")
+    w = build_world(kind="calibration", seed=1, target="aprilgrid", calibration_drive="loop")
     kinds = [t.target_type for t in w.targets]
     assert kinds == ["checkerboard", "aprilgrid"] and w.target == "aprilgrid"
     kb = [b.kind for b in w.terrain.bumps]
@@ -128,3 +128,26 @@ def test_bad_world_requests(kwargs, match):
     kw = {"seed": 0, **kwargs}
     with pytest.raises(IbiscapeError, match=match):
         build_world(**kw)
+
+
+@pytest.mark.parametrize("target", ["checkerboard", "aprilgrid"])
+def test_shuttle_legs_face_the_board_and_close(target):
+    w = build_world(kind="calibration", seed=2, target=target)
+    assert w.calibration_drive == "shuttle" and w.to_dict()["calibration_drive"] == "shuttle"
+    legs = w.shuttles[target]
+    c = w.target_named(target).centre_world_m[:2]
+    assert len(legs) % 2 == 0 and np.allclose(legs[-1][-1], legs[0][0])  # drivable again
+    for i, leg in enumerate(legs):
+        nxt = legs[(i + 1) % len(legs)]
+        assert np.allclose(leg[-1], nxt[0])
+        d_end = (leg[-1] - leg[-2]) / np.linalg.norm(leg[-1] - leg[-2])
+        d_next = (nxt[1] - nxt[0]) / np.linalg.norm(nxt[1] - nxt[0])
+        assert d_end @ d_next == pytest.approx(-1.0)  # a cusp: the next leg starts straight back
+        r = np.linalg.norm(leg[[0, -1]] - c, axis=1)
+        assert r.min() > 4.4 and r.max() < 15.2
+    kb = [b.kind for b in w.terrain.bumps]
+    assert kb.count("bubble") >= 3 and kb.count("wave") >= 1
+    flat = build_world(kind="calibration", seed=2, target=target, bumps=False)
+    assert flat.terrain.bumps == () and len(flat.shuttles[target]) == len(legs)
+    with pytest.raises(IbiscapeError, match="calibration_drive"):
+        build_world(kind="calibration", seed=2, calibration_drive="figure8")

@@ -10,6 +10,7 @@ from .calibrate import calibrate_imu_camera
 from .inputs import CameraObservations, ImuData, ImuNoiseDensities
 from .kalibr import camchain_imucam_document, errors_against_truth
 from .result import CameraImuCalibration, Excitation, ImuCameraResult, ResidualSeries
+from .sequence import SequenceCalibration, calibrate_sequence, read_imu_noise
 from .synthetic import observe_target
 
 __all__ = [
@@ -20,8 +21,11 @@ __all__ = [
     "ImuData",
     "ImuNoiseDensities",
     "ResidualSeries",
+    "SequenceCalibration",
     "calibrate_imu_camera",
+    "calibrate_sequence",
     "camchain_imucam_document",
     "errors_against_truth",
     "observe_target",
+    "read_imu_noise",
 ]

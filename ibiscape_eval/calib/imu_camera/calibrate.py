@@ -257,6 +257,7 @@ def calibrate_imu_camera(
     min_rate_std_rad_s: float = 0.02,
     gravity_m_s2: float = 9.81,
     force: bool = False,
+    refine_intrinsics: bool = False,
     max_iterations: int = 40,
     rate_tolerance: float = 0.05,
     keep_residuals: bool = True,
@@ -291,6 +292,9 @@ def calibrate_imu_camera(
     force : bool
         Estimate even when fewer than two rotation axes are excited (the translation is then not
         observable); the result carries warnings naming the weak directions.
+    refine_intrinsics : bool
+        Also estimate each camera's focal lengths and principal point (distortion held), from
+        the given intrinsics: for intrinsics from a camera calibration of weakly tilted views.
     progress : callable(fraction, label), optional
 
     Returns
@@ -397,7 +401,7 @@ def calibrate_imu_camera(
                     + [noise.accel_random_walk_m_s3_sqrt_hz] * 3) * math.sqrt(bias_dt)
     prob = Problem(dt, pieces, n_ctrl, span_lo, bias_dt, n_bias, imu_t[in_piece],
                    imu.gyro_rad_s[in_piece], imu.accel_m_s2[in_piece], sg, sa, walk,
-                   gravity_m_s2, blocks, sigma_px)
+                   gravity_m_s2, blocks, sigma_px, n_intr=4 if refine_intrinsics else 0)
 
     # ---- initial trajectory: rotation from the aligned gyro integral, positions from PnP (t_ci = 0)
     ts, ps = [], []
@@ -417,8 +421,10 @@ def calibrate_imu_camera(
         for c in range(1, len(observations)):
             a = int(np.argmin(np.linalg.norm(R_tw0[c] @ Rks - R_tw0[0], axis=(1, 2))))
             R_ci0[c] = R_ci0[c] @ Rks[a]
+    intr0 = np.array([[b.camera.fx, b.camera.fy, b.camera.cx, b.camera.cy] for b in blocks])
     st = State(R_ctrl, P_ctrl, np.zeros((n_bias, 6)), np.eye(3), np.asarray(R_ci0),
-               np.zeros((len(observations), 3)), np.asarray(shifts, dtype=np.float64))
+               np.zeros((len(observations), 3)), np.asarray(shifts, dtype=np.float64),
+               intr0 if refine_intrinsics else None)
     st, _ = _linear_translation_init(prob, st, ps)
     if len(exc.weak_rotation_axes) >= 2:  # rotation about one axis only (a flat road, --force)
         st = _resolve_single_axis(prob, st, ps)
@@ -468,6 +474,59 @@ def _refine(prob: Problem, st: State, dt: float) -> tuple[Problem, State]:
     return new, st2
 
 
+class _BandedSchur:
+    """Factorisation of the SPD normal matrix ``H``: the control points (interleaved rotation and
+    position of each knot) form a banded block, the rest (biases, gravity, cameras) a small dense
+    border; banded Cholesky plus the Schur complement of the border (a few ms where a general
+    sparse LU takes seconds).  Raises ``numpy.linalg.LinAlgError`` when ``H`` is not positive
+    definite."""
+
+    def __init__(self, prob: Problem, H: Any):
+        import scipy.linalg as la
+        import scipy.sparse as sp
+
+        nc = prob.n_ctrl
+        k = np.arange(nc)
+        ctrl = np.stack([3 * k, 3 * k + 1, 3 * k + 2, 3 * nc + 3 * k, 3 * nc + 3 * k + 1,
+                         3 * nc + 3 * k + 2], -1).ravel()
+        glob = np.arange(6 * nc, prob.n_params)
+        Hc = sp.csr_matrix(H)
+        A = Hc[ctrl][:, ctrl].tocoo()
+        lower = A.row >= A.col
+        bw = int((A.row[lower] - A.col[lower]).max(initial=0))
+        ab = np.zeros((bw + 1, ctrl.size))
+        ab[(A.row - A.col)[lower], A.col[lower]] = A.data[lower]
+        self.cf = la.cholesky_banded(ab, lower=True, check_finite=False)
+        self.B = Hc[ctrl][:, glob].toarray()
+        self.AiB = la.cho_solve_banded((self.cf, True), self.B, check_finite=False)
+        S = Hc[glob][:, glob].toarray() - self.B.T @ self.AiB
+        self.S = la.cho_factor(S, check_finite=False)
+        self.ctrl, self.glob, self.n = ctrl, glob, prob.n_params
+
+    def solve(self, rhs: FloatArray) -> FloatArray:
+        import scipy.linalg as la
+
+        r = rhs.reshape(self.n, -1)
+        ra, rg = r[self.ctrl], r[self.glob]
+        Ai_ra = la.cho_solve_banded((self.cf, True), ra, check_finite=False)
+        xg = la.cho_solve(self.S, rg - self.B.T @ Ai_ra, check_finite=False)
+        xa = Ai_ra - self.AiB @ xg
+        x = np.empty_like(r)
+        x[self.ctrl], x[self.glob] = xa, xg
+        return x.reshape(rhs.shape)
+
+
+def _factor(prob: Problem, A: Any) -> Any:
+    """A solver of the damped normal equations: banded Schur, else a sparse LU."""
+    try:
+        return _BandedSchur(prob, A)
+    except (np.linalg.LinAlgError, ValueError):
+        import scipy.sparse as sp
+        from scipy.sparse.linalg import splu
+
+        return splu(sp.csc_matrix(A), permc_spec="COLAMD")
+
+
 def _solve(prob: Problem, st: State, max_iterations: int, step: Callable[[float, str], None],
            span: tuple[float, float] = (0.1, 0.95), rel_tol: float = 0.0
            ) -> tuple[State, int, bool, Any]:
@@ -475,7 +534,6 @@ def _solve(prob: Problem, st: State, max_iterations: int, step: Callable[[float,
     parameter by a noticeable fraction of its standard deviation) or by less than ``rel_tol``
     relative."""
     import scipy.sparse as sp
-    from scipy.sparse.linalg import splu
 
     lam = 1e-4
     H, g, c0 = normal_equations(prob, st)
@@ -488,7 +546,7 @@ def _solve(prob: Problem, st: State, max_iterations: int, step: Callable[[float,
             d_h = np.asarray(H.diagonal())
             A = H + sp.diags(lam * d_h + 1e-9, format="csc")
             try:
-                delta = splu(sp.csc_matrix(A), permc_spec="COLAMD").solve(-g)
+                delta = _factor(prob, A).solve(-g)
             except RuntimeError:
                 lam *= 10
                 continue
@@ -527,14 +585,14 @@ def _result(prob: Problem, st: State, H: Any, exc: Excitation, warn: list[str], 
             converged: bool, forced: bool, t_start: float, observations: Sequence[CameraObservations],
             keep_residuals: bool) -> ImuCameraResult:
     import scipy.sparse as sp
-    from scipy.sparse.linalg import splu
 
     C = len(prob.cams)
-    gl = np.r_[prob.i_grav : prob.i_grav + 2 + 7 * C]
+    w = prob.cam_width
+    gl = np.r_[prob.i_grav : prob.i_grav + 2 + w * C]
     Hs = sp.csc_matrix(H) + sp.identity(prob.n_params, format="csc") * 1e-12
     E = np.zeros((prob.n_params, gl.size))
     E[gl, np.arange(gl.size)] = 1.0
-    cov = splu(Hs, permc_spec="COLAMD").solve(E)[gl]
+    cov = _factor(prob, Hs).solve(E)[gl]
     r_imu, _, _, _ = imu_block(prob, st, jac=False)
     n_res = r_imu.size
     chi2 = float(np.sum(r_imu**2))
@@ -545,7 +603,7 @@ def _result(prob: Problem, st: State, H: Any, exc: Excitation, warn: list[str], 
         chi2 += float(np.sum(rc**2))
         n_res += 2 * int(valid.sum())
         e_px = rc[valid] * prob.sigma_px
-        k = 2 + 7 * c
+        k = 2 + w * c
         cc = cov[k : k + 7, k : k + 7]
         var = np.clip(np.diag(cc), 0.0, None)
         R_ci = st.R_ci[c]
@@ -554,7 +612,7 @@ def _result(prob: Problem, st: State, H: Any, exc: Excitation, warn: list[str], 
         T[:3, :3] = R_ci
         T[:3, 3] = st.t_ci[c]
         cams.append(CameraImuCalibration(
-            prob.cams[c].name, prob.cams[c].camera, T, float(st.shift_s[c]),
+            prob.cams[c].name, st.camera(prob, c), T, float(st.shift_s[c]),
             np.degrees(np.sqrt(var[:3])), np.sqrt(var[3:6]),
             np.sqrt(np.clip(np.diag(cov_pos), 0.0, None)), float(math.sqrt(var[6])),
             float(np.sqrt(np.mean(np.sum(e_px**2, axis=1)))) if len(e_px) else float("nan"),

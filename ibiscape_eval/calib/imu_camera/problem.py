@@ -30,7 +30,7 @@ are reduced first).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -91,11 +91,18 @@ class Problem:
     sigma_px: float
     bias_prior_sigma: FloatArray = field(default_factory=lambda: np.array([0.1] * 3 + [2.0] * 3))
     trans_prior_sigma_m: float = 20.0
+    #: 4 when the focal lengths and principal points are refined too (fx, fy, cx, cy per camera)
+    n_intr: int = 0
+
+    @property
+    def cam_width(self) -> int:
+        """Parameters per camera: rotation 3, translation 3, time offset 1, intrinsics."""
+        return 7 + self.n_intr
 
     # ---- layout
     @property
     def n_params(self) -> int:
-        return 6 * self.n_ctrl + 6 * self.n_bias + 2 + 7 * len(self.cams)
+        return 6 * self.n_ctrl + 6 * self.n_bias + 2 + self.cam_width * len(self.cams)
 
     @property
     def i_bias(self) -> int:
@@ -106,7 +113,7 @@ class Problem:
         return 6 * self.n_ctrl + 6 * self.n_bias
 
     def i_cam(self, c: int) -> int:
-        return self.i_grav + 2 + 7 * c
+        return self.i_grav + 2 + self.cam_width * c
 
     def locate(self, t_s: FloatArray) -> tuple[IntArray, FloatArray, npt.NDArray[np.bool_]]:
         """Global control-point base index, segment position u and validity for times (n,)."""
@@ -137,10 +144,20 @@ class State:
     R_ci: FloatArray  # (C, 3, 3)
     t_ci: FloatArray  # (C, 3)
     shift_s: FloatArray  # (C,)
+    intr: FloatArray | None = None  # (C, 4) fx, fy, cx, cy when refined
 
     def copy(self) -> State:
         return State(self.R_ctrl.copy(), self.P_ctrl.copy(), self.bias.copy(), self.R_g.copy(),
-                     self.R_ci.copy(), self.t_ci.copy(), self.shift_s.copy())
+                     self.R_ci.copy(), self.t_ci.copy(), self.shift_s.copy(),
+                     None if self.intr is None else self.intr.copy())
+
+    def camera(self, prob: Problem, c: int) -> CameraModel:
+        """Camera ``c`` with the current intrinsics."""
+        cam = prob.cams[c].camera
+        if self.intr is None:
+            return cam
+        fx, fy, cx, cy = (float(v) for v in self.intr[c])
+        return replace(cam, fx=fx, fy=fy, cx=cx, cy=cy)
 
     def gravity(self, g: float) -> FloatArray:
         return self.R_g @ np.array([0.0, 0.0, -g])
@@ -158,6 +175,8 @@ class State:
             s.R_ci[c] = self.R_ci[c] @ exp_so3(d[k : k + 3])
             s.t_ci[c] = self.t_ci[c] + d[k + 3 : k + 6]
             s.shift_s[c] = self.shift_s[c] + d[k + 6]
+            if prob.n_intr and s.intr is not None:
+                s.intr[c] = self.intr[c] + d[k + 7 : k + 11]  # type: ignore[index]
         return s
 
 
@@ -236,7 +255,7 @@ def imu_block(prob: Problem, st: State, *, jac: bool
 def camera_block(prob: Problem, st: State, c: int, *, jac: bool
                  ) -> tuple[FloatArray, FloatArray | None, IntArray | None, npt.NDArray[np.bool_]]:
     """Reprojection residuals (F, M, 2) of camera ``c`` (zero on padding and outside the spline);
-    with ``jac``: local Jacobians (F, M, 2, 31) and global columns (F, 31)."""
+    with ``jac``: local Jacobians (F, M, 2, 31 [+ 4 intrinsics]) and global columns (F, 31 [+ 4])."""
     cb = prob.cams[c]
     t = cb.t_s + st.shift_s[c]
     base, u, inside = prob.locate(t)
@@ -248,11 +267,12 @@ def camera_block(prob: Problem, st: State, c: int, *, jac: bool
     p, v, _ = position(Pl, u, prob.dt_s)
     Rci, tci = st.R_ci[c], st.t_ci[c]
     D = cb.X - p[:, None, :]  # (F, M, 3)
-    q = np.einsum("nji,nmj->nmi", R, D)  # R^T (X - p)
+    q = D @ R  # R^T (X - p) per corner, as rows
     pc = q @ Rci.T + tci
     z = pc[..., 2]
     valid = (cb.mask > 0) & inside[:, None] & (z > 1e-3)
-    uv = cb.camera.project(np.where(valid[..., None], pc, np.array([0.0, 0.0, 1.0])))
+    camera = st.camera(prob, c)
+    uv = camera.project(np.where(valid[..., None], pc, np.array([0.0, 0.0, 1.0])))
     s = prob.sigma_px
     r = np.where(valid[..., None], (uv - cb.uv) / s, 0.0)
     if not jac:
@@ -265,15 +285,15 @@ def camera_block(prob: Problem, st: State, c: int, *, jac: bool
     for a in range(3):
         e = np.zeros(3)
         e[a] = 1.0
-        up = cb.camera.project(pcv + (h[..., None] * e))
-        um = cb.camera.project(pcv - (h[..., None] * e))
+        up = camera.project(pcv + (h[..., None] * e))
+        um = camera.project(pcv - (h[..., None] * e))
         Jp[..., a] = (up - um) / (2 * h[..., None])
     Jp *= (valid[..., None, None] / s)
     dpc = np.empty((F, M, 3, 31))
     for col in range(12):
         Rp, _ = rotation(Rl @ _PERT_PLUS[col], u, prob.dt_s, angular_velocity=False)
         Rm, _ = rotation(Rl @ _PERT_MINUS[col], u, prob.dt_s, angular_velocity=False)
-        dq = np.einsum("nji,nmj->nmi", Rp - Rm, D) / (2 * _H_ROT)
+        dq = D @ (Rp - Rm) / (2 * _H_ROT)  # rows: (X - p)^T (Rp - Rm) = ((Rp - Rm)^T (X - p))^T
         dpc[..., col] = dq @ Rci.T
     b, _, _ = basis(u)
     A = -np.einsum("ij,nkj->nik", Rci, R)  # -R_ci R^T  (F, 3, 3)
@@ -284,11 +304,18 @@ def camera_block(prob: Problem, st: State, c: int, *, jac: bool
     # d q / d t = -[w]x q - R^T v
     dq_dt = -np.cross(w[:, None, :], q) - np.einsum("nji,nj->ni", R, v)[:, None, :]
     dpc[..., 30] = dq_dt @ Rci.T
-    J = np.einsum("nmij,nmjk->nmik", Jp, dpc)
-    cols = np.empty((F, 31), np.int64)
+    J = Jp @ dpc
+    if prob.n_intr:  # u = fx xd + cx, v = fy yd + cy (pinhole with radtan or equidistant)
+        Ji = np.zeros((F, M, 2, 4))
+        Ji[..., 0, 0] = (uv[..., 0] - camera.cx) / camera.fx
+        Ji[..., 1, 1] = (uv[..., 1] - camera.cy) / camera.fy
+        Ji[..., 0, 2] = 1.0
+        Ji[..., 1, 3] = 1.0
+        J = np.concatenate((J, Ji * (valid[..., None, None] / s)), axis=-1)
+    cols = np.empty((F, 31 + prob.n_intr), np.int64)
     cols[:, :12] = (3 * idx[:, :, None] + np.arange(3)).reshape(F, 12)
     cols[:, 12:24] = 3 * prob.n_ctrl + cols[:, :12]
-    cols[:, 24:31] = prob.i_cam(c) + np.arange(7)
+    cols[:, 24:] = prob.i_cam(c) + np.arange(7 + prob.n_intr)
     return r, J, cols, valid
 
 
@@ -347,8 +374,9 @@ def normal_equations(prob: Problem, st: State) -> tuple[Any, FloatArray, float]:
     r, J, cols, key = imu_block(prob, st, jac=True)
     assert J is not None and cols is not None and key is not None
     total += float(np.sum(r * r))
-    Hl = np.einsum("nrp,nrq->npq", J, J)
-    gl = np.einsum("nrp,nr->np", J, r)
+    Jt = np.swapaxes(J, 1, 2)
+    Hl = Jt @ J  # batched products (BLAS per sample) beat einsum's loop several times
+    gl = (Jt @ r[:, :, None])[..., 0]
     starts = np.flatnonzero(np.r_[True, np.diff(key) != 0])
     Hg = np.add.reduceat(Hl, starts, axis=0)
     cg = cols[starts]
@@ -360,8 +388,10 @@ def normal_equations(prob: Problem, st: State) -> tuple[Any, FloatArray, float]:
         rc, Jc, colc, _ = camera_block(prob, st, c, jac=True)
         assert Jc is not None and colc is not None
         total += float(np.sum(rc * rc))
-        Hc = np.einsum("nmip,nmiq->npq", Jc, Jc)
-        gc = np.einsum("nmip,nmi->np", Jc, rc)
+        Jf = Jc.reshape(Jc.shape[0], -1, Jc.shape[-1])  # (F, 2M, 31)
+        Jft = np.swapaxes(Jf, 1, 2)
+        Hc = Jft @ Jf
+        gc = (Jft @ rc.reshape(rc.shape[0], -1, 1))[..., 0]
         np.add.at(grad, colc.ravel(), gc.ravel())
         data.append(Hc.ravel())
         ri.append(np.broadcast_to(colc[:, :, None], Hc.shape).ravel())

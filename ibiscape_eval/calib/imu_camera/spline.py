@@ -95,7 +95,7 @@ def rotation(R_ctrl: FloatArray, u: FloatArray, dt_s: float, *,
         Knot spacing, seconds.
     """
     B, dB = cumulative_basis(u)
-    d = log_so3(np.einsum("njik,njkl->njil", np.swapaxes(R_ctrl[:, :3], -1, -2), R_ctrl[:, 1:]))
+    d = log_so3(np.swapaxes(R_ctrl[:, :3], -1, -2) @ R_ctrl[:, 1:])
     A = exp_so3(B[..., None] * d)  # (n, 3, 3, 3)
     R = R_ctrl[:, 0] @ A[:, 0] @ A[:, 1] @ A[:, 2]
     if not angular_velocity:

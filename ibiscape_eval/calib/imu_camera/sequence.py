@@ -1,0 +1,449 @@
+"""Camera-IMU calibration of a recorded sequence: frames -> corners -> intrinsics -> extrinsics.
+
+:func:`calibrate_sequence` is the whole ``ibiscape-eval calib SEQ --imu imu.yaml`` in one library
+call: it finds the camera folders (RGB frames, or DVS frames reconstructed from events by
+:mod:`ibiscape_eval.calib.events`), detects the target in every frame, takes the intrinsics from a
+camera calibration of the same frames (or from ``camchain``), reads the IMU samples of the
+sequence (or ``imu_data``), runs :func:`~.calibrate.calibrate_imu_camera` and compares everything
+with the truth of ``sequence.yaml`` when it holds one.
+
+A square checkerboard has no preferred orientation, so a detector may number its corners from
+any corner; every detection is renumbered so that corner ids grow to the right and down in the
+image (the camera may roll by up to 45 degrees), which keeps the target frame the same over the
+sequence.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+import warnings
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ibiscape_eval.core.camera import CameraModel
+from ibiscape_eval.core.errors import CalibrationError, FormatError, IbiscapeError, IbiscapeWarning
+
+from .inputs import CameraObservations, ImuData, ImuNoiseDensities
+from .kalibr import errors_against_truth
+from .result import ImuCameraResult
+
+__all__ = ["SequenceCalibration", "calibrate_sequence", "read_imu_noise"]
+
+Progress = Callable[[float, str], None]
+#: the camera clocks may be this far off the IMU's (the solve's search range of the offset)
+MAX_SHIFT_NS = 100_000_000
+
+
+def read_imu_noise(path: str | os.PathLike[str]) -> ImuNoiseDensities:
+    """A Kalibr ``imu.yaml`` (the ``allan`` command's output; ``yaml.safe_load``); a missing or bad
+    key is a :class:`FormatError` naming the file and the key."""
+    from ibiscape_eval.io.paths import safe_yaml
+
+    doc: Any = safe_yaml(path, what="Kalibr imu.yaml")
+    return ImuNoiseDensities.from_kalibr(doc, source=str(path))
+
+
+@dataclass(frozen=True, eq=False)
+class SequenceCalibration:
+    """Everything ``calib SEQ --imu`` found.
+
+    Attributes
+    ----------
+    sequence : str
+    result : ImuCameraResult
+        Extrinsics, time offsets, gravity, biases, excitation, residuals.
+    intrinsics_source : dict
+        Camera name -> where its intrinsics came from (``"camera calibration"`` or the camchain).
+    truth : dict
+        Camera name -> ``T_cam_imu`` (4x4 list) and ``timeshift_cam_imu`` [s] of ``sequence.yaml``.
+    errors_vs_truth : dict
+        Camera name -> rotation [deg], translation [m] and time-offset [s] errors.
+    camera_calibration : dict or None
+        The camera calibration of the same frames (intrinsics, reprojection error and, with a
+        truth, its errors) when the intrinsics came from it.
+    detection : dict
+        Per camera: frames, frames with the target, corners, reconstruction of event cameras.
+    imu_file : str
+    timing_s : dict
+        Wall-clock seconds of detection, camera calibration, camera-IMU solve, total, and the
+        process CPU seconds.
+    """
+
+    sequence: str
+    result: ImuCameraResult
+    intrinsics_source: dict[str, str]
+    truth: dict[str, dict[str, Any]]
+    errors_vs_truth: dict[str, dict[str, float]]
+    camera_calibration: dict[str, Any] | None
+    detection: dict[str, Any]
+    imu_file: str
+    timing_s: dict[str, float] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Strict JSON: the result, the truth and the errors, the detection and the timing."""
+        return {
+            "sequence": self.sequence,
+            **self.result.to_dict(),
+            "intrinsics_source": dict(self.intrinsics_source),
+            "truth": self.truth,
+            "errors_vs_truth": self.errors_vs_truth,
+            "camera_calibration": self.camera_calibration,
+            "detection": self.detection,
+            "imu_file": self.imu_file,
+            "timing_s": {k: round(float(v), 3) for k, v in self.timing_s.items()},
+        }
+
+    def __repr__(self) -> str:
+        errs = ", ".join(f"{k}: {v['rotation_error_deg']:.3f} deg {v['translation_error_m'] * 1e3:.1f} mm "
+                         f"{v['timeshift_error_s'] * 1e3:.3f} ms" for k, v in self.errors_vs_truth.items())
+        return (f"SequenceCalibration({self.sequence}, {len(self.result.cameras)} cameras"
+                + (f", errors {errs}" if errs else "") + ")")
+
+
+# ------------------------------------------------------------------------------------------ helpers
+class _Reader:
+    """``reader(i) = fn(paths[i])``, for the frame loaders and labels."""
+
+    def __init__(self, paths: Sequence[Path], fn: Callable[[Path], Any]):
+        self.paths, self.fn = list(paths), fn
+
+    def __call__(self, i: int) -> Any:
+        return self.fn(self.paths[i])
+
+
+def canonical_checkerboard(ids: npt.ArrayLike, pixels_px: npt.ArrayLike, target: Any
+                           ) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.float64]]:
+    """Renumber a full checkerboard detection so that ids grow to the right along the corner columns
+    and down along the rows in the image (among the board's symmetries, :meth:`CalibrationTarget.
+    symmetries`); returns ``(ids, pixels)`` sorted by the new ids."""
+    ids = np.asarray(ids, dtype=np.int64)
+    px = np.asarray(pixels_px, dtype=np.float64).reshape(-1, 2)
+    n_r, n_c = target.corner_rows, target.corner_cols
+    if target.target_type != "checkerboard" or ids.size != n_r * n_c:
+        return ids, px
+    best, best_score = None, -np.inf
+    for perm in target.symmetries():
+        new = perm[ids]
+        grid = np.empty((n_r * n_c, 2))
+        grid[new] = px
+        g = grid.reshape(n_r, n_c, 2)
+        col = np.diff(g, axis=1).reshape(-1, 2).mean(axis=0)
+        row = np.diff(g, axis=0).reshape(-1, 2).mean(axis=0)
+        score = col[0] / (np.linalg.norm(col) + 1e-12) + row[1] / (np.linalg.norm(row) + 1e-12)
+        if score > best_score:
+            best, best_score = new, score
+    assert best is not None
+    order = np.argsort(best)
+    return best[order], px[order]
+
+
+def _camchain_cameras(path: str | os.PathLike[str], names: Sequence[str]) -> dict[str, CameraModel]:
+    """Intrinsics of ``names`` from a Kalibr camchain: by the rostopic ``/<name>/...`` or the
+    ``cam<i>`` key, else by chain order."""
+    from ibiscape_eval.io.kalibr import read_camchain
+
+    chain = read_camchain(path)
+    out: dict[str, CameraModel] = {}
+    for i, name in enumerate(names):
+        hit = [k for k, t in enumerate(chain.rostopics) if f"/{name}/" in f"{t}/"]
+        hit = hit or [k for k, n in enumerate(chain.names) if n == name]
+        if hit:
+            out[name] = chain.cameras[hit[0]]
+        elif not any(f"/{n}/" in f"{t}/" for t in chain.rostopics for n in names) and i < len(chain.cameras):
+            out[name] = chain.cameras[i]  # a camchain of other names: chain order
+    return out
+
+
+def _require_intrinsics(names: Sequence[str], models: dict[str, CameraModel],
+                        camchain: str | os.PathLike[str] | None) -> None:
+    for n in names:
+        if n not in models:
+            where = f"{camchain} has no entry for it" if camchain is not None else "the camera calibration gave none"
+            raise CalibrationError(f"camera {n}: intrinsics are missing ({where}); give --cams "
+                                   "camchain.yaml with an entry for every camera (rostopic "
+                                   f"/{n}/image_raw or chain order)")
+
+
+def _imu_file(seq: Path, doc: dict[str, Any]) -> tuple[Path, str]:
+    imus = doc.get("imus") if isinstance(doc.get("imus"), dict) else {}
+    assert isinstance(imus, dict)
+    entry = imus.get("imu0") or (next(iter(imus.values())) if imus else {})
+    if isinstance(entry, dict) and entry.get("file"):
+        f = seq / str(entry["file"])
+        if f.is_file():
+            return f, "ibiscape" if (seq / "vehicle_gt").is_dir() else "euroc"
+    cands = sorted((seq / "other_sensors").glob("imu*.csv"))
+    if not cands:
+        raise FormatError(seq / "other_sensors", "no IMU file (other_sensors/imu0.csv); give --imu-data "
+                          "PATH with the IMU samples of this run")
+    return cands[0], "ibiscape" if (seq / "vehicle_gt").is_dir() else "euroc"
+
+
+def _truth(doc: dict[str, Any], names: Sequence[str]) -> dict[str, dict[str, Any]]:
+    cams = doc.get("cameras") if isinstance(doc.get("cameras"), dict) else {}
+    assert isinstance(cams, dict)
+    out: dict[str, dict[str, Any]] = {}
+    for n in names:
+        e = cams.get(n)
+        if not isinstance(e, dict) or "T_cam_imu" not in e:
+            continue
+        try:
+            T = np.asarray(e["T_cam_imu"], dtype=np.float64).reshape(4, 4)
+            shift = float(e.get("timeshift_cam_imu", 0.0))
+        except (TypeError, ValueError):
+            continue
+        if np.all(np.isfinite(T)) and np.isfinite(shift):
+            out[n] = {"T_cam_imu": T.tolist(), "timeshift_cam_imu": shift}
+    return out
+
+
+# ------------------------------------------------------------------------------------------ the call
+def calibrate_sequence(sequence: str | os.PathLike[str],
+                       noise: ImuNoiseDensities | str | os.PathLike[str], *,
+                       camchain: str | os.PathLike[str] | None = None,
+                       cameras: Sequence[str] | None = None, force: bool = False,
+                       progress: Progress | None = None,
+                       imu_data: str | os.PathLike[str] | None = None,
+                       target: Any = None, frame_step: int = 1, sigma_px: float = 0.3,
+                       refine_intrinsics: bool | None = None,
+                       workers: int | None = None) -> SequenceCalibration:
+    """Calibrate ``T_cam_imu`` and ``timeshift_cam_imu`` of every camera of a sequence.
+
+    Parameters
+    ----------
+    sequence : path
+        IBISCape-layout folder (camera folders with ``timestamps.csv``, ``other_sensors/imu0.csv``,
+        ``sequence.yaml`` with the target) or EuRoC ASL folder (with ``imu_data``).
+    noise : ImuNoiseDensities or path
+        The IMU's continuous-time noise (Kalibr ``imu.yaml``, the ``allan`` command's output).
+    camchain : path, optional
+        Kalibr ``camchain.yaml`` with the intrinsics (default: calibrate the cameras on the same
+        frames first).
+    cameras : sequence of str, optional
+        Camera folders to use, in order (default: every camera folder found).
+    force : bool
+        Estimate even without the rotational excitation the translation needs (marked).
+    progress : callable(fraction, label), optional
+    imu_data : path, optional
+        IMU csv (``#timestamp [ns], w_xyz, a_xyz``; IBISCape's frame inside an IBISCape folder)
+        instead of the sequence's ``other_sensors`` file.
+    target : CalibrationTarget, optional
+        Default: ``sequence.yaml``'s target.
+    frame_step : int
+        Use every n-th frame of each camera (1: all).
+    refine_intrinsics : bool, optional
+        Also estimate focal lengths and principal points (default: when they come from the camera
+        calibration of the same frames, not with ``camchain``).
+
+    Raises
+    ------
+    FormatError
+        A bad ``imu.yaml``, IMU csv, camchain or sequence file, naming it.
+    CalibrationError
+        Missing intrinsics, an IMU stream that does not cover the images, an update rate that
+        disagrees with the data, too few views, too little excitation (without ``force``).
+    """
+    from ibiscape_eval.calib.pipeline import CameraFrames, calibrate_frames, detect_frames
+    from ibiscape_eval.calib.targets import target_from_kalibr
+    from ibiscape_eval.io.image_sets import find_image_sets, pair_views, read_image
+    from ibiscape_eval.io.sequence import read_sequence_yaml
+    from ibiscape_eval.io.stereo import read_imu_samples
+
+    from .calibrate import calibrate_imu_camera
+
+    t0, cpu0 = time.perf_counter(), time.process_time()
+
+    def step(frac: float, label: str) -> None:
+        if progress is not None:
+            progress(min(1.0, max(0.0, frac)), label)
+
+    seq = Path(sequence)
+    if not seq.is_dir():
+        raise IbiscapeError(f"{seq}: not a sequence folder")
+    if isinstance(frame_step, bool) or not isinstance(frame_step, int) or frame_step < 1:
+        raise IbiscapeError(f"frame_step must be an integer >= 1, got {frame_step!r}")
+    noise_src = "imu.yaml"
+    if not isinstance(noise, ImuNoiseDensities):
+        noise_src = str(noise)
+        noise = read_imu_noise(noise)
+    doc: dict[str, Any] = {}
+    if (seq / "sequence.yaml").is_file():
+        doc = read_sequence_yaml(seq / "sequence.yaml")
+    if target is None:
+        if not isinstance(doc.get("target"), dict):
+            raise IbiscapeError(f"{seq}: no target description (sequence.yaml has no 'target'); "
+                                "give the Kalibr target yaml with --target")
+        target = target_from_kalibr(doc["target"], source=f"{seq}/sequence.yaml: target")
+    # the IMU first: a bad IMU file should not cost a detection pass
+    if imu_data is not None:
+        imu_path, fmt = Path(imu_data), ("ibiscape" if (seq / "vehicle_gt").is_dir() else "euroc")
+    else:
+        imu_path, fmt = _imu_file(seq, doc)
+    st, gyro, acc = read_imu_samples(imu_path, fmt=fmt)
+    try:
+        imu = ImuData(st, gyro, acc)
+    except IbiscapeError as e:
+        raise FormatError(imu_path, str(e)) from None
+
+    sets = find_image_sets(seq, cameras=list(cameras) if cameras else None)
+    seq_cams = doc.get("cameras") if isinstance(doc.get("cameras"), dict) else {}
+    assert isinstance(seq_cams, dict)
+    frames: list[Any] = []
+    stamps: list[npt.NDArray[np.int64]] = []
+    recon: dict[str, Any] = {}
+    for s in sets:
+        if s.stamps_ns is None:
+            raise FormatError(s.root, "frames without time stamps; the camera-IMU calibration needs "
+                              "timestamps.csv")
+        rows = np.arange(len(s))
+        if s.kind == "frames":
+            paths = list(s.paths)
+            frames.append(CameraFrames(s.name, len(rows), _Reader(paths, read_image),
+                                       _Reader(paths, str)))
+            stamps.append(np.asarray(s.stamps_ns, dtype=np.int64))
+            continue
+        frames.append(_event_frames(s, rows, seq_cams, target, recon))
+        assert s.windows_ns is not None
+        w = np.asarray(s.windows_ns, dtype=np.int64)
+        stamps.append(w[:, 0] + (w[:, 1] - w[:, 0]) // 2)  # a reconstructed frame: its window's middle
+    names = [f.name for f in frames]
+    # refuse what the solve would refuse before the (long) detection: rate, coverage, intrinsics
+    if abs(imu.rate_hz - noise.update_rate_hz) > 0.05 * noise.update_rate_hz:
+        raise CalibrationError(
+            f"{noise_src}: update_rate {noise.update_rate_hz:g} Hz disagrees with the IMU data "
+            f"({imu_path} runs at {imu.rate_hz:.2f} Hz); fix update_rate or give the imu.yaml of "
+            "this IMU")
+    for n, stc in zip(names, stamps, strict=True):
+        if stc.size and (stc[0] < imu.stamps_ns[0] - MAX_SHIFT_NS or stc[-1] > imu.stamps_ns[-1] + MAX_SHIFT_NS):
+            raise CalibrationError(
+                f"{imu_path}: the IMU stream ({imu.stamps_ns[0]}..{imu.stamps_ns[-1]} ns) does not cover "
+                f"the images of camera {n} ({stc[0]}..{stc[-1]} ns); give the IMU recording of the same run")
+    models: dict[str, CameraModel] = {}
+    if camchain is not None:
+        models = _camchain_cameras(camchain, names)
+        _require_intrinsics(names, models, camchain)
+    # the view table pairs simultaneous frames (the camera calibration's stereo views); every
+    # frame_step-th instant is detected
+    views = pair_views(sets)[::frame_step]
+    step(0.0, "detecting")
+    total = [max(1, len(views))]
+    done = [0]
+
+    def det_progress(n: int) -> None:
+        done[0] += n
+        step(0.45 * done[0] / total[0], f"detecting {done[0]}/{total[0]}")
+
+    def det_total(n: int) -> None:
+        total[0] = max(1, n)
+
+    summary = detect_frames(target, frames, views, max_detect=len(views), workers=workers,
+                            progress=det_progress, total=det_total)
+    t_det = time.perf_counter()
+    # per camera, the detections in frame order (canonical checkerboard numbering)
+    per_cam: list[list[tuple[Any, Any] | None]] = [[None] * f.n_frames for f in frames]
+    for k, o in enumerate(summary.observations):
+        for vi, det in enumerate(o.detections):
+            if det is None:
+                continue
+            i = views[summary.views[vi]][k]
+            assert i is not None
+            per_cam[k][i] = canonical_checkerboard(det.ids, det.corners_px, target)
+
+    # intrinsics
+    step(0.45, "intrinsics")
+    source: dict[str, str] = {}
+    cam_calib: dict[str, Any] | None = None
+    if camchain is not None:
+        source = {n: str(camchain) for n in models}
+    else:
+        from ibiscape_eval.calib.report import compare_with_truth, truth_from_sequence
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", IbiscapeWarning)
+            try:
+                cres = calibrate_frames(target, summary, max_views=60)
+            except CalibrationError as e:
+                raise CalibrationError(f"{seq}: the camera calibration for the intrinsics failed ({e}); "
+                                       "give --cams camchain.yaml") from None
+        models = {c.name: c.camera for c in cres.cameras}
+        source = {n: "camera calibration" for n in models}
+        cmp = compare_with_truth(cres, truth_from_sequence(doc))
+        cam_calib = {"views": int(cres.n_views),
+                     "cameras": [{"name": c.name, "camera": c.camera.to_kalibr(),
+                                  "reprojection_rms_px": float(c.residuals.rms_px)}
+                                 for c in cres.cameras],
+                     "ground_truth": None if cmp is None else cmp.to_dict()}
+    t_intr = time.perf_counter()
+    obs = [CameraObservations.from_frames(n, models.get(n), stamps[k], per_cam[k])
+           for k, n in enumerate(names)]
+    _require_intrinsics(names, models, camchain)
+
+    def solve_progress(frac: float, label: str) -> None:
+        step(0.5 + 0.5 * frac, label)
+
+    corners = target.object_points()
+    # intrinsics from a calibration on the drive's own (weakly tilted) views are refined with the
+    # extrinsics; those of --cams are taken as they are (Kalibr's way)
+    refine = camchain is None if refine_intrinsics is None else bool(refine_intrinsics)
+    try:
+        result = calibrate_imu_camera(obs, imu, noise, corners, sigma_px=sigma_px, force=force,
+                                      refine_intrinsics=refine, progress=solve_progress)
+    except CalibrationError as e:
+        msg = str(e)
+        if "update_rate" in msg or "IMU stream" in msg:
+            raise CalibrationError(f"{imu_path}: {msg}") from None
+        raise
+    truth = _truth(doc, names)
+    errors = errors_against_truth(result, truth)
+    from ibiscape_eval.calib.report import truth_from_sequence
+
+    true_cams = truth_from_sequence(doc)
+    for cal in result.cameras:
+        if cal.name in errors and cal.name in true_cams:
+            t_cam = true_cams[cal.name][0]
+            errors[cal.name].update({f"{k}_error_px": float(a - b) for k, a, b in zip(
+                ("fx", "fy", "cx", "cy"), cal.camera.intrinsics, t_cam.intrinsics, strict=True)})
+    t_end = time.perf_counter()
+    detection = {"frame_step": frame_step, "cameras": [
+        {"name": n, "frames": int(stamps[k].size), "frames_with_target": int(obs[k].n_frames_with_target),
+         "corners": int(obs[k].corner_ids.size), **({"reconstruction": recon[n]} if n in recon else {})}
+        for k, n in enumerate(names)]}
+    return SequenceCalibration(
+        str(seq), result, source, truth, errors, cam_calib, detection, str(imu_path),
+        {"detection": t_det - t0, "intrinsics": t_intr - t_det, "imu_camera": t_end - t_intr,
+         "total": t_end - t0, "cpu": time.process_time() - cpu0})
+
+
+def _event_frames(s: Any, rows: npt.NDArray[np.int64], seq_cams: dict[str, Any], target: Any,
+                  recon: dict[str, Any]) -> Any:
+    """Frames reconstructed from an event camera's windows (the camera calibration's method)."""
+    from ibiscape_eval.calib.events import choose_reconstruction, event_frame_loader
+    from ibiscape_eval.calib.pipeline import CameraFrames
+    from ibiscape_eval.io.events import read_events
+
+    entry = seq_cams.get(s.name)
+    size = entry.get("resolution") if isinstance(entry, dict) else None
+    if not (isinstance(size, list | tuple) and len(size) == 2):
+        raise IbiscapeError(f"{s.root}: sensor size unknown (sequence.yaml has no resolution for "
+                            f"{s.name})")
+    paths = [s.paths[i] for i in rows]
+    windows = np.asarray(s.windows_ns, dtype=np.int64)[rows]
+
+    def read_window(i: int) -> Any:
+        try:
+            return read_events(paths[i], fmt="npz")
+        except IbiscapeError as e:
+            warnings.warn(f"{e}; skipped", IbiscapeWarning, stacklevel=1)
+            return None
+
+    wh = (int(size[0]), int(size[1]))
+    method, probe = choose_reconstruction(read_window, windows, wh, target)
+    recon[s.name] = {"method": method, **probe}
+    return CameraFrames(s.name, len(rows), event_frame_loader(read_window, windows, wh, method),
+                        lambda i: str(paths[i]), reconstruction=method)
