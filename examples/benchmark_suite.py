@@ -14,8 +14,10 @@ from pathlib import Path
 from ibiscape_eval.sim.suite import scaled_duration_s, scaled_side_px, suite_entries
 
 for scale in (1.0, 0.25, 0.05, 0.002):
-    print(f"scale {scale:>6}: runs {scaled_duration_s('slam', scale):>5g} s, cameras "
-          f"{scaled_side_px(scale)} px, still IMU {scaled_duration_s('imu', scale) / 3600:.2f} h")
+    print(f"scale {scale:>6}: runs {scaled_duration_s('slam', scale):>5g} s at "
+          f"{scaled_side_px(scale)} px, calibration drives {scaled_duration_s('calibration', scale):g} s "
+          f"at {scaled_side_px(scale, 'calibration')} px, still IMU "
+          f"{scaled_duration_s('imu', scale) / 3600:.2f} h")
 entries = suite_entries(0.002)
 print(len(entries), "sequences:", ", ".join(e.name for e in entries[:6]), "...")
 print(entries[1], entries[1].config().cameras[0])

@@ -14,12 +14,14 @@ Scale
 
 - duration: ``max(MIN_DURATION_S[kind], F * FULL_DURATION_S[kind])``, with the full-scale
   durations 60 s (calibration drives and SLAM runs) and 604 800 s (the paper's 168 h still IMU),
-  and the minima 3 s (camera sequences) and 1 800 s (still IMU: the Allan deviation needs a few
-  hundred seconds of averaging time to show the bias random walk);
-- image side: ``clamp(16 * round(1024 * sqrt(F) / 16), 128, 1024)`` pixels for every camera (square,
-  field of view kept), so the pixel count (the rendering cost of a frame) scales with F;
-- calibration drives start ``clamp(2.8 * duration + 6, 12, 90)`` m in front of their board (90 m is
-  the paper's full approach), so a short drive still ends a few metres from the board;
+  and the minima 3 s (SLAM runs), 12 s (calibration drives: the camera-IMU calibration needs a few
+  shuttle legs over the bumps) and 1 800 s (still IMU: the Allan deviation needs a few hundred
+  seconds of averaging time to show the bias random walk);
+- image side: ``clamp(16 * round(1024 * sqrt(F) / 16), MIN_SIDE_PX[kind], 1024)`` pixels for every
+  camera (square, field of view kept), so the pixel count (the rendering cost of a frame) scales
+  with F; the minimum is 128 px for SLAM runs and 320 px for calibration drives (below that the
+  board's squares, 5-15 m away on the shuttle drive, are too small to detect);
+- calibration drives are the simulator's default shuttle drive (the board in view all the time).
 - the still IMU is written as ``other_sensors/imu.npy`` (streamed, bounded memory) when it is longer
   than 2 h, as ``imu.csv`` otherwise.
 
@@ -39,9 +41,11 @@ import json
 import math
 import os
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 from ibiscape_eval.core.errors import IbiscapeError
 
@@ -82,9 +86,10 @@ PAPER_TABLE: tuple[tuple[str, str, Mapping[str, int]], ...] = (
 #: Durations at scale 1 [s]: 60 s drives and runs, the paper's 168 h still IMU.
 FULL_DURATION_S = {"calibration": 60.0, "slam": 60.0, "imu": 604_800.0}
 #: Shortest durations at any scale [s].
-MIN_DURATION_S = {"calibration": 3.0, "slam": 3.0, "imu": 1_800.0}
+MIN_DURATION_S = {"calibration": 12.0, "slam": 3.0, "imu": 1_800.0}
 FULL_SIDE_PX = 1024
-MIN_SIDE_PX = 128
+#: Smallest image side at any scale [px], by kind.
+MIN_SIDE_PX = {"calibration": 320, "slam": 128}
 NPY_ABOVE_S = 7_200.0
 MANIFEST = "suite.json"
 ENTRY_FILE = "suite_entry.json"
@@ -107,10 +112,11 @@ def scaled_duration_s(kind: str, scale: float) -> float:
     return max(MIN_DURATION_S[kind], round(s * FULL_DURATION_S[kind], 3))
 
 
-def scaled_side_px(scale: float) -> int:
-    """Image side [px] at ``scale``: ``clamp(16 round(1024 sqrt(F) / 16), 128, 1024)``."""
+def scaled_side_px(scale: float, kind: str = "slam") -> int:
+    """Image side [px] at ``scale``: ``clamp(16 round(1024 sqrt(F) / 16), MIN_SIDE_PX[kind], 1024)``."""
     s = _check_scale(scale)
-    return int(min(FULL_SIDE_PX, max(MIN_SIDE_PX, 16 * round(FULL_SIDE_PX * math.sqrt(s) / 16))))
+    return int(min(FULL_SIDE_PX, max(MIN_SIDE_PX[kind],
+                                      16 * round(FULL_SIDE_PX * math.sqrt(s) / 16))))
 
 
 @dataclass(frozen=True)
@@ -132,8 +138,6 @@ class SuiteEntry:
         Image side of every camera (None: no cameras).
     target : str or None
         Calibration drives: ``checkerboard`` (odd index) or ``aprilgrid`` (even index).
-    start_distance_m : float
-        Calibration drives: start this far in front of the board (0: the paper's 90 m approach).
     still_format : str
         Still IMU: ``csv`` or ``npy``.
     """
@@ -147,23 +151,27 @@ class SuiteEntry:
     duration_s: float
     side_px: int | None
     target: str | None
-    start_distance_m: float
     still_format: str
 
     def config(self) -> SimConfig:
         """The simulator configuration of this sequence."""
-        from .config import MotionSpec, preset, with_resolution
+        from .config import preset, with_resolution
 
         kw: dict[str, Any] = {"duration_s": self.duration_s, "seed": self.seed}
         if self.target is not None:
             kw["target"] = self.target
         if self.setup == "imu":
             kw["still_format"] = self.still_format
-        elif self.kind == "calibration":
-            kw["motion"] = MotionSpec(start_distance_m=self.start_distance_m)
         cfg = preset(self.setup, self.kind, self.weather, **kw)
         if self.side_px is not None and cfg.cameras:
             cfg = with_resolution(cfg, self.side_px, self.side_px)
+        if self.kind == "calibration" and cfg.cameras:
+            # a clock offset per camera, seeded, within Kalibr's usual +-20 ms, for the camera-IMU
+            # calibration to recover
+            shifts = np.random.default_rng([self.seed, 20]).uniform(-0.02, 0.02, len(cfg.cameras))
+            cfg = replace(cfg, cameras=tuple(
+                replace(c, timeshift_cam_imu_s=round(float(s), 4))
+                for c, s in zip(cfg.cameras, shifts, strict=True)))
         return cfg
 
     @property
@@ -195,7 +203,6 @@ def suite_entries(scale: float = 1.0, *, seed: int = 0) -> tuple[SuiteEntry, ...
     s = _check_scale(scale)
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise IbiscapeError(f"seed must be a non-negative integer, got {seed!r}")
-    side = scaled_side_px(s)
     out: list[SuiteEntry] = []
     for setup, kind, counts in PAPER_TABLE:
         for weather, n in counts.items():
@@ -204,19 +211,17 @@ def suite_entries(scale: float = 1.0, *, seed: int = 0) -> tuple[SuiteEntry, ...
                     d = scaled_duration_s("imu", s)
                     name = f"IMU_calib_{i}"
                     out.append(SuiteEntry(name, setup, kind, weather, i, seed + len(out) + 1, d,
-                                          None, None, 0.0, "npy" if d > NPY_ABOVE_S else "csv"))
+                                          None, None, "npy" if d > NPY_ABOVE_S else "csv"))
                     continue
                 d = scaled_duration_s(kind, s)
                 if kind == "calibration":
                     name = f"{_LABEL[setup]}_calib_{i}"
                     target: str | None = "checkerboard" if i % 2 else "aprilgrid"
-                    start = min(90.0, max(12.0, round(2.8 * d + 6.0, 1)))
-                    start = 0.0 if start >= 90.0 else start
                 else:
                     name = f"{_LABEL[setup]}_slam_{_WEATHER[weather]}_{i}"
-                    target, start = None, 0.0
-                out.append(SuiteEntry(name, setup, kind, weather, i, seed + len(out) + 1, d, side,
-                                      target, start, "csv"))
+                    target = None
+                out.append(SuiteEntry(name, setup, kind, weather, i, seed + len(out) + 1, d,
+                                      scaled_side_px(s, kind), target, "csv"))
     return tuple(out)
 
 
@@ -306,9 +311,8 @@ def _manifest_doc(entries: Sequence[SuiteEntry], scale: float, seed: int, render
             "duration_s": "max(MIN_DURATION_S[kind], scale * FULL_DURATION_S[kind])",
             "full_duration_s": FULL_DURATION_S,
             "min_duration_s": MIN_DURATION_S,
-            "side_px": "clamp(16 * round(1024 * sqrt(scale) / 16), 128, 1024)",
-            "calibration_start_distance_m": "clamp(2.8 * duration_s + 6, 12, 90) (90 = 0: the "
-                                            "paper's full approach)",
+            "side_px": "clamp(16 * round(1024 * sqrt(scale) / 16), MIN_SIDE_PX[kind], 1024)",
+            "min_side_px": MIN_SIDE_PX,
         },
         "sequences": rows,
     }

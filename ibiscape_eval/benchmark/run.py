@@ -136,8 +136,10 @@ def benchmark_jobs(entries: Sequence[SuiteEntry], suite_dir: str | os.PathLike[s
             jobs["camera_calibration"].append(Job(
                 e.name, f"{_MOD}:camera_calibration", {"seq": seq, "cameras": list(cams)},
                 inputs=(*tuple(str(root / e.name / c) for c in cams), seq + "/sequence.yaml")))
-            jobs["imu_camera"].append(Job(e.name, f"{_MOD}:imu_camera_calibration",
-                                          {"entry": e.to_dict()}))
+            jobs["imu_camera"].append(Job(
+                e.name, f"{_MOD}:imu_camera_calibration", {"seq": seq, "cameras": list(cams)},
+                inputs=(*tuple(str(root / e.name / c) for c in cams), seq + "/sequence.yaml",
+                        seq + "/other_sensors")))
         else:
             if e.setup in ("svi", "full"):
                 ins = tuple(str(root / e.name / p) for p in

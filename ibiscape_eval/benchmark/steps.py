@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -154,52 +154,40 @@ def _camera_calibration(seq: str, cameras: Sequence[str], model: str, max_views:
             "n_views": rd.get("n_views"), "reconstruction": recon}
 
 
-def imu_camera_calibration(entry: Mapping[str, Any], noise_px: float = 0.2) -> dict[str, Any]:
+def imu_camera_calibration(seq: str, cameras: Sequence[str]) -> dict[str, Any]:
     """Camera-IMU extrinsics and time offsets of a suite calibration drive, against the truth.
 
-    Returns per camera ``rotation_error_deg``, ``translation_error_mm``, ``timeshift_error_ms``
-    and the reprojection RMS.
+    Runs :func:`ibiscape_eval.calib.imu_camera.calibrate_sequence` on the rendered drive (corners
+    detected in the images, intrinsics from the camera calibration of the same frames, IMU noise
+    weights from the densities ``sequence.yaml`` configures for ``imu0``), as ``ibiscape-eval calib
+    SEQ --imu imu.yaml`` does.  Returns per camera ``rotation_error_deg``,
+    ``translation_error_mm``, ``timeshift_error_ms``, the reprojection RMS and the estimated and
+    true time offsets; the solver's weak-direction warnings are kept in ``warnings``.
     """
-    # LEAD: switch to calib.imu_camera.calibrate_sequence
-    # Until the sequence-level function lands, this wrapper uses today's public API as
-    # examples/calibrate_imu_camera.py does: the drive of the suite entry is simulated again
-    # (same config, same seed), the target corners are projected into every RGB/DVS camera
-    # with noise_px of noise, and calibrate_imu_camera solves for T_cam_imu and the time offset.
-    from dataclasses import replace
+    from ibiscape_eval.calib.imu_camera import ImuNoiseDensities, calibrate_sequence
+    from ibiscape_eval.core.errors import IbiscapeWarning
 
-    from ibiscape_eval.calib.imu_camera import calibrate_imu_camera, errors_against_truth
-    from ibiscape_eval.calib.imu_camera.synthetic import calibration_scene
-    from ibiscape_eval.core.errors import CalibrationError, IbiscapeWarning
-    from ibiscape_eval.sim.calib_scene import simulate_calibration
-    from ibiscape_eval.sim.suite import SuiteEntry
-
-    e = SuiteEntry.from_dict(entry)
-    cfg = e.config()
-    cfg = replace(cfg, cameras=tuple(c for c in cfg.cameras if c.kind in ("rgb", "dvs")))
-    sim = simulate_calibration(cfg)
-    sc = calibration_scene(sim, noise_px=noise_px, min_spacing_px=4.0)
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", IbiscapeWarning)
-            res = calibrate_imu_camera(sc.observations, sc.imu, sc.noise, sc.corners_target_m,
-                                       sigma_px=noise_px)
-    except CalibrationError as err:
-        raise CalibrationError(f"{e.name} ({e.duration_s:g} s drive, {e.side_px} px): {err}; a "
-                               "larger --scale gives longer drives over the bumps (roll and "
-                               "pitch) and larger images of the board") from None
-    truth = {k: {"T_cam_imu": sc.T_cam_imu[k], "timeshift_cam_imu": sc.timeshift_cam_imu_s[k]}
-             for k in sc.T_cam_imu}
-    errs = errors_against_truth(res, truth)
+    doc = _sequence_doc(seq)
+    imu0 = (doc.get("imus") or {}).get("imu0")
+    noise = ImuNoiseDensities.from_kalibr(imu0 if isinstance(imu0, dict) else {},
+                                          source=f"{seq}/sequence.yaml (imus.imu0)")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", IbiscapeWarning)
+        res = calibrate_sequence(seq, noise, cameras=list(cameras))
     rows = []
-    for c in res.cameras:
-        er = errs.get(c.name, {})
+    for c in res.result.cameras:
+        er = res.errors_vs_truth.get(c.name, {})
         rows.append({"camera": c.name,
                      "rotation_error_deg": _finite(er.get("rotation_error_deg")),
                      "translation_error_mm": _finite(1e3 * er.get("translation_error_m", math.nan)),
                      "timeshift_error_ms": _finite(1e3 * er.get("timeshift_error_s", math.nan)),
+                     "timeshift_ms": _finite(1e3 * c.timeshift_cam_imu_s),
+                     "timeshift_truth_ms": _finite(
+                         1e3 * res.truth.get(c.name, {}).get("timeshift_cam_imu", math.nan)),
                      "reprojection_rms_px": _finite(c.reprojection_rms_px)})
-    return {"sequence": e.name, "cameras": rows, "forced": bool(res.forced),
-            "method": "simulated corner observations of the suite drive (calibrate_imu_camera)"}
+    return {"sequence": Path(seq).name, "cameras": rows, "forced": bool(res.result.forced),
+            "warnings": list(res.result.warnings),
+            "method": "calibrate_sequence: detected corners, B-spline camera-IMU solve"}
 
 
 # ---------------------------------------------------------------------------------------------

@@ -85,15 +85,17 @@ def test_scaling_rules(scale) -> None:
     side = scaled_side_px(scale)
     assert 128 <= side <= 1024 and side % 16 == 0
     assert side == min(1024, max(128, 16 * round(1024 * math.sqrt(scale) / 16)))
+    calib_side = scaled_side_px(scale, "calibration")
+    assert calib_side == max(320, side)
     for kind in ("calibration", "slam", "imu"):
         d = scaled_duration_s(kind, scale)
         assert d == max(MIN_DURATION_S[kind], round(scale * FULL_DURATION_S[kind], 3))
     for e in suite_entries(scale):
         cfg = e.config()
-        assert all((c.width_px, c.height_px) == (side, side) for c in cfg.cameras)
+        want = calib_side if e.kind == "calibration" else side
+        assert all((c.width_px, c.height_px) == (want, want) for c in cfg.cameras)
         if e.kind == "calibration" and e.setup != "imu":
-            assert e.start_distance_m == 0.0 or 12.0 <= e.start_distance_m < 90.0
-            assert cfg.motion.start_distance_m == e.start_distance_m
+            assert cfg.motion.calibration_drive == "shuttle" and cfg.duration_s >= 12.0
 
 
 def test_known_scaled_values() -> None:
@@ -101,7 +103,8 @@ def test_known_scaled_values() -> None:
     assert scaled_duration_s("slam", 0.25) == 15.0 and scaled_duration_s("slam", 0.01) == 3.0
     assert scaled_duration_s("imu", 0.05) == 30_240.0 and scaled_duration_s("imu", 1e-4) == 1800.0
     e = {x.name: x for x in suite_entries(0.05)}
-    assert e["SVI_calib_1"].start_distance_m == pytest.approx(14.4)
+    assert e["SVI_calib_1"].side_px == 320 and e["SVI_calib_1"].duration_s == 12.0
+    assert e["SVI_slam_clear_1"].side_px == 224 and e["SVI_slam_clear_1"].duration_s == 3.0
     assert e["IMU_calib_1"].still_format == "npy"
     assert suite_entries(0.005)[0].still_format == "csv"  # 1800 s: the IBISCape csv
 
