@@ -16,9 +16,11 @@ from ibiscape_eval.io.sequence import read_sequence_yaml
 
 def test_sim_then_hotpix_finds_the_recorded_noisy_pixels(tmp_path: Path) -> None:
     seq = tmp_path / "ESVI_1_calib"
+    conf = tmp_path / "loop.yaml"  # the paper's approach loop: driving at speed from the start
+    conf.write_text("motion:\n  calibration_drive: loop\n")
     r = CliRunner().invoke(cli, ["sim", "--setup", "esvi", "--kind", "calibration", "--weather",
                                  "dynamic", "--resolution", "96", "--duration-s", "3", "--seed",
-                                 "2", "--out", str(seq)], catch_exceptions=False)
+                                 "2", "--config", str(conf), "--out", str(seq)], catch_exceptions=False)
     assert r.exit_code == 0, r.output
     doc = read_sequence_yaml(seq / "sequence.yaml")
     for cam in ("davisL", "davisR"):
