@@ -50,7 +50,7 @@ __all__ = [
 
 RECONSTRUCTIONS = ("log-intensity", "accumulate-signed", "accumulate", "time-surface")
 #: high-pass time constant of the log-intensity reconstruction [s]
-DEFAULT_TAU_S = 0.3
+DEFAULT_TAU_S = 1.0
 #: the state is rebuilt from this many time constants before a frame (exp(-5) = 0.7 % left)
 MEMORY_TAU = 5.0
 #: nominal contrast threshold (CARLA's and the paper's 0.3) when only the ratio is known
@@ -78,17 +78,18 @@ def read_event_window(path: str | Path) -> Events:
     return Events.concatenate(got)
 
 
-def _to_uint8(values: npt.NDArray[np.float64], shape: tuple[int, int]) -> npt.NDArray[np.uint8]:
-    """Map the 1st..99th percentile to 0..255 and blur lightly (events are quantised in steps of
-    ``C``: the blur gives the corner refinement smooth gradients)."""
-    import cv2
+def _log_to_uint8(values: npt.NDArray[np.float64], shape: tuple[int, int]) -> npt.NDArray[np.uint8]:
+    """A log-intensity estimate as an 8-bit image for corner detection: ``exp(0.5 L_hat)`` (the
+    square root of the high-passed linear intensity), 2nd..98th percentile to 0..255, no blur.
 
-    lo, hi = np.percentile(values, [1.0, 99.0]) if values.size else (0.0, 1.0)
+    Corners refined in the log domain itself are biased (the log stretches the dark squares' side of
+    every blurred edge): on the simulator's hand-held DVS (192 px, tests/calib/_dvs_handheld.py) the
+    corner RMS against the truth is 1.25 px from the log image, 0.80 px from this one."""
+    v = np.exp(0.5 * np.clip(values - np.median(values), -20.0, 20.0))
+    lo, hi = np.percentile(v, [2.0, 98.0]) if v.size else (0.0, 1.0)
     if hi - lo <= 1e-12:
-        img = np.full(shape, 128, np.uint8)
-    else:
-        img = np.clip((values.reshape(shape) - lo) * (255.0 / (hi - lo)), 0, 255).astype(np.uint8)
-    return np.asarray(cv2.GaussianBlur(img, (3, 3), 0.8), np.uint8)
+        return np.full(shape, 128, np.uint8)
+    return np.clip((v.reshape(shape) - lo) * (255.0 / (hi - lo)), 0, 255).astype(np.uint8)
 
 
 def event_frame(events: Events, sensor_size: tuple[int, int], window_ns: tuple[int, int], *,
@@ -107,7 +108,7 @@ def event_frame(events: Events, sensor_size: tuple[int, int], window_ns: tuple[i
     if method == "log-intensity":
         state = leaky_integrate(np.zeros(w * h), int(window_ns[0]), events, int(window_ns[1]), width_px=w,
                                 tau_s=DEFAULT_TAU_S, contrast=contrast)
-        return _to_uint8(state, (h, w))
+        return _log_to_uint8(state, (h, w))
     if len(events) == 0:
         return np.full((h, w), 128 if method == "accumulate-signed" else 0, np.uint8)
     kind = "time-surface" if method == "time-surface" else "accumulate"
@@ -228,7 +229,7 @@ class EventFrameSource:
                                     contrast=self.contrast)
             t = int(win[k, 1])
         self._state = (i, state)
-        return _to_uint8(state, (h, w)) if ok else None
+        return _log_to_uint8(state, (h, w)) if ok else None
 
 
 def event_frame_loader(read_window: ReadWindow, windows_ns: npt.ArrayLike, sensor_size: tuple[int, int],
