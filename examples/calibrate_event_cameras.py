@@ -44,7 +44,7 @@ def simulate(out: Path, resolution: int, duration_s: float) -> Path:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=Path("dvs-calib-example"))
-    ap.add_argument("--resolution", type=int, default=192)
+    ap.add_argument("--resolution", type=int, default=256, help="DVS size (the board needs ~8 px squares)")
     ap.add_argument("--duration-s", type=float, default=6.0)
     a = ap.parse_args()
     a.out.mkdir(parents=True, exist_ok=True)
