@@ -1,20 +1,30 @@
-"""Camera calibration: ``ibiscape-eval calib`` against a plain OpenCV pipeline on the same views.
+"""Camera calibration: ``ibiscape-eval calib`` against a careful OpenCV pipeline on the SAME views,
+and event-camera calibration on a hand-held DVS sequence, both against the rendered truth.
 
-    .venv/bin/python benchmarks/bench_calib.py                  # 100 stereo frames, 1024x1024
-    .venv/bin/python benchmarks/bench_calib.py --frames 40 --targets aprilgrid
+    .venv/bin/python benchmarks/bench_calib.py                      # 100 stereo frames, 1024x1024
+    .venv/bin/python benchmarks/bench_calib.py --frames 40 --targets aprilgrid --models radtan
+    .venv/bin/python benchmarks/bench_calib.py --frames 0 --dvs-resolution 512   # DVS part only
 
-For each target (checkerboard 7x7, AprilGrid 6x6 as the simulator prints them) a stereo pair with
-the paper's cameras (1024 x 1024, f = 512 px, mild radtan distortion, 0.4 m baseline) sees the
-board in ``--frames`` varied poses 4-12 m away, rendered by the simulator's renderer in its
-calibration world (``ibiscape_eval.sim.calib_views``: supersampled board edges, lens blur, sensor
-noise) and written as an IBISCape sequence with a ``sequence.yaml`` holding the truth.  Then, in the same run:
+Frame cameras.  For each target (checkerboard 7x7, AprilGrid 6x6 as the simulator prints them) and
+model (radtan; equidistant rendered by a fisheye-like lens) a stereo pair with the paper's cameras
+(1024 x 1024, f = 512 px, 0.4 m baseline) sees the board in ``--frames`` varied poses 4-12 m away,
+rendered by the simulator (``ibiscape_eval.sim.calib_views``) with its truth in ``sequence.yaml``.
 
-- ours: ``ibiscape-eval calib SEQ --json`` in a fresh process (wall time, peak RSS);
-- peer: the plain OpenCV pipeline (``findChessboardCornersSB`` / ``aruco`` + ``cornerSubPix`` per
-  image, one thread; ``calibrateCamera`` per camera; ``stereoCalibrate``), timed in-process.
+- ours: ``ibiscape-eval calib SEQ --json --model ...`` in a fresh process (wall, CPU, peak RSS);
+  it reports the view rows it kept (``view_rows_used``);
+- peer, on exactly those views: OpenCV's detection (``findChessboardCornersSB`` with
+  ``CALIB_CB_ACCURACY`` / tag36h11 ``aruco`` + ``cornerSubPix``), a consistent checkerboard
+  numbering between the cameras, ``calibrateCamera`` (``fisheye.calibrate`` for equi) per camera,
+  then ``stereoCalibrate`` (``tests/calib/_opencv_peer.py``).
 
-Printed: wall time and RATIO (peer / ours, > 1 means we are faster), detection time per frame,
-and the accuracy table against the truth (focal, principal point, baseline, RMS).
+Printed: focal and baseline difference ours vs OpenCV in %, both RMS side by side, detection time
+per frame, wall-time RATIO (OpenCV / ours), and the accuracy of both against the truth.
+
+Event cameras (``--dvs-resolution``, 0 to skip): a stereo DVS (0.2 m baseline) waved in front of
+the board (``tests/calib/_dvs_handheld.py``: smooth motion through varied key poses, the
+simulator's renderer and DVS model), calibrated by ``ibiscape-eval calib`` (``--reconstruction
+auto``); errors against the truth beside the paper's Kalibr + E2CALIB result (1.55 px focal,
+3 mm baseline).
 """
 
 from __future__ import annotations
@@ -30,36 +40,33 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parent / "tests" / "calib"))
 
 from _runner import run
 
 from ibiscape_eval.core.camera import CameraModel
 
 CLI = str(Path(sys.executable).with_name("ibiscape-eval"))
-CAM_L = CameraModel(1024, 1024, 512.0, 512.0, 511.5, 511.5, "radtan", (-0.05, 0.01, 0.0005, -0.0003))
-CAM_R = CameraModel(1024, 1024, 512.0, 512.0, 511.5, 511.5, "radtan", (-0.04, 0.008, -0.0004, 0.0002))
+CAMS = {
+    "radtan": (CameraModel(1024, 1024, 512.0, 512.0, 511.5, 511.5, "radtan", (-0.05, 0.01, 0.0005, -0.0003)),
+               CameraModel(1024, 1024, 512.0, 512.0, 511.5, 511.5, "radtan", (-0.04, 0.008, -0.0004, 0.0002))),
+    "equi": (CameraModel(1024, 1024, 512.0, 512.0, 511.5, 511.5, "equidistant", (0.03, -0.01, 0.004, -0.001)),
+             CameraModel(1024, 1024, 512.0, 512.0, 511.5, 511.5, "equidistant", (0.025, -0.008, 0.003, -0.0008))),
+}
 BASELINE_M = 0.4
+PAPER_E2CALIB = {"focal_px": 1.55, "baseline_mm": 3.0}
 
 
-def rig() -> np.ndarray:
-    """``T_cam0_cam1``: the right camera ``BASELINE_M`` to the right, turned 0.5 deg."""
+def rig(baseline_m: float = BASELINE_M) -> np.ndarray:
+    """``T_cam0_cam1``: the right camera ``baseline_m`` to the right, turned 0.5 deg."""
     from scipy.spatial.transform import Rotation
 
     T = np.eye(4)
     T[:3, :3] = Rotation.from_euler("yxz", [0.5, 0.3, -0.2], degrees=True).as_matrix()
-    T[:3, 3] = [BASELINE_M, 0.01, -0.005]
+    T[:3, 3] = [baseline_m, 0.01, -0.005]
     return T
-
-
-def make_sequence(root: Path, kind: str, n: int, seed: int) -> np.ndarray:
-    """Render the stereo views with the simulator (sim.calib_views); returns ``T_cam0_cam1``."""
-    from ibiscape_eval.sim.calib_views import render_calibration_views
-
-    T01 = rig()
-    render_calibration_views(root, {"rgbL": CAM_L, "rgbR": CAM_R}, {"rgbR": T01}, target=kind,
-                             n_views=n, seed=seed, distance_m=(4.0, 12.0))
-    return T01
 
 
 def sim_target(root: Path):
@@ -70,117 +77,159 @@ def sim_target(root: Path):
     return target_from_kalibr(yaml.safe_load((root / "sequence.yaml").read_text())["target"])
 
 
-def opencv_pipeline(root: Path, kind: str) -> tuple[float, float, dict]:
-    """Plain OpenCV: detect every frame (one thread), calibrateCamera x2, stereoCalibrate."""
+def peer_on_views(seq: Path, kind: str, views: list[int], model: str) -> dict:
+    """OpenCV's detection and calibration on the frames of the given view rows."""
     import cv2
+    from _opencv_peer import opencv_detect, opencv_stereo
 
-    target = sim_target(root)
-    obj = target.object_points().astype(np.float32)
-    files = sorted((root / "rgbL" / "frames").glob("*.png"))
+    from ibiscape_eval.calib.calibrate import Observations
+
+    target = sim_target(seq)
+    files = sorted((seq / "rgbL" / "frames").glob("*.png"))
     t0 = time.perf_counter()
     det_s = 0.0
-    op, lp, rp = [], [], []
-    params = cv2.aruco.DetectorParameters()
-    params.markerBorderBits = 2
-    params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
-    aruco = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_APRILTAG_36h11),
-                                    params, cv2.aruco.RefineParameters())
-    crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_MAX_ITER, 50, 1e-4)
-
-    def detect(img: np.ndarray) -> dict[int, np.ndarray] | None:
-        if kind == "checkerboard":
-            ok, c = cv2.findChessboardCornersSB(img, (7, 7), flags=cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY)
-            return dict(enumerate(np.asarray(c).reshape(-1, 2))) if ok else None
-        corners, ids, _ = aruco.detectMarkers(img)
-        if ids is None:
-            return None
-        out = {}
-        for q, i in zip(corners, ids.ravel(), strict=True):
-            q = cv2.cornerSubPix(img, np.asarray(q, np.float32).reshape(-1, 1, 2), (4, 4), (-1, -1), crit)
-            cids = target.tag_corner_ids([i])[0][[1, 0, 3, 2]]  # OpenCV's order on Kalibr's print
-            for k in range(4):
-                out[int(cids[k])] = q.reshape(-1, 2)[k]
-        return out
-
-    for f in files:
+    dl, dr = [], []
+    for v in views:
+        a = cv2.imread(str(files[v]), cv2.IMREAD_GRAYSCALE)
+        b = cv2.imread(str(seq / "rgbR" / "frames" / files[v].name), cv2.IMREAD_GRAYSCALE)
         t = time.perf_counter()
-        a = detect(cv2.imread(str(f), cv2.IMREAD_GRAYSCALE))
-        b = detect(cv2.imread(str(root / "rgbR" / "frames" / f.name), cv2.IMREAD_GRAYSCALE))
+        dl.append(opencv_detect(a, target))
+        dr.append(opencv_detect(b, target))
         det_s += time.perf_counter() - t
-        if a is None or b is None:
+    obs = (Observations("rgbL", (1024, 1024), dl), Observations("rgbR", (1024, 1024), dr))
+    out = opencv_stereo(target, obs, (1024, 1024), equi=model == "equi")
+    out["wall_s"] = time.perf_counter() - t0
+    out["det_s_per_frame"] = det_s / max(2 * len(views), 1)
+    return out
+
+
+def frame_rows(a: argparse.Namespace, tmp: Path) -> list[dict]:
+    import cv2
+
+    from ibiscape_eval.calib.detect import detect_corners
+    from ibiscape_eval.sim.calib_views import render_calibration_views
+
+    rows = []
+    for kind in a.targets:
+        for model in a.models:
+            seq = tmp / f"{kind}_{model}"
+            t = time.perf_counter()
+            cam_l, cam_r = CAMS[model]
+            T10 = rig()
+            render_calibration_views(seq, {"rgbL": cam_l, "rgbR": cam_r}, {"rgbR": T10}, target=kind,
+                                     n_views=a.frames, seed=a.seed, distance_m=(4.0, 12.0))
+            print(f"[{kind} {model}] rendered {2 * a.frames} frames in {time.perf_counter() - t:.0f} s",
+                  flush=True)
+            ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+            r = run([CLI, "calib", str(seq), "--json", "--model", f"pinhole-{model}"])
+            ru1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+            if not r.ok:
+                raise SystemExit(f"ibiscape-eval calib failed on {seq}")
+            ours = json.loads(r.stdout)
+            target = sim_target(seq)
+            files = sorted((seq / "rgbL" / "frames").glob("*.png"))[:10]
+            imgs = [cv2.imread(str(f), cv2.IMREAD_GRAYSCALE) for f in files]
+            t = time.perf_counter()
+            for img in imgs:
+                detect_corners(img, target)
+            our_det = (time.perf_counter() - t) / len(imgs)
+            cv = peer_on_views(seq, kind, [int(v) for v in ours["view_rows_used"]], model)
+            rows.append({"kind": kind, "model": model, "ours": ours, "wall_s": r.wall_s, "peak_mb": r.peak_mb,
+                         "cpu_s": (ru1.ru_utime - ru0.ru_utime) + (ru1.ru_stime - ru0.ru_stime),
+                         "our_det_s": our_det, "cv": cv, "true_baseline_m": float(np.linalg.norm(T10[:3, 3])),
+                         "truth": (cam_l, cam_r)})
+    return rows
+
+
+def print_frame_rows(rows: list[dict]) -> None:
+    print()
+    print("Same views, ours vs OpenCV (difference of ours relative to OpenCV):")
+    print(f"{'target':<13}{'model':<8}{'views':>6}{'max |df| %':>11}{'|db| %':>8}{'RMS ours':>10}"
+          f"{'RMS OpenCV':>11}{'det/frame ours':>16}{'OpenCV':>9}{'wall ours':>11}{'OpenCV':>8}  RATIO")
+    for r in rows:
+        o, cv = r["ours"], r["cv"]
+        df = max(abs(c["intrinsics"][i] / cv["K"][k][i, i] - 1) for k, c in enumerate(o["cameras"]) for i in (0, 1))
+        db = abs(o["chain"][0]["baseline_m"] / cv["baseline_m"] - 1)
+        print(f"{r['kind']:<13}{r['model']:<8}{o['n_views']:>6}{100 * df:>11.3f}{100 * db:>8.3f}"
+              f"{o['rms_px']:>10.4f}{cv['rms_px']:>11.4f}{1e3 * r['our_det_s']:>13.0f} ms"
+              f"{1e3 * cv['det_s_per_frame']:>6.0f} ms{r['wall_s']:>9.1f} s{cv['wall_s']:>6.1f} s"
+              f"  {cv['wall_s'] / r['wall_s']:.2f}")
+    print("issue: focal within 0.5 %, baseline within 1 %, our RMS <= OpenCV's; RATIO = OpenCV wall / ours "
+          "(ours includes reading, detecting all frames, view selection; OpenCV only the selected views)")
+    print()
+    print("Accuracy against the rendered truth:")
+    print(f"{'target':<13}{'model':<8}{'pipeline':<9}{'max |df| px':>12}{'max |dc| px':>12}{'baseline err mm':>16}")
+    for r in rows:
+        gt = r["ours"]["ground_truth"]
+        print(f"{r['kind']:<13}{r['model']:<8}{'ours':<9}{gt['max_focal_error_px']:>12.3f}"
+              f"{gt['max_principal_point_error_px']:>12.3f}{gt['max_baseline_error_mm']:>16.3f}")
+        cv = r["cv"]
+        f = max(abs(K[i, i] - c.fx if i == 0 else K[i, i] - c.fy) for K, c in zip(cv["K"], r["truth"], strict=True)
+                for i in (0, 1))
+        pp = max(max(abs(K[0, 2] - c.cx), abs(K[1, 2] - c.cy)) for K, c in zip(cv["K"], r["truth"], strict=True))
+        print(f"{'':<21}{'OpenCV':<9}{f:>12.3f}{pp:>12.3f}{1e3 * abs(cv['baseline_m'] - r['true_baseline_m']):>16.3f}")
+    print("issue targets: focal < 0.3 px, principal point < 0.5 px, baseline < 1 mm, RMS < 0.1 px")
+
+
+def dvs_rows(a: argparse.Namespace, tmp: Path) -> list[dict]:
+    from _dvs_handheld import write_handheld_dvs_sequence
+
+    res = a.dvs_resolution
+    f = res / 2.0
+    cams = {"davisL": CameraModel(res, res, f, f, res / 2 - 0.5, res / 2 - 0.5, "radtan",
+                                  (-0.05, 0.01, 0.0005, -0.0003)),
+            "davisR": CameraModel(res, res, f, f, res / 2 - 0.5, res / 2 - 0.5, "radtan",
+                                  (-0.04, 0.008, -0.0004, 0.0002))}
+    rows = []
+    for kind in a.targets:
+        seq = tmp / f"dvs_{kind}"
+        t = time.perf_counter()
+        write_handheld_dvs_sequence(seq, cams, {"davisR": rig(0.2)}, target=kind, n_keys=a.dvs_keys,
+                                    seed=a.seed, distance_m=(2.8, 5.0))
+        print(f"[dvs {kind}] simulated {a.dvs_keys - 1} s of events at {res} px in "
+              f"{time.perf_counter() - t:.0f} s", flush=True)
+        r = run([CLI, "calib", str(seq), "--json"])
+        doc = json.loads(r.stdout) if r.ok else None
+        rows.append({"kind": kind, "doc": doc, "wall_s": r.wall_s, "returncode": r.returncode})
+    return rows
+
+
+def print_dvs_rows(rows: list[dict], res: int) -> None:
+    print()
+    print(f"Event cameras, hand-held stereo DVS at {res} px (paper, Kalibr + E2CALIB: "
+          f"{PAPER_E2CALIB['focal_px']} px focal, {PAPER_E2CALIB['baseline_mm']} mm baseline):")
+    print(f"{'target':<13}{'reconstruction':<16}{'frames with target':>19}{'max |df| px':>12}{'max |dc| px':>12}"
+          f"{'baseline err mm':>16}{'RMS px':>8}{'wall s':>8}")
+    for r in rows:
+        d = r["doc"]
+        if d is None:
+            print(f"{r['kind']:<13}calib failed (exit {r['returncode']}; run it on the sequence for the message)")
             continue
-        common = sorted(set(a) & set(b))
-        if len(common) < 8:
-            continue
-        op.append(obj[common])
-        lp.append(np.array([a[c] for c in common], np.float32))
-        rp.append(np.array([b[c] for c in common], np.float32))
-    size = (1024, 1024)
-    flags = cv2.CALIB_FIX_K3
-    _, K1, D1, _, _ = cv2.calibrateCamera(op, lp, size, None, None, flags=flags)
-    _, K2, D2, _, _ = cv2.calibrateCamera(op, rp, size, None, None, flags=flags)
-    out = cv2.stereoCalibrate(op, lp, rp, K1, D1, K2, D2, size, flags=flags | cv2.CALIB_USE_INTRINSIC_GUESS)
-    rms, K1, _, K2, _, _, T = out[:7]
-    wall = time.perf_counter() - t0
-    return wall, det_s / (2 * len(files)), {"K": (K1, K2), "baseline_m": float(np.linalg.norm(T)),
-                                             "rms_px": float(rms), "views": len(op)}
+        gt = d["ground_truth"]
+        method = "/".join(sorted({v["method"] for v in d["reconstruction"].values()}))
+        found = "/".join(str(c["target_found"]) for c in d["detection"]["cameras"])
+        print(f"{r['kind']:<13}{method:<16}{found:>19}{gt['max_focal_error_px']:>12.3f}"
+              f"{gt['max_principal_point_error_px']:>12.3f}{gt['max_baseline_error_mm']:>16.3f}"
+              f"{d['rms_px']:>8.3f}{r['wall_s']:>8.1f}")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--frames", type=int, default=100)
+    ap.add_argument("--frames", type=int, default=100, help="stereo frames per sequence (0: skip)")
     ap.add_argument("--targets", nargs="+", default=["checkerboard", "aprilgrid"])
+    ap.add_argument("--models", nargs="+", default=["radtan", "equi"], choices=["radtan", "equi"])
     ap.add_argument("--seed", type=int, default=7)
+    ap.add_argument("--dvs-resolution", type=int, default=256, help="DVS sensor size (0: skip)")
+    ap.add_argument("--dvs-keys", type=int, default=6, help="key poses of the hand-held DVS motion (1 s apart)")
     a = ap.parse_args()
-    rows = []
     with tempfile.TemporaryDirectory(prefix="bench_calib_") as d:
-        for kind in a.targets:
-            seq = Path(d) / kind
-            t = time.perf_counter()
-            T10 = make_sequence(seq, kind, a.frames, a.seed)
-            print(f"[{kind}] rendered {2 * a.frames} frames in {time.perf_counter() - t:.0f} s", flush=True)
-            ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-            r = run([CLI, "calib", str(seq), "--json"])
-            ru1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-            cpu_s = (ru1.ru_utime - ru0.ru_utime) + (ru1.ru_stime - ru0.ru_stime)
-            if not r.ok:
-                raise SystemExit(f"ibiscape-eval calib failed on {seq}")
-            ours = json.loads(r.stdout)
-            import cv2
-
-            from ibiscape_eval.calib.detect import detect_corners
-
-            files = sorted((seq / "rgbL" / "frames").glob("*.png"))[:10]
-            t = time.perf_counter()
-            for f in files:
-                detect_corners(cv2.imread(str(f), cv2.IMREAD_GRAYSCALE), sim_target(seq))
-            our_det = (time.perf_counter() - t) / len(files)
-            c0 = time.process_time()
-            cv_wall, cv_det, cv = opencv_pipeline(seq, kind)
-            cv_cpu = time.process_time() - c0
-            gt = ours["ground_truth"]
-            cv_f = max(abs(K[i, i] - 512.0) for K in cv["K"] for i in (0, 1))
-            cv_c = max(abs(K[i, 2] - 511.5) for K in cv["K"] for i in (0, 1))
-            rows.append((kind, r.wall_s, r.peak_mb, our_det, cv_wall, cv_det, cpu_s, cv_cpu, gt, ours, cv,
-                         cv_f, cv_c, T10))
-    print()
-    print(f"{'target':<13}{'ours [s]':>9}{'CPU [s]':>8}{'peak MB':>9}{'OpenCV [s]':>11}{'CPU [s]':>8}"
-          f"  RATIO wall (OpenCV/ours){'det/frame ours':>16}{'OpenCV':>8}")
-    for kind, w, mb, od, cw, cd, cpu, ccpu, *_ in rows:
-        print(f"{kind:<13}{w:>9.1f}{cpu:>8.1f}{mb:>9.0f}{cw:>11.1f}{ccpu:>8.1f}  {cw / w:>24.2f}"
-              f"{1e3 * od:>13.0f} ms{1e3 * cd:>5.0f} ms")
+        rows = frame_rows(a, Path(d)) if a.frames > 0 else []
+        drows = dvs_rows(a, Path(d)) if a.dvs_resolution > 0 else []
+    if rows:
+        print_frame_rows(rows)
+    if drows:
+        print_dvs_rows(drows, a.dvs_resolution)
     print(f"load average during the run: {os.getloadavg()[0]:.1f} (2 cores)")
-    print()
-    print(f"{'target':<13}{'pipeline':<10}{'max |df| px':>12}{'max |dc| px':>12}{'baseline err mm':>16}"
-          f"{'RMS px':>8}{'views':>7}")
-    for kind, *_, gt, ours, cv, cv_f, cv_c, T10 in rows:
-        true_b = float(np.linalg.norm(T10[:3, 3]))
-        print(f"{kind:<13}{'ours':<10}{gt['max_focal_error_px']:>12.3f}{gt['max_principal_point_error_px']:>12.3f}"
-              f"{gt['max_baseline_error_mm']:>16.2f}{ours['rms_px']:>8.3f}{ours['n_views']:>7}")
-        print(f"{'':<13}{'OpenCV':<10}{cv_f:>12.3f}{cv_c:>12.3f}{1e3 * abs(cv['baseline_m'] - true_b):>16.2f}"
-              f"{cv['rms_px']:>8.3f}{cv['views']:>7}")
-    print("issue targets: focal < 0.3 px, principal point < 0.5 px, baseline < 1 mm, RMS < 0.1 px, "
-          "100-frame 1024x1024 stereo < 60 s")
 
 
 if __name__ == "__main__":

@@ -12,7 +12,7 @@ import click
 from ._common import echo_json, info, user_errors
 
 MODEL_CHOICES = ("pinhole-radtan", "pinhole-equi")
-RECON_CHOICES = ("auto", "accumulate-signed", "accumulate", "time-surface")
+RECON_CHOICES = ("auto", "log-intensity", "accumulate-signed", "accumulate", "time-surface")
 
 
 def _bar(desc: str) -> Any:
@@ -53,7 +53,9 @@ def _labeler(paths: Sequence[Path]) -> Callable[[int], str]:
 @click.option("--max-frames", type=click.IntRange(min=3), default=300, show_default=True,
               help="Frames searched for the target (the sharpest of each time slice of long sequences).")
 @click.option("--reconstruction", type=click.Choice(RECON_CHOICES), default="auto", show_default=True,
-              help="Event cameras: how frames are reconstructed from each event window.")
+              help="Event cameras: how frames are reconstructed from the events (log-intensity: "
+              "leaky integration across windows, for moving cameras; accumulate-signed: one window, "
+              "for blinking targets; auto: the one on which most corners are found).")
 @click.option("--sensor-size", default=None, metavar="WxH",
               help="Event cameras: sensor size when sequence.yaml does not give it.")
 @click.option("--outlier-sigma", type=click.FloatRange(min=1.0), default=5.0, show_default=True,
@@ -98,7 +100,13 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
       ibiscape-eval calib SVI_calib_checkerboard --check camchain.yaml
       ibiscape-eval calib SVI_1_calib --imu imu.yaml --yaml camchain-imucam.yaml --plot imu_plots/
     """
-    from ibiscape_eval.calib.events import choose_reconstruction, event_frame_loader
+    from ibiscape_eval.calib.events import (
+        choose_reconstruction,
+        contrast_from_sequence,
+        estimate_contrast,
+        event_frame_loader,
+        read_event_window,
+    )
     from ibiscape_eval.calib.pipeline import (
         CameraFrames,
         calibrate_frames,
@@ -108,7 +116,6 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
     from ibiscape_eval.calib.report import compare_with_truth, format_report, truth_from_sequence
     from ibiscape_eval.calib.targets import target_from_kalibr
     from ibiscape_eval.core.errors import IbiscapeError, IbiscapeWarning
-    from ibiscape_eval.io.events import read_events
     from ibiscape_eval.io.image_sets import (
         find_image_sets,
         image_sets_from_globs,
@@ -168,21 +175,24 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
 
         def read_window(i: int, p: tuple[Path, ...] = paths) -> Any:
             try:
-                return read_events(p[i], fmt="npz")
+                return read_event_window(p[i])
             except IbiscapeError as e:  # a corrupt window is skipped like a corrupt image
                 warnings.warn(f"{e}; skipped", IbiscapeWarning, stacklevel=1)
                 return None
 
         assert s.windows_ns is not None
-        method = reconstruction
+        contrast = contrast_from_sequence(seq_cams.get(s.name))
+        given = contrast is not None
+        if contrast is None:
+            contrast = estimate_contrast(read_window, len(s))
+        method, probe = reconstruction, dict[str, Any]()
         if method == "auto":
-            method, probe = choose_reconstruction(read_window, s.windows_ns, size, target)
-            recon_used[s.name] = {"method": method, **probe}
-        else:
-            recon_used[s.name] = {"method": method}
+            method, probe = choose_reconstruction(read_window, s.windows_ns, size, target, contrast=contrast)
+        source = event_frame_loader(read_window, s.windows_ns, size, method, contrast=contrast)
+        recon_used[s.name] = {**source.describe(), **probe,
+                              "contrast_from": "sequence.yaml" if given else "polarity balance"}
         info(f"{s.name}: frames reconstructed from events by {method}")
-        frames.append(CameraFrames(s.name, len(s), event_frame_loader(read_window, s.windows_ns, size, method),
-                                   _labeler(paths), reconstruction=method))
+        frames.append(CameraFrames(s.name, len(s), source, _labeler(paths), reconstruction=method))
 
     with _bar("detecting") as bar:
         summary = detect_frames(target, frames, views, max_detect=max_frames, workers=workers,

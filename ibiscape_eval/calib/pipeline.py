@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -128,10 +129,13 @@ def detect_frames(target: CalibrationTarget, cameras: Sequence[CameraFrames],
     dets: list[list[Detection | None]] = [[None] * len(picked) for _ in range(n_cam)]
     tried = [0] * n_cam
     bad = [0] * n_cam
-    for k, vi, det, unreadable in results:
+    first_bad: list[int | None] = [None] * n_cam
+    for (_, _, i), (k, vi, det, unreadable) in zip(jobs, results, strict=True):
         dets[k][vi] = det
         tried[k] += 1
         bad[k] += int(unreadable)
+        if unreadable and first_bad[k] is None:
+            first_bad[k] = i
     obs = []
     for k, cam in enumerate(cameras):
         if len(sizes[k]) > 1:
@@ -140,9 +144,16 @@ def detect_frames(target: CalibrationTarget, cameras: Sequence[CameraFrames],
                 f"{cam.name}: images of different sizes in one camera: {cam.label(i1)} is "
                 f"{s1[0]}x{s1[1]}, {cam.label(i2)} is {s2[0]}x{s2[1]}; calibrate each size separately")
         if bad[k] and tried[k] - bad[k] < 3:
+            fb = first_bad[k]
             raise CalibrationError(f"{cam.name}: only {tried[k] - bad[k]} of {tried[k]} images could be "
-                                   "read; at least 3 are needed")
+                                   f"read (the first unreadable: {cam.label(fb) if fb is not None else '?'}); "
+                                   "at least 3 are needed")
         found = sum(d is not None for d in dets[k])
+        if found == 0 and getattr(cam.load, "n_events_read", None) == 0:
+            where = Path(cam.label(0)).parent
+            raise CalibrationError(
+                f"{where}: no events in any of the {getattr(cam.load, 'windows_read', 0)} event windows "
+                f"read for {cam.name}; check that the recording saw the target moving or blinking")
         if found == 0:
             how = f" (frames reconstructed from events by {cam.reconstruction})" if cam.reconstruction else ""
             raise CalibrationError(
