@@ -217,7 +217,7 @@ class MotionSpec:
         "calibration loop: start the approach this far in front of the board, 12..90 m, for short "
         "sequences that should see it near (0 = the full 90 m approach, as in the paper)"))
     calibration_drive: str = field(default="shuttle", metadata=_doc(
-        "calibration: shuttle (forward and reverse legs 5-15 m in front of the board, seen from "
+        "calibration: shuttle (forward and reverse legs 4.5-15 m in front of the board, seen from "
         "-33..33 deg off its normal, in view nearly all the time) | loop (the paper's approach loop)"))
 
 

@@ -20,7 +20,7 @@ Scale
 - image side: ``clamp(16 * round(1024 * sqrt(F) / 16), MIN_SIDE_PX[kind], 1024)`` pixels for every
   camera (square, field of view kept), so the pixel count (the rendering cost of a frame) scales
   with F; the minimum is 128 px for SLAM runs and 320 px for calibration drives (below that the
-  board's squares, 5-15 m away on the shuttle drive, are too small to detect);
+  board's squares, 4.5-15 m away on the shuttle drive, are too small to detect);
 - calibration drives are the simulator's default shuttle drive (the board in view all the time).
 - the still IMU is written as ``other_sensors/imu.npy`` (streamed, bounded memory) when it is longer
   than 2 h, as ``imu.csv`` otherwise.
@@ -166,12 +166,12 @@ class SuiteEntry:
         if self.side_px is not None and cfg.cameras:
             cfg = with_resolution(cfg, self.side_px, self.side_px)
         if self.kind == "calibration" and cfg.cameras:
-            # a clock offset per camera, seeded, within Kalibr's usual +-20 ms, for the camera-IMU
-            # calibration to recover
-            shifts = np.random.default_rng([self.seed, 20]).uniform(-0.02, 0.02, len(cfg.cameras))
-            cfg = replace(cfg, cameras=tuple(
-                replace(c, timeshift_cam_imu_s=round(float(s), 4))
-                for c, s in zip(cfg.cameras, shifts, strict=True)))
+            # a clock offset between the cameras and the IMU, seeded, within +-20 ms, for the
+            # camera-IMU calibration to recover; one for the whole rig, whose cameras are
+            # synchronised with each other (the stereo calibration pairs views by their stamps)
+            shift = float(np.random.default_rng([self.seed, 20]).uniform(-0.02, 0.02))
+            cfg = replace(cfg, cameras=tuple(replace(c, timeshift_cam_imu_s=round(shift, 4))
+                                             for c in cfg.cameras))
         return cfg
 
     @property

@@ -13,12 +13,13 @@ message; the other jobs carry on.
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import json
 import math
 import time
 import traceback
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -146,6 +147,28 @@ def resolve(func: str) -> Any:
     return obj
 
 
+@contextlib.contextmanager
+def _single_threaded_kernels() -> Iterator[None]:
+    """One BLAS and one OpenCV thread while a job runs, restored afterwards.
+
+    Results must be identical whichever executor runs a job (in this process, a pool worker, a
+    Dask worker), but a multi-threaded BLAS sums in an order that depends on its thread count,
+    and OpenCV's parallel corner detection differs from run to run in the last digits (measured:
+    two runs of the same camera calibration differed, with one OpenCV thread they are
+    identical); the parallelism of a batch comes from running jobs side by side.
+    """
+    import cv2
+    from threadpoolctl import threadpool_limits
+
+    n_cv = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        with threadpool_limits(limits=1, user_api="blas"):
+            yield
+    finally:
+        cv2.setNumThreads(n_cv)
+
+
 def run_job(job: Job) -> JobResult:
     """Run one job here and now; any exception becomes a failed :class:`JobResult`.
 
@@ -153,7 +176,8 @@ def run_job(job: Job) -> JobResult:
     """
     t0 = time.perf_counter()
     try:
-        value = resolve(job.func)(**dict(job.params))
+        with _single_threaded_kernels():
+            value = resolve(job.func)(**dict(job.params))
         if not isinstance(value, Mapping):
             raise IbiscapeError(
                 f"job function {job.func} returned {type(value).__name__}, expected a dict"
