@@ -2,42 +2,11 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
-from typing import Any
 
 import click
 
 from ._common import echo_json, fail, info, user_errors
-
-
-def _default_cache() -> Path:
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "ibiscape-eval" / "jobs"
-
-
-class _StepBar:
-    """One progress bar per step: jobs done, failed and remaining."""
-
-    def __init__(self) -> None:
-        self.bar: Any = None
-        self.step = ""
-
-    def __call__(self, step: str, done: int, failed: int, remaining: int) -> None:
-        if self.bar is None or step != self.step:
-            self.close()
-            from .progress import progress_bar
-
-            self.step = step
-            self.bar = progress_bar(done + remaining, step, unit="job", unit_scale=False,
-                                    delay_s=0.0)
-        self.bar.update(done - self.bar.n)
-        self.bar.set_postfix_str(f"failed {failed}, remaining {remaining}", refresh=False)
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
-            self.bar = None
 
 
 @click.command(
@@ -81,7 +50,7 @@ def benchmark(out_dir: Path, scale: float, suite_dir: Path | None, seed: int, on
     every SLAM sequence with stereo RGB and scores it (ATE, RPE).  Every step runs as batch jobs,
     locally or on a Dask cluster; a failing job is reported with its error and the rest continue.
     """
-    from ibiscape_eval.batch import ContentCache, make_executor
+    from ibiscape_eval.batch import ContentCache, default_cache_dir, make_executor
     from ibiscape_eval.benchmark import run_benchmark
     from ibiscape_eval.report.benchmark_report import benchmark_markdown, write_benchmark_report
     from ibiscape_eval.sim.suite import scaled_side_px
@@ -91,14 +60,16 @@ def benchmark(out_dir: Path, scale: float, suite_dir: Path | None, seed: int, on
     if suite_dir is None:
         scaled_side_px(scale)  # refuses a scale outside (0, 1] before anything starts
     executor = make_executor(scheduler=scheduler, workers=workers)
-    cache = None if no_cache else ContentCache(cache_dir or _default_cache())
+    cache = None if no_cache else ContentCache(cache_dir or default_cache_dir())
     info(f"benchmark in {out_dir}" + (f" on the suite {suite_dir}" if suite_dir else
                                       f" (suite at scale {scale:g})")
          + (f" on the Dask scheduler {scheduler}" if scheduler else ""))
-    bar = _StepBar()
+    from .progress import BatchBar
+
+    bar = BatchBar("suite", delay_s=0.0)
     try:
         res = run_benchmark(out_dir, scale=scale, suite_dir=suite_dir, seed=seed,
-                            executor=executor, cache=cache, progress=bar,
+                            executor=executor, cache=cache, progress=bar.step,
                             sequences=list(only) or None, figures=not no_figures)
     finally:
         bar.close()

@@ -19,7 +19,7 @@ import sys
 from collections.abc import Callable
 from typing import Any
 
-__all__ = ["fraction_callback", "progress_bar"]
+__all__ = ["BatchBar", "fraction_callback", "progress_bar"]
 
 
 def progress_bar(total: int | None, desc: str, *, unit: str = "it", unit_scale: bool = True,
@@ -40,3 +40,34 @@ def fraction_callback(bar: Any, desc: str, steps: int = 1000) -> Callable[[float
         bar.update(max(0, int(frac * steps) - bar.n))
 
     return update
+
+
+class BatchBar:
+    """A bar driven by a batch's ``(done, failed, remaining)`` callback, the failures beside it.
+
+    ``desc`` may change between calls (the benchmark's steps): a new description starts a new bar.
+    Call :meth:`close` when the batch ends.
+    """
+
+    def __init__(self, desc: str, *, unit: str = "job", delay_s: float = 2.0) -> None:
+        self.desc, self.unit, self.delay_s = desc, unit, delay_s
+        self.bar: Any = None
+
+    def __call__(self, done: int, failed: int, remaining: int) -> None:
+        if self.bar is None:
+            self.bar = progress_bar(done + remaining, self.desc, unit=self.unit, unit_scale=False,
+                                    delay_s=self.delay_s)
+        self.bar.update(done - self.bar.n)
+        self.bar.set_postfix_str(f"failed {failed}, remaining {remaining}", refresh=False)
+
+    def step(self, desc: str, done: int, failed: int, remaining: int) -> None:
+        """The same for a batch of named steps: a bar per step."""
+        if desc != self.desc:
+            self.close()
+            self.desc = desc
+        self(done, failed, remaining)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None

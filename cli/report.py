@@ -2,20 +2,13 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
-from typing import Any
 
 import click
 
 from ._common import echo_json, fail, info, user_errors
 
 _ALIGNMENTS = ("none", "origin", "se3", "sim3", "yaw")
-
-
-def _default_cache() -> Path:
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "ibiscape-eval" / "jobs"
 
 
 def _pct_list(text: str) -> tuple[float, ...]:
@@ -26,25 +19,6 @@ def _pct_list(text: str) -> tuple[float, ...]:
     if not vals or any(not 0 < v <= 100 for v in vals):
         raise click.BadParameter(f"expected percentages in (0, 100], got {text!r}")
     return vals
-
-
-class _Bar:
-    """The public progress bar driven by the batch callback: jobs done, failed and remaining."""
-
-    def __init__(self) -> None:
-        self.bar: Any = None
-
-    def __call__(self, done: int, failed: int, remaining: int) -> None:
-        if self.bar is None:
-            from .progress import progress_bar
-
-            self.bar = progress_bar(done + remaining, "report", unit="run", unit_scale=False)
-        self.bar.update(done - self.bar.n)
-        self.bar.set_postfix_str(f"failed {failed}, remaining {remaining}", refresh=False)
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
 
 
 @click.command(
@@ -115,7 +89,7 @@ def report(
     with --scheduler.  Finished runs are cached by content and skipped on a re-run; a run that
     fails is reported with its error and the others carry on.
     """
-    from ibiscape_eval.batch import ContentCache, make_executor
+    from ibiscape_eval.batch import ContentCache, default_cache_dir, make_executor
     from ibiscape_eval.report.evaluate import EvaluationOptions, evaluate_runs
     from ibiscape_eval.report.paper_table import PaperTable
     from ibiscape_eval.report.runs import discover_runs
@@ -135,8 +109,10 @@ def report(
          f"{len(layout.algorithms)} algorithms"
          + (f" on the Dask scheduler {scheduler}" if scheduler else ""))
     executor = make_executor(scheduler=scheduler, workers=workers)
-    cache = None if no_cache else ContentCache(cache_dir or _default_cache())
-    bar = _Bar()
+    cache = None if no_cache else ContentCache(cache_dir or default_cache_dir())
+    from .progress import BatchBar
+
+    bar = BatchBar("report", unit="run")
     try:
         evaluation = evaluate_runs(layout, options, executor=executor, cache=cache,
                                    progress=bar)

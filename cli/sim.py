@@ -160,28 +160,6 @@ def sim(setup: str | None, kind: str | None, weather: str | None, scenario: str 
             click.echo(f"export     {export_fmt}: {exported.path}")
 
 
-class _BatchBar:
-    """The public progress bar driven by a batch callback: jobs done, failed and remaining."""
-
-    def __init__(self, desc: str, unit: str) -> None:
-        self.bar: Any = None
-        self.desc = desc
-        self.unit = unit
-
-    def __call__(self, done: int, failed: int, remaining: int) -> None:
-        if self.bar is None:
-            from .progress import progress_bar
-
-            self.bar = progress_bar(done + remaining, self.desc, unit=self.unit, unit_scale=False,
-                                    delay_s=0.0)
-        self.bar.update(done - self.bar.n)
-        self.bar.set_postfix_str(f"failed {failed}, remaining {remaining}", refresh=False)
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
-
-
 @click.command(
     "sim suite",
     epilog="""\b
@@ -240,7 +218,9 @@ def sim_suite(out: str | None, scale: float, seed: int, render: bool, only: tupl
     executor = make_executor(scheduler=scheduler, workers=workers)
     n = len(only) if only else len(entries)
     info(f"{n} sequences at scale {scale:g}" + (f" on the Dask scheduler {scheduler}" if scheduler else ""))
-    bar = _BatchBar("sim suite", "seq")
+    from .progress import BatchBar
+
+    bar = BatchBar("sim suite", unit="seq", delay_s=0.0)
     try:
         res = run_suite(out, scale=scale, seed=seed, render=render, executor=executor, progress=bar,
                         only=list(only) or None)

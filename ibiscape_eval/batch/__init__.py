@@ -16,7 +16,7 @@ recorded as failed with its message; the other jobs carry on.
 
 from __future__ import annotations
 
-from .cache import ContentCache, code_version
+from .cache import ContentCache, code_version, default_cache_dir
 from .executors import (
     BatchSummary,
     DaskExecutor,
@@ -39,6 +39,7 @@ __all__ = [
     "Progress",
     "canonical_json",
     "code_version",
+    "default_cache_dir",
     "make_executor",
     "run_job",
     "run_jobs",

@@ -22,7 +22,7 @@ from typing import Any
 from .files import atomic_write
 from .jobs import Job, JobResult, canonical_json, resolve
 
-__all__ = ["ContentCache", "code_version"]
+__all__ = ["ContentCache", "code_version", "default_cache_dir"]
 
 _CHUNK = 1 << 20
 
@@ -55,6 +55,12 @@ def code_version(func: str) -> str:
             h.update(f.relative_to(base.parent).as_posix().encode() + b"\0")
             h.update(f.read_bytes())
     return f"{__version__}+{h.hexdigest()[:16]}"
+
+
+def default_cache_dir() -> Path:
+    """``$XDG_CACHE_HOME/ibiscape-eval/jobs`` (``~/.cache/ibiscape-eval/jobs`` without it)."""
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "ibiscape-eval" / "jobs"
 
 
 class ContentCache:

@@ -15,7 +15,9 @@ def test_list_prints_the_34_entries() -> None:
     lines = r.stdout.splitlines()
     assert len(lines) == 34
     assert lines[0].split()[:2] == ["IMU_calib_1", "imu"] and "30240 s" in lines[0]
-    assert "224 px" in lines[1] and "checkerboard" in lines[1]
+    assert "320 px" in lines[1] and " 12 s" in lines[1] and "checkerboard" in lines[1]
+    slam = next(ln for ln in lines if ln.startswith("SVI_slam_clear_1"))
+    assert "224 px" in slam and " 3 s" in slam
     doc = json.loads(CliRunner().invoke(cli, ["sim", "suite", "--list", "--json"]).stdout)
     assert doc["scale"] == 1.0 and len(doc["sequences"]) == 34
 
