@@ -37,7 +37,7 @@ from ibiscape_eval.sim.weather import simulate_weather
 
 def scene(kind: str, cfg: Any) -> tuple[dict[str, Callable[[int], np.ndarray]], Any]:
     """render_gray per DVS camera, and the weather log."""
-    from ibiscape_eval.sim.generate import plan
+    from ibiscape_eval.sim.generator import plan
 
     stamps = cfg.start_ns + np.arange(int(cfg.duration_s * 20) + 1, dtype=np.int64) * 50_000_000
     weather = simulate_weather(cfg.weather_model, stamps, seed=cfg.seed, start_ns=cfg.start_ns)

@@ -101,7 +101,7 @@ def sim(setup: str | None, kind: str | None, weather: str | None, scenario: str 
         preset,
         with_resolution,
     )
-    from ibiscape_eval.sim.generate import generate, sequence_name
+    from ibiscape_eval.sim.generator import generate, sequence_name
 
     overrides: dict[str, Any] = {"duration_s": duration_s, "seed": seed, "target": target,
                                  "ideal": ideal}

@@ -28,7 +28,7 @@ from ibiscape_eval.core.errors import CalibrationError
 from ibiscape_eval.sim import preset
 from ibiscape_eval.sim.calib_scene import write_board_frames
 from ibiscape_eval.sim.config import with_resolution
-from ibiscape_eval.sim.generate import generate
+from ibiscape_eval.sim.generator import generate
 
 SHIFTS = {"rgbL": 0.0123, "rgbR": -0.0171}
 

@@ -16,7 +16,7 @@ from ibiscape_eval.io import read_gnss, read_ibiscape_groundtruth
 from ibiscape_eval.io.imu import read_imu
 from ibiscape_eval.io.sequence import read_sequence_yaml
 from ibiscape_eval.sim import generate, preset
-from ibiscape_eval.sim.generate import roll_pitch_rad
+from ibiscape_eval.sim.generator import roll_pitch_rad
 
 root = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(tempfile.mkdtemp(prefix="sim_example_"))
 

@@ -34,10 +34,10 @@ _EXPORTS: dict[str, str] = {
     "preset": "config",
     "load_config": "config",
     "dump_config": "config",
-    "generate": "generate",
-    "plan": "generate",
-    "sequence_name": "generate",
-    "SequenceSummary": "generate",
+    "generate": "generator",
+    "plan": "generator",
+    "sequence_name": "generator",
+    "SequenceSummary": "generator",
     "ImuMeasurements": "imu",
     "ideal_imu": "imu",
     "simulate_imu": "imu",
@@ -68,7 +68,7 @@ if TYPE_CHECKING:  # pragma: no cover
         load_config,
         preset,
     )
-    from .generate import SequenceSummary, generate, plan, sequence_name  # noqa: F401
+    from .generator import SequenceSummary, generate, plan, sequence_name  # noqa: F401
     from .gnss import simulate_gnss  # noqa: F401
     from .imu import ImuMeasurements, ideal_imu, simulate_imu  # noqa: F401
     from .still import still_imu_chunks  # noqa: F401

@@ -88,7 +88,7 @@ def simulate_calibration(cfg: SimConfig, *, timeshifts_s: dict[str, float] | Non
     Camera frames are stamped on each camera's clock at ``rate_hz`` from ``start_ns + 50 ms`` (so
     that shifted frames stay inside the motion for offsets up to +-50 ms).
     """
-    from .generate import plan
+    from .generator import plan
 
     if cfg.kind != "calibration":
         raise IbiscapeError("simulate_calibration needs a config of kind 'calibration'")
@@ -153,7 +153,7 @@ def write_board_frames(cfg: SimConfig, folder: str | os.PathLike[str], *, supers
     from ibiscape_eval.core.rotations import matrix_from_quat
     from ibiscape_eval.io.images import write_frame_timestamps, write_png
 
-    from .generate import plan
+    from .generator import plan
     from .render.rays import camera_model
     from .render.sequence import camera_stamps
 

@@ -19,8 +19,9 @@ Scale
   seconds of averaging time to show the bias random walk);
 - image side: ``clamp(16 * round(1024 * sqrt(F) / 16), MIN_SIDE_PX[kind], 1024)`` pixels for every
   camera (square, field of view kept), so the pixel count (the rendering cost of a frame) scales
-  with F; the minimum is 128 px for SLAM runs and 320 px for calibration drives (below that the
-  board's squares, 4.5-15 m away on the shuttle drive, are too small to detect);
+  with F; the minimum is 128 px for SLAM runs, 320 px for checkerboard calibration drives and 512
+  px for AprilGrid drives (below that the board's squares or tags, 4.5-15 m away on the shuttle
+  drive, are too small to detect or decode);
 - calibration drives are the simulator's default shuttle drive (the board in view all the time).
 - the still IMU is written as ``other_sensors/imu.npy`` (streamed, bounded memory) when it is longer
   than 2 h, as ``imu.csv`` otherwise.
@@ -88,8 +89,9 @@ FULL_DURATION_S = {"calibration": 60.0, "slam": 60.0, "imu": 604_800.0}
 #: Shortest durations at any scale [s].
 MIN_DURATION_S = {"calibration": 12.0, "slam": 3.0, "imu": 1_800.0}
 FULL_SIDE_PX = 1024
-#: Smallest image side at any scale [px], by kind.
-MIN_SIDE_PX = {"calibration": 320, "slam": 128}
+#: Smallest image side at any scale [px], by kind (AprilGrid drives: their 0.4 m tags need 512 px
+#: to be decoded 5-15 m away).
+MIN_SIDE_PX = {"calibration": 320, "calibration-aprilgrid": 512, "slam": 128}
 NPY_ABOVE_S = 7_200.0
 MANIFEST = "suite.json"
 ENTRY_FILE = "suite_entry.json"
@@ -220,8 +222,9 @@ def suite_entries(scale: float = 1.0, *, seed: int = 0) -> tuple[SuiteEntry, ...
                 else:
                     name = f"{_LABEL[setup]}_slam_{_WEATHER[weather]}_{i}"
                     target = None
+                side_kind = f"{kind}-{target}" if target == "aprilgrid" else kind
                 out.append(SuiteEntry(name, setup, kind, weather, i, seed + len(out) + 1, d,
-                                      scaled_side_px(s, kind), target, "csv"))
+                                      scaled_side_px(s, side_kind), target, "csv"))
     return tuple(out)
 
 
@@ -237,7 +240,7 @@ def generate_entry(entry: Mapping[str, Any], out: str, render: bool = True) -> d
     from ibiscape_eval.batch.jobs import canonical_json
     from ibiscape_eval.io.atomic import atomic_write
 
-    from .generate import generate
+    from .generator import generate
 
     e = SuiteEntry.from_dict(entry)
     want = {"entry": e.to_dict(), "render": bool(render)}

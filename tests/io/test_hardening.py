@@ -337,7 +337,7 @@ def test_interrupted_write_leaves_no_temporary(tmp_path: Path, monkeypatch) -> N
     assert os.listdir(out) == []
     import importlib
 
-    gen = importlib.import_module("ibiscape_eval.sim.generate")  # the package exports a function of that name
+    gen = importlib.import_module("ibiscape_eval.sim.generator")
     generate = gen.generate
 
     def fail_late(*a, **k):

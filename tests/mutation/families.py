@@ -221,7 +221,7 @@ def _vio_sequence(folder: Path) -> Path:
 
         from ibiscape_eval.io.imu.kalibr import write_kalibr_imu_yaml
         from ibiscape_eval.sim.config import preset
-        from ibiscape_eval.sim.generate import generate
+        from ibiscape_eval.sim.generator import generate
         from ibiscape_eval.vio.inputs import load_sequence
         from ibiscape_eval.vio.rig import StereoRig
 

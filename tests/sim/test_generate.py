@@ -17,7 +17,7 @@ from ibiscape_eval.io import read_ibiscape_groundtruth, read_trajectory
 from ibiscape_eval.io.imu import read_imu
 from ibiscape_eval.io.sequence import read_controls, read_sequence_yaml, read_weather_csv
 from ibiscape_eval.sim import generate, preset
-from ibiscape_eval.sim.generate import roll_pitch_rad
+from ibiscape_eval.sim.generator import roll_pitch_rad
 
 
 def _files(folder: Path) -> dict[str, bytes]:

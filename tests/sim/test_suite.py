@@ -92,7 +92,8 @@ def test_scaling_rules(scale) -> None:
         assert d == max(MIN_DURATION_S[kind], round(scale * FULL_DURATION_S[kind], 3))
     for e in suite_entries(scale):
         cfg = e.config()
-        want = calib_side if e.kind == "calibration" else side
+        want = side if e.kind != "calibration" else (
+            max(512, side) if e.target == "aprilgrid" else calib_side)
         assert all((c.width_px, c.height_px) == (want, want) for c in cfg.cameras)
         if e.kind == "calibration" and e.setup != "imu":
             assert cfg.motion.calibration_drive == "shuttle" and cfg.duration_s >= 12.0
@@ -104,6 +105,7 @@ def test_known_scaled_values() -> None:
     assert scaled_duration_s("imu", 0.05) == 30_240.0 and scaled_duration_s("imu", 1e-4) == 1800.0
     e = {x.name: x for x in suite_entries(0.05)}
     assert e["SVI_calib_1"].side_px == 320 and e["SVI_calib_1"].duration_s == 12.0
+    assert e["SVI_calib_2"].side_px == 512 and e["SVI_calib_2"].target == "aprilgrid"
     assert e["SVI_slam_clear_1"].side_px == 224 and e["SVI_slam_clear_1"].duration_s == 3.0
     assert e["IMU_calib_1"].still_format == "npy"
     assert suite_entries(0.005)[0].still_format == "csv"  # 1800 s: the IBISCape csv
