@@ -16,3 +16,16 @@ from shared_data import require_shared  # noqa: E402  (tests/ is on sys.path: ro
 def shared_trajectories():
     """``../shared/data/trajectories``: skips when missing, fails under CI=true."""
     return require_shared("trajectories")
+
+
+@pytest.fixture(scope="module")
+def scheduler():
+    """The address of a real Dask LocalCluster on loopback (2 worker processes)."""
+    import distributed  # a dependency: missing it is a failure, not a skip
+
+    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                       host="127.0.0.1", dashboard_address=None)
+    try:
+        yield cluster.scheduler_address
+    finally:
+        cluster.close()

@@ -151,18 +151,6 @@ def test_vio_on_stereo_sequences_only(bench) -> None:
     assert (out / "runs" / "SVI_slam_clear_1" / "vio-baseline" / "1" / "estimate.txt").is_file()
 
 
-@pytest.fixture(scope="module")
-def scheduler():
-    import distributed  # a dependency: missing it is a failure, not a skip
-
-    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                       host="127.0.0.1", dashboard_address=None)
-    try:
-        yield cluster.scheduler_address
-    finally:
-        cluster.close()
-
-
 def _tables(doc):
     steps = {k: [{x: r[x] for x in ("key", "status", "error", "value")} for r in v]
              for k, v in doc["steps"].items() if k != "suite"}

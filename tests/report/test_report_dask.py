@@ -4,23 +4,10 @@ from __future__ import annotations
 
 import json
 
-import pytest
 from _report_runs import build_runs
 from click.testing import CliRunner
 
 from ibiscape_eval.cli.main import cli
-
-
-@pytest.fixture(scope="module")
-def scheduler():
-    import distributed  # a dependency: missing it is a failure, not a skip
-
-    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                       host="127.0.0.1", dashboard_address=None)
-    try:
-        yield cluster.scheduler_address
-    finally:
-        cluster.close()
 
 
 def test_dask_and_local_runs_give_identical_tables(scheduler, tmp_path) -> None:
