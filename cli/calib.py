@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -100,13 +99,7 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
       ibiscape-eval calib SVI_calib_checkerboard --check camchain.yaml
       ibiscape-eval calib SVI_1_calib --imu imu.yaml --yaml camchain-imucam.yaml --plot imu_plots/
     """
-    from ibiscape_eval.calib.events import (
-        choose_reconstruction,
-        contrast_from_sequence,
-        estimate_contrast,
-        event_frame_loader,
-        read_event_window,
-    )
+    from ibiscape_eval.calib.events import event_set_frames
     from ibiscape_eval.calib.pipeline import (
         CameraFrames,
         calibrate_frames,
@@ -115,7 +108,7 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
     )
     from ibiscape_eval.calib.report import compare_with_truth, format_report, truth_from_sequence
     from ibiscape_eval.calib.targets import target_from_kalibr
-    from ibiscape_eval.core.errors import IbiscapeError, IbiscapeWarning
+    from ibiscape_eval.core.errors import IbiscapeError
     from ibiscape_eval.io.image_sets import (
         find_image_sets,
         image_sets_from_globs,
@@ -171,28 +164,13 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
             size = (int(w), int(h))
         if size is None:
             raise IbiscapeError(f"{s.root}: sensor size unknown; pass --sensor-size WxH")
-        paths = s.paths
-
-        def read_window(i: int, p: tuple[Path, ...] = paths) -> Any:
-            try:
-                return read_event_window(p[i])
-            except IbiscapeError as e:  # a corrupt window is skipped like a corrupt image
-                warnings.warn(f"{e}; skipped", IbiscapeWarning, stacklevel=1)
-                return None
-
         assert s.windows_ns is not None
-        contrast = contrast_from_sequence(seq_cams.get(s.name))
-        given = contrast is not None
-        if contrast is None:
-            contrast = estimate_contrast(read_window, len(s))
-        method, probe = reconstruction, dict[str, Any]()
-        if method == "auto":
-            method, probe = choose_reconstruction(read_window, s.windows_ns, size, target, contrast=contrast)
-        source = event_frame_loader(read_window, s.windows_ns, size, method, contrast=contrast)
-        recon_used[s.name] = {**source.describe(), **probe,
-                              "contrast_from": "sequence.yaml" if given else "polarity balance"}
+        source, recon_used[s.name] = event_set_frames(s.paths, s.windows_ns, size, target,
+                                                      reconstruction=reconstruction,
+                                                      camera_doc=seq_cams.get(s.name))
+        method = recon_used[s.name]["method"]
         info(f"{s.name}: frames reconstructed from events by {method}")
-        frames.append(CameraFrames(s.name, len(s), source, _labeler(paths), reconstruction=method))
+        frames.append(CameraFrames(s.name, len(s), source, _labeler(s.paths), reconstruction=method))
 
     with _bar("detecting") as bar:
         summary = detect_frames(target, frames, views, max_detect=max_frames, workers=workers,

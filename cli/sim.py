@@ -173,8 +173,9 @@ Examples:
 @click.option("--out", "out", type=click.Path(file_okay=False), default=None,
               help="(required) Suite folder: one sequence folder per entry and suite.json (the manifest).")
 @click.option("--scale", type=float, default=1.0, show_default=True,
-              help="In (0, 1]: durations x F (at least 3 s; still IMU at least 30 min), image "
-              "sides 1024 x sqrt(F) (at least 128 px).")
+              help="In (0, 1]: durations x F (at least 3 s, calibration drives 12 s, still IMU 30 "
+              "min), image sides 1024 x sqrt(F) (at least 128 px, calibration drives 320 px, "
+              "AprilGrid drives 512 px).")
 @click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
               help="Base seed (sequence i gets seed + i).")
 @click.option("--render/--no-render", "render", default=True, show_default=True,

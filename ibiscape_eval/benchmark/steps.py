@@ -95,12 +95,10 @@ def _labeler(paths: Sequence[Path]) -> Callable[[int], str]:
 
 def _camera_calibration(seq: str, cameras: Sequence[str], model: str, max_views: int,
                         max_frames: int) -> dict[str, Any]:
-    from ibiscape_eval.calib.events import choose_reconstruction, event_frame_loader
+    from ibiscape_eval.calib.events import event_set_frames
     from ibiscape_eval.calib.pipeline import CameraFrames, calibrate_frames, detect_frames
     from ibiscape_eval.calib.report import compare_with_truth, truth_from_sequence
     from ibiscape_eval.calib.targets import target_from_kalibr
-    from ibiscape_eval.core.errors import IbiscapeWarning
-    from ibiscape_eval.io.events import read_events
     from ibiscape_eval.io.image_sets import find_image_sets, pair_views, read_image
 
     doc = _sequence_doc(seq)
@@ -120,21 +118,12 @@ def _camera_calibration(seq: str, cameras: Sequence[str], model: str, max_views:
             continue
         w, h = seq_cams.get(s.name, {}).get("resolution", (0, 0))
         size = (int(w), int(h))
-        paths = s.paths
-
-        def read_window(i: int, p: tuple[Path, ...] = paths) -> Any:
-            try:
-                return read_events(p[i], fmt="npz")
-            except IbiscapeError as e:  # a corrupt window is skipped like a corrupt image
-                warnings.warn(f"{e}; skipped", IbiscapeWarning, stacklevel=1)
-                return None
-
         assert s.windows_ns is not None
-        method, _ = choose_reconstruction(read_window, s.windows_ns, size, target)
-        recon[s.name] = method
-        frames.append(CameraFrames(s.name, len(s), event_frame_loader(read_window, s.windows_ns,
-                                                                      size, method),
-                                   _labeler(paths), reconstruction=method))
+        source, used = event_set_frames(s.paths, s.windows_ns, size, target,
+                                        camera_doc=seq_cams.get(s.name))
+        recon[s.name] = used["method"]
+        frames.append(CameraFrames(s.name, len(s), source, _labeler(s.paths),
+                                   reconstruction=used["method"]))
     summary = detect_frames(target, frames, views, max_detect=max_frames, workers=1)
     result = calibrate_frames(target, summary, model=model, max_views=max_views)
     truth = compare_with_truth(result, truth_from_sequence(doc))

@@ -45,6 +45,7 @@ __all__ = [
     "estimate_contrast",
     "event_frame",
     "event_frame_loader",
+    "event_set_frames",
     "read_event_window",
 ]
 
@@ -294,3 +295,41 @@ def choose_reconstruction(read_window: ReadWindow, windows_ns: npt.ArrayLike, se
         counts[m] = n
     best = max(candidates, key=lambda m: (counts[m], -list(candidates).index(m)))
     return best, {"probed_windows": len(probe), "corners_found": counts}
+
+
+def event_set_frames(paths: Sequence[str | Path], windows_ns: npt.ArrayLike,
+                     sensor_size: tuple[int, int], target: CalibrationTarget, *,
+                     reconstruction: str = "auto",
+                     camera_doc: Mapping[str, Any] | None = None
+                     ) -> tuple[EventFrameSource, dict[str, Any]]:
+    """Frames of one DVS folder (its ``.npz`` windows) for the calibration, and what was used.
+
+    Corrupt windows are skipped with a warning (like corrupt images); the contrast thresholds come
+    from the camera's ``sequence.yaml`` entry ``camera_doc`` or from the polarity balance;
+    ``reconstruction="auto"`` picks the method that finds the target.  Returns the frame source
+    and ``{method, options..., contrast_from}`` for the report.
+    """
+    import warnings
+
+    from ibiscape_eval.core.errors import IbiscapeWarning
+
+    files = tuple(Path(p) for p in paths)
+
+    def read_window(i: int) -> Events | None:
+        try:
+            return read_event_window(files[i])
+        except IbiscapeError as e:  # a corrupt window is skipped like a corrupt image
+            warnings.warn(f"{e}; skipped", IbiscapeWarning, stacklevel=2)
+            return None
+
+    contrast = contrast_from_sequence(camera_doc)
+    given = contrast is not None
+    if contrast is None:
+        contrast = estimate_contrast(read_window, len(files))
+    method, probe = reconstruction, dict[str, Any]()
+    if method == "auto":
+        method, probe = choose_reconstruction(read_window, windows_ns, sensor_size, target,
+                                              contrast=contrast)
+    source = event_frame_loader(read_window, windows_ns, sensor_size, method, contrast=contrast)
+    return source, {**source.describe(), **probe,
+                    "contrast_from": "sequence.yaml" if given else "polarity balance"}
