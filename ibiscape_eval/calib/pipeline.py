@@ -24,6 +24,13 @@ from .targets import CalibrationTarget
 
 __all__ = ["CameraFrames", "DetectionSummary", "calibrate_frames", "check_frames", "detect_frames"]
 
+#: views at most this far apart in the view table are neighbours (searched around each other's board)
+_NEIGHBOUR_GAP = 2
+#: frames per run of neighbours (the unit of work of one detection thread)
+_RUN_LEN = 40
+#: checkerboards missed by the plain search are searched exhaustively when fewer views are tried
+_EXHAUSTIVE_BELOW = 100
+
 
 @dataclass(frozen=True, eq=False)
 class CameraFrames:
@@ -101,31 +108,50 @@ def detect_frames(target: CalibrationTarget, cameras: Sequence[CameraFrames],
         return 0.0 if img is None else sharpness(img)
 
     picked = preselect_frames(len(views), max_detect, sharp if len(views) > max_detect else None)
-    jobs = [(k, vi, views[v][k]) for vi, v in enumerate(picked) for k in range(n_cam)
-            if views[v][k] is not None]
+    # each camera's frames in runs of neighbouring views: a run is searched in order, every frame
+    # first around the board of the frame before it (detect_corners(near=...)).  With many views a
+    # missed board is not searched exhaustively (8x the time): the others supply the views
+    exhaustive = len(picked) < _EXHAUSTIVE_BELOW
+    nw = max(1, workers or usable_cpus())
+    runs: list[list[tuple[int, int, int]]] = []
+    for k in range(n_cam):
+        run: list[tuple[int, int, int]] = []
+        for vi, v in enumerate(picked):
+            i = views[v][k]
+            if i is None:
+                continue
+            if run and (v - picked[run[-1][1]] > _NEIGHBOUR_GAP or len(run) >= _RUN_LEN):
+                runs.append(run)
+                run = []
+            run.append((k, vi, i))
+        if run:
+            runs.append(run)
+    jobs = [j for r in runs for j in r]
     if total is not None:
         total(len(jobs))
     sizes: list[dict[tuple[int, int], int]] = [{} for _ in range(n_cam)]
 
-    def one(job: tuple[int, int, int | None]) -> tuple[int, int, Detection | None, bool]:
-        k, vi, i = job
-        assert i is not None
-        img = cameras[k].load(i)
-        det = None
-        if img is not None:
-            size = (int(img.shape[1]), int(img.shape[0]))
-            sizes[k].setdefault(size, i)
-            det = detect_corners(img, target)
-        if progress is not None:
-            progress(1)
-        return k, vi, det, img is None
+    def one_run(run: list[tuple[int, int, int]]) -> list[tuple[int, int, Detection | None, bool]]:
+        out = []
+        prev: Detection | None = None
+        for k, vi, i in run:
+            img = cameras[k].load(i)
+            det = None
+            if img is not None:
+                size = (int(img.shape[1]), int(img.shape[0]))
+                sizes[k].setdefault(size, i)
+                det = detect_corners(img, target, near=prev, exhaustive=exhaustive)
+            prev = det
+            if progress is not None:
+                progress(1)
+            out.append((k, vi, det, img is None))
+        return out
 
-    nw = max(1, workers or usable_cpus())
-    if nw > 1 and len(jobs) > 1:
+    if nw > 1 and len(runs) > 1:
         with ThreadPoolExecutor(max_workers=nw) as pool:
-            results = list(pool.map(one, jobs))
+            results = [r for rr in pool.map(one_run, runs) for r in rr]
     else:
-        results = [one(j) for j in jobs]
+        results = [r for run in runs for r in one_run(run)]
     dets: list[list[Detection | None]] = [[None] * len(picked) for _ in range(n_cam)]
     tried = [0] * n_cam
     bad = [0] * n_cam

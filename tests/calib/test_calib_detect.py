@@ -63,3 +63,47 @@ def test_sharpness_ranks_blur():
 
     _, _, _, _, (imgs, _), _ = stereo_scene("checkerboard")
     assert sharpness(imgs[0]) > 2 * sharpness(cv2.GaussianBlur(imgs[0], (0, 0), 3))
+
+
+def _moving_board(kind: str, n: int = 8) -> list[tuple[np.ndarray, np.ndarray]]:
+    """A board drifting across the image, 20 Hz-like steps (a few px per frame)."""
+    out = []
+    d0 = 9.0 if kind == "checkerboard" else 7.0  # small enough that a box around it saves time
+    for k in range(n):
+        T = board_pose(kind, distance_m=d0 - 0.1 * k, tilt_deg=(5 + k, -20 + 2 * k), roll_deg=3,
+                       offset_m=(-1.5 + 0.12 * k, 0.1 - 0.03 * k))
+        out.append((T, render(CAM_RADTAN, T, kind, rng=np.random.default_rng(k))))
+    return out
+
+
+def test_sequence_mode_finds_the_same_corners_as_single_images():
+    for kind in ("checkerboard", "aprilgrid"):
+        target = sim_target(kind)
+        prev = None
+        n_near = 0
+        for T, img in _moving_board(kind):
+            alone = detect_corners(img, target)
+            near = detect_corners(img, target, near=prev, exhaustive=False)
+            assert alone is not None and near is not None
+            np.testing.assert_array_equal(alone.ids, near.ids)
+            np.testing.assert_allclose(near.corners_px, alone.corners_px, atol=1e-3)
+            assert _errors(near, CAM_RADTAN, T, target, kind == "checkerboard").max() < 0.5
+            n_near += prev is not None
+            prev = near
+        assert n_near == 7
+
+
+def test_a_stale_neighbour_falls_back_to_the_whole_image():
+    for kind in ("checkerboard", "aprilgrid"):
+        target = sim_target(kind)
+        frames = _moving_board(kind, 2)
+        far = detect_corners(frames[0][1], target)
+        assert far is not None
+        # the neighbour's board moved to the other side of the image: the box around it is empty
+        moved = type(far)(far.ids, far.corners_px * 0.25, far.image_size)
+        T = board_pose(kind, distance_m=5.0, tilt_deg=(5, 10), roll_deg=0, offset_m=(0.9, 0.3))
+        img = render(CAM_RADTAN, T, kind, rng=np.random.default_rng(9))
+        det = detect_corners(img, target, near=moved, exhaustive=False)
+        ref = detect_corners(img, target)
+        assert det is not None and ref is not None and len(det) == len(ref)
+        np.testing.assert_allclose(det.corners_px, ref.corners_px, atol=1e-3)
