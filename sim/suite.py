@@ -89,8 +89,8 @@ FULL_DURATION_S = {"calibration": 60.0, "slam": 60.0, "imu": 604_800.0}
 #: Shortest durations at any scale [s].
 MIN_DURATION_S = {"calibration": 12.0, "slam": 3.0, "imu": 1_800.0}
 FULL_SIDE_PX = 1024
-#: Smallest image side at any scale [px], by kind (AprilGrid drives: their 0.4 m tags need 512 px
-#: to be decoded 5-15 m away).
+#: Smallest image side at any scale [px], by kind (AprilGrid drives: their 0.55 m tags need 512 px
+#: to be decoded 3.4-11 m away).
 MIN_SIDE_PX = {"calibration": 320, "calibration-aprilgrid": 512, "slam": 128}
 NPY_ABOVE_S = 7_200.0
 MANIFEST = "suite.json"

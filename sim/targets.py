@@ -32,11 +32,14 @@ __all__ = ["TARGET_KINDS", "Target", "make_target"]
 FloatArray = npt.NDArray[np.float64]
 TARGET_KINDS = ("checkerboard", "aprilgrid")
 
-# Realistic sizes for a board seen from a car at 5-20 m with f = 512 px (a 0.5 m square is 13 px
-# wide at 20 m; a 0.4 m tag is 10 px = 1 px per code cell at 20 m and 4 px per cell at 5 m).
+# Realistic sizes for a board seen from a car at 3-15 m (a 0.5 m square is 17 px wide at 15 m
+# with f = 512 px).  A tag36h11 tag with its 2-cell border is 10 cells wide: a 0.55 m tag is
+# 13-41 px in 512 px images (f = 256 px) on the AprilGrid's shuttle drive (3.4-11 m).  Measured on
+# a 12 s drive at 512 px: 0.55 m tags gave focal 0.13 px and principal point 0.08 px, 0.4 m tags
+# 0.72 px and 0.64 px (fewer tags decoded far away).
 CHECKER_SQUARE_M = 0.5
 CHECKER_INNER = 7
-APRIL_TAG_SIZE_M = 0.4
+APRIL_TAG_SIZE_M = 0.55
 APRIL_TAG_SPACING = 0.3
 APRIL_TAGS = 6
 _MARGIN_M = 0.3  # white quiet zone around the pattern
@@ -198,7 +201,7 @@ def aprilgrid_corners(tag_rows: int, tag_cols: int, tag_size_m: float, tag_spaci
     return np.stack((x, y, np.zeros_like(x, dtype=np.float64)), -1).astype(np.float64)
 
 
-def make_target(kind: str, *, T_world_target: npt.ArrayLike) -> Target:
+def make_target(kind: str, *, T_world_target: npt.ArrayLike, tag_size_m: float = APRIL_TAG_SIZE_M) -> Target:
     """A Kalibr target of the paper's layout (checkerboard 7x7 inner corners, AprilGrid 6x6).
 
     Parameters
@@ -207,6 +210,8 @@ def make_target(kind: str, *, T_world_target: npt.ArrayLike) -> Target:
         ``"checkerboard"`` or ``"aprilgrid"``.
     T_world_target : array_like, shape (4, 4)
         Pose of the target frame (see the module docstring for the frame of each kind).
+    tag_size_m : float
+        AprilGrid: the tag size (the simulator's calibration world uses the default).
 
     Returns
     -------
@@ -232,7 +237,9 @@ def make_target(kind: str, *, T_world_target: npt.ArrayLike) -> Target:
         hi = np.array([n * s + _MARGIN_M, n * s + _MARGIN_M])
         return Target("checkerboard", kalibr, T, corners, lo, hi, False)
     if kind == "aprilgrid":
-        ts, sp, n = APRIL_TAG_SIZE_M, APRIL_TAG_SPACING, APRIL_TAGS
+        ts, sp, n = float(tag_size_m), APRIL_TAG_SPACING, APRIL_TAGS
+        if not ts > 0.0:
+            raise IbiscapeError(f"tag_size_m must be > 0, got {tag_size_m}")
         kalibr = {
             "target_type": "aprilgrid",
             "tagRows": n,
@@ -248,15 +255,19 @@ def make_target(kind: str, *, T_world_target: npt.ArrayLike) -> Target:
     raise IbiscapeError(f"target kind {kind!r} is unknown; use one of {TARGET_KINDS}")
 
 
-def board_pose(kind: str, centre_world_m: npt.ArrayLike, facing_yaw_rad: float) -> FloatArray:
-    """``T_world_target`` of an upright board whose printed face looks along ``facing_yaw_rad``.
+def board_pose(kind: str, centre_world_m: npt.ArrayLike, facing_yaw_rad: float,
+               lean_rad: float = 0.0) -> FloatArray:
+    """``T_world_target`` of a board whose printed face looks along ``facing_yaw_rad``.
 
     The pattern's centre lands on ``centre_world_m``; ``facing_yaw_rad`` is the horizontal direction
-    from the board toward its observers.
+    from the board toward its observers; ``lean_rad`` tips the board's top away from them (0:
+    upright; positive: the face looks up).
     """
-    f = np.array([np.cos(facing_yaw_rad), np.sin(facing_yaw_rad), 0.0])  # toward the observer
+    h = np.array([np.cos(facing_yaw_rad), np.sin(facing_yaw_rad), 0.0])  # toward the observer
     right = np.array([-np.sin(facing_yaw_rad), np.cos(facing_yaw_rad), 0.0])  # observer's right
-    up = np.array([0.0, 0.0, 1.0])
+    z = np.array([0.0, 0.0, 1.0])
+    f = np.cos(lean_rad) * h + np.sin(lean_rad) * z
+    up = np.cos(lean_rad) * z - np.sin(lean_rad) * h
     if kind == "checkerboard":
         R = np.stack((right, -up, -f), axis=1)  # x right, y down, z away
         centre_t = np.array([3.0, 3.0, 0.0]) * CHECKER_SQUARE_M

@@ -30,7 +30,7 @@ from .agents import AGENT_CAR, AGENT_PEDESTRIAN, Agents
 from .targets import TARGET_KINDS, Target, board_pose, make_target
 from .terrain import Bump, Terrain
 
-__all__ = ["CALIBRATION_DRIVES", "SCENES", "WORLD_KINDS", "Boxes", "World", "build_world", "shuttle_legs"]
+__all__ = ["CALIBRATION_DRIVES", "SCENES", "SHUTTLE_SCALE", "TARGET_LEAN_DEG", "WORLD_KINDS", "Boxes", "World", "build_world", "shuttle_legs"]
 
 FloatArray = npt.NDArray[np.float64]
 WORLD_KINDS = ("slam", "calibration", "still")
@@ -44,6 +44,7 @@ ROAD_HALF_WIDTH_M = LANE_WIDTH_M + PARKING_WIDTH_M
 SIDEWALK_M = 3.0
 TARGET_X_M = 90.0  # calibration boards stand at this x, facing -x
 TARGET_CENTRE_Z_M = 3.0
+TARGET_LEAN_DEG = 15.0  # the boards lean back: views from a car then do not all share one rotation axis
 TARGET_Y_M = {"checkerboard": -4.0, "aprilgrid": 4.0}
 CORNER_CUT_M = {"weave": 6.0, "turn": 9.0}
 CALIBRATION_DRIVES = ("shuttle", "loop")
@@ -56,6 +57,10 @@ SHUTTLE_FAR_M = (12.0, 15.0)
 SHUTTLE_RUN_IN_M = 2.0
 SHUTTLE_RUN_OUT_M = 2.0
 SHUTTLE_PAIRS = 24
+#: the shuttle's distances (near, far, aim, run-in, run-out) per target, times the constants above:
+#: the AprilGrid's tags need the car closer than the checkerboard's squares (0.75: the steering
+#: stays below 0.93 of its range on the crossovers)
+SHUTTLE_SCALE = {"checkerboard": 1.0, "aprilgrid": 0.75}
 
 # kind ids (documented for the renderer)
 ROAD_ASPHALT, ROAD_CALIBRATION_PAD = 0, 1
@@ -288,9 +293,11 @@ def shuttle_legs(target: str, seed: int, pairs: int = SHUTTLE_PAIRS) -> tuple[Fl
     def out(a: float) -> FloatArray:  # unit vector from the board toward the observer at angle a
         return np.array([-math.cos(a), math.sin(a)])
 
-    far = rng.uniform(*SHUTTLE_FAR_M, pairs)
-    near = rng.uniform(*SHUTTLE_NEAR_M, pairs)
-    aim = rng.uniform(-SHUTTLE_AIM_M, SHUTTLE_AIM_M, pairs)
+    sc = SHUTTLE_SCALE[target]
+    far = sc * rng.uniform(*SHUTTLE_FAR_M, pairs)
+    near = sc * rng.uniform(*SHUTTLE_NEAR_M, pairs)
+    aim = sc * rng.uniform(-SHUTTLE_AIM_M, SHUTTLE_AIM_M, pairs)
+    run_in, run_out = sc * SHUTTLE_RUN_IN_M, sc * SHUTTLE_RUN_OUT_M
 
     def on_line(k: int, r: float) -> FloatArray:
         """``r`` metres out along line ``k``: at angle ``phi[k]``, aimed ``aim[k]`` beside the centre
@@ -302,8 +309,8 @@ def shuttle_legs(target: str, seed: int, pairs: int = SHUTTLE_PAIRS) -> tuple[Fl
     for k in range(pairs):
         j = (k + 1) % pairs
         nk = on_line(j, near[k])
-        legs.append(np.array([on_line(k, far[k]), on_line(k, far[k] - SHUTTLE_RUN_IN_M),
-                              on_line(j, near[k] + SHUTTLE_RUN_OUT_M), nk]))
+        legs.append(np.array([on_line(k, far[k]), on_line(k, far[k] - run_in),
+                              on_line(j, near[k] + run_out), nk]))
         legs.append(np.array([nk, on_line(j, far[j])]))
     return tuple(legs)
 
@@ -352,7 +359,8 @@ def _calibration_world(seed: int, scene: str, target: str, bumps: bool,
     loops = {k: calibration_loop(k) for k in TARGET_KINDS}
     shuttles = {k: shuttle_legs(k, seed) for k in TARGET_KINDS}
     targets = tuple(
-        make_target(k, T_world_target=board_pose(k, [TARGET_X_M, TARGET_Y_M[k], TARGET_CENTRE_Z_M], math.pi))
+        make_target(k, T_world_target=board_pose(k, [TARGET_X_M, TARGET_Y_M[k], TARGET_CENTRE_Z_M], math.pi,
+                                                 math.radians(TARGET_LEAN_DEG)))
         for k in TARGET_KINDS
     )
     bump_list: list[Bump] = []

@@ -24,7 +24,7 @@ BACKGROUND = 150.0
 
 @lru_cache(maxsize=4)
 def _board(kind: str):
-    t = make_target(kind, T_world_target=np.eye(4))
+    t = make_target(kind, T_world_target=np.eye(4), tag_size_m=0.4)  # the scenes were laid out for 0.4 m tags
     return t, t.texture(PX_PER_M).astype(np.float32)
 
 

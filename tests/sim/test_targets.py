@@ -45,7 +45,7 @@ def test_aprilgrid_numbering_matches_kalibr():
 
 def test_aprilgrid_texture_detected_with_kalibr_corner_order():
     t = make_target("aprilgrid", T_world_target=board_pose("aprilgrid", [90, 4, 3], math.pi))
-    assert t.kalibr == {"target_type": "aprilgrid", "tagRows": 6, "tagCols": 6, "tagSize": 0.4, "tagSpacing": 0.3}
+    assert t.kalibr == {"target_type": "aprilgrid", "tagRows": 6, "tagCols": 6, "tagSize": 0.55, "tagSpacing": 0.3}
     ppm = 100.0
     img = t.texture(ppm)
     assert img.dtype == np.uint8 and set(np.unique(img)) == {0, 255}

@@ -7,7 +7,7 @@ import pytest
 
 from ibiscape_eval.core.errors import IbiscapeError
 from ibiscape_eval.sim.terrain import Bump, Terrain
-from ibiscape_eval.sim.world import build_world
+from ibiscape_eval.sim.world import SHUTTLE_SCALE, build_world
 
 
 def _bumps():
@@ -143,7 +143,7 @@ def test_shuttle_legs_face_the_board_and_close(target):
         d_end = (leg[-1] - leg[-2]) / np.linalg.norm(leg[-1] - leg[-2])
         d_next = (nxt[1] - nxt[0]) / np.linalg.norm(nxt[1] - nxt[0])
         assert d_end @ d_next == pytest.approx(-1.0)  # a cusp: the next leg starts straight back
-        r = np.linalg.norm(leg[[0, -1]] - c, axis=1)
+        r = np.linalg.norm(leg[[0, -1]] - c, axis=1) / SHUTTLE_SCALE[target]
         assert r.min() > 4.4 and r.max() < 15.2
     kb = [b.kind for b in w.terrain.bumps]
     assert kb.count("bubble") >= 3 and kb.count("wave") >= 1
