@@ -65,18 +65,9 @@ def read_event_window(path: str | Path) -> Events:
 
     Raises :class:`~ibiscape_eval.core.errors.FormatError` naming the file when it cannot be read.
     """
-    from ibiscape_eval.io.events import iter_event_chunks, open_events
+    from ibiscape_eval.io.events import read_events
 
-    got: list[Events] = []
-    try:
-        for chunk in iter_event_chunks(open_events(path, fmt="npz")):
-            got.append(chunk.events)
-    except IbiscapeError:
-        # the reader refuses a recording without events only after yielding its (empty) file
-        if got and sum(len(e) for e in got) == 0:
-            return got[0]
-        raise
-    return Events.concatenate(got)
+    return read_events(path, fmt="npz", allow_empty=True)
 
 
 def _log_to_uint8(values: npt.NDArray[np.float64], shape: tuple[int, int]) -> npt.NDArray[np.uint8]:
