@@ -339,10 +339,6 @@ FAMILIES: dict[str, Family] = {
     "imu_npz": Family(_imu_npz_seed, lambda p, o: ["allan", str(p), "--json"], text=False),
     "events_npz": Family(_events_npz_seed, lambda p, o: ["hotpix", str(p), "--json", "--hot-out",
                                                          str(o / "hot.txt")], text=False),
-    # an IBISCape DVS folder: a corrupt events/<ns>.npz window is named in the one error line
-    "events_dvs_folder": Family(_dvs_folder_seed, lambda p, o: ["hotpix", str(p), "--sensor-size", "64x48",
-                                                                "--json", "--hot-out", str(o / "hot.txt")],
-                                mutable=_dvs_window, text=False),
     "events_txt": Family(_events_txt_seed, lambda p, o: ["events", "frames", str(p), "--out",
                                                          str(o / "frames"), "--rate-hz", "10",
                                                          "--json"]),
@@ -376,4 +372,9 @@ FAMILIES: dict[str, Family] = {
     "calib_sequence_yaml": Family(_calib_sequence, lambda p, o: ["calib", str(p), "--json", "--yaml",
                                                                  str(o / "camchain.yaml")],
                                   mutable=lambda p: p / "sequence.yaml"),
+    # (last: a new family keeps the seeds of the others' mutants, which hang on their index)
+    # an IBISCape DVS folder: a corrupt events/<ns>.npz window is named in the one error line
+    "events_dvs_folder": Family(_dvs_folder_seed, lambda p, o: ["hotpix", str(p), "--sensor-size", "64x48",
+                                                                "--json", "--hot-out", str(o / "hot.txt")],
+                                mutable=_dvs_window, text=False),
 }
