@@ -4,6 +4,8 @@ and event-camera calibration on a hand-held DVS sequence, both against the rende
     .venv/bin/python benchmarks/bench_calib.py                      # 100 stereo frames, 1024x1024
     .venv/bin/python benchmarks/bench_calib.py --frames 40 --targets aprilgrid --models radtan
     .venv/bin/python benchmarks/bench_calib.py --frames 0 --dvs-resolution 512   # DVS part only
+    .venv/bin/python benchmarks/bench_calib.py --frames 0 --dvs-resolution 0 --dvs-drive 346x260 \
+        --dvs-drive-s 30                          # the simulator's ESVI calibration drive (slow)
 
 Frame cameras.  For each target (checkerboard 7x7, AprilGrid 6x6 as the simulator prints them) and
 model (radtan; equidistant rendered by a fisheye-like lens) a stereo pair with the paper's cameras
@@ -24,7 +26,9 @@ Event cameras (``--dvs-resolution``, 0 to skip): a stereo DVS (0.2 m baseline) w
 the board (``tests/calib/_dvs_handheld.py``: smooth motion through varied key poses, the
 simulator's renderer and DVS model), calibrated by ``ibiscape-eval calib`` (``--reconstruction
 auto``); errors against the truth beside the paper's Kalibr + E2CALIB result (1.55 px focal,
-3 mm baseline).
+3 mm baseline).  ``--dvs-drive WxH``: the same on the simulator's ESVI calibration drive (``ibiscape-eval
+sim --setup esvi --kind calibration --target ...``, stereo DVS 0.2 m apart approaching the board
+head-on; about 16 s CPU per simulated second at 346x260), with the CPU time per reconstructed frame.
 """
 
 from __future__ import annotations
@@ -194,9 +198,33 @@ def dvs_rows(a: argparse.Namespace, tmp: Path) -> list[dict]:
     return rows
 
 
-def print_dvs_rows(rows: list[dict], res: int) -> None:
+def drive_rows(a: argparse.Namespace, tmp: Path) -> list[dict]:
+    """The simulator's ESVI calibration drive per target, calibrated by the calib command."""
+    rows = []
+    for kind in a.targets:
+        seq = tmp / f"esvi_{kind}"
+        ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        r = run([CLI, "sim", "--setup", "esvi", "--kind", "calibration", "--target", kind, "--resolution",
+                 a.dvs_drive, "--duration-s", str(a.dvs_drive_s), "--seed", str(a.seed), "--out", str(seq)])
+        ru1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        if not r.ok:
+            raise SystemExit(f"ibiscape-eval sim failed for {seq}")
+        print(f"[dvs drive {kind}] simulated {a.dvs_drive_s} s at {a.dvs_drive} in "
+              f"{(ru1.ru_utime - ru0.ru_utime) + (ru1.ru_stime - ru0.ru_stime):.0f} s CPU", flush=True)
+        ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        r = run([CLI, "calib", str(seq), "--json"])
+        ru1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        doc = json.loads(r.stdout) if r.ok else None
+        n_frames = 2 * round(a.dvs_drive_s * 20)
+        rows.append({"kind": kind, "doc": doc, "wall_s": r.wall_s, "returncode": r.returncode,
+                     "cpu_ms_per_frame": 1e3 * ((ru1.ru_utime - ru0.ru_utime) + (ru1.ru_stime - ru0.ru_stime))
+                     / n_frames})
+    return rows
+
+
+def print_dvs_rows(rows: list[dict], res: int | str, what: str = "hand-held stereo DVS") -> None:
     print()
-    print(f"Event cameras, hand-held stereo DVS at {res} px (paper, Kalibr + E2CALIB: "
+    print(f"Event cameras, {what} at {res} px (paper, Kalibr + E2CALIB: "
           f"{PAPER_E2CALIB['focal_px']} px focal, {PAPER_E2CALIB['baseline_mm']} mm baseline):")
     print(f"{'target':<13}{'reconstruction':<16}{'frames with target':>19}{'max |df| px':>12}{'max |dc| px':>12}"
           f"{'baseline err mm':>16}{'RMS px':>8}{'wall s':>8}")
@@ -208,9 +236,11 @@ def print_dvs_rows(rows: list[dict], res: int) -> None:
         gt = d["ground_truth"]
         method = "/".join(sorted({v["method"] for v in d["reconstruction"].values()}))
         found = "/".join(str(c["target_found"]) for c in d["detection"]["cameras"])
+        per = f"{r['cpu_ms_per_frame']:>8.0f} ms/frame CPU" if "cpu_ms_per_frame" in r else ""
         print(f"{r['kind']:<13}{method:<16}{found:>19}{gt['max_focal_error_px']:>12.3f}"
               f"{gt['max_principal_point_error_px']:>12.3f}{gt['max_baseline_error_mm']:>16.3f}"
-              f"{d['rms_px']:>8.3f}{r['wall_s']:>8.1f}")
+              f"{d['rms_px']:>8.3f}{r['wall_s']:>8.1f}{per}")
+    print("issue targets: focal < 0.3 px, principal point < 0.5 px, baseline < 1 mm, RMS < 0.1 px")
 
 
 def main() -> None:
@@ -221,14 +251,19 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--dvs-resolution", type=int, default=256, help="DVS sensor size (0: skip)")
     ap.add_argument("--dvs-keys", type=int, default=6, help="key poses of the hand-held DVS motion (1 s apart)")
+    ap.add_argument("--dvs-drive", default="", help="WxH: also the simulator's ESVI calibration drive (slow)")
+    ap.add_argument("--dvs-drive-s", type=float, default=30.0, help="duration of that drive [s]")
     a = ap.parse_args()
     with tempfile.TemporaryDirectory(prefix="bench_calib_") as d:
         rows = frame_rows(a, Path(d)) if a.frames > 0 else []
         drows = dvs_rows(a, Path(d)) if a.dvs_resolution > 0 else []
+        erows = drive_rows(a, Path(d)) if a.dvs_drive else []
     if rows:
         print_frame_rows(rows)
     if drows:
         print_dvs_rows(drows, a.dvs_resolution)
+    if erows:
+        print_dvs_rows(erows, a.dvs_drive, "the ESVI calibration drive")
     print(f"load average during the run: {os.getloadavg()[0]:.1f} (2 cores)")
 
 

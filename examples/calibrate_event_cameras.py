@@ -7,7 +7,8 @@
    few seconds see it near (``motion: {start_distance_m: 22}``).  The DVS folders hold one
    ``events/<ns>.npz`` per 50 ms window.
 2. The library: reconstruct frames from the events of a moving camera with ``log-intensity``
-   (leaky integration of the polarities across windows, Scheerlinck et al. 2018) and with
+   (leaky integration of the polarities across windows, Scheerlinck et al. 2018, run forward and
+   backward in time and averaged so that the subtracted past does not lag the board) and with
    ``accumulate-signed`` (one window: edges only on a moving camera), count the frames in which
    the board is found by each, and save a few side by side as PNG.
 3. The command: ``ibiscape-eval calib SEQ --reconstruction auto --json`` picks the reconstruction,

@@ -87,6 +87,7 @@ def sequence_document(cfg: SimConfig, *, world: dict[str, Any] | None, target: d
     """
     from ibiscape_eval import __version__
 
+    from .dvs import dvs_config_of
     from .render.rays import camera_model
 
     rendered = rendered or {}
@@ -113,6 +114,8 @@ def sequence_document(cfg: SimConfig, *, world: dict[str, Any] | None, target: d
             "timeshift_cam_imu": float(c.timeshift_cam_imu_s),
             "rendered": c.name in rendered,
         }
+        if c.kind == "dvs":  # the sensor settings; a rendered camera adds its event counts
+            entry["dvs"] = dvs_config_of(cfg).sensor_dict()
         entry.update(rendered.get(c.name, {}))
         if prev is not None:
             entry["T_cn_cnm1"] = np.linalg.inv(T_bc) @ prev

@@ -5,9 +5,14 @@ calibrate them like frames) but without a learned reconstruction:
 
 - ``log-intensity``: the high-pass (leaky) integration of the event polarities, weighted by the
   contrast thresholds (Scheerlinck et al., ACCV 2018; :mod:`ibiscape_eval.events.intensity`),
-  carried across windows with a time constant ``tau_s``.  On a moving camera it gives the scene's
-  log image (board squares filled) minus a faded, motion-smeared past; the memory of the first
-  instants is forgotten after a few ``tau_s``.  A frame needs the events of the ``memory_tau * tau_s``
+  carried across windows with a time constant ``tau_s`` (3 s).  On a moving camera it gives the
+  scene's log image (board squares filled) minus a faded, motion-smeared past; the memory of the
+  first instants is forgotten after a few ``tau_s``.  By default (``bidirectional``) it is averaged
+  with the same filter run backwards in time from the later events, so that the subtracted smear
+  is centred on the current image instead of lagging behind it (offline calibration can look
+  ahead).  Measured on the rendered ESVI calibration drive (346x260, checkerboard, corners
+  against the truth): RMS 0.57 px forward with 1 s, 0.49 px bidirectional with 3 s, and the
+  board found in 25 % more frames.  A frame needs the events of the ``memory_tau * tau_s``
   seconds before it: frames are computed in time order from a cached state (restarted from zero
   that long before when asked for an earlier frame).
 - ``accumulate-signed``: positive minus negative events per pixel over the window alone.  A
@@ -40,6 +45,7 @@ __all__ = [
     "DEFAULT_TAU_S",
     "RECONSTRUCTIONS",
     "EventFrameSource",
+    "board_noise_px",
     "choose_reconstruction",
     "contrast_from_sequence",
     "estimate_contrast",
@@ -51,9 +57,12 @@ __all__ = [
 
 RECONSTRUCTIONS = ("log-intensity", "accumulate-signed", "accumulate", "time-surface")
 #: high-pass time constant of the log-intensity reconstruction [s]
-DEFAULT_TAU_S = 1.0
+DEFAULT_TAU_S = 3.0
 #: the state is rebuilt from this many time constants before a frame (exp(-5) = 0.7 % left)
 MEMORY_TAU = 5.0
+#: memory for the backward (future) states one sweep of the bidirectional reconstruction keeps
+#: (float32 images; 8..128 windows per sweep)
+BACKWARD_BLOCK_BYTES = 64 << 20
 #: nominal contrast threshold (CARLA's and the paper's 0.3) when only the ratio is known
 NOMINAL_CONTRAST = 0.3
 
@@ -65,18 +74,9 @@ def read_event_window(path: str | Path) -> Events:
 
     Raises :class:`~ibiscape_eval.core.errors.FormatError` naming the file when it cannot be read.
     """
-    from ibiscape_eval.io.events import iter_event_chunks, open_events
+    from ibiscape_eval.io.events import read_events
 
-    got: list[Events] = []
-    try:
-        for chunk in iter_event_chunks(open_events(path, fmt="npz")):
-            got.append(chunk.events)
-    except IbiscapeError:
-        # the reader refuses a recording without events only after yielding its (empty) file
-        if got and sum(len(e) for e in got) == 0:
-            return got[0]
-        raise
-    return Events.concatenate(got)
+    return read_events(path, fmt="npz", allow_empty=True)
 
 
 def _log_to_uint8(values: npt.NDArray[np.float64], shape: tuple[int, int]) -> npt.NDArray[np.uint8]:
@@ -141,12 +141,24 @@ class EventFrameSource:
         ``log-intensity`` time constant [s].
     contrast : (C_pos, C_neg)
         ``log-intensity`` contrast thresholds (only their ratio changes the frame).
+    bidirectional
+        ``log-intensity``: average the forward estimate (the log image minus its exponentially
+        weighted past) with the backward one (minus its future, from the later events).  The
+        subtracted smear is then centred on the current image: on a camera moving smoothly it is
+        locally flat at the corners instead of a displaced copy of the board that pulls them
+        backwards along the motion, and the unknown first image of the recording is halved.
+    target, max_board_noise_px
+        With both: a frame whose detected corners stray from their neighbours' homography by more
+        than ``max_board_noise_px`` RMS (:func:`board_noise_px`) is returned blank (uniform grey)
+        and counted in ``frames_rejected``: a reconstruction smeared by the past and future of a
+        slowly moving board would bring its corner noise into the calibration.
     """
 
     def __init__(self, read_window: ReadWindow, windows_ns: npt.ArrayLike, sensor_size: tuple[int, int],
                  method: str, *, tau_s: float = DEFAULT_TAU_S,
                  contrast: tuple[float, float] = (NOMINAL_CONTRAST, NOMINAL_CONTRAST),
-                 cache_frames: int = 8) -> None:
+                 bidirectional: bool = True, target: CalibrationTarget | None = None,
+                 max_board_noise_px: float | None = None, cache_frames: int = 8) -> None:
         if method not in RECONSTRUCTIONS:
             raise IbiscapeError(f"reconstruction {method!r}: use one of {', '.join(RECONSTRUCTIONS)}")
         if not (np.isfinite(tau_s) and tau_s > 0):
@@ -159,12 +171,19 @@ class EventFrameSource:
         self.method = method
         self.tau_s = float(tau_s)
         self.contrast = (float(contrast[0]), float(contrast[1]))
+        self.bidirectional = bool(bidirectional)
+        if max_board_noise_px is not None and not (np.isfinite(max_board_noise_px) and max_board_noise_px > 0):
+            raise IbiscapeError(f"max_board_noise_px must be > 0, got {max_board_noise_px}")
+        self.target = target
+        self.max_board_noise_px = None if max_board_noise_px is None else float(max_board_noise_px)
+        self.frames_rejected = 0
         self.n_events_read = 0
         self.windows_read = 0
         self._lock = threading.Lock()
         self._state: tuple[int, npt.NDArray[np.float64]] | None = None  # (window index, L_hat at its end)
         self._cache: OrderedDict[int, npt.NDArray[np.uint8] | None] = OrderedDict()
         self._cache_frames = int(cache_frames)
+        self._back: dict[int, npt.NDArray[np.float32]] = {}  # window -> backward L_hat (one block)
 
     def __len__(self) -> int:
         return len(self.windows_ns)
@@ -176,7 +195,10 @@ class EventFrameSource:
         """What the reconstruction used (for the report)."""
         d: dict[str, Any] = {"method": self.method}
         if self.method == "log-intensity":
-            d.update(tau_s=self.tau_s, contrast_pos=self.contrast[0], contrast_neg=self.contrast[1])
+            d.update(tau_s=self.tau_s, contrast_pos=self.contrast[0], contrast_neg=self.contrast[1],
+                     bidirectional=self.bidirectional)
+        if self.target is not None and self.max_board_noise_px is not None:
+            d["max_board_noise_px"] = self.max_board_noise_px
         return d
 
     def _read(self, i: int) -> Events | None:
@@ -195,10 +217,25 @@ class EventFrameSource:
                 self._cache.move_to_end(i)
                 return self._cache[i]
             frame = self._log_frame(i) if self.method == "log-intensity" else self._window_frame(i)
+            if frame is not None and self.target is not None and self.max_board_noise_px is not None:
+                frame = self._screen(frame)
             self._cache[i] = frame
             while len(self._cache) > self._cache_frames:
                 self._cache.popitem(last=False)
             return frame
+
+    def _screen(self, frame: npt.NDArray[np.uint8]) -> npt.NDArray[np.uint8]:
+        from .detect import detect_corners
+
+        assert self.target is not None and self.max_board_noise_px is not None
+        det = detect_corners(frame, self.target)
+        if det is None:
+            return frame
+        noise = board_noise_px(det.corners_px, self.target.object_points()[det.ids, :2])
+        if noise <= self.max_board_noise_px:
+            return frame
+        self.frames_rejected += 1
+        return np.full_like(frame, 128)
 
     def _window_frame(self, i: int) -> npt.NDArray[np.uint8] | None:
         ev = self._read(i)
@@ -208,6 +245,22 @@ class EventFrameSource:
         return event_frame(ev, self.sensor_size, (int(a), int(b)), method=self.method)
 
     def _log_frame(self, i: int) -> npt.NDArray[np.uint8] | None:
+        state = self._log_state(i)
+        return None if state is None else _log_to_uint8(state, self.sensor_size[::-1])
+
+    def log_estimate(self, i: int) -> npt.NDArray[np.float64] | None:
+        """``log-intensity``: the estimate ``L_hat`` (H, W) at the end of window ``i`` before its
+        8-bit mapping (None when window ``i`` cannot be read)."""
+        if self.method != "log-intensity":
+            raise IbiscapeError(f"log_estimate needs the log-intensity reconstruction, not {self.method}")
+        i = int(i)
+        if not 0 <= i < len(self.windows_ns):
+            raise IbiscapeError(f"window {i}: the recording has {len(self.windows_ns)} windows")
+        with self._lock:
+            state = self._log_state(i)
+        return None if state is None else state.reshape(self.sensor_size[1], self.sensor_size[0])
+
+    def _log_state(self, i: int) -> npt.NDArray[np.float64] | None:
         from ibiscape_eval.events.intensity import leaky_integrate
 
         w, h = self.sensor_size
@@ -230,7 +283,67 @@ class EventFrameSource:
                                     contrast=self.contrast)
             t = int(win[k, 1])
         self._state = (i, state)
-        return _log_to_uint8(state, (h, w)) if ok else None
+        if not ok:
+            return None
+        return 0.5 * (state + self._backward(i)) if self.bidirectional else state
+
+    def _backward(self, i: int) -> npt.NDArray[np.float64]:
+        """``B(t_i) = -sum_{t_i < t_e <= t_i + MEMORY_TAU tau} C_e exp(-(t_e - t_i) / tau)``: the
+        log image at the end of window ``i`` minus its exponentially weighted future.  Computed by
+        a backward sweep for a block of windows at once (float32 states, ``BACKWARD_BLOCK_BYTES``)."""
+        if i not in self._back:
+            w, h = self.sensor_size
+            win = self.windows_ns
+            block = int(np.clip(BACKWARD_BLOCK_BYTES // (4 * w * h), 8, 128))
+            first = (i // block) * block
+            last_in = min(first + block, len(win)) - 1
+            horizon = int(win[last_in, 1]) + round(MEMORY_TAU * self.tau_s * 1e9)
+            end = min(int(np.searchsorted(win[:, 0], horizon)), len(win)) - 1
+            rate = 1e-9 / self.tau_s
+            state = np.zeros(w * h, np.float64)
+            self._back = {}
+            for k in range(end, first - 1, -1):  # state = B(t_k), from the events after t_k
+                if k <= last_in:
+                    self._back[k] = state.astype(np.float32)
+                if k == first:
+                    break
+                ev = self._read(k)
+                t_prev = int(win[k - 1, 1])
+                state *= np.exp(-rate * (int(win[k, 1]) - t_prev))
+                if ev is not None and len(ev):
+                    if int(ev.x.max()) >= w or int(ev.y.max()) >= h:
+                        raise IbiscapeError(f"events reach pixel ({int(ev.x.max())}, {int(ev.y.max())}), "
+                                            f"outside the {w}x{h} sensor; give the right sensor size")
+                    c = np.where(ev.p, self.contrast[0], -self.contrast[1])
+                    wts = c * np.exp(-rate * (ev.t_ns - t_prev).astype(np.float64))
+                    state -= np.bincount(ev.y.astype(np.int64) * w + ev.x, weights=wts, minlength=w * h)
+        return self._back[i].astype(np.float64)
+
+
+def board_noise_px(corners_px: npt.ArrayLike, board_xy_m: npt.ArrayLike, *, k: int = 8) -> float:
+    """RMS distance [px] of detected corners from where a homography of their ``k`` nearest
+    neighbours on the board puts them: the corner noise of one view, without the camera model
+    (a local homography absorbs the lens distortion).  On event frames it follows the error
+    against the truth closely (the rendered ESVI drive, 346x260: correlation 0.95 with a global
+    homography); ``inf`` with fewer than 6 corners."""
+    import cv2
+
+    uv = np.asarray(corners_px, np.float64).reshape(-1, 2)
+    xy = np.asarray(board_xy_m, np.float64).reshape(-1, 2)
+    n = len(uv)
+    if n < 6:
+        return float("inf")
+    kk = min(k, n - 1)
+    d = np.linalg.norm(xy[:, None, :] - xy[None, :, :], axis=-1)
+    nn = np.argsort(d, axis=1)[:, 1:kk + 1]
+    res = np.zeros(n)
+    for i in range(n):  # n <= a few hundred corners per view: one small fit each
+        H, _ = cv2.findHomography(xy[nn[i]], uv[nn[i]], 0)
+        if H is None:
+            return float("inf")
+        p = H @ np.array([xy[i, 0], xy[i, 1], 1.0])
+        res[i] = np.hypot(p[0] / p[2] - uv[i, 0], p[1] / p[2] - uv[i, 1])
+    return float(np.sqrt(np.mean(res**2)))
 
 
 def event_frame_loader(read_window: ReadWindow, windows_ns: npt.ArrayLike, sensor_size: tuple[int, int],
@@ -300,14 +413,16 @@ def choose_reconstruction(read_window: ReadWindow, windows_ns: npt.ArrayLike, se
 def event_set_frames(paths: Sequence[str | Path], windows_ns: npt.ArrayLike,
                      sensor_size: tuple[int, int], target: CalibrationTarget, *,
                      reconstruction: str = "auto",
-                     camera_doc: Mapping[str, Any] | None = None
+                     camera_doc: Mapping[str, Any] | None = None,
+                     max_board_noise_px: float | None = None,
                      ) -> tuple[EventFrameSource, dict[str, Any]]:
     """Frames of one DVS folder (its ``.npz`` windows) for the calibration, and what was used.
 
     Corrupt windows are skipped with a warning (like corrupt images); the contrast thresholds come
     from the camera's ``sequence.yaml`` entry ``camera_doc`` or from the polarity balance;
-    ``reconstruction="auto"`` picks the method that finds the target.  Returns the frame source
-    and ``{method, options..., contrast_from}`` for the report.
+    ``reconstruction="auto"`` picks the method that finds the target; ``max_board_noise_px``
+    blanks frames whose corners are noisier than that (see :class:`EventFrameSource`).  Returns the
+    frame source and ``{method, options..., contrast_from}`` for the report.
     """
     import warnings
 
@@ -330,6 +445,7 @@ def event_set_frames(paths: Sequence[str | Path], windows_ns: npt.ArrayLike,
     if method == "auto":
         method, probe = choose_reconstruction(read_window, windows_ns, sensor_size, target,
                                               contrast=contrast)
-    source = event_frame_loader(read_window, windows_ns, sensor_size, method, contrast=contrast)
+    source = event_frame_loader(read_window, windows_ns, sensor_size, method, contrast=contrast,
+                                target=target, max_board_noise_px=max_board_noise_px)
     return source, {**source.describe(), **probe,
                     "contrast_from": "sequence.yaml" if given else "polarity balance"}

@@ -371,13 +371,15 @@ def iter_event_chunks(
     *,
     chunk_events: int = DEFAULT_CHUNK_EVENTS,
     check_sorted: bool = True,
+    allow_empty: bool = False,
 ) -> Iterator[EventChunk]:
     """Read a recording as one stream, piece by piece (bounded memory).
 
     Every chunk is checked: equal lengths, integer types, and (``check_sorted``) timestamps that
     never decrease, within and across files; the first violation raises :class:`FormatError`
     naming the file and the event index (text: the line).  A recording without any event raises
-    too.
+    too (after its empty chunks were yielded), unless ``allow_empty``: one window of a still camera
+    (an IBISCape ``events/<ns>.npz``) is a valid empty stream.
 
     Yields
     ------
@@ -414,14 +416,17 @@ def iter_event_chunks(
             prev_where = chunk.source
         total += t.size
         yield chunk
-    if total == 0:
+    if total == 0 and not allow_empty:
         raise FormatError(src.path, "the recording holds no events; nothing to process")
 
 
-def read_events(path: str | os.PathLike[str], *, fmt: str | None = None) -> Events:
+def read_events(path: str | os.PathLike[str], *, fmt: str | None = None, allow_empty: bool = False) -> Events:
     """Read a whole recording into memory as one :class:`Events` stream (see
-    :func:`iter_event_chunks` for the checks)."""
-    return Events.concatenate([c.events for c in iter_event_chunks(open_events(path, fmt=fmt))])
+    :func:`iter_event_chunks` for the checks).  A recording without events raises
+    :class:`FormatError` unless ``allow_empty`` (then it is an empty stream), e.g. for one window
+    ``events/<ns>.npz`` of an IBISCape folder, which a still camera leaves empty."""
+    return Events.concatenate([c.events for c in iter_event_chunks(open_events(path, fmt=fmt),
+                                                                   allow_empty=allow_empty)])
 
 
 # ------------------------------------------------------------------------------------------

@@ -52,7 +52,7 @@ if TYPE_CHECKING:
     from ..config import CameraSpec
     from ..weather import WeatherLog
 
-__all__ = ["DvsConfig", "DvsResult", "DvsSimulator", "weather_level", "write_dvs_camera"]
+__all__ = ["DvsConfig", "DvsResult", "DvsSimulator", "dvs_config_of", "weather_level", "write_dvs_camera"]
 
 RenderGray = Callable[[int], npt.NDArray[np.float32]]
 Progress = Callable[[float, str], None]
@@ -123,6 +123,18 @@ class DvsConfig:
         """Plain mapping (YAML / JSON)."""
         return {f.name: getattr(self, f.name) for f in fields(self)}
 
+    def sensor_dict(self) -> dict[str, Any]:
+        """The sensor's settings for ``sequence.yaml: cameras.<name>.dvs`` (CARLA's names: the
+        contrast thresholds and their noise, the refractory period, ``log_eps``, the internal
+        sampling and the rain/fog noise settings; not the ``frames`` output switch)."""
+        return {k: v for k, v in self.to_dict().items() if k != "frames"}
+
+
+def dvs_config_of(cfg: Any) -> DvsConfig:
+    """The DVS settings of a simulator configuration (its ``dvs`` entry, else the defaults)."""
+    got = getattr(cfg, "dvs", None)
+    return got if isinstance(got, DvsConfig) else DvsConfig()
+
 
 @dataclass(frozen=True)
 class DvsResult:
@@ -150,6 +162,8 @@ class DvsResult:
         Internal renders (``render_gray`` calls).
     noisy_pixels : tuple of (x, y)
         Pixels made noisy by rain/fog (empty when the weather never brings rain or fog).
+    config : DvsConfig
+        The settings the events were simulated with (contrast thresholds, refractory period, ...).
     """
 
     camera: str
@@ -162,6 +176,7 @@ class DvsResult:
     n_windows: int
     n_renders: int
     noisy_pixels: tuple[tuple[int, int], ...]
+    config: DvsConfig = field(default_factory=DvsConfig)
 
     @property
     def noise_fraction(self) -> float:
@@ -169,9 +184,10 @@ class DvsResult:
         return self.n_noise_events / self.n_events if self.n_events else 0.0
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain mapping (strict JSON / YAML): the counts, ``noise_fraction`` and
-        ``noisy_pixels`` as a list of ``[x, y]``."""
-        return {"camera": self.camera, "n_events": self.n_events, "n_positive": self.n_positive,
+        """Plain mapping (strict JSON / YAML): the sensor settings (:meth:`DvsConfig.sensor_dict`:
+        ``positive_threshold``, ``negative_threshold``, ``refractory_period_ns``, ...), the counts,
+        ``noise_fraction`` and ``noisy_pixels`` as a list of ``[x, y]``."""
+        return {**self.config.sensor_dict(), "camera": self.camera, "n_events": self.n_events, "n_positive": self.n_positive,
                 "n_scene_events": self.n_scene_events, "n_noise_events": self.n_noise_events,
                 "n_noisy_pixel_events": self.n_noisy_pixel_events,
                 "n_refractory_dropped": self.n_refractory_dropped, "n_windows": self.n_windows,
@@ -405,4 +421,4 @@ def write_dvs_camera(render_gray: RenderGray, camera: CameraSpec, frame_stamps_n
     return DvsResult(camera=camera.name, n_events=n_scene + n_noise, n_positive=n_pos,
                      n_scene_events=n_scene, n_noise_events=n_noise, n_noisy_pixel_events=n_hot,
                      n_refractory_dropped=sim.dropped, n_windows=n_windows, n_renders=n_renders,
-                     noisy_pixels=pixels)
+                     noisy_pixels=pixels, config=cfg)

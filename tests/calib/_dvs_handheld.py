@@ -68,6 +68,7 @@ def write_handheld_dvs_sequence(root: Path, cameras: Mapping[str, CameraModel],
     stamps = t0 + period * np.arange(dur_ns // period + 1, dtype=np.int64)
     cfg = DvsConfig(max_internal_rate_hz=max_internal_rate_hz)
     root.mkdir(parents=True, exist_ok=False)
+    dvs_docs = {}
     for k, name in enumerate(names):
         cam = cameras[name]
 
@@ -77,9 +78,10 @@ def write_handheld_dvs_sequence(root: Path, cameras: Mapping[str, CameraModel],
 
         spec = CameraSpec(name=name, kind="dvs", width_px=cam.width_px, height_px=cam.height_px,
                           rate_hz=rate_hz)
-        write_dvs_camera(gray, spec, stamps, root / name, dvs_config=cfg, rng=np.random.default_rng(k))
+        res = write_dvs_camera(gray, spec, stamps, root / name, dvs_config=cfg, rng=np.random.default_rng(k))
+        dvs_docs[name] = res.to_dict()
     cams = {name: {**cameras[name].to_kalibr(), "rostopic": f"/{name}/image_raw", "kind": "dvs",
-                   "T_body_cam": rel[name].tolist()} for name in names}
+                   "T_body_cam": rel[name].tolist(), "dvs": dvs_docs[name]} for name in names}
     doc = {"generator": {"name": "tests/calib/_dvs_handheld.py", "seed": seed, "target": target},
            "conventions": {"body": f"the first camera ({names[0]}), OpenCV frame"}, "imus": {}, "gnss": {},
            "cameras": cams, "target": board.kalibr}

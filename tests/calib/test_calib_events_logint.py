@@ -112,14 +112,22 @@ def test_source_in_any_order_gives_the_same_frames():
         calls.append(i)
         return events[i]
 
-    fwd = EventFrameSource(read, win, (w, h), "log-intensity", tau_s=0.2, cache_frames=1)
+    fwd = EventFrameSource(read, win, (w, h), "log-intensity", tau_s=0.2, cache_frames=1, bidirectional=False)
     a = [fwd(i) for i in range(40)]
     assert len(calls) == 40  # in time order every window is read once
-    bwd = EventFrameSource(lambda i: events[i], win, (w, h), "log-intensity", tau_s=0.2, cache_frames=1)
+    bwd = EventFrameSource(lambda i: events[i], win, (w, h), "log-intensity", tau_s=0.2, cache_frames=1,
+                           bidirectional=False)
     b = [bwd(i) for i in reversed(range(40))][::-1]
     # a restart forgets what is older than 5 time constants: at most exp(-5) of the range
     for x, y in zip(a[25:], b[25:], strict=True):
         assert np.abs(x.astype(int) - y.astype(int)).max() <= 4
+    # bidirectional: the same in any order too (backward states come in blocks of windows)
+    both = [EventFrameSource(lambda i: events[i], win, (w, h), "log-intensity", tau_s=0.2, cache_frames=1)
+            for _ in range(2)]
+    c = [both[0].log_estimate(i) for i in range(40)]
+    d = [both[1].log_estimate(i) for i in reversed(range(40))][::-1]
+    for x, y in zip(c[25:], d[25:], strict=True):
+        np.testing.assert_allclose(x, y, atol=0.01 * float(np.abs(x).max()) + 1e-6)
     with pytest.raises(IbiscapeError, match="40 windows"):
         fwd(40)
     with pytest.raises(IbiscapeError, match="reconstruction"):

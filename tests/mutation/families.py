@@ -184,6 +184,29 @@ def _events_txt_seed(folder: Path) -> Path:
     return p
 
 
+def _dvs_folder_seed(folder: Path) -> Path:
+    """An IBISCape DVS camera folder (``timestamps.csv`` + ``events/<ns>.npz`` windows, one of them
+    empty as a still camera leaves it); the third window's ``.npz`` is the one mutated."""
+    from ibiscape_eval.core.events import Events
+    from ibiscape_eval.io.dvs_folder import DvsFolderWriter
+
+    ev = _events()
+    assert isinstance(ev, Events)
+    root = folder / "davisL"
+    w = DvsFolderWriter(root, frames=False)
+    edges = np.linspace(10**9, 2 * 10**9, 6).astype(np.int64)
+    for k in range(5):
+        a, b = int(edges[k]), int(edges[k + 1])
+        sel = (ev.t_ns >= a) & (ev.t_ns < b) if k != 1 else np.zeros(len(ev), bool)
+        w.add(a, b, Events(ev.t_ns[sel], ev.x[sel], ev.y[sel], ev.p[sel]), None)
+    w.close()
+    return root
+
+
+def _dvs_window(root: Path) -> Path:
+    return sorted((root / "events").glob("*.npz"))[2]
+
+
 def _hot_list_seed(folder: Path) -> Path:
     _events_npz_seed(folder)
     p = folder / "hot.txt"
@@ -349,4 +372,9 @@ FAMILIES: dict[str, Family] = {
     "calib_sequence_yaml": Family(_calib_sequence, lambda p, o: ["calib", str(p), "--json", "--yaml",
                                                                  str(o / "camchain.yaml")],
                                   mutable=lambda p: p / "sequence.yaml"),
+    # (last: a new family keeps the seeds of the others' mutants, which hang on their index)
+    # an IBISCape DVS folder: a corrupt events/<ns>.npz window is named in the one error line
+    "events_dvs_folder": Family(_dvs_folder_seed, lambda p, o: ["hotpix", str(p), "--sensor-size", "64x48",
+                                                                "--json", "--hot-out", str(o / "hot.txt")],
+                                mutable=_dvs_window, text=False),
 }

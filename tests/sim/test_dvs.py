@@ -286,3 +286,39 @@ def test_reference_tracks_log_intensity_within_one_threshold(data: hs.DataObject
     drift = log[-1] - log[0] - (c_pos * n_pos - c_neg * n_neg)
     assert np.all(drift < max(c_pos, c_neg) + 1e-6) and np.all(drift > -max(c_pos, c_neg) - 1e-6)
     np.testing.assert_allclose(sim.ref, log[0] + c_pos * n_pos - c_neg * n_neg, atol=1e-9)
+
+
+def test_sequence_yaml_records_the_dvs_settings_and_calib_uses_them(tmp_path: Path) -> None:
+    """``sequence.yaml: cameras.<name>.dvs`` carries the thresholds the events were made with (with
+    or without rendering), and the calibration's reconstruction takes its contrast from there."""
+    from ibiscape_eval.calib.events import contrast_from_sequence, event_set_frames
+    from ibiscape_eval.calib.targets import target_from_kalibr
+    from ibiscape_eval.io.sequence import read_sequence_yaml
+
+    seq = tmp_path / "ESVI_gt"
+    r = CliRunner().invoke(cli, ["sim", "--setup", "esvi", "--kind", "calibration", "--no-render",
+                                 "--duration-s", "2", "--out", str(seq)], catch_exceptions=False)
+    assert r.exit_code == 0, r.output
+    doc = read_sequence_yaml(seq / "sequence.yaml")
+    for cam in ("davisL", "davisR"):
+        dvs = doc["cameras"][cam]["dvs"]
+        assert (dvs["positive_threshold"], dvs["negative_threshold"]) == (0.3, 0.3)
+        assert dvs["refractory_period_ns"] == 0 and dvs["sigma_positive_threshold"] == 0.0
+        assert "frames" not in dvs and "n_events" not in dvs  # nothing rendered: settings only
+        assert contrast_from_sequence(doc["cameras"][cam]) == (0.3, 0.3)
+    # a rendered camera with its own (unequal) thresholds: counts and settings side by side
+    cfg = DvsConfig(positive_threshold=0.25, negative_threshold=0.4, refractory_period_ns=1000,
+                    sigma_negative_threshold=0.02)
+    res = write_dvs_camera(translating_texture((32, 40), T0), _cam(40, 32), _stamps(6), tmp_path / "d",
+                           dvs_config=cfg)
+    entry = {"dvs": json.loads(json.dumps(res.to_dict()))}
+    assert entry["dvs"]["refractory_period_ns"] == 1000 and entry["dvs"]["n_events"] == res.n_events
+    assert entry["dvs"]["sigma_negative_threshold"] == 0.02
+    windows = open_events(tmp_path / "d").windows
+    target = target_from_kalibr(doc["target"])
+    _, used = event_set_frames([p for _, _, p in windows], [(a, b) for a, b, _ in windows], (40, 32),
+                               target, reconstruction="log-intensity", camera_doc=entry)
+    assert (used["contrast_pos"], used["contrast_neg"], used["contrast_from"]) == (0.25, 0.4, "sequence.yaml")
+    _, guessed = event_set_frames([p for _, _, p in windows], [(a, b) for a, b, _ in windows], (40, 32),
+                                  target, reconstruction="log-intensity", camera_doc={})
+    assert guessed["contrast_from"] == "polarity balance"

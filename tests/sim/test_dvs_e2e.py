@@ -25,6 +25,7 @@ def test_sim_then_hotpix_finds_the_recorded_noisy_pixels(tmp_path: Path) -> None
     doc = read_sequence_yaml(seq / "sequence.yaml")
     for cam in ("davisL", "davisR"):
         dvs = doc["cameras"][cam]["dvs"]
+        assert (dvs["positive_threshold"], dvs["negative_threshold"]) == (0.3, 0.3)  # the sensor's settings
         truth = {tuple(p) for p in dvs["noisy_pixels"]}
         assert len(truth) == round(0.001 * 96 * 96)
         assert 0.1 < dvs["noise_fraction"] < 0.5  # rain ~45 %, fog ~70 %: about a quarter
