@@ -231,7 +231,9 @@ def rendered(a: argparse.Namespace) -> None:
     for target in targets:
         offs = offsets if target == targets[0] else other
         plan += [(target, o, True) for o in offs]
-    if a.flat:
+    if a.flat_only:
+        plan = []
+    if a.flat or a.flat_only:
         plan.append((targets[0], offsets[0], False))
     points = []
     for target, off, bumps in plan:
@@ -267,6 +269,7 @@ def main() -> None:
     ap.add_argument("--cache", default="/tmp/imu_camera_renders", help="--rendered: render cache")
     ap.add_argument("--json-dir", default=None, help="--rendered: keep one JSON result per point here")
     ap.add_argument("--render-only", action="store_true")
+    ap.add_argument("--flat-only", action="store_true", help="--rendered: only the flat-road drive")
     a = ap.parse_args()
     if a.rendered:
         rendered(a)

@@ -50,6 +50,8 @@ WEAK_TIMESHIFT_STD_S = 1e-4
 COARSE_KNOT_RATE_HZ = 20.0
 COARSE_ITERATIONS = 40
 ABS_COST_TOL = 0.01
+#: a camera whose reprojection RMS exceeds the rig's best by this factor is weighed by its own noise
+NOISY_CAMERA_RATIO = 1.5
 
 
 def _check_inputs(observations: Sequence[CameraObservations], imu: ImuData,
@@ -261,6 +263,7 @@ def calibrate_imu_camera(
     max_iterations: int = 40,
     rate_tolerance: float = 0.05,
     keep_residuals: bool = True,
+    reweight_cameras: bool = True,
     progress: Progress | None = None,
 ) -> ImuCameraResult:
     """Estimate ``T_cam_imu`` and ``timeshift_cam_imu`` of every camera, jointly.
@@ -295,6 +298,10 @@ def calibrate_imu_camera(
     refine_intrinsics : bool
         Also estimate each camera's focal lengths and principal point (distortion held), from
         the given intrinsics: for intrinsics from a camera calibration of weakly tilted views.
+    reweight_cameras : bool
+        When a camera's reprojection RMS is more than 1.5 times the best camera's, weigh every
+        camera by its RMS relative to the best one and solve again (a warning names the noisy
+        cameras).
     progress : callable(fraction, label), optional
 
     Returns
@@ -437,6 +444,25 @@ def calibrate_imu_camera(
         prob, st = _refine(prob, st, 1.0 / knot_rate_hz)
         st, it2, converged, H = _solve(prob, st, max_iterations, step, (0.5, 0.95))
         iterations += it2
+    noisy: dict[str, float] = {}
+    if reweight_cameras and len(prob.cams) > 1:
+        # cameras of unequal quality (RGB beside frames reconstructed from events): weigh each by
+        # its own corner noise relative to the rig's best camera, so a poor camera cannot drag
+        # the shared trajectory (and with it the others' extrinsics); its std grows accordingly
+        rms = np.array([_camera_rms_px(prob, st, c) for c in range(len(prob.cams))])
+        best = float(np.nanmin(rms))
+        ratio = rms / best
+        if np.all(np.isfinite(ratio)) and best > 0 and ratio.max() > NOISY_CAMERA_RATIO:
+            for c, cb in enumerate(prob.cams):
+                cb.sigma_px = sigma_px * max(1.0, float(ratio[c]))
+                if ratio[c] > NOISY_CAMERA_RATIO:
+                    noisy[cb.name] = float(ratio[c])
+            st, it3, converged, H = _solve(prob, st, max_iterations, step, (0.9, 0.95))
+            iterations += it3
+    for name, r in noisy.items():
+        warn.append(f"camera {name}: reprojection error {r:.1f}x the rig's best camera's (poor "
+                    "frames, e.g. reconstructed from events); weighed down accordingly, its "
+                    "extrinsics and offset may be off by more than their std")
     step(0.95, "covariance")
     result = _result(prob, st, H, exc, warn, iterations, converged, force, t_start,
                      observations, keep_residuals)
@@ -444,6 +470,13 @@ def calibrate_imu_camera(
         warnings.warn(text, IbiscapeWarning, stacklevel=2)
     step(1.0, "done")
     return result
+
+
+def _camera_rms_px(prob: Problem, st: State, c: int) -> float:
+    """Reprojection RMS of camera ``c`` [px per coordinate]."""
+    rc, _, _, valid = camera_block(prob, st, c, jac=False)
+    e = rc[valid] * prob.cam_sigma_px(c)
+    return float(np.sqrt(np.mean(e**2))) if e.size else float("nan")
 
 
 def _refine(prob: Problem, st: State, dt: float) -> tuple[Problem, State]:
@@ -602,7 +635,7 @@ def _result(prob: Problem, st: State, H: Any, exc: Excitation, warn: list[str], 
         rc, _, _, valid = camera_block(prob, st, c, jac=False)
         chi2 += float(np.sum(rc**2))
         n_res += 2 * int(valid.sum())
-        e_px = rc[valid] * prob.sigma_px
+        e_px = rc[valid] * prob.cam_sigma_px(c)
         k = 2 + w * c
         cc = cov[k : k + 7, k : k + 7]
         var = np.clip(np.diag(cc), 0.0, None)
