@@ -10,6 +10,13 @@ and run time.
         --targets checkerboard,aprilgrid --size 512 --duration 60 --cache /tmp/imu_renders \
         --json-dir /work/measure/imu4 [--flat]
 
+    .venv/bin/python benchmarks/bench_imu_camera.py --esvi 24,512,346 --cache /tmp/imu_renders \
+        --json-dir /work/measure/imu4
+
+``--esvi SECONDS,RGB_PX,DVS_PX`` calibrates the esvi rig's stereo RGB (10 Hz board frames) and
+stereo DVS (the simulator's DVS model on the exact board images; frames reconstructed from the
+events as in the camera calibration) in one problem, with their own intrinsics
+(``tests/calib/test_imu_camera_dvs.py``'s drive, at a bigger size).
 ``--rendered`` renders the 60 s svi calibration drive with bumps once per (target, offset), one
 clock offset for the synchronised stereo pair (a cached render is reused), and runs the whole
 ``calib SEQ --imu`` on it with the drive's own intrinsics; ``--flat`` also the flat-road drive at
@@ -248,6 +255,24 @@ def rendered(a: argparse.Namespace) -> None:
         summary(points)
 
 
+def esvi(a: argparse.Namespace) -> None:
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "calib"))
+    from test_imu_camera_dvs import SHIFT_S, write_esvi_calibration
+
+    dur, rgb_px, dvs_px = (float(v) for v in a.esvi.split(","))
+    out = Path(a.cache) / f"esvi_board_{dur:g}s_rgb{rgb_px:g}_dvs{dvs_px:g}_seed2"
+    if not (out / "sequence.yaml").is_file():
+        t0, c0 = time.perf_counter(), time.process_time()
+        write_esvi_calibration(out, duration_s=dur, rgb_px=int(rgb_px), dvs_px=int(dvs_px))
+        print(f"generated {out}: wall {time.perf_counter() - t0:.0f} s, CPU {time.process_time() - c0:.0f} s",
+              flush=True)
+    label = {"target": "checkerboard", "offset_ms": SHIFT_S * 1e3, "road": "bumps", "size_px": rgb_px,
+             "dvs_px": dvs_px, "duration_s": dur, "rig": "esvi: stereo RGB + stereo DVS"}
+    summary([rendered_point(out, label, force=False, json_dir=Path(a.json_dir) if a.json_dir else None)])
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seq", action="append", help="also (or only, with --size 0) calibrate this "
@@ -270,7 +295,12 @@ def main() -> None:
     ap.add_argument("--json-dir", default=None, help="--rendered: keep one JSON result per point here")
     ap.add_argument("--render-only", action="store_true")
     ap.add_argument("--flat-only", action="store_true", help="--rendered: only the flat-road drive")
+    ap.add_argument("--esvi", default=None, metavar="SECONDS,RGB_PX,DVS_PX",
+                    help="stereo RGB + stereo DVS in one problem (board frames and DVS events)")
     a = ap.parse_args()
+    if a.esvi:
+        esvi(a)
+        return
     if a.rendered:
         rendered(a)
         return
