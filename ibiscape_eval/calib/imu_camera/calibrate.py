@@ -52,6 +52,8 @@ COARSE_ITERATIONS = 40
 ABS_COST_TOL = 0.01
 #: a camera whose reprojection RMS exceeds the rig's best by this factor is weighed by its own noise
 NOISY_CAMERA_RATIO = 1.5
+#: the least corner noise an estimated weight assumes [px]
+MIN_SIGMA_PX = 0.02
 
 
 def _check_inputs(observations: Sequence[CameraObservations], imu: ImuData,
@@ -264,6 +266,7 @@ def calibrate_imu_camera(
     rate_tolerance: float = 0.05,
     keep_residuals: bool = True,
     reweight_cameras: bool = True,
+    estimate_corner_noise: bool = False,
     progress: Progress | None = None,
 ) -> ImuCameraResult:
     """Estimate ``T_cam_imu`` and ``timeshift_cam_imu`` of every camera, jointly.
@@ -302,6 +305,9 @@ def calibrate_imu_camera(
         When a camera's reprojection RMS is more than 1.5 times the best camera's, weigh every
         camera by its RMS relative to the best one and solve again (a warning names the noisy
         cameras).
+    estimate_corner_noise : bool
+        Solve once with ``sigma_px``, then weigh every camera by its own reprojection RMS (at
+        least 0.02 px) and solve again.
     progress : callable(fraction, label), optional
 
     Returns
@@ -445,18 +451,28 @@ def calibrate_imu_camera(
         st, it2, converged, H = _solve(prob, st, max_iterations, step, (0.5, 0.95))
         iterations += it2
     noisy: dict[str, float] = {}
-    if reweight_cameras and len(prob.cams) > 1:
-        # cameras of unequal quality (RGB beside frames reconstructed from events): weigh each by
-        # its own corner noise relative to the rig's best camera, so a poor camera cannot drag
-        # the shared trajectory (and with it the others' extrinsics); its std grows accordingly
+    if len(prob.cams) > 1 or estimate_corner_noise:
         rms = np.array([_camera_rms_px(prob, st, c) for c in range(len(prob.cams))])
-        best = float(np.nanmin(rms))
+        best = float(np.nanmin(rms)) if np.any(np.isfinite(rms)) else float("nan")
         ratio = rms / best
-        if np.all(np.isfinite(ratio)) and best > 0 and ratio.max() > NOISY_CAMERA_RATIO:
+        again = False
+        if estimate_corner_noise and np.all(np.isfinite(rms)):
+            # each camera weighed by its own corner noise (the residual RMS of the first solve):
+            # the nominal sigma_px usually overstates a good detector's noise several times, which
+            # lets the accelerometer noise bend the trajectory the lever arms are read from
+            for c, cb in enumerate(prob.cams):
+                cb.sigma_px = max(MIN_SIGMA_PX, float(rms[c]))
+            again = True
+        elif reweight_cameras and np.all(np.isfinite(ratio)) and best > 0 and ratio.max() > NOISY_CAMERA_RATIO:
+            # cameras of unequal quality (RGB beside frames reconstructed from events): weigh each
+            # by its own corner noise relative to the rig's best camera, so a poor camera cannot
+            # drag the shared trajectory (and with it the others' extrinsics)
             for c, cb in enumerate(prob.cams):
                 cb.sigma_px = sigma_px * max(1.0, float(ratio[c]))
-                if ratio[c] > NOISY_CAMERA_RATIO:
-                    noisy[cb.name] = float(ratio[c])
+            again = True
+        if reweight_cameras and np.all(np.isfinite(ratio)):
+            noisy = {cb.name: float(ratio[c]) for c, cb in enumerate(prob.cams) if ratio[c] > NOISY_CAMERA_RATIO}
+        if again:
             st, it3, converged, H = _solve(prob, st, max_iterations, step, (0.9, 0.95))
             iterations += it3
     for name, r in noisy.items():
@@ -470,6 +486,15 @@ def calibrate_imu_camera(
         warnings.warn(text, IbiscapeWarning, stacklevel=2)
     step(1.0, "done")
     return result
+
+
+def _trial_cost(prob: Problem, st: State) -> float:
+    """The cost of a trial step; infinite when the step leaves the valid parameters (e.g. a
+    refined focal length through zero), so that Levenberg-Marquardt shortens it."""
+    try:
+        return cost(prob, st)
+    except IbiscapeError:
+        return float("inf")
 
 
 def _camera_rms_px(prob: Problem, st: State, c: int) -> float:
@@ -584,7 +609,7 @@ def _solve(prob: Problem, st: State, max_iterations: int, step: Callable[[float,
                 lam *= 10
                 continue
             cand = st.retract(prob, delta)
-            c1 = cost(prob, cand)
+            c1 = _trial_cost(prob, cand)
             if np.isfinite(c1) and c1 < c0:
                 improved = True
                 break
@@ -597,7 +622,7 @@ def _solve(prob: Problem, st: State, max_iterations: int, step: Callable[[float,
         alpha = 1.0
         while alpha < 64.0:
             cand2 = st.retract(prob, 2.0 * alpha * delta)
-            c2 = cost(prob, cand2)
+            c2 = _trial_cost(prob, cand2)
             if not (np.isfinite(c2) and c2 < c1):
                 break
             cand, c1, alpha = cand2, c2, 2.0 * alpha
