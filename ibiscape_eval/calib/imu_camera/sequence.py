@@ -214,6 +214,7 @@ def calibrate_sequence(sequence: str | os.PathLike[str],
                        imu_data: str | os.PathLike[str] | None = None,
                        target: Any = None, frame_step: int = 1, sigma_px: float = 0.3,
                        refine_intrinsics: bool | None = None,
+                       estimate_corner_noise: bool = True,
                        workers: int | None = None) -> SequenceCalibration:
     """Calibrate ``T_cam_imu`` and ``timeshift_cam_imu`` of every camera of a sequence.
 
@@ -242,6 +243,11 @@ def calibrate_sequence(sequence: str | os.PathLike[str],
     refine_intrinsics : bool, optional
         Also estimate focal lengths and principal points (default: when they come from the camera
         calibration of the same frames, not with ``camchain``).
+    estimate_corner_noise : bool
+        Solve with ``sigma_px``, then weigh each camera by its own reprojection RMS and solve again
+        (default: a detector's corners are usually several times better than the nominal 0.3 px,
+        and the under-weighted cameras let the accelerometer noise bend the lever arms: on the
+        60 s drive at -20 ms, translation 8.3 -> 2.6 mm, rotation 0.020 -> 0.014 deg).
 
     Raises
     ------
@@ -415,7 +421,8 @@ def calibrate_sequence(sequence: str | os.PathLike[str],
     refine = camchain is None if refine_intrinsics is None else bool(refine_intrinsics)
     try:
         result = calibrate_imu_camera(obs, imu, noise, corners, sigma_px=sigma_px, force=force,
-                                      refine_intrinsics=refine, progress=solve_progress)
+                                      refine_intrinsics=refine, progress=solve_progress,
+                                      estimate_corner_noise=estimate_corner_noise)
     except CalibrationError as e:
         msg = str(e)
         if "update_rate" in msg or "IMU stream" in msg:
