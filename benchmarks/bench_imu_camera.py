@@ -6,7 +6,21 @@ and run time.
     ibiscape-eval sim --config calib60.yaml --resolution 512 --out SVI_calib   # rendered drive
     .venv/bin/python benchmarks/bench_imu_camera.py --size 0 --seq SVI_calib [--cams camchain.yaml]
 
-``--seq`` runs the whole ``calib SEQ --imu`` (corner detection on the rendered frames, intrinsics
+    .venv/bin/python benchmarks/bench_imu_camera.py --rendered --offsets-ms -20,-9.7,0,4.3,20 \
+        --targets checkerboard,aprilgrid --size 512 --duration 60 --cache /tmp/imu_renders \
+        --json-dir /work/measure/imu4 [--flat]
+
+    .venv/bin/python benchmarks/bench_imu_camera.py --esvi 24,512,346 --cache /tmp/imu_renders \
+        --json-dir /work/measure/imu4
+
+``--esvi SECONDS,RGB_PX,DVS_PX`` calibrates the esvi rig's stereo RGB (10 Hz board frames) and
+stereo DVS (the simulator's DVS model on the exact board images; frames reconstructed from the
+events as in the camera calibration) in one problem, with their own intrinsics
+(``tests/calib/test_imu_camera_dvs.py``'s drive, at a bigger size).
+``--rendered`` renders the 60 s svi calibration drive with bumps once per (target, offset), one
+clock offset for the synchronised stereo pair (a cached render is reused), and runs the whole
+``calib SEQ --imu`` on it with the drive's own intrinsics; ``--flat`` also the flat-road drive at
+the first offset.  ``--seq`` runs the whole ``calib SEQ --imu`` (corner detection on the rendered frames, intrinsics
 from the drive's own camera calibration or ``--cams``, the solve) and prints the same table.
 
 The simulator plans the calibration world and drive (bubbles and waves on the road), simulates
@@ -22,6 +36,8 @@ from __future__ import annotations
 import argparse
 import time
 from dataclasses import replace
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -95,8 +111,6 @@ def table(res, T_truth, shift_truth, err) -> None:  # type: ignore[no-untyped-de
 def on_sequence(seq: str, cams: str | None, frame_step: int) -> None:
     """``calib SEQ --imu`` end to end on a generated (rendered) sequence: detection, intrinsics
     (the drive's own camera calibration, or ``cams``), the solve; truth from sequence.yaml."""
-    from pathlib import Path
-
     import yaml
 
     from ibiscape_eval.calib.imu_camera import calibrate_sequence
@@ -124,6 +138,141 @@ def on_sequence(seq: str, cams: str | None, frame_step: int) -> None:
     table(res.result, T_truth, shift_truth, res.errors_vs_truth)
 
 
+def render_drive(cache: Path, target: str, offset_ms: float, size: int, duration_s: float,
+                 seed: int, bumps: bool = True, setup: str = "svi") -> Path:
+    """The rendered calibration drive of one (target, offset) point, from ``cache`` when present."""
+    from ibiscape_eval.sim.config import with_resolution
+    from ibiscape_eval.sim.generator import generate
+
+    name = (f"{setup}_{target}_{offset_ms:+.1f}ms_{size}px_{duration_s:g}s_seed{seed}"
+            + ("" if bumps else "_flat"))
+    out = cache / name
+    if (out / "sequence.yaml").is_file():
+        return out
+    cfg = preset(setup, "calibration", "clear", duration_s=duration_s, seed=seed, target=target,
+                 motion=MotionSpec(bumps=bumps))
+    cfg = with_resolution(cfg, size, size)
+    cfg = replace(cfg, cameras=tuple(replace(c, timeshift_cam_imu_s=offset_ms * 1e-3)
+                                     for c in cfg.cameras))
+    t0, c0 = time.perf_counter(), time.process_time()
+    generate(cfg, out, render=True, overwrite=True)
+    print(f"rendered {out}: wall {time.perf_counter() - t0:.0f} s, CPU {time.process_time() - c0:.0f} s",
+          flush=True)
+    return out
+
+
+def _noise_yaml(seq: Path) -> Path:
+    import yaml
+
+    doc = yaml.safe_load((seq / "sequence.yaml").read_text())
+    imu = doc["imus"]["imu0"]
+    noise = seq.parent / f"{seq.name}_imu.yaml"
+    noise.write_text(yaml.safe_dump({k: imu[k] for k in (
+        "accelerometer_noise_density", "accelerometer_random_walk", "gyroscope_noise_density",
+        "gyroscope_random_walk", "update_rate", "rostopic")}))
+    return noise
+
+
+def rendered_point(seq: Path, label: dict[str, Any], force: bool, json_dir: Path | None,
+                   frame_step: int = 1) -> dict[str, Any]:
+    """``calib SEQ --imu`` with the drive's own intrinsics on one rendered drive: the accuracy
+    table printed, the raw result (plus the label and CPU times) returned and kept as JSON."""
+    import json
+
+    from ibiscape_eval.calib.imu_camera import calibrate_sequence
+
+    c0 = time.process_time()
+    res = calibrate_sequence(seq, _noise_yaml(seq), force=force, frame_step=frame_step)
+    cpu = time.process_time() - c0
+    d = res.to_dict()
+    d["label"] = label
+    d["cpu_s"] = cpu
+    t = res.timing_s
+    print(f"\n== {label}: {seq.name}")
+    det = {c["name"]: f"{c['frames_with_target']}/{c['frames']}" for c in res.detection["cameras"]}
+    print(f"frames with the target {det}; wall: detection {t['detection']:.1f} s, intrinsics "
+          f"{t['intrinsics']:.1f} s, camera-IMU {t['imu_camera']:.1f} s, total {t['total']:.1f} s; "
+          f"CPU {cpu:.1f} s; RATIO {120.0 / t['total']:.2f} (2 min budget / wall)")
+    gt = (res.camera_calibration or {}).get("ground_truth")
+    if gt:
+        print(f"drive's camera calibration: focal {gt['max_focal_error_px']:.3f} px, principal point "
+              f"{gt['max_principal_point_error_px']:.3f} px, baseline "
+              + ", ".join(f"{c['from']}->{c['to']} {c['baseline_error_mm']:.2f} mm (vector "
+                          f"{np.linalg.norm(c['translation_error_mm']):.2f} mm)" for c in gt["chain"]))
+    T_truth = {k: v["T_cam_imu"] for k, v in res.truth.items()}
+    shift_truth = {k: v["timeshift_cam_imu"] for k, v in res.truth.items()}
+    table(res.result, T_truth, shift_truth, res.errors_vs_truth)
+    if json_dir is not None:
+        json_dir.mkdir(parents=True, exist_ok=True)
+        (json_dir / f"{seq.name}.json").write_text(json.dumps(d, indent=1, allow_nan=False))
+    return d
+
+
+def summary(points: list[dict[str, Any]]) -> None:
+    """One line per point: the worst camera's errors against the issue's goals."""
+    print(f"\n{'target':<12} {'road':<5} {'offset ms':>9} {'rot deg':>8} {'trans mm':>8} {'dt ms':>7} "
+          f"{'focal px':>8} {'pp px':>6} {'base mm':>7} {'wall s':>7} {'CPU s':>6}  goals")
+    for d in points:
+        e = d["errors_vs_truth"]
+        rot = max(v["rotation_error_deg"] for v in e.values())
+        tr = max(v["translation_error_m"] for v in e.values()) * 1e3
+        dt = max(abs(v["timeshift_error_s"]) for v in e.values()) * 1e3
+        gt = (d.get("camera_calibration") or {}).get("ground_truth") or {}
+        ok = rot <= 0.05 and tr <= 5.0 and dt <= 0.1
+        lab = d["label"]
+        print(f"{lab['target']:<12} {lab['road']:<5} {lab['offset_ms']:9.1f} {rot:8.4f} {tr:8.2f} {dt:7.4f} "
+              f"{gt.get('max_focal_error_px', float('nan')):8.3f} "
+              f"{gt.get('max_principal_point_error_px', float('nan')):6.3f} "
+              f"{gt.get('max_baseline_error_mm', float('nan')):7.3f} {d['timing_s']['total']:7.1f} "
+              f"{d['cpu_s']:6.1f}  {'met' if ok else 'MISSED'}"
+              + (f"; {len(d['warnings'])} warning(s)" if d["warnings"] else ""))
+
+
+def rendered(a: argparse.Namespace) -> None:
+    cache = Path(a.cache)
+    json_dir = Path(a.json_dir) if a.json_dir else None
+    offsets = [float(v) for v in a.offsets_ms.split(",") if v.strip()]
+    other = [float(v) for v in a.other_offsets_ms.split(",") if v.strip()]
+    targets = [t.strip() for t in a.targets.split(",") if t.strip()]
+    plan: list[tuple[str, float, bool]] = []
+    for target in targets:
+        offs = offsets if target == targets[0] else other
+        plan += [(target, o, True) for o in offs]
+    if a.flat_only:
+        plan = []
+    if a.flat or a.flat_only:
+        plan.append((targets[0], offsets[0], False))
+    points = []
+    for target, off, bumps in plan:
+        seq = render_drive(cache, target, off, a.size[0] if a.size else 512, a.duration_s, a.seed, bumps)
+        if a.render_only:
+            continue
+        label = {"target": target, "offset_ms": off, "road": "bumps" if bumps else "flat",
+                 "size_px": a.size[0] if a.size else 512, "duration_s": a.duration_s, "seed": a.seed}
+        points.append(rendered_point(seq, label, force=not bumps, json_dir=json_dir,
+                                     frame_step=a.frame_step))
+    if points:
+        summary(points)
+
+
+def esvi(a: argparse.Namespace) -> None:
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "calib"))
+    from test_imu_camera_dvs import SHIFT_S, write_esvi_calibration
+
+    dur, rgb_px, dvs_px = (float(v) for v in a.esvi.split(","))
+    out = Path(a.cache) / f"esvi_board_{dur:g}s_rgb{rgb_px:g}_dvs{dvs_px:g}_seed2"
+    if not (out / "sequence.yaml").is_file():
+        t0, c0 = time.perf_counter(), time.process_time()
+        write_esvi_calibration(out, duration_s=dur, rgb_px=int(rgb_px), dvs_px=int(dvs_px))
+        print(f"generated {out}: wall {time.perf_counter() - t0:.0f} s, CPU {time.process_time() - c0:.0f} s",
+              flush=True)
+    label = {"target": "checkerboard", "offset_ms": SHIFT_S * 1e3, "road": "bumps", "size_px": rgb_px,
+             "dvs_px": dvs_px, "duration_s": dur, "rig": "esvi: stereo RGB + stereo DVS"}
+    summary([rendered_point(out, label, force=False, json_dir=Path(a.json_dir) if a.json_dir else None)])
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seq", action="append", help="also (or only, with --size 0) calibrate this "
@@ -135,7 +284,26 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--flat", action="store_true", help="also the same drive without bumps")
     ap.add_argument("--four", action="store_true", help="also RGB + DVS stereo pairs in one problem")
+    ap.add_argument("--rendered", action="store_true", help="render the calibration drives (cached) "
+                    "and calibrate them end to end with their own intrinsics")
+    ap.add_argument("--offsets-ms", default="-20,-9.7,0,4.3,20", help="--rendered: planted offsets")
+    ap.add_argument("--targets", default="checkerboard,aprilgrid", help="--rendered: targets; the "
+                    "first at every offset, the others at the first --other-offsets")
+    ap.add_argument("--other-offsets-ms", default="-20,4.3", help="--rendered: offsets of the "
+                    "other targets")
+    ap.add_argument("--cache", default="/tmp/imu_camera_renders", help="--rendered: render cache")
+    ap.add_argument("--json-dir", default=None, help="--rendered: keep one JSON result per point here")
+    ap.add_argument("--render-only", action="store_true")
+    ap.add_argument("--flat-only", action="store_true", help="--rendered: only the flat-road drive")
+    ap.add_argument("--esvi", default=None, metavar="SECONDS,RGB_PX,DVS_PX",
+                    help="stereo RGB + stereo DVS in one problem (board frames and DVS events)")
     a = ap.parse_args()
+    if a.esvi:
+        esvi(a)
+        return
+    if a.rendered:
+        rendered(a)
+        return
     for seq in a.seq or []:
         on_sequence(seq, a.cams, a.frame_step)
     for size in [s for s in (a.size or [1024, 512]) if s > 0]:

@@ -50,6 +50,10 @@ WEAK_TIMESHIFT_STD_S = 1e-4
 COARSE_KNOT_RATE_HZ = 20.0
 COARSE_ITERATIONS = 40
 ABS_COST_TOL = 0.01
+#: a camera whose reprojection RMS exceeds the rig's best by this factor is weighed by its own noise
+NOISY_CAMERA_RATIO = 1.5
+#: the least corner noise an estimated weight assumes [px]
+MIN_SIGMA_PX = 0.02
 
 
 def _check_inputs(observations: Sequence[CameraObservations], imu: ImuData,
@@ -261,6 +265,8 @@ def calibrate_imu_camera(
     max_iterations: int = 40,
     rate_tolerance: float = 0.05,
     keep_residuals: bool = True,
+    reweight_cameras: bool = True,
+    estimate_corner_noise: bool = False,
     progress: Progress | None = None,
 ) -> ImuCameraResult:
     """Estimate ``T_cam_imu`` and ``timeshift_cam_imu`` of every camera, jointly.
@@ -295,6 +301,13 @@ def calibrate_imu_camera(
     refine_intrinsics : bool
         Also estimate each camera's focal lengths and principal point (distortion held), from
         the given intrinsics: for intrinsics from a camera calibration of weakly tilted views.
+    reweight_cameras : bool
+        When a camera's reprojection RMS is more than 1.5 times the best camera's, weigh every
+        camera by its RMS relative to the best one and solve again (a warning names the noisy
+        cameras).
+    estimate_corner_noise : bool
+        Solve once with ``sigma_px``, then weigh every camera by its own reprojection RMS (at
+        least 0.02 px) and solve again.
     progress : callable(fraction, label), optional
 
     Returns
@@ -437,6 +450,35 @@ def calibrate_imu_camera(
         prob, st = _refine(prob, st, 1.0 / knot_rate_hz)
         st, it2, converged, H = _solve(prob, st, max_iterations, step, (0.5, 0.95))
         iterations += it2
+    noisy: dict[str, float] = {}
+    if len(prob.cams) > 1 or estimate_corner_noise:
+        rms = np.array([_camera_rms_px(prob, st, c) for c in range(len(prob.cams))])
+        best = float(np.nanmin(rms)) if np.any(np.isfinite(rms)) else float("nan")
+        ratio = rms / best
+        again = False
+        if estimate_corner_noise and np.all(np.isfinite(rms)):
+            # each camera weighed by its own corner noise (the residual RMS of the first solve):
+            # the nominal sigma_px usually overstates a good detector's noise several times, which
+            # lets the accelerometer noise bend the trajectory the lever arms are read from
+            for c, cb in enumerate(prob.cams):
+                cb.sigma_px = max(MIN_SIGMA_PX, float(rms[c]))
+            again = True
+        elif reweight_cameras and np.all(np.isfinite(ratio)) and best > 0 and ratio.max() > NOISY_CAMERA_RATIO:
+            # cameras of unequal quality (RGB beside frames reconstructed from events): weigh each
+            # by its own corner noise relative to the rig's best camera, so a poor camera cannot
+            # drag the shared trajectory (and with it the others' extrinsics)
+            for c, cb in enumerate(prob.cams):
+                cb.sigma_px = sigma_px * max(1.0, float(ratio[c]))
+            again = True
+        if reweight_cameras and np.all(np.isfinite(ratio)):
+            noisy = {cb.name: float(ratio[c]) for c, cb in enumerate(prob.cams) if ratio[c] > NOISY_CAMERA_RATIO}
+        if again:
+            st, it3, converged, H = _solve(prob, st, max_iterations, step, (0.9, 0.95))
+            iterations += it3
+    for name, r in noisy.items():
+        warn.append(f"camera {name}: reprojection error {r:.1f}x the rig's best camera's (poor "
+                    "frames, e.g. reconstructed from events); weighed down accordingly, its "
+                    "extrinsics and offset may be off by more than their std")
     step(0.95, "covariance")
     result = _result(prob, st, H, exc, warn, iterations, converged, force, t_start,
                      observations, keep_residuals)
@@ -444,6 +486,22 @@ def calibrate_imu_camera(
         warnings.warn(text, IbiscapeWarning, stacklevel=2)
     step(1.0, "done")
     return result
+
+
+def _trial_cost(prob: Problem, st: State) -> float:
+    """The cost of a trial step; infinite when the step leaves the valid parameters (e.g. a
+    refined focal length through zero), so that Levenberg-Marquardt shortens it."""
+    try:
+        return cost(prob, st)
+    except IbiscapeError:
+        return float("inf")
+
+
+def _camera_rms_px(prob: Problem, st: State, c: int) -> float:
+    """Reprojection RMS of camera ``c`` [px per coordinate]."""
+    rc, _, _, valid = camera_block(prob, st, c, jac=False)
+    e = rc[valid] * prob.cam_sigma_px(c)
+    return float(np.sqrt(np.mean(e**2))) if e.size else float("nan")
 
 
 def _refine(prob: Problem, st: State, dt: float) -> tuple[Problem, State]:
@@ -551,7 +609,7 @@ def _solve(prob: Problem, st: State, max_iterations: int, step: Callable[[float,
                 lam *= 10
                 continue
             cand = st.retract(prob, delta)
-            c1 = cost(prob, cand)
+            c1 = _trial_cost(prob, cand)
             if np.isfinite(c1) and c1 < c0:
                 improved = True
                 break
@@ -564,7 +622,7 @@ def _solve(prob: Problem, st: State, max_iterations: int, step: Callable[[float,
         alpha = 1.0
         while alpha < 64.0:
             cand2 = st.retract(prob, 2.0 * alpha * delta)
-            c2 = cost(prob, cand2)
+            c2 = _trial_cost(prob, cand2)
             if not (np.isfinite(c2) and c2 < c1):
                 break
             cand, c1, alpha = cand2, c2, 2.0 * alpha
@@ -602,7 +660,7 @@ def _result(prob: Problem, st: State, H: Any, exc: Excitation, warn: list[str], 
         rc, _, _, valid = camera_block(prob, st, c, jac=False)
         chi2 += float(np.sum(rc**2))
         n_res += 2 * int(valid.sum())
-        e_px = rc[valid] * prob.sigma_px
+        e_px = rc[valid] * prob.cam_sigma_px(c)
         k = 2 + w * c
         cc = cov[k : k + 7, k : k + 7]
         var = np.clip(np.diag(cc), 0.0, None)

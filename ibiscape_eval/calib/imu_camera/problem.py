@@ -70,6 +70,8 @@ class CameraBlock:
     X: FloatArray  # (F, M, 3) target corners
     uv: FloatArray  # (F, M, 2) observations
     mask: FloatArray  # (F, M) 1 observed, 0 padding
+    #: this camera's corner noise [px] (None: the problem's ``sigma_px``)
+    sigma_px: float | None = None
 
 
 @dataclass
@@ -93,6 +95,11 @@ class Problem:
     trans_prior_sigma_m: float = 20.0
     #: 4 when the focal lengths and principal points are refined too (fx, fy, cx, cy per camera)
     n_intr: int = 0
+
+    def cam_sigma_px(self, c: int) -> float:
+        """Corner noise of camera ``c`` [px]."""
+        s = self.cams[c].sigma_px
+        return self.sigma_px if s is None else s
 
     @property
     def cam_width(self) -> int:
@@ -273,7 +280,7 @@ def camera_block(prob: Problem, st: State, c: int, *, jac: bool
     valid = (cb.mask > 0) & inside[:, None] & (z > 1e-3)
     camera = st.camera(prob, c)
     uv = camera.project(np.where(valid[..., None], pc, np.array([0.0, 0.0, 1.0])))
-    s = prob.sigma_px
+    s = prob.cam_sigma_px(c)
     r = np.where(valid[..., None], (uv - cb.uv) / s, 0.0)
     if not jac:
         return r, None, None, valid
