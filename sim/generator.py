@@ -275,7 +275,7 @@ def _groundtruth(state: MotionState) -> IbiscapeGroundTruth:
 
 def _generate_moving(cfg: SimConfig, tmp: Path, step: Callable[[float, str], None],
                      motion: Motion | None, world: Any, *, render: bool = False) -> SequenceSummary:
-    from ibiscape_eval.io.sequence import write_controls, write_sequence_yaml, write_weather_csv
+    from ibiscape_eval.io.sequence import write_controls, write_weather_csv
 
     render = render and bool(cfg.cameras)
     if render and motion is not None and world is None:
@@ -350,11 +350,7 @@ def _generate_moving(cfg: SimConfig, tmp: Path, step: Callable[[float, str], Non
     doc = sequence_document(cfg, world=world_doc, target=target, scenario=scenario,
                             weather_averages=summary.weather_averages, files=files,
                             rendered=rendered)
-    doc["summary"] = {k: v for k, v in summary.to_dict().items()
-                      if k not in ("path", "name", "weather_averages")}
-    write_sequence_yaml(tmp / "sequence.yaml", doc,
-                        comments=["IBISCape-layout synthetic sequence written by ibiscape-eval sim"])
-    return summary
+    return _write_document(tmp, doc, summary, "IBISCape-layout synthetic sequence written by ibiscape-eval sim")
 
 
 def _generate_still(cfg: SimConfig, tmp: Path, step: Callable[[float, str], None]) -> SequenceSummary:
@@ -364,7 +360,6 @@ def _generate_still(cfg: SimConfig, tmp: Path, step: Callable[[float, str], None
         write_gnss_chunks,
         write_groundtruth_chunks,
         write_imu_csv_chunks,
-        write_sequence_yaml,
     )
 
     (tmp / "vehicle_gt").mkdir()
@@ -435,9 +430,15 @@ def _generate_still(cfg: SimConfig, tmp: Path, step: Callable[[float, str], None
     doc = sequence_document(cfg, world={"kind": "still", "note": "flat ground, nothing moves"},
                             target=None, scenario={"name": cfg.scenario}, weather_averages=None,
                             files=files)
+    return _write_document(tmp, doc, summary, "IBISCape-layout still-IMU sequence written by ibiscape-eval sim")
+
+
+def _write_document(tmp: Path, doc: dict[str, Any], summary: SequenceSummary, comment: str) -> SequenceSummary:
+    """sequence.yaml: ``doc`` with the summary (without what the folder itself says)."""
+    from ibiscape_eval.io.sequence import write_sequence_yaml
+
     doc["summary"] = {k: v for k, v in summary.to_dict().items()
                       if k not in ("path", "name", "weather_averages")}
-    write_sequence_yaml(tmp / "sequence.yaml", doc,
-                        comments=["IBISCape-layout still-IMU sequence written by ibiscape-eval sim"])
+    write_sequence_yaml(tmp / "sequence.yaml", doc, comments=[comment])
     return summary
 

@@ -25,7 +25,7 @@ from ibiscape_eval.core.errors import IbiscapeError
 
 from .targets import CalibrationTarget
 
-__all__ = ["Detection", "detect_corners", "detect_many", "sharpness"]
+__all__ = ["Detection", "detect_corners", "detect_many", "neighbour_residuals_px", "sharpness"]
 
 #: images wider than this are searched at reduced size, then refined at full size
 _SEARCH_WIDTH_PX = 800
@@ -210,23 +210,30 @@ def _locally_consistent(board_xy: npt.NDArray[np.float64], uv: npt.NDArray[np.fl
                         k: int = 12, tol_px: float = 1.0) -> npt.NDArray[np.bool_]:
     """Keep corners that a homography of their ``k`` nearest neighbours on the board predicts
     within ``tol_px`` (a refinement caught by a neighbouring edge lands pixels away)."""
+    if len(uv) < 6:
+        return np.ones(len(uv), bool)
+    return ~(neighbour_residuals_px(board_xy, uv, k=k) > tol_px)  # no homography (NaN): kept
+
+
+def neighbour_residuals_px(board_xy: npt.ArrayLike, uv: npt.ArrayLike, *, k: int) -> npt.NDArray[np.float64]:
+    """Per corner, the distance [px] from where a homography of its ``k`` nearest neighbours on the
+    board puts it (NaN where that homography is degenerate): corner noise without a camera model,
+    since a local homography absorbs the lens distortion.  Needs at least 2 corners."""
     import cv2
 
-    n = len(uv)
-    ok = np.ones(n, bool)
-    if n < 6:
-        return ok
-    d = np.linalg.norm(board_xy[:, None, :] - board_xy[None, :, :], axis=-1)
+    xy = np.asarray(board_xy, np.float64).reshape(-1, 2)
+    px = np.asarray(uv, np.float64).reshape(-1, 2)
+    n = len(px)
+    d = np.linalg.norm(xy[:, None, :] - xy[None, :, :], axis=-1)
     nn = np.argsort(d, axis=1)[:, 1:min(k, n - 1) + 1]
-    for i in range(n):
-        j = nn[i]
-        H, _ = cv2.findHomography(board_xy[j], uv[j], 0)
+    res = np.full(n, np.nan)
+    for i in range(n):  # n <= a few hundred corners per view: one small fit each
+        H, _ = cv2.findHomography(xy[nn[i]], px[nn[i]], 0)
         if H is None:
             continue
-        p = H @ np.array([board_xy[i, 0], board_xy[i, 1], 1.0])
-        if np.hypot(p[0] / p[2] - uv[i, 0], p[1] / p[2] - uv[i, 1]) > tol_px:
-            ok[i] = False
-    return ok
+        p = H @ np.array([xy[i, 0], xy[i, 1], 1.0])
+        res[i] = np.hypot(p[0] / p[2] - px[i, 0], p[1] / p[2] - px[i, 1])
+    return res
 
 
 def detect_corners(image: npt.NDArray[Any], target: CalibrationTarget, *,

@@ -326,24 +326,13 @@ def board_noise_px(corners_px: npt.ArrayLike, board_xy_m: npt.ArrayLike, *, k: i
     (a local homography absorbs the lens distortion).  On event frames it follows the error
     against the truth closely (the rendered ESVI drive, 346x260: correlation 0.95 with a global
     homography); ``inf`` with fewer than 6 corners."""
-    import cv2
+    from .detect import neighbour_residuals_px
 
     uv = np.asarray(corners_px, np.float64).reshape(-1, 2)
-    xy = np.asarray(board_xy_m, np.float64).reshape(-1, 2)
-    n = len(uv)
-    if n < 6:
+    if len(uv) < 6:
         return float("inf")
-    kk = min(k, n - 1)
-    d = np.linalg.norm(xy[:, None, :] - xy[None, :, :], axis=-1)
-    nn = np.argsort(d, axis=1)[:, 1:kk + 1]
-    res = np.zeros(n)
-    for i in range(n):  # n <= a few hundred corners per view: one small fit each
-        H, _ = cv2.findHomography(xy[nn[i]], uv[nn[i]], 0)
-        if H is None:
-            return float("inf")
-        p = H @ np.array([xy[i, 0], xy[i, 1], 1.0])
-        res[i] = np.hypot(p[0] / p[2] - uv[i, 0], p[1] / p[2] - uv[i, 1])
-    return float(np.sqrt(np.mean(res**2)))
+    res = neighbour_residuals_px(board_xy_m, uv, k=k)
+    return float("inf") if np.isnan(res).any() else float(np.sqrt(np.mean(res**2)))
 
 
 def event_frame_loader(read_window: ReadWindow, windows_ns: npt.ArrayLike, sensor_size: tuple[int, int],
