@@ -44,6 +44,7 @@ from .targets import CalibrationTarget
 __all__ = [
     "DEFAULT_TAU_S",
     "RECONSTRUCTIONS",
+    "TIME_SURFACE_TAU_NS",
     "EventFrameSource",
     "board_noise_px",
     "choose_reconstruction",
@@ -63,6 +64,8 @@ MEMORY_TAU = 5.0
 #: memory for the backward (future) states one sweep of the bidirectional reconstruction keeps
 #: (float32 images; 8..128 windows per sweep)
 BACKWARD_BLOCK_BYTES = 64 << 20
+#: decay of the time-surface reconstruction [ns]
+TIME_SURFACE_TAU_NS = 10_000_000
 #: nominal contrast threshold (CARLA's and the paper's 0.3) when only the ratio is known
 NOMINAL_CONTRAST = 0.3
 
@@ -94,7 +97,7 @@ def _log_to_uint8(values: npt.NDArray[np.float64], shape: tuple[int, int]) -> np
 
 
 def event_frame(events: Events, sensor_size: tuple[int, int], window_ns: tuple[int, int], *,
-                method: str = "accumulate-signed", tau_ns: int = 10_000_000,
+                method: str = "accumulate-signed", tau_ns: int = TIME_SURFACE_TAU_NS,
                 contrast: tuple[float, float] = (NOMINAL_CONTRAST, NOMINAL_CONTRAST)) -> npt.NDArray[np.uint8]:
     """One 8-bit frame (H, W) from the events of ``[start, end)`` alone (``log-intensity``: the
     integration starts from zero at ``start``)."""

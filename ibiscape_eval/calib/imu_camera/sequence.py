@@ -38,8 +38,6 @@ __all__ = ["SequenceCalibration", "calibrate_sequence", "event_frame_stamps_ns",
 Progress = Callable[[float, str], None]
 #: the camera clocks may be this far off the IMU's (the solve's search range of the offset)
 MAX_SHIFT_NS = 100_000_000
-#: decay of the time-surface reconstruction (``calib.events.event_frame``'s default)
-TIME_SURFACE_TAU_NS = 10_000_000
 
 
 def read_imu_noise(path: str | os.PathLike[str]) -> ImuNoiseDensities:
@@ -475,6 +473,8 @@ def event_frame_stamps_ns(windows_ns: npt.ArrayLike, method: str) -> npt.NDArray
     if method == "log-intensity":
         return w[:, 1].copy()
     if method == "time-surface":
+        from ibiscape_eval.calib.events import TIME_SURFACE_TAU_NS
+
         return w[:, 1] - np.minimum(half, TIME_SURFACE_TAU_NS)
     return w[:, 0] + half
 
