@@ -55,6 +55,9 @@ def _labeler(paths: Sequence[Path]) -> Callable[[int], str]:
               help="Event cameras: how frames are reconstructed from the events (log-intensity: "
               "leaky integration across windows, for moving cameras; accumulate-signed: one window, "
               "for blinking targets; auto: the one on which most corners are found).")
+@click.option("--event-corners", type=click.Choice(["events", "frames"]), default="events", show_default=True,
+              help="Event cameras, checkerboards: refine the corners found in the reconstructed frames "
+              "from the events' timestamps (events), or keep the frames' corners (frames).")
 @click.option("--sensor-size", default=None, metavar="WxH",
               help="Event cameras: sensor size when sequence.yaml does not give it.")
 @click.option("--outlier-sigma", type=click.FloatRange(min=1.0), default=5.0, show_default=True,
@@ -80,7 +83,7 @@ def _labeler(paths: Sequence[Path]) -> Callable[[int], str]:
 def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: tuple[str, ...],
           cameras: str | None, yaml_out: Path | None, as_json: bool, plot_dir: Path | None,
           check_path: Path | None, max_views: int, max_frames: int, reconstruction: str,
-          sensor_size: str | None, outlier_sigma: float, workers: int | None,
+          event_corners: str, sensor_size: str | None, outlier_sigma: float, workers: int | None,
           imu_yaml: Path | None = None, cams_path: Path | None = None, imu_data: Path | None = None,
           force: bool = False, frame_step: int = 1) -> None:
     """Calibrate cameras from checkerboard or AprilGrid images (mono, stereo, chains; RGB and DVS).
@@ -167,6 +170,7 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
         assert s.windows_ns is not None
         source, recon_used[s.name] = event_set_frames(s.paths, s.windows_ns, size, target,
                                                       reconstruction=reconstruction,
+                                                      refine=event_corners == "events",
                                                       camera_doc=seq_cams.get(s.name))
         method = recon_used[s.name]["method"]
         info(f"{s.name}: frames reconstructed from events by {method}")

@@ -241,9 +241,9 @@ def _equi_from_radtan(k1: float, k2: float, fmax: float) -> tuple[float, float, 
 def _usable(det: Detection | None, target: CalibrationTarget, min_corners: int) -> bool:
     if det is None or len(det) < min_corners:
         return False
-    if target.target_type == "checkerboard":
+    if target.target_type == "checkerboard" and len(det) == target.n_corners:
         return True
-    # corners must span two dimensions of the board (not one row of tags)
+    # corners must span two dimensions of the board (not one row of tags or corners)
     r, c = np.divmod(det.ids, target.corner_cols)
     return len(np.unique(r)) >= 2 and len(np.unique(c)) >= 2
 

@@ -23,6 +23,21 @@ calibrate them like frames) but without a learned reconstruction:
 
 ``auto`` tries each on a few windows and keeps the one on which the target detector finds the
 most corners (ties: the order above); the method used is reported.
+
+Checkerboard corners found in a reconstructed frame are then refined from the events themselves
+(:func:`refine_xcorners`, on by default): a frame carries the reconstruction's errors (the
+contrast-threshold quantisation and the faded past), the events' timestamps do not.  The events
+near a corner, within a few milliseconds of the frame's instant, are moved back along the corner's
+image velocity to that instant; they then lie along the two board edges through the corner, and
+the corner is the intersection of the two lines fitted to them.  Each edge line runs through both
+sides of the X-junction, whose dark and bright sides swap at the corner: the events' offset
+towards the dark side of an edge (a DVS fires more often where the log intensity is steep)
+cancels between the two halves.  The pixels' hysteresis would still leave the lines behind the
+motion (about 0.2 px with the simulator's 0.7 px blur): a pixel fires its first event of a
+transition one full contrast step after the level it stopped at, so every run of same-polarity
+events lacks its starting level.  Dropping the last event of every run makes the levels of rising
+and falling runs alike, and the lag goes (0.19 -> 0.002 px on an analytic moving checkerboard
+through the simulator's pixel model, ``tests/calib/test_calib_events_refine.py``).
 """
 
 from __future__ import annotations
@@ -54,6 +69,7 @@ __all__ = [
     "event_frame_loader",
     "event_set_frames",
     "read_event_window",
+    "refine_xcorners",
 ]
 
 RECONSTRUCTIONS = ("log-intensity", "accumulate-signed", "accumulate", "time-surface")
@@ -68,6 +84,12 @@ BACKWARD_BLOCK_BYTES = 64 << 20
 TIME_SURFACE_TAU_NS = 10_000_000
 #: nominal contrast threshold (CARLA's and the paper's 0.3) when only the ratio is known
 NOMINAL_CONTRAST = 0.3
+#: corner refinement from events: the events used span the time the corner takes to move this far
+REFINE_MOVE_PX = 3.0
+#: ... within these bounds around the frame's instant [ns]
+REFINE_HALF_WINDOW_NS = (2_000_000, 50_000_000)
+#: a refined view keeps only its refined corners; with fewer it is dropped
+REFINE_MIN_CORNERS = 8
 
 ReadWindow = Callable[[int], Events | None]
 
@@ -155,13 +177,17 @@ class EventFrameSource:
         than ``max_board_noise_px`` RMS (:func:`board_noise_px`) is returned blank (uniform grey)
         and counted in ``frames_rejected``: a reconstruction smeared by the past and future of a
         slowly moving board would bring its corner noise into the calibration.
+    refine
+        :meth:`refine_detections` refines checkerboard corners from the events (the
+        calibration's detection calls it); False keeps the frames' corners.
     """
 
     def __init__(self, read_window: ReadWindow, windows_ns: npt.ArrayLike, sensor_size: tuple[int, int],
                  method: str, *, tau_s: float = DEFAULT_TAU_S,
                  contrast: tuple[float, float] = (NOMINAL_CONTRAST, NOMINAL_CONTRAST),
                  bidirectional: bool = True, target: CalibrationTarget | None = None,
-                 max_board_noise_px: float | None = None, cache_frames: int = 8) -> None:
+                 max_board_noise_px: float | None = None, cache_frames: int = 8,
+                 refine: bool = True) -> None:
         if method not in RECONSTRUCTIONS:
             raise IbiscapeError(f"reconstruction {method!r}: use one of {', '.join(RECONSTRUCTIONS)}")
         if not (np.isfinite(tau_s) and tau_s > 0):
@@ -175,6 +201,7 @@ class EventFrameSource:
         self.tau_s = float(tau_s)
         self.contrast = (float(contrast[0]), float(contrast[1]))
         self.bidirectional = bool(bidirectional)
+        self.refine = bool(refine)
         if max_board_noise_px is not None and not (np.isfinite(max_board_noise_px) and max_board_noise_px > 0):
             raise IbiscapeError(f"max_board_noise_px must be > 0, got {max_board_noise_px}")
         self.target = target
@@ -202,6 +229,7 @@ class EventFrameSource:
                      bidirectional=self.bidirectional)
         if self.target is not None and self.max_board_noise_px is not None:
             d["max_board_noise_px"] = self.max_board_noise_px
+        d["refine_corners"] = "events" if self.refine else "none"
         return d
 
     def _read(self, i: int) -> Events | None:
@@ -226,6 +254,83 @@ class EventFrameSource:
             while len(self._cache) > self._cache_frames:
                 self._cache.popitem(last=False)
             return frame
+
+    def events_around(self, t_ns: int, half_ns: int) -> Events:
+        """The events of every window overlapping ``t_ns +- half_ns`` (unreadable ones skipped)."""
+        win = self.windows_ns
+        a = int(np.searchsorted(win[:, 1], int(t_ns) - int(half_ns), side="right"))
+        b = int(np.searchsorted(win[:, 0], int(t_ns) + int(half_ns), side="left"))
+        parts = [ev for ev in (self.read_window(i) for i in range(a, min(b + 1, len(win)))) if ev is not None]
+        return Events.concatenate(parts) if parts else Events.empty()
+
+    def refine_detections(self, target: CalibrationTarget, frames: Sequence[int | None],
+                          detections: Sequence[Any]) -> tuple[list[Any], dict[str, Any]]:
+        """Checkerboard detections in this source's frames refined from the events
+        (:func:`refine_xcorners`); other targets, and sources built with ``refine=False``, are
+        returned unchanged.
+
+        ``frames[j]`` is the window index of ``detections[j]`` (a
+        :class:`~ibiscape_eval.calib.detect.Detection` or None), in increasing order.  A corner's
+        velocity comes from its positions in the nearest detections before and after (within
+        0.3 s).  A view keeps only its refined corners, and is dropped (None) with fewer than
+        :data:`REFINE_MIN_CORNERS`.  Returns the detections and ``{corners_detected,
+        corners_refined, views_detected, views_kept}``.
+        """
+        import cv2
+
+        from .detect import Detection
+
+        dets = list(detections)
+        n_det = sum(len(d) for d in dets if d is not None)
+        stats: dict[str, Any] = {"corners_detected": n_det, "corners_refined": n_det,
+                                 "views_detected": sum(d is not None for d in dets)}
+        if not self.refine or target.target_type != "checkerboard":
+            stats["views_kept"] = stats["views_detected"]
+            stats["method"] = "none"
+            return dets, stats
+        obj = target.object_points()[:, :2]
+        step = np.array([target.spacing_x_m, target.spacing_y_m])
+        t_of = [None if f is None else int(self.windows_ns[int(f), 1]) for f in frames]
+        pos: list[dict[int, npt.NDArray[np.float64]]] = [
+            {} if d is None else dict(zip(d.ids.tolist(), d.corners_px, strict=True)) for d in dets]
+        max_gap_ns = 300_000_000
+        out: list[Any] = []
+        n_ref = 0
+        for j, det in enumerate(dets):
+            t = t_of[j]
+            if det is None or t is None or len(det) < 4:
+                out.append(None if det is None or len(det) < 4 else det)
+                continue
+            near = [q for q in (j - 1, j + 1) if 0 <= q < len(dets) and t_of[q] is not None
+                    and dets[q] is not None and abs(int(t_of[q]) - t) <= max_gap_ns]  # type: ignore[arg-type]
+            vel = np.full((len(det), 2), np.nan)
+            for k, cid in enumerate(det.ids.tolist()):
+                have = [q for q in near if cid in pos[q]]
+                if len(have) == 2:
+                    q0, q1 = have
+                    vel[k] = (pos[q1][cid] - pos[q0][cid]) / ((t_of[q1] - t_of[q0]) * 1e-9)  # type: ignore[operator]
+                elif len(have) == 1:
+                    q = have[0]
+                    vel[k] = (pos[q][cid] - det.corners_px[k]) / ((t_of[q] - t) * 1e-9)  # type: ignore[operator]
+            H, _ = cv2.findHomography(obj[det.ids], det.corners_px, 0)
+            if H is None:
+                out.append(None)
+                continue
+            P = obj[det.ids]
+            ex, ey = np.array([step[0], 0.0]), np.array([0.0, step[1]])
+            ends = np.concatenate([P + ex, P - ex, P + ey, P - ey])
+            q = cv2.perspectiveTransform(ends[None], H)[0].reshape(4, len(P), 2)
+            dirs = np.stack([q[0] - q[1], q[2] - q[3]], axis=1)  # two squares along each line
+            square = 0.5 * np.minimum(np.hypot(*dirs[:, 0].T), np.hypot(*dirs[:, 1].T))
+            # a margin beyond the events used, so that the last event of a run is known as such
+            ev = self.events_around(t, REFINE_HALF_WINDOW_NS[1] + 20_000_000)
+            refined = refine_xcorners(ev, t, det.corners_px, vel, dirs, square)
+            ok = np.isfinite(refined[:, 0])
+            n_ref += int(ok.sum())
+            out.append(Detection(det.ids[ok], refined[ok], det.image_size)
+                       if ok.sum() >= REFINE_MIN_CORNERS else None)
+        stats.update(corners_refined=n_ref, views_kept=sum(d is not None for d in out), method="events")
+        return out, stats
 
     def _screen(self, frame: npt.NDArray[np.uint8]) -> npt.NDArray[np.uint8]:
         from .detect import detect_corners
@@ -408,6 +513,7 @@ def event_set_frames(paths: Sequence[str | Path], windows_ns: npt.ArrayLike,
                      camera_doc: Mapping[str, Any] | None = None,
                      max_board_noise_px: float | None = None,
                      bidirectional: bool = True,
+                     refine: bool = True,
                      ) -> tuple[EventFrameSource, dict[str, Any]]:
     """Frames of one DVS folder (its ``.npz`` windows) for the calibration, and what was used.
 
@@ -416,7 +522,8 @@ def event_set_frames(paths: Sequence[str | Path], windows_ns: npt.ArrayLike,
     ``reconstruction="auto"`` picks the method that finds the target; ``max_board_noise_px``
     blanks frames whose corners are noisier than that (see :class:`EventFrameSource`);
     ``bidirectional=False`` keeps log-intensity frames causal (the camera-IMU calibration needs the
-    instant a frame shows).  Returns the frame source and ``{method, options..., contrast_from}``
+    instant a frame shows); ``refine=False`` keeps the frames' checkerboard corners instead of
+    refining them from the events.  Returns the frame source and ``{method, options..., contrast_from}``
     for the report.
     """
     import warnings
@@ -442,6 +549,123 @@ def event_set_frames(paths: Sequence[str | Path], windows_ns: npt.ArrayLike,
                                               contrast=contrast)
     source = event_frame_loader(read_window, windows_ns, sensor_size, method, contrast=contrast,
                                 target=target, max_board_noise_px=max_board_noise_px,
-                                bidirectional=bidirectional)
+                                bidirectional=bidirectional, refine=refine)
     return source, {**source.describe(), **probe,
                     "contrast_from": "sequence.yaml" if given else "polarity balance"}
+
+
+def _fit_xcorner(xy: npt.NDArray[np.float64], c: npt.NDArray[np.float64], d1: npt.NDArray[np.float64],
+                 d2: npt.NDArray[np.float64], square_px: float) -> npt.NDArray[np.float64] | None:
+    """The X-junction ``c`` of two lines (initial directions ``d1``, ``d2``) fitted to the
+    motion-compensated event positions ``xy`` (N, 2); None when the events do not support it."""
+    for _ in range(3):
+        r = xy - c
+        dist = np.hypot(r[:, 0], r[:, 1])
+        near = (dist > 1.0) & (dist < 0.7 * square_px)  # off the junction itself, before the next
+        e1 = np.abs(r @ np.array([-d1[1], d1[0]]))
+        e2 = np.abs(r @ np.array([-d2[1], d2[0]]))
+        normals, offsets = [], []
+        for d, own, other in ((d1, e1, e2), (d2, e2, e1)):
+            s = near & (own < other) & (own < 2.0)
+            p = xy[s]
+            ahead = (p - c) @ d > 0
+            n_a, n_b = int(ahead.sum()), int((~ahead).sum())
+            if n_a < 6 or n_b < 6:
+                return None
+            # both halves of the edge weigh the same: their offsets towards the dark side cancel
+            w = np.where(ahead, 1.0 / n_a, 1.0 / n_b)
+            mu = w @ p / w.sum()
+            q = p - mu
+            cov = (q.T * w) @ q / w.sum()
+            nrm = np.linalg.eigh(cov)[1][:, 0]
+            normals.append(nrm)
+            offsets.append(float(nrm @ mu))
+        A = np.array(normals)
+        if abs(np.linalg.det(A)) < 0.2:  # lines closer than ~12 deg: no junction
+            return None
+        c_new = np.linalg.solve(A, np.array(offsets))
+        if not np.all(np.isfinite(c_new)) or np.hypot(*(c_new - c)) > 3.0:
+            return None
+        d1 = np.array([-normals[0][1], normals[0][0]])
+        d2 = np.array([-normals[1][1], normals[1][0]])
+        c = c_new
+    return c
+
+
+def _run_ends(events: Events) -> npt.NDArray[np.bool_]:
+    """The last event of every run of same-polarity events of a pixel (followed by an event of the
+    other polarity, or by none in ``events``)."""
+    pix = events.y.astype(np.int64) * (int(events.x.max()) + 1) + events.x
+    order = np.lexsort((events.t_ns, pix))
+    p_s, pol_s = pix[order], events.p[order]
+    end_s = np.ones(len(order), bool)
+    end_s[:-1] = (p_s[1:] != p_s[:-1]) | (pol_s[1:] != pol_s[:-1])
+    out = np.empty(len(order), bool)
+    out[order] = end_s
+    return out
+
+
+def refine_xcorners(events: Events, t_ns: int, corners_px: npt.ArrayLike, velocity_px_s: npt.ArrayLike,
+                    directions: npt.ArrayLike, square_px: npt.ArrayLike, *,
+                    move_px: float = REFINE_MOVE_PX,
+                    half_window_ns: tuple[int, int] = REFINE_HALF_WINDOW_NS,
+                    drop_run_ends: bool = True) -> npt.NDArray[np.float64]:
+    """Checkerboard corners at ``t_ns`` from the events around them (X-junction line fits).
+
+    Parameters
+    ----------
+    events
+        Events covering ``t_ns +- half_window_ns[1]`` (more are ignored).
+    t_ns
+        The instant the corners are wanted at.
+    corners_px : (K, 2)
+        First estimates (e.g. from a reconstructed frame), within ~1 px.
+    velocity_px_s : (K, 2)
+        Image velocity of each corner [px/s] (from the neighbouring frames).
+    directions : (K, 2, 2)
+        Image directions of the board's two edge lines through each corner (unit or not).
+    square_px : (K,)
+        Local square size [px]: events farther than 0.7 of it are not used.
+
+    Returns
+    -------
+    ndarray (K, 2)
+        The refined corners; NaN where the events do not support a fit (too few: the board moved
+        less than ~1 px in ``half_window_ns[1]``, or an edge line parallel to the motion).
+
+    Each corner uses the events of ``t_ns +- clip(move_px / |v|, *half_window_ns)``, moved back to
+    ``t_ns`` along ``v`` (pixel centres at integer coordinates).  ``drop_run_ends`` leaves out the
+    last event of every pixel's run of same-polarity events (see the module docstring): give
+    ``events`` a little beyond the window, so that the runs' ends are known.
+    """
+    uv = np.asarray(corners_px, np.float64).reshape(-1, 2)
+    vel = np.asarray(velocity_px_s, np.float64).reshape(-1, 2)
+    dirs = np.asarray(directions, np.float64).reshape(-1, 2, 2)
+    sq = np.asarray(square_px, np.float64).reshape(-1)
+    out = np.full_like(uv, np.nan)
+    if len(events) == 0 or len(uv) == 0:
+        return out
+    dt_all = (events.t_ns - int(t_ns)).astype(np.float64) * 1e-9
+    keep = np.abs(dt_all) <= half_window_ns[1] * 1e-9
+    if drop_run_ends:
+        keep &= ~_run_ends(events)
+    ex = events.x[keep].astype(np.float64)
+    ey = events.y[keep].astype(np.float64)
+    dt_all = dt_all[keep]
+    speed = np.hypot(vel[:, 0], vel[:, 1])
+    half = np.clip(move_px / np.maximum(speed, 1e-9), half_window_ns[0] * 1e-9, half_window_ns[1] * 1e-9)
+    for k in range(len(uv)):  # ~0.3 ms per corner; the events of one corner are few
+        if not (np.all(np.isfinite(uv[k])) and np.all(np.isfinite(vel[k])) and sq[k] > 4.0):
+            continue
+        reach = 0.7 * sq[k] + speed[k] * half[k] + 1.0
+        m = ((np.abs(dt_all) <= half[k]) & (np.abs(ex - uv[k, 0]) <= reach)
+             & (np.abs(ey - uv[k, 1]) <= reach))
+        if np.count_nonzero(m) < 24:
+            continue
+        dt = dt_all[m]
+        xy = np.stack([ex[m] - vel[k, 0] * dt, ey[m] - vel[k, 1] * dt], axis=1)
+        d1, d2 = (dirs[k, j] / max(np.hypot(*dirs[k, j]), 1e-12) for j in (0, 1))
+        c = _fit_xcorner(xy, uv[k].copy(), d1, d2, float(sq[k]))
+        if c is not None:
+            out[k] = c
+    return out

@@ -162,6 +162,11 @@ def detect_frames(target: CalibrationTarget, cameras: Sequence[CameraFrames],
         bad[k] += int(unreadable)
         if unreadable and first_bad[k] is None:
             first_bad[k] = i
+    refined: dict[str, Any] = {}
+    for k, cam in enumerate(cameras):  # event cameras: corners refined from the events themselves
+        refine = getattr(cam.load, "refine_detections", None)
+        if refine is not None and any(d is not None for d in dets[k]):
+            dets[k], refined[cam.name] = refine(target, [views[v][k] for v in picked], dets[k])
     obs = []
     for k, cam in enumerate(cameras):
         if len(sizes[k]) > 1:
@@ -189,17 +194,27 @@ def detect_frames(target: CalibrationTarget, cameras: Sequence[CameraFrames],
         size = next(iter(sizes[k]))
         obs.append(Observations(cam.name, size, dets[k]))
     return DetectionSummary(tuple(obs), tuple(picked), tuple(tried), tuple(bad),
-                            tuple(sum(d is not None for d in dets[k]) for k in range(n_cam)))
+                            tuple(sum(d is not None for d in dets[k]) for k in range(n_cam)),
+                            {"event_corner_refinement": refined} if refined else {})
 
 
 def calibrate_frames(target: CalibrationTarget, summary: DetectionSummary, *, model: str = "pinhole-radtan",
                      max_views: int = 60, outlier_sigma: float = 5.0,
                      progress: Callable[[str], Any] | None = None) -> CalibrationResult:
-    """Select informative views among the detections and calibrate the chain."""
+    """Select informative views among the detections and calibrate the chain.
+
+    Checkerboard views of event cameras whose corners were refined from the events keep only the
+    refined corners: they count with :data:`~ibiscape_eval.calib.events.REFINE_MIN_CORNERS` corners
+    or more, instead of the whole board."""
+    from .events import REFINE_MIN_CORNERS
+
     obs = summary.observations
     chosen = select_views([list(o.detections) for o in obs], max_views)
     sub = [Observations(o.name, o.image_size, [o.detections[v] for v in chosen]) for o in obs]
-    res = calibrate(target, sub, model=model, outlier_sigma=outlier_sigma, progress=progress)
+    refined = summary.extra.get("event_corner_refinement") or {}
+    partial = any(r.get("method") == "events" for r in refined.values())
+    res = calibrate(target, sub, model=model, outlier_sigma=outlier_sigma, progress=progress,
+                    min_corners=REFINE_MIN_CORNERS if partial else None)
     frames = [summary.views[chosen[i]] for i in res.view_ids]
     extra = {"views_detected": len(summary.views), "views_selected": len(chosen),
              "view_rows_used": frames}
