@@ -88,6 +88,8 @@ NOMINAL_CONTRAST = 0.3
 REFINE_MOVE_PX = 3.0
 #: ... within these bounds around the frame's instant [ns]
 REFINE_HALF_WINDOW_NS = (2_000_000, 50_000_000)
+#: a refined corner whose edge lines' offsets are less certain than this [px] is dropped
+REFINE_MAX_SIGMA_PX = 0.1
 #: a refined view keeps only its refined corners; with fewer it is dropped
 REFINE_MIN_CORNERS = 8
 
@@ -554,42 +556,65 @@ def event_set_frames(paths: Sequence[str | Path], windows_ns: npt.ArrayLike,
                     "contrast_from": "sequence.yaml" if given else "polarity balance"}
 
 
-def _fit_xcorner(xy: npt.NDArray[np.float64], c: npt.NDArray[np.float64], d1: npt.NDArray[np.float64],
-                 d2: npt.NDArray[np.float64], square_px: float) -> npt.NDArray[np.float64] | None:
-    """The X-junction ``c`` of two lines (initial directions ``d1``, ``d2``) fitted to the
-    motion-compensated event positions ``xy`` (N, 2); None when the events do not support it."""
-    for _ in range(3):
+def _fit_xcorner(xy: npt.NDArray[np.float64], dt: npt.NDArray[np.float64], c: npt.NDArray[np.float64],
+                 d1: npt.NDArray[np.float64], d2: npt.NDArray[np.float64],
+                 square_px: float) -> tuple[npt.NDArray[np.float64], float] | None:
+    """The X-junction ``c`` at ``dt = 0`` of two edge lines (initial directions ``d1``, ``d2``)
+    fitted to the motion-compensated event positions ``xy`` (N, 2) at times ``dt`` [s] from the
+    frame; None when the events do not support it.
+
+    Each line is a surface in space-time: its offset along its normal is ``b + s dt + q dt^2``,
+    so that an error of the given velocity across the line (``s``) and the acceleration (``q``)
+    are fitted, not smeared into the line.  Also returns the larger standard error [px] of the
+    two lines' offsets ``b`` (from the fit's residuals)."""
+    dirs = [d1, d2]
+    motion = [np.zeros(3), np.zeros(3)]  # (b, s, q) of each line: only s, q are used to assign
+    T = np.stack([np.ones_like(dt), dt, dt * dt], axis=1)
+    sigma = np.inf
+    for _ in range(4):
         r = xy - c
         dist = np.hypot(r[:, 0], r[:, 1])
         near = (dist > 1.0) & (dist < 0.7 * square_px)  # off the junction itself, before the next
-        e1 = np.abs(r @ np.array([-d1[1], d1[0]]))
-        e2 = np.abs(r @ np.array([-d2[1], d2[0]]))
-        normals, offsets = [], []
-        for d, own, other in ((d1, e1, e2), (d2, e2, e1)):
-            s = near & (own < other) & (own < 2.0)
-            p = xy[s]
-            ahead = (p - c) @ d > 0
+        normals = [np.array([-d[1], d[0]]) for d in dirs]
+        res = [np.abs(r @ n - T[:, 1:] @ m[1:]) for n, m in zip(normals, motion, strict=True)]
+        normals_new, offsets, sig = [], [], []
+        for j in (0, 1):
+            sel = near & (res[j] < res[1 - j]) & (res[j] < 2.0)
+            ahead = r[sel] @ dirs[j] > 0
             n_a, n_b = int(ahead.sum()), int((~ahead).sum())
             if n_a < 6 or n_b < 6:
                 return None
             # both halves of the edge weigh the same: their offsets towards the dark side cancel
             w = np.where(ahead, 1.0 / n_a, 1.0 / n_b)
+            p = xy[sel] - np.outer(T[sel, 1:] @ motion[j][1:], normals[j])  # moved to dt = 0
             mu = w @ p / w.sum()
             q = p - mu
-            cov = (q.T * w) @ q / w.sum()
-            nrm = np.linalg.eigh(cov)[1][:, 0]
-            normals.append(nrm)
-            offsets.append(float(nrm @ mu))
-        A = np.array(normals)
+            nrm = np.linalg.eigh((q.T * w) @ q / w.sum())[1][:, 0]
+            sw = np.sqrt(w)
+            A_w = T[sel] * sw[:, None]
+            coef = np.linalg.lstsq(A_w, (xy[sel] @ nrm) * sw, rcond=None)[0]
+            motion[j] = coef
+            # standard error of b: weights scaled to mean 1 (each event one observation)
+            wn = w * (len(w) / w.sum())
+            e = xy[sel] @ nrm - T[sel] @ coef
+            dof = max(len(w) - 3, 1)
+            try:
+                cov = np.linalg.inv((T[sel].T * wn) @ T[sel]) * (wn @ (e * e) / dof)
+            except np.linalg.LinAlgError:
+                return None
+            sig.append(float(np.sqrt(max(cov[0, 0], 0.0))))
+            normals_new.append(nrm)
+            offsets.append(float(coef[0]))
+        A = np.array(normals_new)
         if abs(np.linalg.det(A)) < 0.2:  # lines closer than ~12 deg: no junction
             return None
         c_new = np.linalg.solve(A, np.array(offsets))
         if not np.all(np.isfinite(c_new)) or np.hypot(*(c_new - c)) > 3.0:
             return None
-        d1 = np.array([-normals[0][1], normals[0][0]])
-        d2 = np.array([-normals[1][1], normals[1][0]])
+        dirs = [np.array([-n[1], n[0]]) for n in normals_new]
         c = c_new
-    return c
+        sigma = max(sig)
+    return c, sigma
 
 
 def _run_ends(events: Events) -> npt.NDArray[np.bool_]:
@@ -609,7 +634,8 @@ def refine_xcorners(events: Events, t_ns: int, corners_px: npt.ArrayLike, veloci
                     directions: npt.ArrayLike, square_px: npt.ArrayLike, *,
                     move_px: float = REFINE_MOVE_PX,
                     half_window_ns: tuple[int, int] = REFINE_HALF_WINDOW_NS,
-                    drop_run_ends: bool = True) -> npt.NDArray[np.float64]:
+                    drop_run_ends: bool = True,
+                    max_sigma_px: float = REFINE_MAX_SIGMA_PX) -> npt.NDArray[np.float64]:
     """Checkerboard corners at ``t_ns`` from the events around them (X-junction line fits).
 
     Parameters
@@ -665,7 +691,7 @@ def refine_xcorners(events: Events, t_ns: int, corners_px: npt.ArrayLike, veloci
         dt = dt_all[m]
         xy = np.stack([ex[m] - vel[k, 0] * dt, ey[m] - vel[k, 1] * dt], axis=1)
         d1, d2 = (dirs[k, j] / max(np.hypot(*dirs[k, j]), 1e-12) for j in (0, 1))
-        c = _fit_xcorner(xy, uv[k].copy(), d1, d2, float(sq[k]))
-        if c is not None:
-            out[k] = c
+        fit = _fit_xcorner(xy, dt, uv[k].copy(), d1, d2, float(sq[k]))
+        if fit is not None and fit[1] <= max_sigma_px:
+            out[k] = fit[0]
     return out

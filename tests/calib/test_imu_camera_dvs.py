@@ -124,7 +124,9 @@ def test_four_cameras_in_one_problem(solved):
     det = {d["name"]: d for d in res.detection["cameras"]}
     for n in ("davisL", "davisR"):
         assert det[n]["reconstruction"]["method"] == "log-intensity"
-        assert det[n]["frames_with_target"] >= 40
+        # views whose corners were refined from the events (at 160 px a square spans ~8 px: the
+        # board must move a few pixels for its edges to fire; the frames found it in >= 40)
+        assert det[n]["frames_with_target"] >= 15
     for n in ("rgbL", "rgbR"):
         assert "reconstruction" not in det[n]
     # the true offset of every camera is known: a DVS frame stamped at its window's middle would be
@@ -149,14 +151,14 @@ def test_event_cameras_do_not_bend_the_frame_cameras(solved):
         assert e[n]["translation_error_m"] < 0.25, (n, e[n])
 
 
-def test_poor_event_frames_are_named(solved):
-    """The reconstructed frames are noisier than the RGB frames: the result says which cameras,
-    and their std is larger than the RGB cameras'."""
-    noisy = [w for w in solved.result.warnings if "reprojection error" in w]
-    assert any("davisL" in w for w in noisy) and any("davisR" in w for w in noisy)
-    assert not any("rgbL" in w or "rgbR" in w for w in noisy)
+def test_event_cameras_are_weighed_by_their_noise(solved):
+    """The event cameras' corners (refined from the events) are still noisier than the RGB
+    cameras' at twice the resolution (0.17-0.21 px against 0.14 px; the frames' corners were
+    ~3x and named as poor), and their std is larger; the RGB cameras are never named."""
     cams = {c.name: c for c in solved.result.cameras}
-    assert cams["davisL"].reprojection_rms_px > 1.5 * cams["rgbL"].reprojection_rms_px
-    assert cams["davisL"].rotation_std_deg.max() > cams["rgbL"].rotation_std_deg.max()
+    noisy = [w for w in solved.result.warnings if "reprojection error" in w]
+    assert not any("rgbL" in w or "rgbR" in w for w in noisy)
+    assert cams["davisL"].reprojection_rms_px > 1.2 * cams["rgbL"].reprojection_rms_px
+    assert cams["davisL"].rotation_std_deg.max() > 2 * cams["rgbL"].rotation_std_deg.max()
     doc = solved.to_dict()
     assert {c["name"] for c in doc["camera_calibration"]["cameras"]} == {"rgbL", "rgbR", "davisL", "davisR"}
