@@ -27,7 +27,7 @@ from .framelists import ns_number, read_stamped_rows
 from .paths import check_input, safe_yaml
 
 __all__ = ["read_euroc_sensor_yaml", "read_frame_list", "read_gray_image", "read_imu_samples",
-           "read_kalibr_camchain"]
+           "read_kalibr_camchain", "rigid_transform_problem"]
 
 
 def read_frame_list(path: str | os.PathLike[str]) -> tuple[npt.NDArray[np.int64], list[str]]:
@@ -151,7 +151,32 @@ def _matrix(path: str | os.PathLike[str], value: Any, key: str) -> npt.NDArray[n
         raise FormatError(path, f"{key} must be a 4x4 matrix (16 numbers)") from None
     if not np.isfinite(T).all() or not np.allclose(T[3], [0, 0, 0, 1]):
         raise FormatError(path, f"{key} must be a finite homogeneous 4x4 matrix")
+    problem = rigid_transform_problem(T)
+    if problem:
+        raise FormatError(path, f"{key}: {problem}; fix the calibration file")
     return T
+
+
+#: the largest lever arm [m] accepted between two sensors of one rig
+MAX_LEVER_ARM_M = 1000.0
+
+
+def rigid_transform_problem(T: npt.NDArray[np.float64]) -> str | None:
+    """What is wrong with a 4x4 rigid transform (None if it is one): finite, last row
+    ``0 0 0 1``, an orthonormal rotation with determinant +1 (to 1e-5) and a translation shorter
+    than :data:`MAX_LEVER_ARM_M`."""
+    T = np.asarray(T, dtype=np.float64)
+    if T.shape != (4, 4) or not np.isfinite(T).all() or not np.allclose(T[3], [0, 0, 0, 1]):
+        return "must be a finite homogeneous 4x4 matrix (last row 0 0 0 1)"
+    R, t = T[:3, :3], T[:3, 3]
+    if np.abs(R).max() > 1.0 + 1e-5:  # also keeps R @ R.T below from overflowing
+        return "the rotation part is not a rotation matrix (orthonormal, determinant +1)"
+    if not np.allclose(R @ R.T, np.eye(3), atol=1e-5) or np.linalg.det(R) < 0:
+        return "the rotation part is not a rotation matrix (orthonormal, determinant +1)"
+    if np.abs(t).max() > MAX_LEVER_ARM_M:  # the max norm: no overflow on huge entries
+        return (f"translation ({', '.join(f'{v:.3g}' for v in t)}) m reaches beyond "
+                f"{MAX_LEVER_ARM_M:g} m")
+    return None
 
 
 def read_kalibr_camchain(path: str | os.PathLike[str]) -> dict[str, dict[str, Any]]:

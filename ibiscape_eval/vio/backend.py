@@ -164,7 +164,7 @@ class Backend:
 
         bias = gtsam.imuBias.ConstantBias()
         if self.k >= 0:
-            st = self.states[self.k]
+            st = self.latest()
             bias = gtsam.imuBias.ConstantBias(st.bias_acc_m_s2, st.bias_gyro_rad_s)
         return gtsam.PreintegratedCombinedMeasurements(self.imu_params, bias)
 
@@ -212,7 +212,7 @@ class Backend:
         """The latest keyframe state propagated through ``pim`` (IMU only)."""
         import gtsam
 
-        st = self.states[self.k]
+        st = self.latest()
         nav = gtsam.NavState(gtsam.Rot3(st.T_world_body[:3, :3]), st.T_world_body[:3, 3],
                              st.vel_m_s)
         bias = gtsam.imuBias.ConstantBias(st.bias_acc_m_s2, st.bias_gyro_rad_s)
@@ -248,7 +248,11 @@ class Backend:
 
     def latest(self) -> KeyframeState:
         """The newest keyframe's estimate."""
-        return self.states[self.k]
+        st = self.states.get(self.k)
+        if st is None:
+            # the smoother dropped the newest keyframe (a numerically broken graph)
+            raise RuntimeError(f"the smoother has no estimate of keyframe {self.k}")
+        return st
 
     # ------------------------------------------------------------------------------ helpers
     def _stamps(self, d: dict[int, float]) -> Any:

@@ -146,10 +146,11 @@ def _load_ibiscape(p: Path, calib: Any, imu_yaml: Any, require_images: bool) -> 
             raise CalibrationError(f"{p}: no calibration (sequence.yaml has no cameras); give "
                                    "--calib camchain-imucam.yaml")
         left_name, right_name = _stereo_names(p, cams)
-        rig = StereoRig(_camera(cams[left_name], p / "sequence.yaml", left_name),
-                        _camera(cams[right_name], p / "sequence.yaml", right_name),
-                        _T(cams[left_name], "T_body_cam", p / "sequence.yaml"),
-                        _T(cams[right_name], "T_body_cam", p / "sequence.yaml"))
+        rig = _checked_rig(p / "sequence.yaml",
+                           _camera(cams[left_name], p / "sequence.yaml", left_name),
+                           _camera(cams[right_name], p / "sequence.yaml", right_name),
+                           _T(cams[left_name], "T_body_cam", p / "sequence.yaml", left_name),
+                           _T(cams[right_name], "T_body_cam", p / "sequence.yaml", right_name))
     # IMU
     imu_file = p / str(imu_entry.get("file", "")) if imu_entry.get("file") else None
     if imu_file is None or not imu_file.is_file():
@@ -159,8 +160,8 @@ def _load_ibiscape(p: Path, calib: Any, imu_yaml: Any, require_images: bool) -> 
         imu_file = cands[0]
     stamps, gyro, acc = read_imu_samples(
         imu_file, fmt="ibiscape" if (p / "vehicle_gt").is_dir() else "euroc")
-    T_body_imu = (np.asarray(imu_entry["T_body_imu"], dtype=float) if "T_body_imu" in imu_entry
-                  else np.eye(4))
+    T_body_imu = (_T(imu_entry, "T_body_imu", p / "sequence.yaml", "imus")
+                  if "T_body_imu" in imu_entry else np.eye(4))
     if imu_yaml is not None:
         noise = ImuNoiseDensities.from_kalibr(read_kalibr_imu_yaml(imu_yaml), where=str(imu_yaml))
     elif imu_entry:
@@ -193,22 +194,68 @@ def _stereo_folders(p: Path, cams: dict[str, Any]) -> tuple[str, str]:
     return "rgbL", "rgbR"
 
 
-def _T(entry: Any, key: str, where: Path) -> FloatArray:
+def _T(entry: Any, key: str, where: Path, name: str) -> FloatArray:
+    from ibiscape_eval.io.stereo import rigid_transform_problem
+
     if not isinstance(entry, dict) or key not in entry:
-        raise CalibrationError(f"{where}: camera entry lacks {key}; give --calib")
-    T = np.asarray(entry[key], dtype=float)
-    if T.shape != (4, 4):
-        raise CalibrationError(f"{where}: {key} must be 4x4")
+        raise CalibrationError(f"{where}: {name} lacks {key}; give --calib")
+    try:
+        T = np.asarray(entry[key], dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        T = np.zeros(0)
+    problem = ("must be a 4x4 matrix of numbers" if T.shape != (4, 4)
+               else rigid_transform_problem(T))
+    if problem:
+        raise CalibrationError(f"{where}: {name}.{key} {problem}; fix it or give --calib")
     return T
+
+
+#: the largest image side [px] and distortion coefficient magnitude a calibration may give
+MAX_IMAGE_SIDE_PX = 100_000
+MAX_DISTORTION_COEFF = 100.0
+
+
+def _camera_range_problem(cam: CameraModel) -> str | None:
+    w, h = cam.width_px, cam.height_px
+    if max(w, h) > MAX_IMAGE_SIDE_PX:
+        return f"resolution {w}x{h} px is larger than {MAX_IMAGE_SIDE_PX} px a side"
+    if not (cam.fx <= 100 * max(w, h) and cam.fy <= 100 * max(w, h)):
+        return (f"focal lengths {cam.fx:.6g}, {cam.fy:.6g} px exceed 100 x the image side "
+                f"({max(w, h)} px)")
+    if not (-w <= cam.cx <= 2 * w and -h <= cam.cy <= 2 * h):
+        return f"principal point ({cam.cx:.6g}, {cam.cy:.6g}) px lies far outside the {w}x{h} image"
+    if any(abs(c) > MAX_DISTORTION_COEFF for c in cam.coeffs):
+        return f"distortion coefficients {list(cam.coeffs)} exceed {MAX_DISTORTION_COEFF:g}"
+    return None
+
+
+def _checked_rig(where: Path, left: CameraModel, right: CameraModel, T_body_left: FloatArray,
+                 T_body_right: FloatArray) -> StereoRig:
+    """The rig, rectified once here so that a degenerate calibration is refused naming its file."""
+    try:
+        rig = StereoRig(left, right, T_body_left, T_body_right)
+        rig.rectified()
+    except CalibrationError as e:
+        raise CalibrationError(f"{where}: {e}") from None
+    except Exception as e:  # cv2.error on a calibration OpenCV cannot rectify
+        if type(e).__module__.split(".")[0] != "cv2":
+            raise
+        raise CalibrationError(f"{where}: stereo rectification failed ({str(e).strip()[:80]}); "
+                               "check the intrinsics and the camera-to-camera transform") from None
+    return rig
 
 
 def _camera(entry: Any, where: Path, name: str) -> CameraModel:
     if not isinstance(entry, dict):
         raise CalibrationError(f"{where}: camera {name} is not a mapping")
     try:
-        return CameraModel.from_kalibr(entry)
-    except IbiscapeError as e:
+        cam = CameraModel.from_kalibr(entry)
+    except (IbiscapeError, OverflowError) as e:
         raise CalibrationError(f"{where}: camera {name}: {e}") from None
+    problem = _camera_range_problem(cam)
+    if problem:
+        raise CalibrationError(f"{where}: camera {name}: {problem}; fix the intrinsics")
+    return cam
 
 
 def _rig_from_camchain(calib: str | os.PathLike[str]) -> StereoRig:
@@ -230,10 +277,7 @@ def _rig_from_camchain(calib: str | os.PathLike[str]) -> StereoRig:
         raise CalibrationError(f"{calib}: cam1 lacks T_cam_imu and T_cn_cnm1")
     left = _camera(c0, Path(calib), "cam0")
     right = _camera(c1, Path(calib), "cam1")
-    try:
-        return StereoRig(left, right, T_b_c0, T_b_c1)
-    except CalibrationError as e:
-        raise CalibrationError(f"{calib}: {e}") from None
+    return _checked_rig(Path(calib), left, right, T_b_c0, T_b_c1)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -260,7 +304,8 @@ def _load_euroc(m: Path, calib: Any, imu_yaml: Any, require_images: bool) -> Ste
                      "distortion_model": model,
                      "distortion_coeffs": d.get("distortion_coefficients", [0.0] * 4)}
             cams.append((_camera(entry, f, c), d["T_BS"]))
-        rig = StereoRig(cams[0][0], cams[1][0], cams[0][1], cams[1][1])
+        rig = _checked_rig(m / "cam1" / "sensor.yaml", cams[0][0], cams[1][0], cams[0][1],
+                           cams[1][1])
     imu_file = m / "imu0" / "data.csv"
     stamps, gyro, acc = read_imu_samples(imu_file, fmt="euroc")
     T_body_imu = np.eye(4)

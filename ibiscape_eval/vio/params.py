@@ -47,18 +47,47 @@ class ImuNoiseDensities:
         if missing:
             raise IbiscapeError(f"{where}: missing IMU noise keys {', '.join(missing)}; give "
                                 "--imu imu.yaml (Kalibr format, from `ibiscape-eval allan`)")
-        try:
-            vals = [float(doc[k]) for k in keys]
-            rate = float(doc.get("update_rate", doc.get("rate_hz", 200.0)))
-        except (TypeError, ValueError):
-            raise IbiscapeError(f"{where}: IMU noise values must be numbers") from None
+        vals = []
+        for k in (*keys, "update_rate"):
+            raw = doc.get(k, doc.get("rate_hz", 200.0)) if k == "update_rate" else doc[k]
+            try:
+                v = float(raw)
+            except (TypeError, ValueError, OverflowError):
+                raise IbiscapeError(f"{where}: {k} = {raw!r} is not a number; give "
+                                    f"{_RANGE_HINT[k]}") from None
+            lo, hi = _RANGES[k]
+            # zero noise (ideal sequences) is floored below; negative, NaN, inf, huge are refused
+            if not (lo <= v <= hi) or (k == "update_rate" and v == 0.0):
+                raise IbiscapeError(f"{where}: {k} = {raw!r} is out of range; give "
+                                    f"{_RANGE_HINT[k]}")
+            vals.append(v)
         # Ideal (noise-free) sequences write zeros: keep GTSAM's information finite with a floor.
         floor = (1e-5, 1e-6, 1e-4, 1e-5)
-        vals = [max(v, f) for v, f in zip(vals, floor, strict=True)]
+        noise = [max(v, f) for v, f in zip(vals[:4], floor, strict=True)]
         try:
-            return cls(vals[0], vals[1], vals[2], vals[3], rate)
+            return cls(noise[0], noise[1], noise[2], noise[3], vals[4])
         except IbiscapeError as e:
             raise IbiscapeError(f"{where}: {e}") from None
+
+
+#: accepted ranges of the Kalibr IMU keys (far beyond any real IMU, tight enough to keep the
+#: smoother's information matrices well conditioned); zero noise means an ideal sensor
+_RANGES: dict[str, tuple[float, float]] = {
+    "gyroscope_noise_density": (0.0, 1.0),
+    "gyroscope_random_walk": (0.0, 1.0),
+    "accelerometer_noise_density": (0.0, 10.0),
+    "accelerometer_random_walk": (0.0, 10.0),
+    "update_rate": (0.0, 1e5),
+}
+_RANGE_HINT = {
+    "gyroscope_noise_density": "a number in [0, 1] rad/s/sqrt(Hz) (e.g. from `ibiscape-eval allan`)",
+    "gyroscope_random_walk": "a number in [0, 1] rad/s^2/sqrt(Hz) (e.g. from `ibiscape-eval allan`)",
+    "accelerometer_noise_density": "a number in [0, 10] m/s^2/sqrt(Hz) (e.g. from `ibiscape-eval "
+                                   "allan`)",
+    "accelerometer_random_walk": "a number in [0, 10] m/s^3/sqrt(Hz) (e.g. from `ibiscape-eval "
+                                 "allan`)",
+    "update_rate": "the IMU sample rate in Hz, in (0, 100000]",
+}
 
 
 @dataclass(frozen=True)

@@ -140,11 +140,15 @@ def run_vio(seq: StereoSequence, params: VioParams | None = None, *,
     ahead = {i: pool.submit(read, i) for i in range(min(4, n))}
     try:
         _loop(seq, p, n, fe, est, ahead, pool, read, times, tracked, t_start, progress)
+        est.finish()
+    except RuntimeError as e:
+        # GTSAM reports a singular system (IndeterminantLinearSystemException, "Indeterminate
+        # linear system ...") and other numerical failures as RuntimeError
+        raise DegenerateInputError(numerical_failure_message(seq.path, e)) from None
     finally:
         for f in ahead.values():
             f.cancel()
         pool.shutdown(wait=True)
-    est.finish()
     wall = time.perf_counter() - t_start
     cpu = time.process_time() - cpu_start
     traj = est.trajectory("vio")
@@ -161,6 +165,14 @@ def run_vio(seq: StereoSequence, params: VioParams | None = None, *,
                      cpu_realtime_factor=duration / cpu if cpu > 0 else float("inf"),
                      resets=est.backend.resets, params=p.to_dict())
     return VioResult(traj, stats)
+
+
+def numerical_failure_message(path: str, exc: BaseException) -> str:
+    """One line for a numerical failure of the estimator on the sequence at ``path``."""
+    first = next((ln.strip() for ln in str(exc).splitlines() if ln.strip()), type(exc).__name__)
+    return (f"{path}: the VIO estimator failed numerically ({first[:100]}); check the "
+            "calibration (T_cam_imu, T_body_imu, intrinsics) and the IMU noise densities "
+            "(--imu imu.yaml) of this sequence")
 
 
 def _loop(seq: StereoSequence, p: VioParams, n: int, fe: Any, est: Estimator, ahead: dict[int, Any],
