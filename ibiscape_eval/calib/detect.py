@@ -35,6 +35,7 @@ _SEARCH_WIDTH_PX = 800
 _ARUCO_TO_KALIBR = np.array([1, 0, 3, 2])
 #: event frames: AprilGrid tag candidates are searched on a copy upsampled this many times
 _EVENT_UPSAMPLE = 2
+_EVENT_MIN_HALF_PX = 2.0
 #: soft decoding of event frames: samples per tag cell of the warped candidate
 _SOFT_CELL_PX = 4
 #: a candidate is read as the board tag whose code correlates best with its cells, at least this
@@ -213,7 +214,7 @@ def _aprilgrid(gray: npt.NDArray[np.uint8], target: CalibrationTarget,
     # OpenCV's quad corners sit ~2 px off: the corner squares touch the tag's border and bend its
     # contour.  Refine in a window that stays inside the corner squares (tagSpacing * tagSize).
     edge = np.linalg.norm(quads - np.roll(quads, 1, axis=1), axis=-1).min(axis=1)
-    half = np.repeat(np.clip(0.5 * target.tag_spacing * edge, 3.0, 10.0), 4)
+    half = np.repeat(np.clip(0.5 * target.tag_spacing * edge, _EVENT_MIN_HALF_PX if event_frame else 3.0, 10.0), 4)
     refined = _refine_tag_corners(gray, pts, half)
     moved = np.linalg.norm(refined - pts, axis=1) <= 2.0 + half
     cid = corner_ids.ravel()[moved]
