@@ -257,18 +257,40 @@ def _tag_codes(n_tags: int) -> npt.NDArray[np.float64]:
 
 def _tag_cells(gray: npt.NDArray[np.uint8], quads: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
     """The mean grey level of the 10x10 cells (2-cell black border, 6x6 data) of every quad (outer
-    corners of a tag, in order around it): (T, 10, 10)."""
+    corners of a tag, in order around it): (T, 10, 10).  Each cell is sampled (bilinear) at the
+    ``_SOFT_CELL_PX - 2`` squared points of its interior that the quad's homography maps into
+    the image."""
     import cv2
 
     n, px = 10, _SOFT_CELL_PX
-    side = n * px
-    dst = np.array([[0, 0], [side, 0], [side, side], [0, side]], np.float32) - 0.5
-    out = np.zeros((len(quads), n, n))
-    for q, quad in enumerate(quads):  # one small warp per candidate (tens per frame)
-        H = cv2.getPerspectiveTransform(np.ascontiguousarray(quad, np.float32), dst)
-        w = cv2.warpPerspective(gray, H, (side, side), flags=cv2.INTER_LINEAR).astype(np.float64)
-        out[q] = w.reshape(n, px, n, px)[:, 1:-1, :, 1:-1].mean(axis=(1, 3))
-    return out
+    if len(quads) == 0:
+        return np.zeros((0, n, n))
+    # homographies (T, 3, 3) from the tag's cell coordinates (corners (0,0), (n,0), (n,n), (0,n)) to
+    # the quads, all at once: h33 = 1 and 8 equations per quad
+    src = np.array([[0, 0], [n, 0], [n, n], [0, n]], np.float64)
+    x, y = src[:, 0], src[:, 1]
+    u, v = quads[..., 0], quads[..., 1]
+    A = np.zeros((len(quads), 8, 8))
+    A[:, 0::2, 0], A[:, 0::2, 1], A[:, 0::2, 2] = x, y, 1.0
+    A[:, 1::2, 3], A[:, 1::2, 4], A[:, 1::2, 5] = x, y, 1.0
+    A[:, 0::2, 6], A[:, 0::2, 7] = -x * u, -y * u
+    A[:, 1::2, 6], A[:, 1::2, 7] = -x * v, -y * v
+    b = np.empty((len(quads), 8))
+    b[:, 0::2], b[:, 1::2] = u, v
+    h = np.linalg.solve(A, b[..., None])[..., 0]
+    H = np.concatenate([h, np.ones((len(quads), 1))], axis=1).reshape(-1, 3, 3)
+    # sample points of every cell: the interior of a px x px grid over the cell
+    off = (np.arange(1, px - 1) + 0.5) / px
+    g = (np.arange(n)[:, None] + off[None, :]).ravel()  # (n * (px - 2),)
+    gy, gx = np.meshgrid(g, g, indexing="ij")
+    pts = np.stack([gx.ravel(), gy.ravel(), np.ones(gx.size)])  # (3, P)
+    img = H @ pts  # (T, 3, P)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        mx = (img[:, 0] / img[:, 2]).astype(np.float32)
+        my = (img[:, 1] / img[:, 2]).astype(np.float32)
+    vals = cv2.remap(gray, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    m = px - 2
+    return np.asarray(vals, np.float64).reshape(len(quads), n, m, n, m).mean(axis=(2, 4))
 
 
 def _soft_tags(gray: npt.NDArray[np.uint8], target: CalibrationTarget, box: tuple[int, int, int, int] | None
@@ -315,14 +337,13 @@ def _soft_tags(gray: npt.NDArray[np.uint8], target: CalibrationTarget, box: tupl
         # outer ring straddles the quad's edge): on the rendered drives the tags' ring is at most
         # 0.06 of the way from black to white cells, three quarters of the false reads above 0.25
         white = codes.reshape(-1, 36)[order[:, 0]] > 0
-        lo = np.array([d[~m].mean() for d, m in zip(data, white, strict=True)])
-        hi = np.array([d[m].mean() for d, m in zip(data, white, strict=True)])
+        hi = (data * white).sum(axis=1) / np.maximum(white.sum(axis=1), 1)
+        lo = (data * ~white).sum(axis=1) / np.maximum((~white).sum(axis=1), 1)
         ring = np.concatenate([cells[:, 1, 1:9], cells[:, 8, 1:9], cells[:, 2:8, 1], cells[:, 2:8, 8]], axis=1)
         dark = ring.mean(axis=1) <= lo + 0.25 * (hi - lo)
         ok = (best[:, 0] >= _SOFT_MIN_SCORE) & (best[:, 0] - best[:, 1] >= _SOFT_MIN_LEAD) & dark
         # the quad's corners rolled so that the first is the tag's own first corner (aruco's order)
-        rolled = np.stack([np.roll(q, int(r), axis=0) for q, r in zip(q_up[ok], rot[ok], strict=True)]) \
-            if ok.any() else np.zeros((0, 4, 2))
+        rolled = np.take_along_axis(q_up[ok], ((np.arange(4)[None, :] - rot[ok, None]) % 4)[..., None], axis=1)
         ids, quads = tag[ok].astype(np.int64), (rolled + 0.5) / f - 0.5 + np.array([x0, y0], np.float64)
         score, lead = best[ok, 0], best[ok, 0] - best[ok, 1]
         if len(ids) >= 4 or region is None:
