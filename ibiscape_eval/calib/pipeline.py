@@ -45,7 +45,8 @@ class CameraFrames:
     label : callable
         ``label(i)`` -> a file name for messages.
     reconstruction : str or None
-        For event cameras: how the frames are reconstructed from events.
+        For event cameras: how the frames are reconstructed from events (their targets are then
+        detected with ``detect_corners(..., event_frame=True)``).
     """
 
     name: str
@@ -140,7 +141,8 @@ def detect_frames(target: CalibrationTarget, cameras: Sequence[CameraFrames],
             if img is not None:
                 size = (int(img.shape[1]), int(img.shape[0]))
                 sizes[k].setdefault(size, i)
-                det = detect_corners(img, target, near=prev, exhaustive=exhaustive)
+                det = detect_corners(img, target, near=prev, exhaustive=exhaustive,
+                                     event_frame=cameras[k].reconstruction is not None)
             prev = det
             if progress is not None:
                 progress(1)
