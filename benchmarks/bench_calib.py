@@ -43,6 +43,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import yaml
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
@@ -135,7 +136,8 @@ def frame_rows(a: argparse.Namespace, tmp: Path) -> list[dict]:
             imgs = [cv2.imread(str(f), cv2.IMREAD_GRAYSCALE) for f in files]
             t = time.perf_counter()
             for img in imgs:
-                detect_corners(img, target)
+                if img is not None:
+                    detect_corners(img, target)
             our_det = (time.perf_counter() - t) / len(imgs)
             cv = peer_on_views(seq, kind, [int(v) for v in ours["view_rows_used"]], model)
             rows.append({"kind": kind, "model": model, "ours": ours, "wall_s": r.wall_s, "peak_mb": r.peak_mb,
@@ -199,9 +201,14 @@ def dvs_rows(a: argparse.Namespace, tmp: Path) -> list[dict]:
 
 
 def drive_rows(a: argparse.Namespace, tmp: Path) -> list[dict]:
-    """The simulator's ESVI calibration drive per target, calibrated by the calib command."""
-    rows = []
-    for kind in a.targets:
+    """The simulator's ESVI calibration drive per target (or the given ``--dvs-seq`` drives),
+    calibrated by the calib command with the frames' corners and with the corners refined from
+    the events."""
+    seqs: list[tuple[str, Path]] = []
+    for given in a.dvs_seq:
+        doc = yaml.safe_load((Path(given) / "sequence.yaml").read_text())
+        seqs.append((str(doc["target"]["target_type"]), Path(given)))
+    for kind in (a.targets if not a.dvs_seq else []):
         seq = tmp / f"esvi_{kind}"
         ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
         r = run([CLI, "sim", "--setup", "esvi", "--kind", "calibration", "--target", kind, "--resolution",
@@ -211,14 +218,21 @@ def drive_rows(a: argparse.Namespace, tmp: Path) -> list[dict]:
             raise SystemExit(f"ibiscape-eval sim failed for {seq}")
         print(f"[dvs drive {kind}] simulated {a.dvs_drive_s} s at {a.dvs_drive} in "
               f"{(ru1.ru_utime - ru0.ru_utime) + (ru1.ru_stime - ru0.ru_stime):.0f} s CPU", flush=True)
-        ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-        r = run([CLI, "calib", str(seq), "--json"])
-        ru1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-        doc = json.loads(r.stdout) if r.ok else None
-        n_frames = 2 * round(a.dvs_drive_s * 20)
-        rows.append({"kind": kind, "doc": doc, "wall_s": r.wall_s, "returncode": r.returncode,
-                     "cpu_ms_per_frame": 1e3 * ((ru1.ru_utime - ru0.ru_utime) + (ru1.ru_stime - ru0.ru_stime))
-                     / n_frames})
+        seqs.append((kind, seq))
+    rows = []
+    for kind, seq in seqs:
+        n_frames = sum(len((seq / c / "timestamps.csv").read_text().splitlines()) - 1
+                       for c in ("davisL", "davisR") if (seq / c / "timestamps.csv").exists())
+        for corners in ("frames", "events") if kind == "checkerboard" else ("frames",):
+            ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+            r = run([CLI, "calib", str(seq), "--json", "--event-corners", corners,
+                     "--max-views", str(a.dvs_max_views)])
+            ru1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+            doc = json.loads(r.stdout) if r.ok else None
+            rows.append({"kind": kind, "corners": corners, "doc": doc, "wall_s": r.wall_s,
+                         "returncode": r.returncode,
+                         "cpu_ms_per_frame": 1e3 * ((ru1.ru_utime - ru0.ru_utime) + (ru1.ru_stime - ru0.ru_stime))
+                         / max(n_frames, 1)})
     return rows
 
 
@@ -226,8 +240,8 @@ def print_dvs_rows(rows: list[dict], res: int | str, what: str = "hand-held ster
     print()
     print(f"Event cameras, {what} at {res} px (paper, Kalibr + E2CALIB: "
           f"{PAPER_E2CALIB['focal_px']} px focal, {PAPER_E2CALIB['baseline_mm']} mm baseline):")
-    print(f"{'target':<13}{'reconstruction':<16}{'frames with target':>19}{'max |df| px':>12}{'max |dc| px':>12}"
-          f"{'baseline err mm':>16}{'RMS px':>8}{'wall s':>8}")
+    print(f"{'target':<13}{'reconstruction':<16}{'corners':<8}{'frames with target':>19}{'views':>6}"
+          f"{'max |df| px':>12}{'max |dc| px':>12}{'baseline err mm':>16}{'RMS px':>8}{'wall s':>8}")
     for r in rows:
         d = r["doc"]
         if d is None:
@@ -236,8 +250,12 @@ def print_dvs_rows(rows: list[dict], res: int | str, what: str = "hand-held ster
         gt = d["ground_truth"]
         method = "/".join(sorted({v["method"] for v in d["reconstruction"].values()}))
         found = "/".join(str(c["target_found"]) for c in d["detection"]["cameras"])
+        refined = d["detection"].get("event_corner_refinement", {})
+        if refined and any(v["method"] == "events" for v in refined.values()):
+            found = "/".join(str(v["views_kept"]) for v in refined.values()) + " refined"
         per = f"{r['cpu_ms_per_frame']:>8.0f} ms/frame CPU" if "cpu_ms_per_frame" in r else ""
-        print(f"{r['kind']:<13}{method:<16}{found:>19}{gt['max_focal_error_px']:>12.3f}"
+        print(f"{r['kind']:<13}{method:<16}{r.get('corners', 'frames'):<8}{found:>19}{d['n_views']:>6}"
+              f"{gt['max_focal_error_px']:>12.3f}"
               f"{gt['max_principal_point_error_px']:>12.3f}{gt['max_baseline_error_mm']:>16.3f}"
               f"{d['rms_px']:>8.3f}{r['wall_s']:>8.1f}{per}")
     print("issue targets: focal < 0.3 px, principal point < 0.5 px, baseline < 1 mm, RMS < 0.1 px")
@@ -253,17 +271,20 @@ def main() -> None:
     ap.add_argument("--dvs-keys", type=int, default=6, help="key poses of the hand-held DVS motion (1 s apart)")
     ap.add_argument("--dvs-drive", default="", help="WxH: also the simulator's ESVI calibration drive (slow)")
     ap.add_argument("--dvs-drive-s", type=float, default=30.0, help="duration of that drive [s]")
+    ap.add_argument("--dvs-seq", nargs="*", default=[], help="calibrate these generated ESVI drives instead "
+                    "of simulating one (e.g. ibiscape-eval sim --setup esvi --kind calibration ...)")
+    ap.add_argument("--dvs-max-views", type=int, default=160, help="--max-views of the drive calibrations")
     a = ap.parse_args()
     with tempfile.TemporaryDirectory(prefix="bench_calib_") as d:
         rows = frame_rows(a, Path(d)) if a.frames > 0 else []
         drows = dvs_rows(a, Path(d)) if a.dvs_resolution > 0 else []
-        erows = drive_rows(a, Path(d)) if a.dvs_drive else []
+        erows = drive_rows(a, Path(d)) if a.dvs_drive or a.dvs_seq else []
     if rows:
         print_frame_rows(rows)
     if drows:
         print_dvs_rows(drows, a.dvs_resolution)
     if erows:
-        print_dvs_rows(erows, a.dvs_drive, "the ESVI calibration drive")
+        print_dvs_rows(erows, a.dvs_drive or "their", "the ESVI calibration drive")
     print(f"load average during the run: {os.getloadavg()[0]:.1f} (2 cores)")
 
 

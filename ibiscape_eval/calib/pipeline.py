@@ -207,14 +207,20 @@ def calibrate_frames(target: CalibrationTarget, summary: DetectionSummary, *, mo
 
     Checkerboard views of event cameras whose corners were refined from the events keep only the
     refined corners: they count with :data:`~ibiscape_eval.calib.events.REFINE_MIN_CORNERS` corners
-    or more, instead of the whole board."""
+    or more, instead of the whole board, and ``max_views`` grows so that the views kept hold as many
+    corners as ``max_views`` whole boards (on the ESVI drive at 346x260 the 60 views' focal std was
+    0.39 px, all 103 refined views' 0.22 px)."""
     from .events import REFINE_MIN_CORNERS
 
     obs = summary.observations
-    chosen = select_views([list(o.detections) for o in obs], max_views)
-    sub = [Observations(o.name, o.image_size, [o.detections[v] for v in chosen]) for o in obs]
     refined = summary.extra.get("event_corner_refinement") or {}
     partial = any(r.get("method") == "events" for r in refined.values())
+    if partial:  # max_views counts whole boards: as many corners in partial views
+        per_view = [len(d) for o in obs for d in o.detections if d is not None]
+        if per_view:
+            max_views = max(max_views, round(max_views * target.n_corners / float(np.mean(per_view))))
+    chosen = select_views([list(o.detections) for o in obs], max_views)
+    sub = [Observations(o.name, o.image_size, [o.detections[v] for v in chosen]) for o in obs]
     res = calibrate(target, sub, model=model, outlier_sigma=outlier_sigma, progress=progress,
                     min_corners=REFINE_MIN_CORNERS if partial else None)
     frames = [summary.views[chosen[i]] for i in res.view_ids]
