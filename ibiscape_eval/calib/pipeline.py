@@ -200,6 +200,15 @@ def detect_frames(target: CalibrationTarget, cameras: Sequence[CameraFrames],
                             {"event_corner_refinement": refined} if refined else {})
 
 
+def _partial_view_corners(summary: DetectionSummary) -> int | None:
+    """The corners a view needs when event cameras' views hold only their corners refined from the
+    events (:data:`~ibiscape_eval.calib.events.REFINE_MIN_CORNERS`); None: whole boards."""
+    from .events import REFINE_MIN_CORNERS
+
+    refined = summary.extra.get("event_corner_refinement") or {}
+    return REFINE_MIN_CORNERS if any(r.get("method") == "events" for r in refined.values()) else None
+
+
 def calibrate_frames(target: CalibrationTarget, summary: DetectionSummary, *, model: str = "pinhole-radtan",
                      max_views: int = 60, outlier_sigma: float = 5.0,
                      progress: Callable[[str], Any] | None = None) -> CalibrationResult:
@@ -210,19 +219,16 @@ def calibrate_frames(target: CalibrationTarget, summary: DetectionSummary, *, mo
     or more, instead of the whole board, and ``max_views`` grows so that the views kept hold as many
     corners as ``max_views`` whole boards (on the ESVI drive at 346x260 the 60 views' focal std was
     0.39 px, all 103 refined views' 0.22 px)."""
-    from .events import REFINE_MIN_CORNERS
-
     obs = summary.observations
-    refined = summary.extra.get("event_corner_refinement") or {}
-    partial = any(r.get("method") == "events" for r in refined.values())
-    if partial:  # max_views counts whole boards: as many corners in partial views
+    min_corners = _partial_view_corners(summary)
+    if min_corners is not None:  # max_views counts whole boards: as many corners in partial views
         per_view = [len(d) for o in obs for d in o.detections if d is not None]
         if per_view:
             max_views = max(max_views, round(max_views * target.n_corners / float(np.mean(per_view))))
     chosen = select_views([list(o.detections) for o in obs], max_views)
     sub = [Observations(o.name, o.image_size, [o.detections[v] for v in chosen]) for o in obs]
     res = calibrate(target, sub, model=model, outlier_sigma=outlier_sigma, progress=progress,
-                    min_corners=REFINE_MIN_CORNERS if partial else None)
+                    min_corners=min_corners)
     frames = [summary.views[chosen[i]] for i in res.view_ids]
     extra = {"views_detected": len(summary.views), "views_selected": len(chosen),
              "view_rows_used": frames}
@@ -235,7 +241,8 @@ def calibrate_frames(target: CalibrationTarget, summary: DetectionSummary, *, mo
 def check_frames(target: CalibrationTarget, summary: DetectionSummary, cameras: Sequence[Any],
                  T_cn_cnm1: Sequence[npt.NDArray[np.float64]], *, outlier_px: float = 1.0) -> dict[str, Any]:
     """Evaluate a given calibration on the detections (see :func:`ibiscape_eval.calib.calibrate.evaluate`)."""
-    doc = evaluate(target, summary.observations, cameras, T_cn_cnm1, outlier_px=outlier_px)
+    doc = evaluate(target, summary.observations, cameras, T_cn_cnm1, outlier_px=outlier_px,
+                   min_corners=_partial_view_corners(summary))
     # report view rows of the input table
     for o in doc["outlier_views"]:
         o["view"] = int(summary.views[o["view"]])

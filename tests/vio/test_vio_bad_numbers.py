@@ -173,12 +173,17 @@ def test_zero_noise_means_an_ideal_sensor_and_is_floored():
     (("imus", "imu0", "update_rate"), -200.0, ["update_rate"]),
 ], ids=lambda v: str(v)[:30])
 def test_sequence_yaml_imu_numbers(street, tmp_path, keys, value, words):
+    _refused_sequence_edit(street, tmp_path, keys, value, words, with_calib=True)
+
+
+def _refused_sequence_edit(street, tmp_path, keys, value, words, *, with_calib):
+    """sequence.yaml with one number changed: the vio command refuses it naming the file."""
     seq, calib, _ = _variant(street, tmp_path)
     _edit(seq / "sequence.yaml", keys, value)
     out = tmp_path / "out" / "est.txt"
     out.parent.mkdir()
-    _refused(["vio", seq, "-o", out, "--calib", calib, "--max-frames", 5], out, "sequence.yaml",
-             *words)
+    _refused(["vio", seq, "-o", out, *(["--calib", calib] if with_calib else []), "--max-frames", 5],
+             out, "sequence.yaml", *words)
 
 
 @pytest.mark.parametrize("keys, value, words", [
@@ -191,11 +196,7 @@ def test_sequence_yaml_imu_numbers(street, tmp_path, keys, value, words):
 ], ids=lambda v: str(v)[:30])
 def test_sequence_yaml_camera_numbers(street, tmp_path, keys, value, words):
     """Without --calib the cameras come from sequence.yaml (checked before the image size)."""
-    seq, _, _ = _variant(street, tmp_path)
-    _edit(seq / "sequence.yaml", keys, value)
-    out = tmp_path / "out" / "est.txt"
-    out.parent.mkdir()
-    _refused(["vio", seq, "-o", out, "--max-frames", 5], out, "sequence.yaml", *words)
+    _refused_sequence_edit(street, tmp_path, keys, value, words, with_calib=False)
 
 
 # ------------------------------------------------------------------------------- the readers
