@@ -92,6 +92,8 @@ REFINE_HALF_WINDOW_NS = (2_000_000, 50_000_000)
 REFINE_MAX_SIGMA_PX = 0.1
 #: a refined view keeps only its refined corners; with fewer it is dropped
 REFINE_MIN_CORNERS = 8
+#: with fewer refined views a camera keeps its frames' corners
+REFINE_MIN_VIEWS = 10
 
 ReadWindow = Callable[[int], Events | None]
 
@@ -275,8 +277,10 @@ class EventFrameSource:
         :class:`~ibiscape_eval.calib.detect.Detection` or None), in increasing order.  A corner's
         velocity comes from its positions in the nearest detections before and after (within
         0.3 s).  A view keeps only its refined corners, and is dropped (None) with fewer than
-        :data:`REFINE_MIN_CORNERS`.  Returns the detections and ``{corners_detected,
-        corners_refined, views_detected, views_kept}``.
+        :data:`REFINE_MIN_CORNERS`.  With fewer than :data:`REFINE_MIN_VIEWS` refined views (a
+        still or blinking board) the detections are returned unchanged, with a warning.  Returns
+        the detections and ``{corners_detected, corners_refined, views_detected, views_kept,
+        method}`` (``method``: ``events``, ``frames`` after that fallback, or ``none``).
         """
         import cv2
 
@@ -331,7 +335,18 @@ class EventFrameSource:
             n_ref += int(ok.sum())
             out.append(Detection(det.ids[ok], refined[ok], det.image_size)
                        if ok.sum() >= REFINE_MIN_CORNERS else None)
-        stats.update(corners_refined=n_ref, views_kept=sum(d is not None for d in out), method="events")
+        kept = sum(d is not None for d in out)
+        if kept < REFINE_MIN_VIEWS:  # a still or blinking board: its frames are all there is
+            import warnings
+
+            from ibiscape_eval.core.errors import IbiscapeWarning
+
+            warnings.warn(f"only {kept} views with {REFINE_MIN_CORNERS}+ corners could be refined from "
+                          "the events (the board moves too little in the image); the frames' corners "
+                          "are used", IbiscapeWarning, stacklevel=2)
+            stats.update(views_kept=stats["views_detected"], views_refinable=kept, method="frames")
+            return dets, stats
+        stats.update(corners_refined=n_ref, views_kept=kept, method="events")
         return out, stats
 
     def _screen(self, frame: npt.NDArray[np.uint8]) -> npt.NDArray[np.uint8]:

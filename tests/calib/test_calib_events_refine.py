@@ -108,3 +108,18 @@ def test_aprilgrid_detections_pass_unchanged() -> None:
     board = CalibrationTarget("checkerboard", rows=3, cols=3, spacing_x_m=0.1, spacing_y_m=0.1)
     assert off.refine_detections(board, [0], [det])[0][0] is det
     assert off.describe()["refine_corners"] == "none"
+
+
+def test_a_board_without_refinable_views_keeps_its_frame_corners() -> None:
+    """A still (or blinking) board gives no moving edges: the frames' corners stay, with a warning."""
+    from ibiscape_eval.core.errors import IbiscapeWarning
+
+    board = CalibrationTarget("checkerboard", rows=3, cols=3, spacing_x_m=0.1, spacing_y_m=0.1)
+    windows = np.array([[i * 50_000_000, (i + 1) * 50_000_000] for i in range(12)], np.int64)
+    src = EventFrameSource(lambda i: Events.empty(), windows, (64, 48), "log-intensity")
+    xy = board.object_points()[:, :2] * 100 + 10
+    dets = [Detection(np.arange(9, dtype=np.int64), xy + 0.1 * i, (64, 48)) for i in range(12)]
+    with pytest.warns(IbiscapeWarning, match="frames' corners are used"):
+        out, stats = src.refine_detections(board, list(range(12)), dets)
+    assert out == dets
+    assert stats["method"] == "frames" and stats["views_refinable"] == 0
