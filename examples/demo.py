@@ -19,7 +19,8 @@ Steps:
   4. DVS hot-pixel filtering on a 1024x1024 stream with planted hot pixels, then event frames;
   5. batch evaluation of a runs folder (real and synthetic runs, several trials, one crashed) into
      the paper's table, figures and an HTML page, screenshotted by a headless Chromium;
-  6. stereo camera calibration on tilted views of a checkerboard rendered by the simulator;
+  6. stereo camera calibration on tilted views of a checkerboard rendered by the simulator, and of
+     a stereo event camera on a short drive (frames from events, corners refined from the events);
   7. camera-IMU calibration (extrinsics and clock offsets, ``calib --imu``) on a calibration drive;
   8. a rendered SVI drive exported to EuRoC, the stereo-VIO baseline on the export, scored with ``ate``.
 """
@@ -287,13 +288,20 @@ def report(out: Path) -> None:
 
 
 def calib(out: Path) -> None:
-    banner("6. Stereo camera calibration against known cameras (checkerboard views rendered by the simulator)")
+    banner("6. Stereo camera calibration against known cameras (checkerboard views rendered by the simulator; "
+           "a stereo DVS on a drive)")
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from calibrate_cameras import render_sequence
 
     seq = render_sequence(out / "stereo_checkerboard", "checkerboard", n_views=16, seed=0)
     sh("calib", seq, "--yaml", out / "camchain.yaml", "--plot", out / "calib_plots")
     sh("calib", seq, "--check", out / "camchain.yaml")
+    # event cameras: a short ESVI drive toward the checkerboard (stereo DVS); frames reconstructed
+    # from the events find the board, its corners are then refined from the events' timestamps
+    from calibrate_event_cameras import simulate as simulate_dvs_drive
+
+    dvs = simulate_dvs_drive(out / "ESVI_calib_dvs", "320x240", 5.0)
+    sh("calib", dvs, "--yaml", out / "camchain_dvs.yaml")
 
 
 def imu_camera(out: Path) -> None:
