@@ -223,8 +223,12 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
     if as_json:
         echo_json(doc)
         return
+    refined = summary.extra.get("event_corner_refinement") or {}
     for name, r in recon_used.items():
-        click.echo(f"{name}: frames reconstructed from events by {r['method']}")
+        st = refined.get(name) or {}
+        how = (f"; {st['corners_refined']} of {st['corners_detected']} corners refined from the events "
+               f"({st['views_kept']} views)" if st.get("method") == "events" else "")
+        click.echo(f"{name}: frames reconstructed from events by {r['method']}{how}")
     for line in format_report(result, truth):
         click.echo(line)
     if yaml_out is not None:
