@@ -218,6 +218,7 @@ class EventFrameSource:
         self._cache: OrderedDict[int, npt.NDArray[np.uint8] | None] = OrderedDict()
         self._cache_frames = int(cache_frames)
         self._back: dict[int, npt.NDArray[np.float32]] = {}  # window -> backward L_hat (one block)
+        self._around: dict[int, Events | None] = {}  # windows of the last events_around call
 
     def __len__(self) -> int:
         return len(self.windows_ns)
@@ -263,8 +264,14 @@ class EventFrameSource:
         """The events of every window overlapping ``t_ns +- half_ns`` (unreadable ones skipped)."""
         win = self.windows_ns
         a = int(np.searchsorted(win[:, 1], int(t_ns) - int(half_ns), side="right"))
-        b = int(np.searchsorted(win[:, 0], int(t_ns) + int(half_ns), side="left"))
-        parts = [ev for ev in (self.read_window(i) for i in range(a, min(b + 1, len(win)))) if ev is not None]
+        b = min(int(np.searchsorted(win[:, 0], int(t_ns) + int(half_ns), side="left")) + 1, len(win))
+        # neighbouring frames ask for overlapping windows: keep the last ones read
+        for i in [i for i in self._around if not a <= i < b]:
+            del self._around[i]
+        for i in range(a, b):
+            if i not in self._around:
+                self._around[i] = self.read_window(i)
+        parts = [ev for i in range(a, b) if (ev := self._around[i]) is not None]
         return Events.concatenate(parts) if parts else Events.empty()
 
     def refine_detections(self, target: CalibrationTarget, frames: Sequence[int | None],
@@ -297,8 +304,10 @@ class EventFrameSource:
         obj = target.object_points()[:, :2]
         step = np.array([target.spacing_x_m, target.spacing_y_m])
         t_of = [None if f is None else int(self.windows_ns[int(f), 1]) for f in frames]
-        pos: list[dict[int, npt.NDArray[np.float64]]] = [
-            {} if d is None else dict(zip(d.ids.tolist(), d.corners_px, strict=True)) for d in dets]
+        pos = np.full((len(dets), target.n_corners, 2), np.nan)  # view, corner id -> px (NaN: unseen)
+        for j, d in enumerate(dets):
+            if d is not None:
+                pos[j, d.ids] = d.corners_px
         max_gap_ns = 300_000_000
         out: list[Any] = []
         n_ref = 0
@@ -309,15 +318,15 @@ class EventFrameSource:
                 continue
             near = [q for q in (j - 1, j + 1) if 0 <= q < len(dets) and t_of[q] is not None
                     and dets[q] is not None and abs(int(t_of[q]) - t) <= max_gap_ns]  # type: ignore[arg-type]
+            # per corner: central difference over both neighbours, else one-sided with this view
+            one = [(pos[q, det.ids] - det.corners_px) / ((int(t_of[q]) - t) * 1e-9) for q in near]  # type: ignore[arg-type]
             vel = np.full((len(det), 2), np.nan)
-            for k, cid in enumerate(det.ids.tolist()):
-                have = [q for q in near if cid in pos[q]]
-                if len(have) == 2:
-                    q0, q1 = have
-                    vel[k] = (pos[q1][cid] - pos[q0][cid]) / ((t_of[q1] - t_of[q0]) * 1e-9)  # type: ignore[operator]
-                elif len(have) == 1:
-                    q = have[0]
-                    vel[k] = (pos[q][cid] - det.corners_px[k]) / ((t_of[q] - t) * 1e-9)  # type: ignore[operator]
+            for v in one:
+                vel = np.where(np.isnan(vel), v, vel)
+            if len(near) == 2:
+                q0, q1 = near
+                both = (pos[q1, det.ids] - pos[q0, det.ids]) / ((int(t_of[q1]) - int(t_of[q0])) * 1e-9)  # type: ignore[arg-type]
+                vel = np.where(np.isnan(both), vel, both)
             H, _ = cv2.findHomography(obj[det.ids], det.corners_px, 0)
             if H is None:
                 out.append(None)
