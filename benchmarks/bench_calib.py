@@ -75,8 +75,6 @@ def rig(baseline_m: float = BASELINE_M) -> np.ndarray:
 
 
 def sim_target(root: Path):
-    import yaml
-
     from ibiscape_eval.calib import target_from_kalibr
 
     return target_from_kalibr(yaml.safe_load((root / "sequence.yaml").read_text())["target"])
