@@ -24,6 +24,7 @@ __all__ = [
     "PLOT_PLANES",
     "allan_figure",
     "compare_figure",
+    "default_plot_plane",
     "drift_figure",
     "plain_axes",
     "plot_allan",
@@ -67,6 +68,12 @@ def save_figure(fig: Any, path: str | os.PathLike[str]) -> None:
 
 
 _save = save_figure
+
+
+def default_plot_plane(fmt: str | None) -> str:
+    """The plot plane a trajectory format is best seen in: ``"xz"`` for KITTI (its camera frame has
+    y pointing down, so the ground is the x-z plane), ``"xy"`` for every other format (z up)."""
+    return "xz" if fmt == "kitti" else "xy"
 
 
 def _plane_axes(plane: str) -> tuple[int, int]:
