@@ -16,7 +16,10 @@ from .transforms import matrices_from_pose, pose_from_matrices
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = ["Trajectory"]
+__all__ = ["SYNTHETIC_PERIOD_NS", "Trajectory"]
+
+#: Period of made-up stamps (KITTI poses without a times file): pose ``i`` is stamped ``i * 0.1 s``.
+SYNTHETIC_PERIOD_NS = 100_000_000
 
 
 def _frozen(a: np.ndarray, *, owned: bool = False) -> np.ndarray:
@@ -54,6 +57,10 @@ class Trajectory:
         renormalised; rows further than 1e-3 from unit norm are rejected.
     name : str
         A label for tables and plots (usually the file name).
+    stamps_synthetic : bool
+        True when the stamps were made up from the pose index (KITTI poses without a times file:
+        pose ``i`` at ``i * SYNTHETIC_PERIOD_NS``); results and plots then speak of pose indices,
+        never of seconds.
 
     Readers in :mod:`ibiscape_eval.io` validate files and report the offending line; this
     constructor checks shapes, finiteness and ordering so that every metric can rely on them.
@@ -63,6 +70,7 @@ class Trajectory:
     pos_m: npt.NDArray[np.float64]
     quat_xyzw: npt.NDArray[np.float64]
     name: str = ""
+    stamps_synthetic: bool = False
 
     def __post_init__(self) -> None:
         stamps = np.asarray(self.stamps_ns)
@@ -127,6 +135,13 @@ class Trajectory:
         """``role`` followed by the trajectory's name (its file), for messages: ``estimate 'est.txt'``."""
         return f"{role} {self.name!r}" if self.name else role
 
+    def pose_index(self) -> npt.NDArray[np.int64]:
+        """The pose index of every row: ``stamps_ns // SYNTHETIC_PERIOD_NS`` for synthetic stamps
+        (the line number in the file, rows skipped by the reader included), else ``0..N-1``."""
+        if self.stamps_synthetic:
+            return self.stamps_ns // SYNTHETIC_PERIOD_NS
+        return np.arange(len(self), dtype=np.int64)
+
     # -- views ------------------------------------------------------------------------------
     def __len__(self) -> int:
         return int(self.stamps_ns.shape[0])
@@ -161,11 +176,12 @@ class Trajectory:
         for part in (stamps, pos, quat):  # fresh gathers: read-only, the constructor keeps them
             if isinstance(part, np.ndarray):
                 part.flags.writeable = False
-        return Trajectory(stamps, pos, quat, self.name if name is None else name)
+        return Trajectory(stamps, pos, quat, self.name if name is None else name,
+                          self.stamps_synthetic)
 
     def with_name(self, name: str) -> Trajectory:
         """The same poses under another label."""
-        return Trajectory(self.stamps_ns, self.pos_m, self.quat_xyzw, name)
+        return Trajectory(self.stamps_ns, self.pos_m, self.quat_xyzw, name, self.stamps_synthetic)
 
     def to_frame(self) -> pd.DataFrame:
         """A pandas DataFrame with columns ``stamp_ns, x_m, y_m, z_m, qx, qy, qz, qw``."""
@@ -186,4 +202,6 @@ class Trajectory:
 
     def __repr__(self) -> str:
         span = f", {self.duration_s:.3f} s" if len(self) else ""
+        if self.stamps_synthetic:
+            span = ", synthetic stamps"
         return f"Trajectory({self.name!r}, {len(self)} poses{span})"

@@ -12,7 +12,7 @@ import numpy.typing as npt
 
 from ibiscape_eval.core.errors import FormatError
 from ibiscape_eval.core.rotations import quat_from_matrix
-from ibiscape_eval.core.trajectory import Trajectory
+from ibiscape_eval.core.trajectory import SYNTHETIC_PERIOD_NS, Trajectory
 
 from ._poses import check_positions, check_rows
 from ._text import decimal_to_ns, parse_table, read_bytes, write_table
@@ -21,7 +21,7 @@ from .atomic import atomic_write
 __all__ = ["KITTI_PERIOD_NS", "ORTHO_TOL", "read_kitti", "read_times", "write_kitti"]
 
 #: Stamps given to poses without a times file: KITTI's nominal 10 Hz.
-KITTI_PERIOD_NS = 100_000_000
+KITTI_PERIOD_NS = SYNTHETIC_PERIOD_NS
 #: Largest deviation of a singular value of the rotation block from 1 that is repaired.
 ORTHO_TOL = 1e-3
 
@@ -51,8 +51,9 @@ def read_kitti(
         Text file with 12 numbers per line: ``r00 r01 r02 tx r10 r11 r12 ty r20 r21 r22 tz``.
     times_path
         Optional times file (seconds, one per line, as many lines as poses).  Without it the
-        stamps are the pose index at KITTI's nominal 10 Hz, ``i * 100_000_000`` ns; the command
-        line then pairs trajectories by index.
+        stamps are the pose index at KITTI's nominal 10 Hz, ``i * 100_000_000`` ns, and the
+        trajectory is marked ``stamps_synthetic`` (results and plots then use pose indices);
+        the command line pairs such trajectories by index.
     name
         Label; the file name by default.
 
@@ -99,7 +100,8 @@ def read_kitti(
             line=int(tb.lines[keep[i]]))
     R_fixed = U @ Vt
     return Trajectory(stamps[keep], M[:, :, 3].copy(), quat_from_matrix(R_fixed),
-                      Path(path).name if name is None else name)
+                      Path(path).name if name is None else name,
+                      stamps_synthetic=times_path is None)
 
 
 def write_kitti(

@@ -11,7 +11,13 @@ Definitions follow evo (APE/RPE, Umeyama alignment) and the KITTI odometry devki
 """
 
 from ._stats import ErrorStats
-from .alignment import Alignment, AlignmentResult, align
+from .alignment import (
+    Alignment,
+    AlignmentConditioning,
+    AlignmentResult,
+    align,
+    conditioning_warnings,
+)
 from .association import Matched, associate, associate_by_index, choose_match
 from .ate import AteResult, ate
 from .compare import CompareResult, compare
@@ -20,6 +26,7 @@ from .gnss import gnss_in_reference_frame
 from .offset import estimate_time_offset
 from .relations import PLANES, POSE_RELATIONS, project_to_plane
 from .rpe import PAIRS_FROM, RpeResult, rpe, select_pairs
+from .select import downsample, motion_filter, time_range
 
 __all__ = [
     "KITTI_LENGTHS_M",
@@ -27,6 +34,7 @@ __all__ = [
     "PLANES",
     "POSE_RELATIONS",
     "Alignment",
+    "AlignmentConditioning",
     "AlignmentResult",
     "AteResult",
     "CompareResult",
@@ -40,10 +48,14 @@ __all__ = [
     "ate",
     "choose_match",
     "compare",
+    "conditioning_warnings",
+    "downsample",
     "drift",
     "estimate_time_offset",
     "gnss_in_reference_frame",
+    "motion_filter",
     "project_to_plane",
     "rpe",
     "select_pairs",
+    "time_range",
 ]

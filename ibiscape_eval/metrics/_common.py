@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+import warnings
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from ibiscape_eval.core import IbiscapeError, Trajectory
+from ibiscape_eval.core import IbiscapeError, IbiscapeWarning, Trajectory
 
 from . import _fast
 from ._fast import run_rows, take, trusted
@@ -17,13 +18,16 @@ from .alignment import AlignmentResult
 from .association import Matched, associate, associate_by_index
 
 __all__ = [
+    "LENGTH_UNITS",
     "MatchedResult",
     "absolute_errors",
     "aligned_errors",
+    "emit",
     "frozen",
     "match",
     "matched_fields",
     "relative_errors",
+    "select",
     "take",
     "trusted",
 ]
@@ -31,6 +35,62 @@ __all__ = [
 FloatArray = npt.NDArray[np.float64]
 
 MATCH_MODES = ("time", "index")
+
+#: Output units of translation errors (evo's ``--change_unit``) and their factor from metres.
+LENGTH_UNITS = {"m": 1.0, "cm": 100.0, "mm": 1000.0}
+
+
+def check_unit(unit: str) -> float:
+    """The factor from metres to ``unit`` (``m``, ``cm``, ``mm``)."""
+    try:
+        return LENGTH_UNITS[unit]
+    except KeyError:
+        raise IbiscapeError(
+            f"unknown length unit {unit!r}; choose one of {', '.join(LENGTH_UNITS)}") from None
+
+
+def select(
+    est: Trajectory,
+    ref: Trajectory,
+    *,
+    t_start_s: float | None,
+    t_end_s: float | None,
+    downsample: int | None,
+    motion_filter: tuple[float, float] | None,
+) -> tuple[Trajectory, Trajectory]:
+    """evo's pose selection, in evo's order: both trajectories downsampled, then motion-filtered,
+    then the reference cut to ``[t_start_s, t_end_s]`` (before association)."""
+    from . import select as sel
+
+    if downsample is not None:
+        est, ref = sel.downsample(est, downsample), sel.downsample(ref, downsample)
+    if motion_filter is not None:
+        d, a = motion_filter
+        est, ref = sel.motion_filter(est, d, a), sel.motion_filter(ref, d, a)
+    ref = sel.time_range(ref, t_start_s, t_end_s)
+    return est, ref
+
+
+def emit(messages: list[str], stacklevel: int = 3) -> tuple[str, ...]:
+    """Issue each message as an :class:`IbiscapeWarning` and return them (results keep them for
+    their JSON ``warnings`` list)."""
+    for msg in messages:
+        warnings.warn(msg, IbiscapeWarning, stacklevel=stacklevel)
+    return tuple(messages)
+
+
+def stamps_synthetic(est: Trajectory, ref: Trajectory, m: Matched) -> bool:
+    """Whether the stamps of a result are made up: either side has synthetic stamps (KITTI
+    without times) or the poses were paired by index."""
+    return bool(est.stamps_synthetic or ref.stamps_synthetic or m.by_index)
+
+
+def pose_index(ref: Trajectory, m: Matched) -> npt.NDArray[np.int64]:
+    """Pose index of each matched reference row: the line index for synthetic stamps, else
+    the row of the matched reference (pairing by index keeps every row)."""
+    if ref.stamps_synthetic and m.ref is ref:
+        return ref.pose_index()
+    return np.arange(len(m.ref), dtype=np.int64)
 
 
 def frozen(a: npt.ArrayLike, dtype: Any = None, *, owned: bool = False) -> np.ndarray:
@@ -117,6 +177,14 @@ def absolute_errors(est: Trajectory, ref: Trajectory) -> tuple[FloatArray, Float
     return trans, rot
 
 
+def scaled_stats(stats: Any, factor: float) -> dict[str, float]:
+    """``stats.to_dict()`` with lengths multiplied by ``factor`` (``sse`` by its square)."""
+    d = stats.to_dict()
+    if factor == 1.0:
+        return d
+    return {k: (v * factor * factor if k == "sse" else v * factor) for k, v in d.items()}
+
+
 def nan_to_none(x: float) -> float | None:
     """JSON-friendly float: NaN becomes None."""
     return None if math.isnan(x) else float(x)
@@ -139,6 +207,15 @@ class MatchedResult:
         Offset added to the estimate's stamps, seconds (``t_ref = t_est + t_offset_s``).
     interpolated : bool
         Whether poses were interpolated during matching.
+    warnings : tuple of str
+        Warnings about the numbers (alignment poorly determined, lengths not reached ...), also
+        issued as :class:`IbiscapeWarning`; ``to_dict()["warnings"]``.
+    stamps_synthetic : bool
+        The stamps are made up (KITTI without times, or pairing by index): tables, CSV and
+        plots use ``ref_pose_index`` instead of times; ``to_dict()["stamps"]`` is
+        ``"synthetic"``.
+    ref_pose_index : ndarray, shape (N,), int64
+        Pose index of each matched reference row (see :attr:`stamps_synthetic`).
     """
 
     alignment: AlignmentResult
@@ -149,13 +226,31 @@ class MatchedResult:
     n_dropped_ref: int
     t_offset_s: float
     interpolated: bool
+    warnings: tuple[str, ...] = field(default=(), kw_only=True)
+    stamps_synthetic: bool = field(default=False, kw_only=True)
+    ref_pose_index: npt.NDArray[np.int64] | None = field(default=None, kw_only=True)
 
-    def _relation_dict(self, relation: str, plane: str | None, stats: Any) -> dict[str, Any]:
-        """The keys of the chosen pose relation (ATE and RPE)."""
+    def _relation_dict(self, relation: str, plane: str | None, stats: Any,
+                       unit: str = "m") -> dict[str, Any]:
+        """The keys of the chosen pose relation (ATE and RPE); lengths in ``unit``."""
         from .relations import RELATION_UNITS
 
-        return {"pose_relation": relation, "relation_unit": RELATION_UNITS[relation],
-                "project_to_plane": plane, "error": stats.to_dict()}
+        rel_unit = RELATION_UNITS[relation]
+        f = check_unit(unit) if rel_unit == "m" else 1.0
+        return {"pose_relation": relation, "relation_unit": unit if rel_unit == "m" else rel_unit,
+                "project_to_plane": plane, "error": scaled_stats(stats, f)}
+
+    def _index_columns(self, stamps_ns: npt.NDArray[np.int64],
+                       rows: npt.NDArray[np.intp] | None = None) -> dict[str, Any]:
+        """The leading CSV columns: ``ref_stamp_ns, ref_t_s`` for measured stamps,
+        ``ref_pose_index`` for synthetic ones (``rows``: the matched rows they belong to)."""
+        from ibiscape_eval.core.time import s_from_ns
+
+        if self.stamps_synthetic:
+            idx = (np.arange(len(self.ref), dtype=np.int64) if self.ref_pose_index is None
+                   else self.ref_pose_index)
+            return {"ref_pose_index": idx if rows is None else idx[rows]}
+        return {"ref_stamp_ns": stamps_ns, "ref_t_s": s_from_ns(stamps_ns)}
 
     def _common_dict(self, metric: str) -> dict[str, Any]:
         """The keys every metric's ``to_dict`` starts with (the JSON contract)."""
@@ -169,12 +264,23 @@ class MatchedResult:
             "transform": self.alignment.transform.tolist(),
             "t_offset_s": float(self.t_offset_s),
             "interpolated": bool(self.interpolated),
+            "stamps": "synthetic" if self.stamps_synthetic else "measured",
+            "alignment_conditioning": (None if self.alignment.conditioning is None
+                                       else self.alignment.conditioning.to_dict()),
+            "warnings": list(self.warnings),
         }
 
 
-def matched_fields(m: Matched, al: AlignmentResult, est_aligned: Trajectory) -> dict[str, Any]:
+def matched_fields(
+    m: Matched, al: AlignmentResult, est_aligned: Trajectory, *,
+    synthetic: bool = False, warnings: tuple[str, ...] = (),
+    ref_pose_index: npt.NDArray[np.int64] | None = None,
+) -> dict[str, Any]:
     """Keyword arguments of :class:`MatchedResult` from an association and an alignment."""
     return {
+        "stamps_synthetic": synthetic,
+        "warnings": warnings,
+        "ref_pose_index": None if ref_pose_index is None else frozen(ref_pose_index),
         "alignment": al,
         "est_aligned": est_aligned,
         "ref": m.ref,

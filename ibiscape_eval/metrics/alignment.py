@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from enum import Enum
 from typing import Any, NamedTuple
 
@@ -17,7 +17,8 @@ from ibiscape_eval.core.transforms import invert_transforms
 
 from ._fast import moments, transform_poses, trusted
 
-__all__ = ["Alignment", "AlignmentResult", "align", "parse_alignment"]
+__all__ = ["Alignment", "AlignmentConditioning", "AlignmentResult", "align", "conditioning_warnings",
+           "parse_alignment"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -44,6 +45,85 @@ def parse_alignment(method: str | Alignment) -> Alignment:
         raise IbiscapeError(f"unknown alignment {method!r}; choose one of {choices}") from None
 
 
+@dataclass(frozen=True, eq=False)
+class AlignmentConditioning:
+    """How well the alignment's rotation, translation and scale are determined by the positions.
+
+    The alignment minimises ``sum |y_i - s R x_i - t|^2``; with independent position noise of
+    ``sigma_pos_m`` per axis, the Hessian of that sum at the optimum gives the covariance of the
+    parameters (Gauss-Newton / Fisher information, e.g. Kanatani 1994).  For the rotation,
+    perturbed as ``R exp([theta]x)``, the Hessian is ``s (tr(M) I - sym(M)) / sigma^2`` with
+    ``M = R^T Y^T X`` the cross-covariance of the centred points, so it is built from how the
+    two point sets *agree*, not only from how far they spread: two noise clouds that do not
+    correlate give a small ``M`` and a large sigma.  ``sigma_pos_m`` is estimated from the
+    residual sum of squares with ``3 N - p`` degrees of freedom (``p`` = 6 se3, 7 sim3, 4 yaw),
+    so it holds every unmodelled error too (drift included): the sigmas say how much the
+    alignment would move if the residuals were independent noise.  ``benchmarks`` and
+    ``tests/metrics/test_metrics_conditioning.py`` measure their coverage over seeds.
+
+    Attributes
+    ----------
+    method : str
+        The alignment (``se3``, ``sim3``, ``yaw``).
+    n_used : int
+        Pose pairs the alignment was computed from.
+    sigma_pos_m : float
+        Residual position scatter per axis after the alignment, metres (NaN when ``3N <= p``).
+    spread_m : ndarray, shape (3,)
+        RMS extent of the centred estimate positions along their principal axes, metres,
+        largest first (a 2 mm cloud has all three near 0.001).
+    rotation_cov_rad2 : ndarray, shape (3, 3)
+        Covariance of the alignment rotation, rad^2, as a small rotation vector in the
+        reference frame (``yaw``: only the z entry is non-zero).
+    rotation_sigma_deg : ndarray, shape (3,)
+        1-sigma of the rotation about each principal axis of ``rotation_cov_rad2``, degrees,
+        largest first; ``rotation_axes`` holds these axes (rows, reference frame).
+    rotation_axes : ndarray, shape (3, 3)
+        Unit axes (rows) of ``rotation_sigma_deg``.
+    rotation_sigma_total_deg : float
+        ``sqrt(trace(rotation_cov))`` in degrees: the expected RMS rotation angle by which the
+        alignment itself is off; every pose's rotation error contains this constant part.
+    translation_sigma_m : ndarray, shape (3,)
+        1-sigma of each component of ``t`` (reference frame), metres (lever arm included).
+    scale_sigma : float or None
+        1-sigma of the scale (``sim3`` only).
+    """
+
+    method: str
+    n_used: int
+    sigma_pos_m: float
+    spread_m: FloatArray
+    rotation_cov_rad2: FloatArray
+    rotation_sigma_deg: FloatArray
+    rotation_axes: FloatArray
+    rotation_sigma_total_deg: float
+    translation_sigma_m: FloatArray
+    scale_sigma: float | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """Strict JSON (an undetermined value, infinite or NaN, becomes ``None``)."""
+
+        def num(x: float) -> float | None:
+            return float(x) if math.isfinite(x) else None
+
+        return {
+            "method": self.method,
+            "n_used": int(self.n_used),
+            "sigma_pos_m": num(self.sigma_pos_m),
+            "spread_m": [num(v) for v in self.spread_m],
+            "rotation_sigma_deg": [num(v) for v in self.rotation_sigma_deg],
+            "rotation_axes": [[num(v) for v in row] for row in self.rotation_axes],
+            "rotation_sigma_total_deg": num(self.rotation_sigma_total_deg),
+            "translation_sigma_m": [num(v) for v in self.translation_sigma_m],
+            "scale_sigma": None if self.scale_sigma is None else num(self.scale_sigma),
+        }
+
+    def __repr__(self) -> str:
+        return (f"AlignmentConditioning({self.method}, rotation 1-sigma "
+                f"{self.rotation_sigma_total_deg:.3g} deg (axes {np.round(self.rotation_sigma_deg, 3)}"
+                f" deg), spread {np.round(self.spread_m, 4)} m, residual {self.sigma_pos_m:.3g} m)")
+
+
 @dataclass(frozen=True)
 class AlignmentResult:
     """A similarity transform ``T_ref_est`` with scale: ``p_ref = scale * R @ p_est + t``.
@@ -59,12 +139,16 @@ class AlignmentResult:
         Scale applied to the estimate's positions (1 unless ``sim3``).
     n_used : int
         Number of pose pairs the alignment was computed from.
+    conditioning : AlignmentConditioning or None
+        How well the transform is determined (``se3``, ``sim3``, ``yaw``; None for ``none`` and
+        ``origin``, which do not estimate anything from the positions).
     """
 
     method: str
     transform: FloatArray
     scale: float
     n_used: int
+    conditioning: AlignmentConditioning | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
         T = np.array(self.transform, dtype=np.float64)
@@ -95,9 +179,11 @@ class AlignmentResult:
                 quat_from_matrix(R))
 
     def to_dict(self) -> dict[str, Any]:
-        """Strict JSON: ``method, scale, n_used, transform`` (4x4 nested lists)."""
+        """Strict JSON: ``method, scale, n_used, transform`` (4x4 nested lists) and
+        ``conditioning`` (:meth:`AlignmentConditioning.to_dict` or None)."""
         return {"method": self.method, "scale": float(self.scale), "n_used": int(self.n_used),
-                "transform": self.transform.tolist()}
+                "transform": self.transform.tolist(),
+                "conditioning": None if self.conditioning is None else self.conditioning.to_dict()}
 
     def __repr__(self) -> str:
         from scipy.spatial.transform import Rotation
@@ -205,6 +291,79 @@ def _yaw(m: _Moments) -> tuple[FloatArray, FloatArray]:
     return R, m.mean_y - R @ m.mean_x
 
 
+def _conditioning(m: _Moments, method: str, R: FloatArray, c: float) -> AlignmentConditioning:
+    """Covariances of the rotation, translation and scale from the moments (see
+    :class:`AlignmentConditioning`); O(1) after the moments."""
+    n = m.n
+    p = {"se3": 6, "sim3": 7, "yaw": 4}[method]
+    M = R.T @ m.syx  # at the optimum M is symmetric (se3/sim3); Y^T X in the estimate's axes
+    # residual sum of squares of the centred points: |Y - c X R^T|^2
+    rss = float(np.trace(m.syy) - 2.0 * c * np.trace(M) + c * c * np.trace(m.sxx))
+    dof = 3 * n - p
+    sigma2 = max(rss, 0.0) / dof if dof > 0 else math.nan
+    ev_x = np.linalg.eigvalsh(m.sxx)[::-1]
+    spread = np.sqrt(np.maximum(ev_x, 0.0) / n)
+    inf = math.inf
+    if method == "yaw":
+        a = float(m.syx[0, 0] + m.syx[1, 1])
+        b = float(m.syx[1, 0] - m.syx[0, 1])
+        curv = math.hypot(a, b)  # -d2f/dtheta2 of f = a cos + b sin at its maximum
+        var_yaw = sigma2 / curv if curv > 0.0 else inf
+        cov = np.zeros((3, 3))
+        cov[2, 2] = var_yaw
+    else:
+        Ms = 0.5 * (M + M.T)
+        H = c * (np.trace(Ms) * np.eye(3) - Ms)
+        w, V = np.linalg.eigh(H)
+        with np.errstate(divide="ignore"):
+            inv_w = np.where(w > 0.0, 1.0 / np.where(w > 0.0, w, 1.0), inf)
+        # covariance in the estimate's axes, rotated into the reference frame (delta R = R e^th)
+        if np.isinf(inv_w).any() or not math.isfinite(sigma2):
+            cov = np.full((3, 3), inf if math.isfinite(sigma2) else math.nan)
+        else:
+            cov_est = (V * (sigma2 * inv_w)) @ V.T
+            cov = R @ cov_est @ R.T
+    if np.all(np.isfinite(cov)):
+        var, axes = np.linalg.eigh(cov)
+        var, axes = var[::-1], axes[:, ::-1].T
+        rot_sigma = np.degrees(np.sqrt(np.maximum(var, 0.0)))
+        total = math.degrees(math.sqrt(max(float(np.trace(cov)), 0.0)))
+        # translation of T_ref_est: t = mean_y - c R mean_x; delta t = delta tau + c [R mx]x^T dth
+        lever = c * (R @ m.mean_x)
+        L = np.array([[0.0, lever[2], -lever[1]], [-lever[2], 0.0, lever[0]],
+                      [lever[1], -lever[0], 0.0]])
+        cov_t = sigma2 / n * np.eye(3) + L @ cov @ L.T
+    else:
+        rot_sigma = np.full(3, math.nan if not math.isfinite(sigma2) else inf)
+        axes = np.eye(3)
+        total = float(rot_sigma[0])
+        cov_t = np.full((3, 3), total)
+    scale_sigma = None
+    if method == "sim3":
+        tr = float(np.trace(m.sxx))
+        scale_sigma = math.sqrt(sigma2 / tr) if tr > 0.0 else inf
+        if np.all(np.isfinite(cov_t)):
+            cov_t = cov_t + np.outer(R @ m.mean_x, R @ m.mean_x) * scale_sigma**2
+    return AlignmentConditioning(
+        method=method,
+        n_used=n,
+        sigma_pos_m=math.sqrt(sigma2) if math.isfinite(sigma2) else math.nan,
+        spread_m=_ro(spread),
+        rotation_cov_rad2=_ro(cov),
+        rotation_sigma_deg=_ro(rot_sigma),
+        rotation_axes=_ro(axes),
+        rotation_sigma_total_deg=total,
+        translation_sigma_m=_ro(np.sqrt(np.maximum(np.diag(cov_t), 0.0))),
+        scale_sigma=scale_sigma,
+    )
+
+
+def _ro(a: FloatArray) -> FloatArray:
+    out = np.array(a, dtype=np.float64)
+    out.flags.writeable = False
+    return out
+
+
 def align(
     est: Trajectory,
     ref: Trajectory,
@@ -229,7 +388,9 @@ def align(
     Returns
     -------
     AlignmentResult
-        ``T_ref_est`` and the scale; apply it with :meth:`AlignmentResult.apply`.
+        ``T_ref_est`` and the scale; apply it with :meth:`AlignmentResult.apply`.  Its
+        ``conditioning`` (:class:`AlignmentConditioning`) says how well rotation, translation and
+        scale are determined; :func:`conditioning_warnings` turns it into warnings.
 
     Raises
     ------
@@ -275,10 +436,89 @@ def align(
     _check_scatter(mo.syy, mo.size_y, n_used, ref.describe("reference"), m.value, planar=planar)
     if planar:
         R, t = _yaw(mo)
-        return AlignmentResult(m.value, _se3(R, t), 1.0, n_used)
+        return AlignmentResult(m.value, _se3(R, t), 1.0, n_used,
+                               conditioning=_conditioning(mo, m.value, R, 1.0))
     R, t, c = _umeyama(mo, with_scale=m is Alignment.SIM3)
     if not (math.isfinite(c) and c > 0.0):
         raise DegenerateInputError(
             f"sim3 alignment gave an invalid scale {c!r}; {_DEGENERATE_HINT}"
         )
-    return AlignmentResult(m.value, _se3(R, t), c, n_used)
+    return AlignmentResult(m.value, _se3(R, t), c, n_used,
+                           conditioning=_conditioning(mo, m.value, R, c))
+
+
+#: A rotation error (RMS) below this many degrees is negligible whatever dominates it.
+ROTATION_FLOOR_DEG = 0.1
+#: The alignment's rotation dominates when its 1-sigma is at least this fraction of the rotation
+#: error RMS it is part of.
+DOMINANT_FRACTION = 0.5
+#: Beyond this 1-sigma (degrees) the rotation is undetermined whatever error is reported.
+UNDETERMINED_DEG = 5.0
+#: A sim3 scale whose relative 1-sigma exceeds this is reported as poorly determined.
+SCALE_REL_SIGMA = 0.05
+
+
+def _length(v: float) -> str:
+    return f"{v:.3g} m" if not math.isfinite(v) or v >= 1.0 else f"{v * 1000:.3g} mm"
+
+
+def _axis_name(axis: FloatArray) -> str:
+    a = np.asarray(axis, dtype=np.float64)
+    k = int(np.argmax(np.abs(a)))
+    if abs(a[k]) > 0.95:
+        return f"{'xyz'[k]} axis"
+    return f"axis [{a[0]:.2f}, {a[1]:.2f}, {a[2]:.2f}]"
+
+
+def conditioning_warnings(
+    al: AlignmentResult, *, rotation_rmse_deg: float | None = None, who: str = "estimate"
+) -> list[str]:
+    """Warnings (sentences in library terms) when the alignment is too poorly determined for
+    the numbers computed after it.
+
+    - The rotation error is dominated by the alignment: the alignment's rotation 1-sigma
+      (:attr:`AlignmentConditioning.rotation_sigma_total_deg`) is at least
+      ``DOMINANT_FRACTION`` of ``rotation_rmse_deg`` (itself above ``ROTATION_FLOOR_DEG``: a
+      rotation error that small is negligible whatever it is made of), or any
+      axis is undetermined (1-sigma above ``UNDETERMINED_DEG``, e.g. a 2 mm cloud, or the roll
+      about a nearly straight path).  ``rotation_rmse_deg=None`` (RPE, which does not depend on
+      the alignment's rotation) checks only the scale.
+    - ``sim3``: the scale's relative 1-sigma exceeds ``SCALE_REL_SIGMA``.
+    """
+    cond = al.conditioning
+    if cond is None:
+        return []
+    out: list[str] = []
+    spread = ", ".join(_length(v) for v in cond.spread_m)
+    geometry = (f"the {cond.n_used} aligned positions of the {who} spread {spread} (RMS along "
+                f"their principal axes) against a residual of {_length(cond.sigma_pos_m)}")
+    if rotation_rmse_deg is not None:
+        worst = float(cond.rotation_sigma_deg[0])
+        total = cond.rotation_sigma_total_deg
+        undetermined = not math.isfinite(worst) or worst > UNDETERMINED_DEG
+        dominant = (math.isfinite(total) and rotation_rmse_deg >= ROTATION_FLOOR_DEG
+                    and total >= DOMINANT_FRACTION * rotation_rmse_deg)
+        if undetermined or dominant:
+            sig = "undetermined" if not math.isfinite(worst) else f"1-sigma {worst:.3g} deg"
+            what = (f"the rotation of the {al.method} alignment is poorly determined ({sig} about "
+                    f"the {_axis_name(cond.rotation_axes[0])}; {geometry})")
+            if dominant and math.isfinite(total):
+                what += (f", so the rotation error (rmse {rotation_rmse_deg:.3g} deg) is dominated "
+                         f"by the alignment (its own error alone: {total:.3g} deg)")
+            else:
+                what += f"; the rotation error (rmse {rotation_rmse_deg:.3g} deg) means little"
+            hint = ('align on a longer or less straight stretch, use align="yaw" (gravity known) '
+                    'or align="origin", or read only the translation error')
+            if al.method == "yaw":
+                hint = ('align on a longer stretch or use align="origin", or read only the '
+                        'translation error')
+            out.append(f"{what}; {hint}")
+    if cond.scale_sigma is not None and al.scale > 0:
+        rel = cond.scale_sigma / al.scale
+        if not math.isfinite(rel) or rel > SCALE_REL_SIGMA:
+            out.append(
+                f"the scale of the sim3 alignment is poorly determined (scale {al.scale:.4g} "
+                f"+- {cond.scale_sigma:.2g}; {geometry}); errors after it are unreliable: "
+                'align on a longer stretch or use align="se3" if the estimate has metric scale'
+            )
+    return out

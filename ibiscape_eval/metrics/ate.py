@@ -9,12 +9,23 @@ import numpy as np
 import numpy.typing as npt
 
 from ibiscape_eval.core import Trajectory
-from ibiscape_eval.core.time import s_from_ns
 
-from ._common import MatchedResult, absolute_errors, aligned_errors, frozen, matched_fields
+from ._common import (
+    MatchedResult,
+    absolute_errors,
+    aligned_errors,
+    check_unit,
+    emit,
+    frozen,
+    matched_fields,
+    pose_index,
+    scaled_stats,
+    select,
+    stamps_synthetic,
+)
 from ._common import match as _match
 from ._stats import ErrorStats
-from .alignment import Alignment
+from .alignment import Alignment, conditioning_warnings
 from .alignment import align as _align
 from .relations import check_plane, check_relation, relation_errors
 from .relations import project_to_plane as _project
@@ -74,35 +85,49 @@ class AteResult(MatchedResult):
     def _repr_html_(self) -> str:
         return summary_html(self, "ATE")
 
-    def to_frame(self) -> pd.DataFrame:
+    def to_frame(self, *, unit: str = "m") -> pd.DataFrame:
         """Per-pose rows: ``ref_stamp_ns, ref_t_s, est_stamp_ns, error_m, error_deg,
         est_{x,y,z}_m, ref_{x,y,z}_m`` (and ``error`` for a relation other than ``trans``).
 
         ``ref_stamp_ns`` is the matched reference pose's stamp, ``est_stamp_ns`` the estimate's
-        (after any time offset); ``ref_t_s`` is the reference stamp in seconds."""
+        (after any time offset); ``ref_t_s`` is the reference stamp in seconds.  Synthetic stamps
+        (:attr:`stamps_synthetic`) give ``ref_pose_index`` instead of these three columns.
+        ``unit`` (``m``, ``cm``, ``mm``; evo's ``--change_unit``) renames and scales the length
+        columns (``error_cm``, ``est_x_cm`` ...)."""
         import pandas as pd
 
+        from .relations import RELATION_UNITS
+
+        f = check_unit(unit)
         e, r = self.est_aligned.pos_m, self.ref.pos_m
-        cols: dict[str, Any] = {
-                "ref_stamp_ns": self.stamps_ns,
-                "ref_t_s": s_from_ns(self.stamps_ns),
-                "est_stamp_ns": self.est_aligned.stamps_ns,
-                "error_m": self.errors_m,
+        cols: dict[str, Any] = self._index_columns(self.stamps_ns)
+        if not self.stamps_synthetic:
+            cols["est_stamp_ns"] = self.est_aligned.stamps_ns
+        cols.update({
+                f"error_{unit}": self.errors_m * f,
                 "error_deg": self.errors_deg,
-                "est_x_m": e[:, 0], "est_y_m": e[:, 1], "est_z_m": e[:, 2],
-                "ref_x_m": r[:, 0], "ref_y_m": r[:, 1], "ref_z_m": r[:, 2],
-        }
+                f"est_x_{unit}": e[:, 0] * f, f"est_y_{unit}": e[:, 1] * f,
+                f"est_z_{unit}": e[:, 2] * f,
+                f"ref_x_{unit}": r[:, 0] * f, f"ref_y_{unit}": r[:, 1] * f,
+                f"ref_z_{unit}": r[:, 2] * f,
+        })
         if self.pose_relation != "trans":
-            cols["error"] = self.errors
+            rf = f if RELATION_UNITS[self.pose_relation] == "m" else 1.0
+            cols["error"] = self.errors * rf
         return pd.DataFrame(cols)
 
-    def to_dict(self) -> dict[str, Any]:
-        """The JSON document the CLI prints (see the package docs for the contract)."""
+    def to_dict(self, *, unit: str = "m") -> dict[str, Any]:
+        """The JSON document the CLI prints (see the package docs for the contract);
+        ``unit`` other than ``m`` reports ``translation_<unit>`` and adds ``length_unit``."""
+        f = check_unit(unit)
         doc = self._common_dict("ate")
         doc["n_align"] = int(self.alignment.n_used)
-        doc["translation_m"] = self.translation_m.to_dict()
+        doc[f"translation_{unit}"] = scaled_stats(self.translation_m, f)
         doc["rotation_deg"] = self.rotation_deg.to_dict()
-        doc.update(self._relation_dict(self.pose_relation, self.project_to_plane, self.stats))
+        doc.update(self._relation_dict(self.pose_relation, self.project_to_plane, self.stats,
+                                       unit))
+        if unit != "m":
+            doc["length_unit"] = unit
         return doc
 
 
@@ -119,6 +144,10 @@ def ate(
     match: str = "time",
     pose_relation: str = "trans",
     project_to_plane: str | None = None,
+    t_start_s: float | None = None,
+    t_end_s: float | None = None,
+    downsample: int | None = None,
+    motion_filter: tuple[float, float] | None = None,
 ) -> AteResult:
     """Absolute trajectory error of ``est`` against ``ref``.
 
@@ -148,15 +177,31 @@ def ate(
     project_to_plane : {"xy", "xz", "yz"}, optional
         Project both trajectories onto this plane after the alignment (evo's
         ``--project_to_plane``; :func:`~ibiscape_eval.metrics.relations.project_to_plane`).
+    t_start_s, t_end_s : float, optional
+        Use only reference poses stamped within this range (absolute seconds, evo's
+        ``--t_start``/``--t_end``).
+    downsample : int, optional
+        Evenly downsample both trajectories to at most this many poses first (evo's
+        ``--downsample``).
+    motion_filter : (float, float), optional
+        ``(distance_m, angle_deg)``: keep a pose only after moving that far or turning that much
+        (evo's ``--motion_filter``), applied to both trajectories before matching.
 
     Returns
     -------
     AteResult
+        With ``warnings`` when the rotation error is dominated by a poorly determined
+        alignment (see :func:`~ibiscape_eval.metrics.alignment.conditioning_warnings`); they
+        are also issued as :class:`~ibiscape_eval.core.IbiscapeWarning`.
     """
     check_relation(pose_relation)
     plane = check_plane(project_to_plane)
+    est, ref = select(est, ref, t_start_s=t_start_s, t_end_s=t_end_s, downsample=downsample,
+                      motion_filter=motion_filter)
     m = _match(est, ref, match=match, max_diff_s=max_diff_s, offset_s=offset_s,
                estimate_offset=estimate_offset, interpolate=interpolate)
+    synthetic = stamps_synthetic(est, ref, m)
+    index = pose_index(ref, m)
     al = _align(m.est, m.ref, method=align, n_align=n_align)
     est_al, trans, rot = aligned_errors(al, m.est, m.ref)
     if plane is not None:
@@ -164,14 +209,18 @@ def ate(
         trans, rot = absolute_errors(est_al, ref_p)
         m = replace(m, ref=ref_p)
     rot_deg = np.degrees(rot, out=rot)
+    rot_stats = ErrorStats.from_errors(rot_deg)
+    notes = emit(conditioning_warnings(al, rotation_rmse_deg=rot_stats.rmse,
+                                       who=est.describe("estimate")))
     return AteResult(
         stamps_ns=frozen(m.ref.stamps_ns),
         errors_m=frozen(trans, owned=True),
         errors_deg=frozen(rot_deg, owned=True),
         translation_m=ErrorStats.from_errors(trans),
-        rotation_deg=ErrorStats.from_errors(rot_deg),
+        rotation_deg=rot_stats,
         pose_relation=pose_relation,
         project_to_plane=plane,
-        **matched_fields(m, al, est_al),
+        **matched_fields(m, al, est_al, synthetic=synthetic, warnings=notes,
+                         ref_pose_index=index),
     )
 

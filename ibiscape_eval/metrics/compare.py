@@ -60,6 +60,11 @@ class CompareEntry:
             "rpe_error_rmse": self.rpe.stats.rmse,
             "n_matched": self.ate.n_matched,
             "n_pairs": self.rpe.n_pairs,
+            "stamps": "synthetic" if self.ate.stamps_synthetic else "measured",
+            "ate_rotation_sigma_deg": (
+                None if self.ate.alignment.conditioning is None
+                else self.ate.alignment.conditioning.to_dict()["rotation_sigma_total_deg"]),
+            "warnings": list(dict.fromkeys(self.ate.warnings + self.rpe.warnings)),
         }
 
 
@@ -146,11 +151,15 @@ def compare(
     pairs_from: str = "est",
     pose_relation: str = "trans",
     project_to_plane: str | None = None,
+    rel_tol: float = 0.1,
     **match_kw: Any,
 ) -> CompareResult:
-    """ATE (``align``) and RPE (``rpe_align``, ``delta`` in ``delta_unit``) of every estimate
-    against ``ref`` with the same options; ``labels`` default to the trajectories' names (made
-    unique).  ``match_kw`` are the matching options of :func:`ate` (``max_diff_s``, ...)."""
+    """ATE (``align``) and RPE (``rpe_align``, ``delta`` in ``delta_unit``, ``rel_tol``) of every
+    estimate against ``ref`` with the same options; ``labels`` default to the trajectories' names
+    (made unique).  ``match_kw`` are the matching and selection options :func:`ate` and
+    :func:`rpe` share (``max_diff_s``, ``offset_s``, ``estimate_offset``, ``interpolate``,
+    ``match``, ``n_align``, ``t_start_s``, ``t_end_s``, ``downsample``, ``motion_filter``).
+    Each estimate's warnings (alignment conditioning ...) are in its entry's ``to_dict()``."""
     if not estimates:
         raise IbiscapeError("compare needs at least one estimate")
     if labels is None:
@@ -168,11 +177,12 @@ def compare(
                 project_to_plane=project_to_plane, **match_kw)
         r = rpe(est, ref, delta=delta, delta_unit=delta_unit, pairs=pairs, align=rpe_align,
                 pose_relation=pose_relation, project_to_plane=project_to_plane,
-                pairs_from=pairs_from, **match_kw)
+                pairs_from=pairs_from, rel_tol=rel_tol, **match_kw)
         entries.append(CompareEntry(label=label, est_file=f, ate=a, rpe=r))
     options = {"align": align, "rpe_align": rpe_align, "delta": float(delta),
                "delta_unit": delta_unit, "pairs": pairs, "pairs_from": pairs_from,
                "pose_relation": pose_relation, "project_to_plane": project_to_plane,
+               "delta_tol": float(rel_tol),
                **{k: v for k, v in match_kw.items() if isinstance(v, str | int | float | bool)}}
     return CompareResult(ref_file=ref_file or ref.name, entries=tuple(entries), options=options)
 

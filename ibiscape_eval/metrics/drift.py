@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -11,9 +10,19 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from ibiscape_eval.core import IbiscapeError, IbiscapeWarning, Trajectory
+from ibiscape_eval.core import IbiscapeError, Trajectory
 
-from ._common import MatchedResult, frozen, matched_fields, nan_to_none, relative_errors
+from ._common import (
+    MatchedResult,
+    emit,
+    frozen,
+    matched_fields,
+    nan_to_none,
+    pose_index,
+    relative_errors,
+    select,
+    stamps_synthetic,
+)
 from ._common import match as _match
 from ._stats import ErrorStats
 from .alignment import Alignment
@@ -81,13 +90,26 @@ class DriftResult(MatchedResult):
     def _repr_html_(self) -> str:
         return summary_html(self, "drift")
 
+    @property
+    def reached(self) -> npt.NDArray[np.bool_]:
+        """Per length: whether any segment of that length fits on the reference path (False
+        rows have no errors, not a zero drift)."""
+        return np.asarray(self.n_segments) > 0
+
+    @property
+    def path_length_m(self) -> float:
+        """Length of the matched reference path, metres."""
+        return float(self.ref.path_length_m()[-1]) if len(self.ref) else 0.0
+
     def to_frame(self) -> pd.DataFrame:
-        """One row per length: ``length_m, n_segments, translation_pct, rotation_deg_per_m``."""
+        """One row per length: ``length_m, reached, n_segments, translation_pct,
+        rotation_deg_per_m`` (the errors empty where ``reached`` is False)."""
         import pandas as pd
 
         return pd.DataFrame(
             {
                 "length_m": self.lengths_m,
+                "reached": self.reached,
                 "n_segments": self.n_segments,
                 "translation_pct": self.translation_pct,
                 "rotation_deg_per_m": self.rotation_deg_per_m,
@@ -100,6 +122,8 @@ class DriftResult(MatchedResult):
         doc["step_frames"] = int(self.step_frames)
         doc["lengths_m"] = [float(x) for x in self.lengths_m]
         doc["n_segments"] = [int(x) for x in self.n_segments]
+        doc["reached"] = [bool(x) for x in self.reached]
+        doc["path_length_m"] = self.path_length_m
         doc["translation_pct"] = [nan_to_none(float(x)) for x in self.translation_pct]
         doc["rotation_deg_per_m"] = [nan_to_none(float(x)) for x in self.rotation_deg_per_m]
         doc["mean_translation_pct"] = nan_to_none(self.mean_translation_pct)
@@ -158,6 +182,10 @@ def drift(
     estimate_offset: bool = False,
     interpolate: bool = False,
     match: str = "time",
+    t_start_s: float | None = None,
+    t_end_s: float | None = None,
+    downsample: int | None = None,
+    motion_filter: tuple[float, float] | None = None,
 ) -> DriftResult:
     """Translation and rotation drift over segments of the reference path (KITTI devkit).
 
@@ -179,16 +207,23 @@ def drift(
         Distance between start frames (KITTI uses 10).
     align, n_align, max_diff_s, offset_s, estimate_offset, interpolate, match
         As in :func:`ate`.
+    t_start_s, t_end_s, downsample, motion_filter
+        evo's pose selection, as in :func:`ate`.
 
     Returns
     -------
     DriftResult
-        Lengths without any segment have ``n_segments`` 0 and NaN errors; the averages skip them.
+        Lengths without any segment have ``n_segments`` 0, ``reached`` False and NaN errors; the
+        averages skip them, and a warning names them and proposes ``lengths_pct``.
     """
     if int(step_frames) != step_frames or step_frames < 1:
         raise IbiscapeError(f"step_frames must be a positive integer, got {step_frames!r}")
+    est, ref = select(est, ref, t_start_s=t_start_s, t_end_s=t_end_s, downsample=downsample,
+                      motion_filter=motion_filter)
     m = _match(est, ref, match=match, max_diff_s=max_diff_s, offset_s=offset_s,
                estimate_offset=estimate_offset, interpolate=interpolate)
+    synthetic = stamps_synthetic(est, ref, m)
+    index = pose_index(ref, m)
     al = _align(m.est, m.ref, method=align, n_align=n_align)
     est_al = al.apply(m.est)
     cum = m.ref.path_length_m()
@@ -215,16 +250,22 @@ def drift(
         per_r = np.bincount(which, weights=r_deg_m, minlength=lengths.shape[0]) / counts
     per_t[counts == 0] = math.nan
     per_r[counts == 0] = math.nan
-    if i.shape[0] == 0:
-        warnings.warn(
-            f"no drift segment fits: the matched reference path is {cum[-1]:.3f} m long, shorter "
-            f"than the shortest length {lengths.min():g} m; use shorter --lengths or --lengths-pct",
-            IbiscapeWarning,
-            stacklevel=2,
+    notes: list[str] = []
+    unreached = lengths[counts == 0]
+    if unreached.size:
+        which_l = ", ".join(f"{v:g}" for v in unreached)
+        head = ("no drift segment fits" if i.shape[0] == 0
+                else f"{unreached.size} of {lengths.size} segment lengths were not reached")
+        notes.append(
+            f"{head}: the matched reference path is {cum[-1]:.1f} m long, so no segment spans "
+            f"{which_l} m (those rows have no errors, not a zero drift); use shorter lengths_m or "
+            "lengths relative to the path, e.g. lengths_pct=[10, 20, 30, 40, 50]"
         )
+    if i.shape[0] == 0:
         mean_t = mean_r = math.nan
     else:
         mean_t, mean_r = float(np.mean(t_pct)), float(np.mean(r_deg_m))
+    warned = emit(notes)
     return DriftResult(
         lengths_m=frozen(lengths),
         translation_pct=frozen(per_t),
@@ -240,5 +281,6 @@ def drift(
         translation_m=ErrorStats.from_errors(trans),
         rotation_deg=ErrorStats.from_errors(rot_deg),
         step_frames=int(step_frames),
-        **matched_fields(m, al, est_al),
+        **matched_fields(m, al, est_al, synthetic=synthetic, warnings=warned,
+                         ref_pose_index=index),
     )

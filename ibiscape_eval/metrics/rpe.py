@@ -11,13 +11,23 @@ import numpy.typing as npt
 
 from ibiscape_eval.core import DegenerateInputError, IbiscapeError, Trajectory
 from ibiscape_eval.core.rotations import angle_rad_from_quat, quat_conjugate, quat_multiply
-from ibiscape_eval.core.time import s_from_ns
 
-from ._common import MatchedResult, frozen, matched_fields, relative_errors
+from ._common import (
+    MatchedResult,
+    check_unit,
+    emit,
+    frozen,
+    matched_fields,
+    pose_index,
+    relative_errors,
+    scaled_stats,
+    select,
+    stamps_synthetic,
+)
 from ._common import match as _match
 from ._pairs import pairs_by_frames, pairs_by_steps
 from ._stats import ErrorStats
-from .alignment import Alignment
+from .alignment import Alignment, conditioning_warnings
 from .alignment import align as _align
 from .relations import check_plane, check_relation, relation_errors
 from .relations import project_to_plane as _project
@@ -63,6 +73,8 @@ class RpeResult(MatchedResult):
         Plane both trajectories were projected to after alignment.
     pairs_from : str
         ``"est"`` (evo's default) or ``"ref"``: the trajectory whose path defines the pairs.
+    rel_tol : float
+        Relative tolerance on ``delta`` of ``pairs="all"`` (evo's ``--delta_tol``).
     alignment, est_aligned, ref, n_matched, n_dropped_est, n_dropped_ref, t_offset_s,
     interpolated
         How the trajectories were matched and aligned: see :class:`MatchedResult`.
@@ -82,6 +94,7 @@ class RpeResult(MatchedResult):
     pose_relation: str = "trans"
     project_to_plane: str | None = None
     pairs_from: str = "est"
+    rel_tol: float = 0.1
 
     @property
     def errors(self) -> npt.NDArray[np.float64]:
@@ -106,33 +119,43 @@ class RpeResult(MatchedResult):
     def _repr_html_(self) -> str:
         return summary_html(self, "RPE")
 
-    def to_frame(self) -> pd.DataFrame:
+    def to_frame(self, *, unit: str = "m") -> pd.DataFrame:
         """Per-pair rows: ``ref_stamp_ns, ref_t_s, first_index, second_index, error_m,
         error_deg`` (and ``error`` for a relation other than ``trans``); the stamp is the
-        reference stamp of the pair's first pose."""
+        reference stamp of the pair's first pose.  Synthetic stamps give ``ref_pose_index``
+        (of the first pose) instead of the two stamp columns; ``unit`` renames and scales
+        ``error_m`` (``error_cm`` ...)."""
         import pandas as pd
 
-        cols: dict[str, Any] = {
-                "ref_stamp_ns": self.stamps_ns,
-                "ref_t_s": s_from_ns(self.stamps_ns),
+        from .relations import RELATION_UNITS
+
+        f = check_unit(unit)
+        cols: dict[str, Any] = self._index_columns(self.stamps_ns, self.first_index)
+        cols.update({
                 "first_index": self.first_index,
                 "second_index": self.second_index,
-                "error_m": self.errors_m,
+                f"error_{unit}": self.errors_m * f,
                 "error_deg": self.errors_deg,
-        }
+        })
         if self.pose_relation != "trans":
-            cols["error"] = self.errors
+            rf = f if RELATION_UNITS[self.pose_relation] == "m" else 1.0
+            cols["error"] = self.errors * rf
         return pd.DataFrame(cols)
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self, *, unit: str = "m") -> dict[str, Any]:
         """The JSON document the CLI prints (ATE's keys plus ``n_pairs, delta, delta_unit,
-        pairs``)."""
+        pairs, delta_tol``); ``unit`` as in :meth:`AteResult.to_dict`."""
+        f = check_unit(unit)
         doc = self._common_dict("rpe")
         doc.update(n_pairs=int(self.n_pairs), delta=float(self.delta),
-                   delta_unit=self.delta_unit, pairs=self.pairs, pairs_from=self.pairs_from)
-        doc["translation_m"] = self.translation_m.to_dict()
+                   delta_unit=self.delta_unit, pairs=self.pairs, pairs_from=self.pairs_from,
+                   delta_tol=float(self.rel_tol))
+        doc[f"translation_{unit}"] = scaled_stats(self.translation_m, f)
         doc["rotation_deg"] = self.rotation_deg.to_dict()
-        doc.update(self._relation_dict(self.pose_relation, self.project_to_plane, self.stats))
+        doc.update(self._relation_dict(self.pose_relation, self.project_to_plane, self.stats,
+                                       unit))
+        if unit != "m":
+            doc["length_unit"] = unit
         return doc
 
 
@@ -206,6 +229,10 @@ def rpe(
     pose_relation: str = "trans",
     project_to_plane: str | None = None,
     pairs_from: str = "est",
+    t_start_s: float | None = None,
+    t_end_s: float | None = None,
+    downsample: int | None = None,
+    motion_filter: tuple[float, float] | None = None,
 ) -> RpeResult:
     """Relative pose error of ``est`` against ``ref`` (evo's RPE).
 
@@ -227,7 +254,8 @@ def rpe(
         As in :func:`ate` (alignment defaults to ``"none"``: RPE does not need one, except
         ``sim3`` for a monocular scale).
     rel_tol : float
-        Relative tolerance on ``delta`` for ``pairs="all"`` in continuous units.
+        Relative tolerance on ``delta`` for ``pairs="all"`` in continuous units (evo's
+        ``--delta_tol``, default 0.1).
     pose_relation : {"trans", "rot-angle", "rot-part", "full", "point-distance"}
         evo's pose relation of :attr:`RpeResult.errors` / ``stats``.
     project_to_plane : {"xy", "xz", "yz"}, optional
@@ -235,6 +263,8 @@ def rpe(
     pairs_from : {"est", "ref"}
         Which trajectory's path (distance, angle, time) defines the pairs: the estimate
         (evo's default) or the reference (what most papers mean by "RPE over 100 m").
+    t_start_s, t_end_s, downsample, motion_filter
+        evo's pose selection, as in :func:`ate`.
 
     Returns
     -------
@@ -252,9 +282,16 @@ def rpe(
     plane = check_plane(project_to_plane)
     if pairs_from not in PAIRS_FROM:
         raise IbiscapeError(f"unknown pairs_from {pairs_from!r}; choose 'est' or 'ref'")
+    if not (math.isfinite(rel_tol) and rel_tol >= 0.0):
+        raise IbiscapeError(f"rel_tol must be a non-negative number, got {rel_tol!r}")
+    est, ref = select(est, ref, t_start_s=t_start_s, t_end_s=t_end_s, downsample=downsample,
+                      motion_filter=motion_filter)
     m = _match(est, ref, match=match, max_diff_s=max_diff_s, offset_s=offset_s,
                estimate_offset=estimate_offset, interpolate=interpolate)
+    synthetic = stamps_synthetic(est, ref, m)
+    index = pose_index(ref, m)
     al = _align(m.est, m.ref, method=align, n_align=n_align)
+    notes = emit(conditioning_warnings(al, who=est.describe("estimate")))
     est_al = al.apply(m.est)
     if plane is not None:
         est_al = _project(est_al, plane)
@@ -290,5 +327,7 @@ def rpe(
         pose_relation=pose_relation,
         project_to_plane=plane,
         pairs_from=pairs_from,
-        **matched_fields(m, al, est_al),
+        rel_tol=float(rel_tol),
+        **matched_fields(m, al, est_al, synthetic=synthetic, warnings=notes,
+                         ref_pose_index=index),
     )

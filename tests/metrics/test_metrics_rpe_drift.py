@@ -135,8 +135,8 @@ def test_drift_straight_line_with_scale_error() -> None:
     doc = json.loads(json.dumps(res.to_dict()))
     assert doc["translation_pct"][3] is None and doc["n_segments"] == [91, 61, 21, 0]
     assert doc["lengths_m"] == [100.0, 400.0, 800.0, 2000.0]
-    assert list(res.to_frame().columns) == ["length_m", "n_segments", "translation_pct",
-                                            "rotation_deg_per_m"]
+    assert list(res.to_frame().columns) == ["length_m", "reached", "n_segments",
+                                            "translation_pct", "rotation_deg_per_m"]
 
 
 def test_drift_circle_with_scale_and_heading_drift() -> None:
