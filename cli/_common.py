@@ -7,9 +7,11 @@ from __future__ import annotations
 
 import functools
 import json
+import re
 import sys
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Any, TypeVar
 
 import click
@@ -18,7 +20,18 @@ from ibiscape_eval.core.errors import IbiscapeError, IbiscapeWarning
 
 F = TypeVar("F", bound=Callable[..., Any])
 
-__all__ = ["echo_json", "fail", "info", "strict_json", "user_errors"]
+__all__ = [
+    "cli_terms",
+    "echo_json",
+    "fail",
+    "info",
+    "read_trajectories",
+    "selection_kwargs",
+    "show_doc_warnings",
+    "strict_json",
+    "trajectory_options",
+    "user_errors",
+]
 
 
 def fail(message: str) -> None:
@@ -36,7 +49,7 @@ def _show_warning(
     message: Any, category: Any, filename: Any, lineno: Any, file: Any = None, line: Any = None
 ) -> None:
     label = "warning" if issubclass(category, IbiscapeWarning) else category.__name__
-    click.echo(f"{label}: {' '.join(str(message).split())}", err=True)
+    click.echo(f"{label}: {cli_terms(' '.join(str(message).split()))}", err=True)
 
 
 def user_errors(func: F) -> F:
@@ -114,3 +127,169 @@ def strict_json(doc: Any) -> Any:
     if missing and isinstance(out, dict):
         out = {**out, "non_finite": {**out.get("non_finite", {}), **missing}}
     return out
+
+
+# --------------------------------------------------------------------------- trajectory inputs
+# The options ate, rpe, drift and compare share: one definition, so every command reads, pairs
+# and selects poses the same way.
+
+_LIB_TERMS = (
+    (re.compile(r'align="(\w+)"'), r"--align \1"),
+    (re.compile(r"lengths_pct=\[([\d.,\s]+)\]"), lambda m: "--lengths-pct " + ",".join(
+        v.strip() for v in m.group(1).split(","))),
+    (re.compile(r"\blengths_m\b"), "--lengths"),
+    (re.compile(r"\bn_align\b"), "--n-align"),
+    (re.compile(r"\bmax_diff_s\b"), "--max-diff-s"),
+)
+
+
+def cli_terms(message: str) -> str:
+    """A library warning in command-line terms: ``align="yaw"`` -> ``--align yaw``,
+    ``lengths_pct=[10, 20]`` -> ``--lengths-pct 10,20``."""
+    for pattern, repl in _LIB_TERMS:
+        message = pattern.sub(repl, message)  # type: ignore[call-overload]
+    return message
+
+
+def _options(func: Callable[..., Any], opts: list[Any]) -> Callable[..., Any]:
+    for opt in reversed(opts):
+        func = opt(func)
+    return func
+
+
+def _motion(ctx: Any, param: Any, value: Any) -> tuple[float, float] | None:
+    if not value:
+        return None
+    d, a = value
+    if d < 0 or a < 0:
+        raise click.BadParameter("both thresholds must be >= 0 (metres, degrees)")
+    return float(d), float(a)
+
+
+def trajectory_options(func: Callable[..., Any]) -> Callable[..., Any]:
+    """Reading (formats, bag topics, KITTI times), association (max difference, offset,
+    interpolation), evo's pose selection (time range, downsampling, motion filter), alignment
+    window and output unit: the options every trajectory metric command takes."""
+    from ibiscape_eval.io.detect import TRAJECTORY_FORMATS
+
+    formats = ("auto", *TRAJECTORY_FORMATS)
+    return _options(func, [
+        click.option("--format", "fmt", type=click.Choice(formats), default="auto",
+                     show_default=True,
+                     help="Format of every file (auto detects from name and content)."),
+        click.option("--format-est", type=click.Choice(formats), default=None,
+                     help="Format of the estimate(s), overrides --format."),
+        click.option("--format-ref", type=click.Choice(formats), default=None,
+                     help="Format of REF, overrides --format."),
+        click.option("--topic", default=None,
+                     help="Bag topic for every file (tf: '/tf:parent.child')."),
+        click.option("--topic-est", default=None, help="Bag topic of the estimate(s)."),
+        click.option("--topic-ref", default=None, help="Bag topic of REF."),
+        click.option("--times-est", type=click.Path(path_type=Path), default=None,
+                     help="KITTI times file (s, one per line) of the estimate."),
+        click.option("--times-ref", type=click.Path(path_type=Path), default=None,
+                     help="KITTI times file (s, one per line) of REF."),
+        click.option("--max-diff-s", type=click.FloatRange(min=0.0), default=0.01,
+                     show_default=True,
+                     help="Largest time difference of an associated pose pair, seconds."),
+        click.option("--offset-s", type=float, default=0.0, show_default=True,
+                     help="Constant time offset added to the estimate's stamps, seconds."),
+        click.option("--estimate-offset", is_flag=True,
+                     help="Estimate the time offset between estimate and REF and report it."),
+        click.option("--interpolate", is_flag=True,
+                     help="Interpolate the denser trajectory at the sparser one's stamps."),
+        click.option("--n-align", type=click.IntRange(min=1), default=None,
+                     help="Align on the first N matched poses only."),
+        click.option("--t-start", type=float, default=None,
+                     help="Use reference poses stamped at or after this time (absolute "
+                     "seconds of the file, as evo's --t_start)."),
+        click.option("--t-end", type=float, default=None,
+                     help="Use reference poses stamped at or before this time (absolute s)."),
+        click.option("--downsample", type=click.IntRange(min=1), default=None,
+                     help="Evenly downsample both trajectories to at most N poses first (evo)."),
+        click.option("--motion-filter", type=(float, float), default=None, callback=_motion,
+                     metavar="METRES DEGREES",
+                     help="Keep a pose only after moving METRES or turning DEGREES since the "
+                     "last kept one (evo's --motion_filter), both trajectories."),
+        click.option("--change-unit", "unit", type=click.Choice(("m", "cm", "mm")),
+                     default="m", show_default=True,
+                     help="Unit of translation errors in the table, JSON and CSV (evo)."),
+    ])
+
+
+def selection_kwargs(o: dict[str, Any], match: str) -> dict[str, Any]:
+    """The library keyword arguments of the shared options (association and selection)."""
+    return {
+        "max_diff_s": o["max_diff_s"],
+        "offset_s": o["offset_s"],
+        "estimate_offset": o["estimate_offset"],
+        "interpolate": o["interpolate"],
+        "match": match,
+        "n_align": o["n_align"],
+        "t_start_s": o["t_start"],
+        "t_end_s": o["t_end"],
+        "downsample": o["downsample"],
+        "motion_filter": o["motion_filter"],
+    }
+
+
+def read_trajectories(
+    ests: Sequence[Path], ref: Path, o: dict[str, Any]
+) -> tuple[list[Any], Any, str, str, list[str]]:
+    """Read the estimates and the reference with the shared options: say which formats were
+    detected, warn when an estimate looks like the ground truth, choose time or index pairing.
+
+    Returns the estimates, the reference, the match mode, the reference's format and the
+    warnings printed (for the JSON ``warnings`` list)."""
+    from ibiscape_eval.io import detect_trajectory_format, has_timestamps, read_trajectory
+    from ibiscape_eval.metrics import choose_match
+    from ibiscape_eval.metrics.order import swap_warning
+
+    from .startup import numba_startup
+
+    if o["times_est"] is not None and len(ests) > 1:
+        raise click.UsageError("--times-est names the times of one estimate; give the "
+                               "estimates one at a time, or convert them with their times first")
+
+    def load(path: Path, side: str) -> tuple[Any, str, bool]:
+        fmt = o[f"format_{side}"] or o["fmt"]
+        if fmt == "auto":
+            fmt = detect_trajectory_format(path)
+            info(f"{path}: format {fmt} (detected; force another with --format-{side})")
+        times = o[f"times_{side}"]
+        topic = o[f"topic_{side}"] or o["topic"]
+        if fmt == "bag" and topic is not None:
+            from .convert import tf_hint
+
+            tf_hint(path, topic)
+        traj = read_trajectory(path, fmt, topic=topic,
+                               times_path=None if times is None else str(times), name=path.name)
+        return traj, fmt, has_timestamps(fmt, times)
+
+    notes: list[str] = []
+    with numba_startup():
+        ref_t, ref_fmt, ref_timed = load(ref, "ref")
+        est_ts, match = [], None
+        for p in ests:
+            t, f, timed = load(p, "est")
+            warn = swap_warning(t, ref_t, est_path=p, ref_path=ref, fmt_est=f, fmt_ref=ref_fmt)
+            if warn:
+                notes.append(warn)
+                info(f"warning: {warn}")
+            m = choose_match(timed, ref_timed)
+            if match is not None and m != match:
+                raise click.UsageError("mixing timed and untimed (KITTI) estimates")
+            match = m
+            est_ts.append(t)
+    if match == "index":
+        info("KITTI poses without a times file: pairing poses by index; their stamps are "
+             "synthetic, so results use pose indices, not times")
+    return est_ts, ref_t, match or "time", ref_fmt, notes
+
+
+def show_doc_warnings(doc: dict[str, Any], extra: Sequence[str] = ()) -> dict[str, Any]:
+    """``doc`` with its ``warnings`` in command-line terms and ``extra`` (the reading warnings)
+    in front."""
+    if "warnings" in doc or extra:
+        doc["warnings"] = [*extra, *(cli_terms(w) for w in doc.get("warnings", []))]
+    return doc

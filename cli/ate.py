@@ -8,90 +8,31 @@ from typing import Any
 
 import click
 
-from ibiscape_eval.io.detect import TRAJECTORY_FORMATS
 from ibiscape_eval.metrics.alignment import Alignment
 from ibiscape_eval.metrics.relations import PLANES, POSE_RELATIONS
 from ibiscape_eval.metrics.rpe import DELTA_UNITS, PAIR_MODES, PAIRS_FROM
 from ibiscape_eval.report.plots import PANELS, PLOT_PLANES
 
-from ._common import echo_json, info, user_errors
+from ._common import (
+    echo_json,
+    info,
+    read_trajectories,
+    selection_kwargs,
+    show_doc_warnings,
+    trajectory_options,
+    user_errors,
+)
 
 ALIGNMENTS = tuple(a.value for a in Alignment)
-FORMATS = ("auto", *TRAJECTORY_FORMATS)
 
 
 def _input_options(func: Callable[..., Any]) -> Callable[..., Any]:
-    """Options shared by the three trajectory commands (reading, association, alignment, output)."""
+    """EST and REF, the shared reading/association/selection options (``_common``) and the
+    outputs of the three trajectory commands."""
     opts = [
         click.argument("est", type=click.Path(path_type=Path)),
         click.argument("ref", type=click.Path(path_type=Path)),
-        click.option(
-            "--format",
-            "fmt",
-            type=click.Choice(FORMATS),
-            default="auto",
-            show_default=True,
-            help="Format of both files (auto detects from name and content).",
-        ),
-        click.option(
-            "--format-est",
-            type=click.Choice(FORMATS),
-            default=None,
-            help="Format of EST, overrides --format.",
-        ),
-        click.option(
-            "--format-ref",
-            type=click.Choice(FORMATS),
-            default=None,
-            help="Format of REF, overrides --format.",
-        ),
-        click.option(
-            "--topic", default=None, help="Bag topic for both files (tf: '/tf:parent.child')."
-        ),
-        click.option("--topic-est", default=None, help="Bag topic of EST."),
-        click.option("--topic-ref", default=None, help="Bag topic of REF."),
-        click.option(
-            "--times-est",
-            type=click.Path(path_type=Path),
-            default=None,
-            help="KITTI times file (s, one per line) for EST.",
-        ),
-        click.option(
-            "--times-ref",
-            type=click.Path(path_type=Path),
-            default=None,
-            help="KITTI times file (s, one per line) for REF.",
-        ),
-        click.option(
-            "--max-diff-s",
-            type=click.FloatRange(min=0.0),
-            default=0.01,
-            show_default=True,
-            help="Largest time difference of an associated pose pair, seconds.",
-        ),
-        click.option(
-            "--offset-s",
-            type=float,
-            default=0.0,
-            show_default=True,
-            help="Constant time offset added to EST stamps, seconds.",
-        ),
-        click.option(
-            "--estimate-offset",
-            is_flag=True,
-            help="Estimate the time offset between EST and REF and report it.",
-        ),
-        click.option(
-            "--interpolate",
-            is_flag=True,
-            help="Interpolate the denser trajectory at the sparser one's stamps.",
-        ),
-        click.option(
-            "--n-align",
-            type=click.IntRange(min=1),
-            default=None,
-            help="Align on the first N matched poses only.",
-        ),
+        trajectory_options,
         click.option("--json", "as_json", is_flag=True, help="Print one JSON document on stdout."),
         click.option(
             "--save-csv",
@@ -137,9 +78,9 @@ def _evo_options(func: Callable[..., Any]) -> Callable[..., Any]:
         click.option(
             "--plot-plane",
             type=click.Choice(PLOT_PLANES),
-            default="xy",
-            show_default=True,
-            help="Plane of the trajectory panel (KITTI's camera frame: xz).",
+            default=None,
+            help="Plane of the trajectory panel (default by REF's format: xz for KITTI's "
+            "camera frame, else xy).",
         ),
         click.option(
             "--plot-panels",
@@ -165,69 +106,16 @@ def _panels(text: str | None) -> list[str] | None:
     return names
 
 
-def swap_warning(est: Any, ref: Any, fmt_est: str, fmt_ref: str) -> str | None:
-    """A warning when EST looks like the reference: much denser than REF and in a ground-truth
-    format (EuRoC's) or the reference's own format, e.g. EuRoC ground truth given as EST."""
-    if len(ref) == 0 or len(est) < 4 * len(ref):
-        return None
-    if fmt_est != "euroc" and fmt_est != fmt_ref:
-        return None
-    return (
-        f"warning: EST {est.name} has {len(est)} poses, {len(est) / len(ref):.0f}x as many as "
-        f"REF {ref.name} ({len(ref)}), in format {fmt_est}: it looks like the ground truth. "
-        "The order is EST then REF; swap them if so"
-    )
-
-
 def _read_pair(est: Path, ref: Path, o: dict[str, Any]) -> tuple[Any, Any, str]:
-    """Read both trajectories, say which formats were used, and choose time or index pairing."""
-    from ibiscape_eval.io import detect_trajectory_format, has_timestamps, read_trajectory
-    from ibiscape_eval.metrics import choose_match
-
-    from .startup import numba_startup
-
-    trajs, timed, fmts = [], [], []
-    with numba_startup():
-        for path, side in ((est, "est"), (ref, "ref")):
-            fmt = o[f"format_{side}"] or o["fmt"]
-            if fmt == "auto":
-                fmt = detect_trajectory_format(path)
-                info(f"{path}: format {fmt} (detected; force another with --format-{side})")
-            times = o[f"times_{side}"]
-            topic = o[f"topic_{side}"] or o["topic"]
-            if fmt == "bag" and topic is not None:
-                from .convert import tf_hint
-
-                tf_hint(path, topic)
-            trajs.append(
-                read_trajectory(
-                    path,
-                    fmt,
-                    topic=topic,
-                    times_path=None if times is None else str(times),
-                    name=path.name,
-                )
-            )
-            timed.append(has_timestamps(fmt, times))
-            fmts.append(fmt)
-    warn = swap_warning(trajs[0], trajs[1], fmts[0], fmts[1])
-    if warn:
-        info(warn)
-    match = choose_match(*timed)
-    if match == "index":
-        info("KITTI poses without a times file: pairing poses by index")
-    return trajs[0], trajs[1], match
+    """Read both trajectories (``_common.read_trajectories``); keeps the reference's format
+    (for the default plot plane) and the reading warnings (for the JSON) in ``o``."""
+    ests, ref_t, match, ref_fmt, notes = read_trajectories([est], ref, o)
+    o["_ref_fmt"], o["_notes"] = ref_fmt, notes
+    return ests[0], ref_t, match
 
 
 def _assoc_kwargs(o: dict[str, Any], match: str) -> dict[str, Any]:
-    return {
-        "max_diff_s": o["max_diff_s"],
-        "offset_s": o["offset_s"],
-        "estimate_offset": o["estimate_offset"],
-        "interpolate": o["interpolate"],
-        "match": match,
-        "n_align": o["n_align"],
-    }
+    return selection_kwargs(o, match)
 
 
 def _report_counts(doc: dict[str, Any]) -> None:
@@ -262,11 +150,13 @@ def _finish(result: Any, est: Path, ref: Path, o: dict[str, Any], *,
     """The ending the three commands share: counts, --save-csv, --plot, then JSON or the table."""
     from ibiscape_eval.report import format_header
 
-    doc = result.to_dict()
+    unit = o["unit"]
+    doc = show_doc_warnings(result.to_dict(**({"unit": unit} if unit != "m" else {})),
+                            o.get("_notes", ()))
     if o["as_json"]:  # the table's header line says the same on stdout
         _report_counts(doc)
     if o["save_csv"]:
-        _write_csv(o["save_csv"], result.to_frame())
+        _write_csv(o["save_csv"], result.to_frame(**({"unit": unit} if unit != "m" else {})))
     if o["plot"]:
         plot(o["plot"])
     if o["as_json"]:
@@ -279,6 +169,37 @@ def _finish(result: Any, est: Path, ref: Path, o: dict[str, Any], *,
             click.echo(line)
 
 
+def error_table(doc: dict[str, Any], title: str) -> str:
+    """The statistics table of ``report.format_error_table``, in the unit of ``--change-unit``
+    (``translation_<unit>`` in ``doc``)."""
+    from ibiscape_eval.report import format_error_table
+
+    unit = doc.get("length_unit", "m")
+    if unit == "m":
+        return format_error_table(doc, title=title)
+    text = format_error_table({**doc, "translation_m": doc[f"translation_{unit}"]}, title=title)
+    return text.replace("translation [m]", f"translation [{unit}]".ljust(15)).replace(
+        " m, ", f" {unit}, ", 1)
+
+
+def drift_table(doc: dict[str, Any]) -> str:
+    """Per-length drift rows; a length no segment reached says so instead of printing nan."""
+    lines = [f"{'length [m]':>12}{'segments':>10}{'trans [%]':>12}{'rot [deg/m]':>14}"]
+    for L, n, t, r, ok in zip(doc["lengths_m"], doc["n_segments"], doc["translation_pct"],
+                              doc["rotation_deg_per_m"], doc["reached"], strict=True):
+        if ok:
+            lines.append(f"{L:>12.2f}{n:>10d}{t:>12.4f}{r:>14.6f}")
+        else:
+            lines.append(f"{L:>12.2f}{n:>10d}{'not reached':>26}")
+    mt, mr = doc["mean_translation_pct"], doc["mean_rotation_deg_per_m"]
+    avg = f"{mt:>12.4f}{mr:>14.6f}" if mt is not None and mr is not None else f"{'-':>26}"
+    lines.append(f"{'average':>12}{sum(doc['n_segments']):>10d}{avg}")
+    if not all(doc["reached"]):
+        lines.append(f"(reference path {doc['path_length_m']:.1f} m: lengths marked 'not reached'"
+                     " have no segment; try --lengths-pct 10,20,30,40,50)")
+    return "\n".join(lines)
+
+
 def _gps_positions(path: Path | None, ref: Any) -> Any:
     if path is None:
         return None
@@ -289,36 +210,20 @@ def _gps_positions(path: Path | None, ref: Any) -> Any:
     return gnss_in_reference_frame(fixes.stamps_ns, fixes.lat_deg, fixes.lon_deg, fixes.alt_m, ref)
 
 
-def _plot_errors(path: Path, result: Any, ref_full: Any, o: dict[str, Any], title: str) -> None:
-    from ibiscape_eval.metrics.relations import RELATION_UNITS
-    from ibiscape_eval.report.plots import plot_trajectory_errors
+def plot_plane(o: dict[str, Any]) -> str:
+    """``--plot-plane``, or the default of the reference's format (KITTI: xz)."""
+    from ibiscape_eval.report.plots import default_plot_plane
 
-    ref = result.ref
-    idx = getattr(result, "first_index", None)
-    path_len = ref.path_length_m()
-    dist = path_len if idx is None else path_len[idx]
-    rel = result.pose_relation
-    labels = {"trans": "translation error", "rot-angle": "rotation error",
-              "rot-part": "rotation part ||R-I||", "full": "full ||E-I||",
-              "point-distance": "point distance error"}
-    plot_trajectory_errors(
-        path,
-        est_aligned=result.est_aligned,
-        ref=ref,
-        stamps_ns=result.stamps_ns,
-        errors_m=result.errors_m,
-        errors_deg=result.errors_deg,
-        errors=result.errors,
-        error_label=labels[rel],
-        error_unit=RELATION_UNITS[rel],
-        title=title,
-        gps_xyz_m=_gps_positions(o["gps"], ref_full),
-        distance_m=dist,
-        plane=o["plot_plane"],
-        panels=_panels(o["plot_panels"]),
-        aligned=result.alignment.method,
-        color_index=idx,
-    )
+    return o["plot_plane"] or default_plot_plane(o.get("_ref_fmt"))
+
+
+def _plot_errors(path: Path, result: Any, ref_full: Any, o: dict[str, Any], title: str) -> None:
+    from ibiscape_eval.report.plots import metric_figure, save_figure
+
+    fig = metric_figure(result, unit=o["unit"], title=title,
+                        gps_xyz_m=_gps_positions(o["gps"], ref_full), plane=plot_plane(o),
+                        panels=_panels(o["plot_panels"]))
+    save_figure(fig, path)
 
 
 @click.command()
@@ -350,9 +255,13 @@ def ate(est: Path, ref: Path, alignment: str, save_aligned: Path | None, **o: An
       ibiscape-eval ate est.txt groundtruth.csv
       ibiscape-eval ate orb_kf_mono.txt gt.txt --align sim3 --plot ate.png
       ibiscape-eval ate vio.txt gt.csv --align yaw --estimate-offset --json
+      ibiscape-eval ate vio.txt gt.csv --t-start 1403715280 --t-end 1403715300 --change-unit cm
+      ibiscape-eval ate kitti_est.txt kitti_gt.txt --format kitti --plot ate.png  # xz plane
+
+    The order is always the estimate first, then the reference (a warning says when they look
+    swapped); a warning also says when the alignment leaves the rotation error meaningless.
     """
     from ibiscape_eval.metrics import ate as ate_fn
-    from ibiscape_eval.report import format_error_table
 
     _panels(o["plot_panels"])  # checked before any work
     est_t, ref_t, match = _read_pair(est, ref, o)
@@ -365,7 +274,7 @@ def ate(est: Path, ref: Path, alignment: str, save_aligned: Path | None, **o: An
     _finish(
         result, est, ref, o,
         plot=lambda p: _plot_errors(p, result, ref_t, o, "absolute trajectory error"),
-        table=lambda doc: format_error_table(doc, title="absolute trajectory error (ATE)"),
+        table=lambda doc: error_table(doc, "absolute trajectory error (ATE)"),
     )
 
 
@@ -401,6 +310,14 @@ def ate(est: Path, ref: Path, alignment: str, save_aligned: Path | None, **o: An
     help="consecutive: non-overlapping pairs (evo); all: every start pose.",
 )
 @click.option(
+    "--delta-tol",
+    type=click.FloatRange(min=0.0),
+    default=0.1,
+    show_default=True,
+    help="Relative tolerance on --delta of --pairs all in seconds/metres/degrees (evo's "
+    "--delta_tol): a pair is kept when its length is within delta * (1 +- tol).",
+)
+@click.option(
     "--align",
     "alignment",
     type=click.Choice(ALIGNMENTS),
@@ -411,7 +328,7 @@ def ate(est: Path, ref: Path, alignment: str, save_aligned: Path | None, **o: An
 @user_errors
 def rpe(
     est: Path, ref: Path, delta: float, delta_unit: str, pairs: str, alignment: str,
-    pairs_from: str, **o: Any
+    pairs_from: str, delta_tol: float, **o: Any
 ) -> None:
     """Relative pose error of EST against REF over pose pairs DELTA apart.
 
@@ -419,9 +336,9 @@ def rpe(
     Examples:
       ibiscape-eval rpe est.txt gt.txt --delta 1 --delta-unit frames
       ibiscape-eval rpe est.txt gt.txt --delta 10 --delta-unit metres --pairs all --json
+      ibiscape-eval rpe est.txt gt.txt --delta 1 --delta-unit metres --pairs all --delta-tol 0.3
     """
     from ibiscape_eval.metrics import rpe as rpe_fn
-    from ibiscape_eval.report import format_error_table
 
     if delta_unit == "meters":
         delta_unit = "metres"
@@ -439,6 +356,7 @@ def rpe(
         pose_relation=o["pose_relation"],
         project_to_plane=o["project_to_plane"],
         pairs_from=pairs_from,
+        rel_tol=delta_tol,
         **_assoc_kwargs(o, match),
     )
     _finish(
@@ -446,9 +364,9 @@ def rpe(
         plot=lambda p: _plot_errors(
             p, result, ref_t, o,
             f"relative pose error, delta {delta:g} {delta_unit} ({pairs} pairs from {pairs_from})"),
-        table=lambda doc: format_error_table(
+        table=lambda doc: error_table(
             doc,
-            title=f"relative pose error (RPE), delta {delta:g} {delta_unit}, {pairs} pairs: "
+            f"relative pose error (RPE), delta {delta:g} {delta_unit}, {pairs} pairs: "
             f"{doc['n_pairs']} pairs",
         ),
     )
@@ -501,14 +419,19 @@ def drift(
 ) -> None:
     """KITTI-style drift of EST against REF: relative error over segment lengths, in %% and deg/m.
 
+    Lengths no segment reaches (a path shorter than them) are marked "not reached" with a hint
+    to use --lengths-pct.
+
     \b
     Examples:
       ibiscape-eval drift est.txt gt.txt
       ibiscape-eval drift est.txt gt.txt --lengths-pct 10,20,30,40,50 --plot drift.png
     """
     from ibiscape_eval.metrics import drift as drift_fn
-    from ibiscape_eval.report import format_drift_table
 
+    if o["unit"] != "m":
+        raise click.BadParameter("drift reports percent and deg/m; --change-unit applies to "
+                                 "ate, rpe and compare", param_hint="--change-unit")
     lengths_m = _float_list(lengths)
     pct = _float_list(lengths_pct)
     est_t, ref_t, match = _read_pair(est, ref, o)
@@ -526,7 +449,7 @@ def drift(
 
         plot_drift(path, result, title="drift per segment length")
 
-    _finish(result, est, ref, o, plot=plot, table=format_drift_table)
+    _finish(result, est, ref, o, plot=plot, table=drift_table)
 
 
 __all__ = ["ate", "drift", "rpe"]

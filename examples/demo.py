@@ -128,8 +128,8 @@ def trajectories(out: Path) -> None:
         out / "drift_v102.png",
     )
     sh("ate", DATA / "V102.txt", DATA / "V102_groundtruth.csv", "--align", "sim3", "--json")
-    # Several estimates at once (REF first), evo's pose relations, publishable single panels.
-    sh("compare", gt, DATA / "freiburg1_xyz-rgbdslam.txt", DATA / "freiburg1_xyz-ORB_kf_mono.txt",
+    # Several estimates at once (REF last, as in ate), evo's pose relations, single panels.
+    sh("compare", DATA / "freiburg1_xyz-rgbdslam.txt", DATA / "freiburg1_xyz-ORB_kf_mono.txt", gt,
        "--labels", "rgbdslam,ORB-mono", "--align", "sim3", "--plot", out / "compare_fr1.png",
        "--save-results", out / "compare_fr1")
     sh("ate", DATA / "V102.txt", DATA / "V102_groundtruth.csv", "--pose-relation", "full",

@@ -10,6 +10,7 @@ with numpy arrays, ``to_frame()`` (pandas) and ``to_dict()`` (the JSON the CLI p
 Definitions follow evo (APE/RPE, Umeyama alignment) and the KITTI odometry devkit (drift).
 """
 
+from ._common import LENGTH_UNITS
 from ._stats import ErrorStats
 from .alignment import (
     Alignment,
@@ -30,6 +31,7 @@ from .select import downsample, motion_filter, time_range
 
 __all__ = [
     "KITTI_LENGTHS_M",
+    "LENGTH_UNITS",
     "PAIRS_FROM",
     "PLANES",
     "POSE_RELATIONS",

@@ -26,6 +26,7 @@ __all__ = [
     "compare_figure",
     "default_plot_plane",
     "drift_figure",
+    "metric_figure",
     "plain_axes",
     "plot_allan",
     "plot_drift",
@@ -114,6 +115,7 @@ def trajectory_errors_figure(
     est_label: str = "estimate",
     ref_label: str = "reference",
     color_index: npt.NDArray[np.intp] | None = None,
+    pose_index: npt.NDArray[np.int64] | None = None,
 ) -> Any:
     """The figure of :func:`plot_trajectory_errors` (a new :class:`~matplotlib.figure.Figure`).
 
@@ -125,7 +127,9 @@ def trajectory_errors_figure(
     applied to the estimate (empty or ``"none"``: the legend says "not aligned").
     ``errors`` replaces the translation errors (another pose relation, ``error_label`` /
     ``error_unit``); ``color_index`` gives the estimate row each error belongs to (RPE: the
-    pair's first pose), by default row ``i`` for error ``i``.
+    pair's first pose), by default row ``i`` for error ``i``.  ``pose_index`` (one per error)
+    replaces the time axis by a "pose index" axis: for synthetic stamps (KITTI without times,
+    pairing by index), which are not times.
     """
     from matplotlib.collections import LineCollection
 
@@ -178,9 +182,11 @@ def trajectory_errors_figure(
             fig.colorbar(lc, ax=ax, label=f"{error_label}{unit}")
             ax.legend(loc="best", fontsize=8)
         elif panel == "time":
-            ax.plot(t_s, err, color="0.2", lw=0.8, label=error_label)
+            x = t_s if pose_index is None else np.asarray(pose_index)
+            ax.plot(x, err, color="0.2", lw=0.8, label=error_label)
             _stat_lines(ax, err, error_unit)
-            ax.set_xlabel("time since start [s]")
+            ax.set_xlabel("time since start [s]" if pose_index is None
+                          else "pose index (no timestamps)")
             ax.set_ylabel(f"{error_label}{unit}")
             ax.legend(loc="upper right", fontsize=8)
         elif panel == "distance":
@@ -217,6 +223,42 @@ def _fill_forward(a: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
     return out
 
 
+_RELATION_LABELS = {"trans": "translation error", "rot-angle": "rotation error",
+                    "rot-part": "rotation part ||R-I||", "full": "full ||E-I||",
+                    "point-distance": "point distance error"}
+
+
+def metric_figure(result: Any, *, unit: str = "m", **kw: Any) -> Any:
+    """:func:`trajectory_errors_figure` of an :class:`~ibiscape_eval.metrics.AteResult` or
+    :class:`~ibiscape_eval.metrics.RpeResult`: its errors (of its pose relation), the distance
+    travelled, the pair colouring (RPE), the alignment in the legend, and a pose-index axis
+    when its stamps are synthetic.  ``unit`` (``m``, ``cm``, ``mm``) scales length errors;
+    ``kw`` are the remaining keyword arguments (``plane``, ``title``, ``panels``, ``gps_xyz_m``
+    ...)."""
+    from ibiscape_eval.metrics import LENGTH_UNITS
+    from ibiscape_eval.metrics.relations import RELATION_UNITS
+
+    ref = result.ref
+    idx = getattr(result, "first_index", None)
+    path_len = ref.path_length_m()
+    rel = result.pose_relation
+    rel_unit = RELATION_UNITS[rel]
+    if unit not in LENGTH_UNITS:
+        raise ValueError(f"unknown length unit {unit!r}; choose one of {', '.join(LENGTH_UNITS)}")
+    f = LENGTH_UNITS[unit] if rel_unit == "m" else 1.0
+    pose_index = None
+    if result.stamps_synthetic:
+        pi = (np.arange(len(ref)) if result.ref_pose_index is None
+              else np.asarray(result.ref_pose_index))
+        pose_index = pi if idx is None else pi[idx]
+    return trajectory_errors_figure(
+        est_aligned=result.est_aligned, ref=ref, stamps_ns=result.stamps_ns,
+        errors_m=result.errors_m, errors_deg=result.errors_deg, errors=result.errors * f,
+        error_label=_RELATION_LABELS[rel], error_unit=unit if rel_unit == "m" else rel_unit,
+        distance_m=path_len if idx is None else path_len[idx], aligned=result.alignment.method,
+        color_index=idx, pose_index=pose_index, **kw)
+
+
 def plot_trajectory_errors(path: str | os.PathLike[str], **kw: Any) -> None:
     """Write :func:`trajectory_errors_figure` (same keyword arguments) to ``path``."""
     save_figure(trajectory_errors_figure(**kw), path)
@@ -240,11 +282,17 @@ def compare_figure(result: Any, *, plane: str = "xy", title: str = "") -> Any:
     ax.set_ylabel(f"{plane[1]} [m]")
     ax.legend(fontsize=8)
     ax = axs[0, 1]
+    synthetic = any(e.ate.stamps_synthetic for e in result.entries)
     t0 = min(int(e.ate.stamps_ns[0]) for e in result.entries if len(e.ate.stamps_ns))
     for e in result.entries:
-        ax.plot((e.ate.stamps_ns - t0) / 1e9, e.ate.errors_m, lw=0.8,
+        if synthetic:
+            x = (np.arange(len(e.ate.errors_m)) if e.ate.ref_pose_index is None
+                 else e.ate.ref_pose_index)
+        else:
+            x = (e.ate.stamps_ns - t0) / 1e9
+        ax.plot(x, e.ate.errors_m, lw=0.8,
                 label=f"{e.label}: rmse {e.ate.translation_m.rmse:.4g} m")
-    ax.set_xlabel("time since start [s]")
+    ax.set_xlabel("pose index (no timestamps)" if synthetic else "time since start [s]")
     ax.set_ylabel("ATE translation error [m]")
     ax.legend(fontsize=8)
     labels = [e.label for e in result.entries]

@@ -83,7 +83,7 @@ def test_compare_table_figure_and_saved_results(run_cli, tum_pair, tmp_path: Pat
     rows[:, 1:4] += np.random.default_rng(1).normal(0, 0.05, (len(rows), 3))
     np.savetxt(est2, rows, fmt="%.9f")
     out = tmp_path / "res"
-    res = run_cli("compare", gt, est, est2, "--labels", "A,B c", "--plot", tmp_path / "c.png",
+    res = run_cli("compare", est, est2, gt, "--labels", "A,B c", "--plot", tmp_path / "c.png",
                   "--save-results", out)
     assert res.exit_code == 0, res.output
     lines = res.stdout.splitlines()
@@ -100,15 +100,15 @@ def test_compare_table_figure_and_saved_results(run_cli, tum_pair, tmp_path: Pat
 
 def test_compare_rpe_follows_sim3(run_cli, tum_pair) -> None:
     est, gt = tum_pair
-    doc = json.loads(run_cli("compare", gt, est, "--align", "sim3", "--json").stdout)
+    doc = json.loads(run_cli("compare", est, gt, "--align", "sim3", "--json").stdout)
     assert doc["options"]["rpe_align"] == "sim3"
-    doc = json.loads(run_cli("compare", gt, est, "--json").stdout)
+    doc = json.loads(run_cli("compare", est, gt, "--json").stdout)
     assert doc["options"]["rpe_align"] == "none"
 
 
 def test_compare_label_count_mismatch(run_cli, tum_pair) -> None:
     est, gt = tum_pair
-    res = run_cli("compare", gt, est, "--labels", "a,b")
+    res = run_cli("compare", est, gt, "--labels", "a,b")
     assert res.exit_code == 2 and "2 labels for 1 estimates" in res.output
 
 
