@@ -49,7 +49,9 @@ def convert(
     """Convert the trajectory SRC into DST (written atomically).
 
     IBISCape files are converted between CARLA's left-handed frame and the right-handed frame used
-    everywhere else; a KITTI DST gets its stamps in a times file beside it (``gt.txt`` -> ``gt.times.txt``).
+    everywhere else; a KITTI DST gets its stamps in a times file beside it (``gt.txt`` -> ``gt.times.txt``),
+    unless SRC had none (KITTI without --times: its stamps are synthetic, and a warning says so
+    when they are written to another format).
 
     \b
     Examples:
@@ -66,13 +68,19 @@ def convert(
     traj = read_trajectory(
         src, src_fmt, topic=topic, times_path=None if times is None else str(times)
     )
-    times = dst.with_name(dst.stem + ".times.txt") if dst_fmt == "kitti" else None
+    if traj.stamps_synthetic and dst_fmt != "kitti":
+        info(f"warning: {src} has no timestamps (KITTI poses without a times file): the stamps "
+             f"written to {dst} are synthetic, the pose index x 0.1 s; give --times to write "
+             "real ones")
+    times = (dst.with_name(dst.stem + ".times.txt")
+             if dst_fmt == "kitti" and not traj.stamps_synthetic else None)
     write_trajectory(dst, traj, dst_fmt, times_path=times)
     info(f"wrote {len(traj)} poses to {dst} ({dst_fmt})" + (f" and their stamps to {times}" if times else ""))
     if as_json:
         echo_json({"src": str(src), "from": src_fmt, "dst": str(dst), "to": dst_fmt,
                    "topic": topic, "n_poses": len(traj),
                    "times": None if times is None else str(times),
+                   "stamps": "synthetic" if traj.stamps_synthetic else "measured",
                    "start_ns": int(traj.stamps_ns[0]) if len(traj) else None,
                    "end_ns": int(traj.stamps_ns[-1]) if len(traj) else None})
 
