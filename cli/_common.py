@@ -147,7 +147,7 @@ def cli_terms(message: str) -> str:
     """A library warning in command-line terms: ``align="yaw"`` -> ``--align yaw``,
     ``lengths_pct=[10, 20]`` -> ``--lengths-pct 10,20``."""
     for pattern, repl in _LIB_TERMS:
-        message = pattern.sub(repl, message)  # type: ignore[call-overload]
+        message = pattern.sub(repl, message)
     return message
 
 

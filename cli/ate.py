@@ -29,7 +29,7 @@ ALIGNMENTS = tuple(a.value for a in Alignment)
 def _input_options(func: Callable[..., Any]) -> Callable[..., Any]:
     """EST and REF, the shared reading/association/selection options (``_common``) and the
     outputs of the three trajectory commands."""
-    opts = [
+    opts: list[Callable[[Callable[..., Any]], Callable[..., Any]]] = [
         click.argument("est", type=click.Path(path_type=Path)),
         click.argument("ref", type=click.Path(path_type=Path)),
         trajectory_options,

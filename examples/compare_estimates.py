@@ -12,7 +12,12 @@ from pathlib import Path
 
 from ibiscape_eval import read_trajectory
 from ibiscape_eval.metrics import ate, compare, rpe
-from ibiscape_eval.report.plots import compare_figure, save_figure, trajectory_errors_figure
+from ibiscape_eval.report.plots import (
+    compare_figure,
+    metric_figure,
+    save_figure,
+    trajectory_errors_figure,
+)
 
 DATA = Path(__file__).resolve().parent / "data"
 OUT = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(tempfile.mkdtemp(prefix="compare-"))
@@ -27,6 +32,8 @@ print(cmp)                      # a few lines, not arrays
 print(cmp.to_frame()[["ate_rmse_m", "rpe_rmse_m", "n_matched"]])
 files = cmp.save(OUT / "results")   # compare.json + <label>.{ate,rpe}.{json,csv}
 print("saved", [p.name for p in files])
+# each row says how well its alignment is determined, and warns when it is not
+print(cmp.to_frame()[["ate_rotation_sigma_deg", "stamps", "warnings"]])
 save_figure(compare_figure(cmp, title="fr1/xyz"), OUT / "compare.png")
 
 # %% evo's pose relations and projection: the rotation part of the error, flattened to x-y.
@@ -46,4 +53,11 @@ fig = trajectory_errors_figure(est_aligned=a.est_aligned, ref=a.ref, stamps_ns=a
                                errors_m=a.errors_m, errors_deg=a.errors_deg, plane="xz",
                                panels=["trajectory"], aligned=a.alignment.method)
 save_figure(fig, OUT / "ate_xz.png")
+
+# %% The whole figure of a result in one call (errors, distance, pose-index axis for synthetic
+# stamps), in centimetres; the same options as the command line (evo's time window, motion
+# filter).
+w = ate(rgbd, gt, t_start_s=gt.stamps_ns[0] / 1e9 + 5, motion_filter=(0.02, 2.0))
+save_figure(metric_figure(w, unit="cm", plane="xy", title="after 5 s, every 2 cm / 2 deg"),
+            OUT / "ate_window.png")
 print("figures in", OUT)
