@@ -41,7 +41,8 @@ def read_trajectory(
         Bag topic or ``"/tf:parent.child"`` (bags only).
     times_path
         KITTI times file (seconds, one per line).  Without it KITTI poses are stamped at 10 Hz
-        by index, ``i * 100_000_000`` ns, and the command line pairs trajectories by index.
+        by index, ``i * 100_000_000`` ns, marked ``stamps_synthetic`` (metrics then report pose
+        indices, not times), and the command line pairs trajectories by index.
     name
         Label of the trajectory; the file name (bags: the topic) by default.
 

@@ -88,8 +88,10 @@ def stamps_synthetic(est: Trajectory, ref: Trajectory, m: Matched) -> bool:
 def pose_index(ref: Trajectory, m: Matched) -> npt.NDArray[np.int64]:
     """Pose index of each matched reference row: the line index for synthetic stamps, else
     the row of the matched reference (pairing by index keeps every row)."""
-    if ref.stamps_synthetic and m.ref is ref:
-        return ref.pose_index()
+    from ibiscape_eval.core.trajectory import SYNTHETIC_PERIOD_NS
+
+    if ref.stamps_synthetic:  # matched rows keep their synthetic stamps: index * period
+        return m.ref.stamps_ns // SYNTHETIC_PERIOD_NS
     return np.arange(len(m.ref), dtype=np.int64)
 
 
