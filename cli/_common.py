@@ -268,10 +268,10 @@ def read_trajectories(
 
     notes: list[str] = []
     with numba_startup():
+        loaded = [load(p, "est") for p in ests]  # in the order given: estimates, then REF
         ref_t, ref_fmt, ref_timed = load(ref, "ref")
         est_ts, match = [], None
-        for p in ests:
-            t, f, timed = load(p, "est")
+        for p, (t, f, timed) in zip(ests, loaded, strict=True):
             warn = swap_warning(t, ref_t, est_path=p, ref_path=ref, fmt_est=f, fmt_ref=ref_fmt)
             if warn:
                 notes.append(warn)
