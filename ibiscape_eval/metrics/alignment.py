@@ -57,9 +57,10 @@ class AlignmentConditioning:
     two point sets *agree*, not only from how far they spread: two noise clouds that do not
     correlate give a small ``M`` and a large sigma.  ``sigma_pos_m`` is estimated from the
     residual sum of squares with ``3 N - p`` degrees of freedom (``p`` = 6 se3, 7 sim3, 4 yaw),
-    so it holds every unmodelled error too (drift included): the sigmas say how much the
-    alignment would move if the residuals were independent noise.  ``benchmarks`` and
-    ``tests/metrics/test_metrics_conditioning.py`` measure their coverage over seeds.
+    so it holds every unmodelled error too (drift included), and the covariances are inflated by
+    the residuals' lag-1 autocorrelation (:attr:`variance_inflation`), since drift is not
+    independent noise.  ``tests/metrics/test_metrics_conditioning.py`` measures their coverage
+    over seeds: close to Gaussian for independent noise, conservative for correlated residuals.
 
     Attributes
     ----------
@@ -87,6 +88,13 @@ class AlignmentConditioning:
         1-sigma of each component of ``t`` (reference frame), metres (lever arm included).
     scale_sigma : float or None
         1-sigma of the scale (``sim3`` only).
+    residual_rho : float
+        Lag-1 autocorrelation of the residuals in time order (clipped to [0, 0.956]).
+    variance_inflation : float
+        ``(1 + rho) / (1 - rho)``: every covariance above is multiplied by it, because drift
+        makes neighbouring residuals alike and the alignment then rests on fewer independent
+        samples (without it, AR(1) residuals with rho 0.9 left the true rotation inside the
+        1-sigma ellipsoid 4 % of the time instead of 68 %).
     """
 
     method: str
@@ -99,6 +107,8 @@ class AlignmentConditioning:
     rotation_sigma_total_deg: float
     translation_sigma_m: FloatArray
     scale_sigma: float | None = None
+    residual_rho: float = 0.0
+    variance_inflation: float = 1.0
 
     def to_dict(self) -> dict[str, Any]:
         """Strict JSON (an undetermined value, infinite or NaN, becomes ``None``)."""
@@ -116,6 +126,8 @@ class AlignmentConditioning:
             "rotation_sigma_total_deg": num(self.rotation_sigma_total_deg),
             "translation_sigma_m": [num(v) for v in self.translation_sigma_m],
             "scale_sigma": None if self.scale_sigma is None else num(self.scale_sigma),
+            "residual_rho": num(self.residual_rho),
+            "variance_inflation": num(self.variance_inflation),
         }
 
     def __repr__(self) -> str:
@@ -291,9 +303,30 @@ def _yaw(m: _Moments) -> tuple[FloatArray, FloatArray]:
     return R, m.mean_y - R @ m.mean_x
 
 
-def _conditioning(m: _Moments, method: str, R: FloatArray, c: float) -> AlignmentConditioning:
+#: Largest lag-1 autocorrelation used for the inflation (a factor of at most ~45 in variance).
+_RHO_MAX = 0.956
+
+
+def _residual_rho(x: FloatArray, y: FloatArray, R: FloatArray, t: FloatArray, c: float) -> float:
+    """Lag-1 autocorrelation (rows in time order) of the residuals ``y - (c R x + t)``, pooled
+    over the axes and clipped to ``[0, _RHO_MAX]``."""
+    if x.shape[0] < 3:
+        return 0.0
+    r = y - (c * x) @ R.T - t
+    r -= r.mean(axis=0)
+    den = float(np.einsum("ij,ij->", r, r))
+    if den <= 0.0:
+        return 0.0
+    rho = float(np.einsum("ij,ij->", r[1:], r[:-1])) / den
+    return min(max(rho, 0.0), _RHO_MAX)
+
+
+def _conditioning(m: _Moments, method: str, R: FloatArray, c: float,
+                  rho: float = 0.0) -> AlignmentConditioning:
     """Covariances of the rotation, translation and scale from the moments (see
-    :class:`AlignmentConditioning`); O(1) after the moments."""
+    :class:`AlignmentConditioning`); O(1) after the moments.  ``rho``: lag-1 autocorrelation of
+    the residuals; every covariance is multiplied by ``(1 + rho) / (1 - rho)`` (the variance
+    inflation of a mean of an AR(1) series: ``N / (that factor)`` independent samples)."""
     n = m.n
     p = {"se3": 6, "sim3": 7, "yaw": 4}[method]
     M = R.T @ m.syx  # at the optimum M is symmetric (se3/sim3); Y^T X in the estimate's axes
@@ -301,6 +334,9 @@ def _conditioning(m: _Moments, method: str, R: FloatArray, c: float) -> Alignmen
     rss = float(np.trace(m.syy) - 2.0 * c * np.trace(M) + c * c * np.trace(m.sxx))
     dof = 3 * n - p
     sigma2 = max(rss, 0.0) / dof if dof > 0 else math.nan
+    inflation = (1.0 + rho) / (1.0 - rho)
+    sigma2_white = sigma2
+    sigma2 = sigma2 * inflation
     ev_x = np.linalg.eigvalsh(m.sxx)[::-1]
     spread = np.sqrt(np.maximum(ev_x, 0.0) / n)
     inf = math.inf
@@ -347,7 +383,9 @@ def _conditioning(m: _Moments, method: str, R: FloatArray, c: float) -> Alignmen
     return AlignmentConditioning(
         method=method,
         n_used=n,
-        sigma_pos_m=math.sqrt(sigma2) if math.isfinite(sigma2) else math.nan,
+        sigma_pos_m=math.sqrt(sigma2_white) if math.isfinite(sigma2_white) else math.nan,
+        residual_rho=rho,
+        variance_inflation=inflation,
         spread_m=_ro(spread),
         rotation_cov_rad2=_ro(cov),
         rotation_sigma_deg=_ro(rot_sigma),
@@ -434,24 +472,25 @@ def align(
     planar = m is Alignment.YAW
     _check_scatter(mo.sxx, mo.size_x, n_used, est.describe("estimate"), m.value, planar=planar)
     _check_scatter(mo.syy, mo.size_y, n_used, ref.describe("reference"), m.value, planar=planar)
+    x, y = est.pos_m[:n_used], ref.pos_m[:n_used]
     if planar:
         R, t = _yaw(mo)
-        return AlignmentResult(m.value, _se3(R, t), 1.0, n_used,
-                               conditioning=_conditioning(mo, m.value, R, 1.0))
+        return AlignmentResult(m.value, _se3(R, t), 1.0, n_used, conditioning=_conditioning(
+            mo, m.value, R, 1.0, _residual_rho(x, y, R, t, 1.0)))
     R, t, c = _umeyama(mo, with_scale=m is Alignment.SIM3)
     if not (math.isfinite(c) and c > 0.0):
         raise DegenerateInputError(
             f"sim3 alignment gave an invalid scale {c!r}; {_DEGENERATE_HINT}"
         )
-    return AlignmentResult(m.value, _se3(R, t), c, n_used,
-                           conditioning=_conditioning(mo, m.value, R, c))
+    return AlignmentResult(m.value, _se3(R, t), c, n_used, conditioning=_conditioning(
+        mo, m.value, R, c, _residual_rho(x, y, R, t, c)))
 
 
 #: A rotation error (RMS) below this many degrees is negligible whatever dominates it.
 ROTATION_FLOOR_DEG = 0.1
 #: The alignment's rotation dominates when its 1-sigma is at least this fraction of the rotation
-#: error RMS it is part of.
-DOMINANT_FRACTION = 0.5
+#: error RMS it is part of: 1/sqrt(2), half of the mean squared rotation error.
+DOMINANT_FRACTION = 0.7
 #: Beyond this 1-sigma (degrees) the rotation is undetermined whatever error is reported.
 UNDETERMINED_DEG = 5.0
 #: A sim3 scale whose relative 1-sigma exceeds this is reported as poorly determined.
@@ -491,7 +530,9 @@ def conditioning_warnings(
     out: list[str] = []
     spread = ", ".join(_length(v) for v in cond.spread_m)
     geometry = (f"the {cond.n_used} aligned positions of the {who} spread {spread} (RMS along "
-                f"their principal axes) against a residual of {_length(cond.sigma_pos_m)}")
+                f"their principal axes) against a residual of {_length(cond.sigma_pos_m)}"
+                + (f" correlated along the path (lag-1 {cond.residual_rho:.2f})"
+                   if cond.residual_rho > 0.5 else ""))
     if rotation_rmse_deg is not None:
         worst = float(cond.rotation_sigma_deg[0])
         total = cond.rotation_sigma_total_deg
