@@ -15,6 +15,7 @@ deserializer, so an unusual definition is read slowly but never misread.
 from __future__ import annotations
 
 import os
+import struct
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -28,9 +29,11 @@ from ibiscape_eval.core.events import Events
 __all__ = [
     "DVS_MSGS_ROS1",
     "DVS_MSGS_ROS2",
+    "BagEventWriter",
     "EVENT_ARRAY_MSGTYPE",
     "decode_event_array",
     "dvs_typestore",
+    "encode_event_array",
     "iter_bag_event_arrays",
     "list_event_topics",
     "open_bag_events",
@@ -225,6 +228,77 @@ def _join(parts: list[tuple[Any, ...]]) -> Events:
     return Events(*(np.concatenate([p[k] for p in parts]) for k in range(4)))
 
 
+def encode_event_array(t_ns: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray, *,
+                       sensor_size: tuple[int, int], ros2: bool, seq: int = 0,
+                       frame_id: str = "dvs") -> bytes:
+    """Serialize one ``dvs_msgs/EventArray`` (ROS 1 or ROS 2 CDR) with numpy, the inverse of
+    :func:`decode_event_array`; the header is stamped with the last event."""
+    n = int(t_ns.size)
+    stamp = int(t_ns[-1]) if n else 0
+    fid = frame_id.encode()
+    w, h = (int(v) for v in sensor_size)
+    sec, nsec = np.divmod(np.asarray(t_ns, np.int64), 1_000_000_000)
+    if ros2:
+        head = bytearray(b"\x00\x01\x00\x00")
+        body = bytearray(struct.pack("<iII", stamp // 1_000_000_000, stamp % 1_000_000_000,
+                                     len(fid) + 1) + fid + b"\0")
+        body += b"\0" * (-len(body) % 4)
+        body += struct.pack("<III", h, w, n)
+        size = 0 if n == 0 else 13 + 16 * (n - 1)
+        out = np.zeros(size, np.uint8)
+        if n:
+            first = np.ndarray((1,), _CDR_EVENT0, buffer=out, offset=0)
+            rest = np.ndarray((n - 1,), _CDR_EVENT, buffer=out, offset=14 if n > 1 else 0,
+                              strides=(16,))
+            for view, sl in ((first, slice(0, 1)), (rest, slice(1, n))):
+                view["x"], view["y"] = x[sl], y[sl]
+                view["s"], view["ns"], view["p"] = sec[sl], nsec[sl], p[sl]
+        return bytes(head + body) + out.tobytes()
+    body = bytearray(struct.pack("<IIII", seq, stamp // 1_000_000_000, stamp % 1_000_000_000,
+                                 len(fid)) + fid)
+    body += struct.pack("<III", h, w, n)
+    rec = np.zeros(n, _ROS1_EVENT)
+    rec["x"], rec["y"], rec["s"], rec["ns"], rec["p"] = x, y, sec, nsec, p
+    return bytes(body) + rec.tobytes()
+
+
+class BagEventWriter:
+    """Streaming writer of ``dvs_msgs/EventArray`` messages on one topic (ROS 1 ``.bag`` file or
+    ROS 2 bag folder); each message holds up to ``events_per_message`` events and is stamped
+    with its last event.  The target must not exist (rosbags' writers refuse it)."""
+
+    def __init__(self, path: str | os.PathLike[str], *, topic: str = "/dvs/events",
+                 sensor_size: tuple[int, int] = (0, 0), ros2: bool = False,
+                 events_per_message: int = 10_000) -> None:
+        self.ts = dvs_typestore(ros2=ros2)
+        self.ros2, self.size, self.per_msg = ros2, sensor_size, int(events_per_message)
+        if ros2:
+            from rosbags.rosbag2 import Writer as Writer2
+
+            self.writer: Any = Writer2(Path(path), version=8)
+        else:
+            from rosbags.rosbag1 import Writer as Writer1
+
+            self.writer = Writer1(Path(path))
+        self.writer.open()
+        self.conn = self.writer.add_connection(topic, EVENT_ARRAY_MSGTYPE, typestore=self.ts)
+        self.seq = 0
+
+    def add(self, ev: Events) -> None:
+        t = ev.t_ns
+        if len(ev) and int(t[0]) < 0:
+            raise IbiscapeError("ROS stamps cannot be negative; shift the events to t >= 0")
+        for s in range(0, len(ev), self.per_msg):
+            e = min(len(ev), s + self.per_msg)
+            raw = encode_event_array(t[s:e], ev.x[s:e], ev.y[s:e], ev.p[s:e],
+                                     sensor_size=self.size, ros2=self.ros2, seq=self.seq)
+            self.writer.write(self.conn, int(t[e - 1]), raw)
+            self.seq += 1
+
+    def close(self) -> None:
+        self.writer.close()
+
+
 def write_event_bag(
     path: str | os.PathLike[str],
     events: Events,
@@ -234,38 +308,10 @@ def write_event_bag(
     ros2: bool = False,
     events_per_message: int = 10_000,
 ) -> None:
-    """Write events as ``dvs_msgs/EventArray`` messages (ROS 1 ``.bag`` file, or a ROS 2 bag
-    folder), each message stamped with its last event.  The target must not exist (rosbags'
-    writers refuse an existing bag)."""
-    p = Path(path)
-    ts = dvs_typestore(ros2=ros2)
-    EventArray = ts.types[EVENT_ARRAY_MSGTYPE]
-    Event = ts.types[EVENT_MSGTYPE]
-    Header = ts.types["std_msgs/msg/Header"]
-    Time = ts.types["builtin_interfaces/msg/Time"]
-    if ros2:
-        from rosbags.rosbag2 import Writer as Writer2
-
-        writer: Any = Writer2(p, version=8)
-    else:
-        from rosbags.rosbag1 import Writer as Writer1
-
-        writer = Writer1(p)
-    t = events.t_ns
-    with writer:
-        conn = writer.add_connection(topic, EVENT_ARRAY_MSGTYPE, typestore=ts)
-        for k, s in enumerate(range(0, len(events), events_per_message)):
-            e = min(len(events), s + events_per_message)
-            stamp = int(t[e - 1])
-            evs = [Event(x=int(events.x[i]), y=int(events.y[i]),
-                         ts=Time(sec=int(t[i]) // 1_000_000_000, nanosec=int(t[i]) % 1_000_000_000),
-                         polarity=bool(events.p[i])) for i in range(s, e)]
-            hdr = (Header(stamp=Time(sec=stamp // 1_000_000_000, nanosec=stamp % 1_000_000_000),
-                          frame_id="dvs") if ros2 else
-                   Header(seq=k, stamp=Time(sec=stamp // 1_000_000_000, nanosec=stamp % 1_000_000_000),
-                          frame_id="dvs"))
-            msg = EventArray(header=hdr, height=int(sensor_size[1]), width=int(sensor_size[0]),
-                             events=evs)
-            raw = ts.serialize_cdr(msg, EVENT_ARRAY_MSGTYPE) if ros2 else ts.serialize_ros1(
-                msg, EVENT_ARRAY_MSGTYPE)
-            writer.write(conn, stamp, raw)
+    """Write events as ``dvs_msgs/EventArray`` messages (see :class:`BagEventWriter`)."""
+    w = BagEventWriter(path, topic=topic, sensor_size=sensor_size, ros2=ros2,
+                       events_per_message=events_per_message)
+    try:
+        w.add(events)
+    finally:
+        w.close()
