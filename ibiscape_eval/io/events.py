@@ -255,6 +255,11 @@ def _open_hdf5(p: Path) -> EventSource:
             layout = next((name for name, (keys, _) in H5_LAYOUTS.items()
                            if all(k in f for k in keys)), None)
             if layout is None:
+                part = next(([k for k in keys if k not in f] for keys, _ in H5_LAYOUTS.values()
+                             if any(k in f for k in keys)), None)
+                if part:
+                    raise FormatError(p, f"missing datasets {', '.join(part)}; found "
+                                      f"{_h5_datasets(f)}")
                 raise FormatError(
                     p, f"unknown HDF5 event layout; found {_h5_datasets(f)}; expected events/x, "
                     "events/y, events/t, events/p (DSEC/E2CALIB), x, y, t, p, or events/xs, ys, "
