@@ -37,12 +37,20 @@ _EVENT = np.dtype({"names": ["t", "x", "y", "on"], "formats": ["<i8", "<i2", "<i
 _MAX_US = np.iinfo(np.int64).max // 1000
 
 
+def _decoder_error(e: BaseException) -> bool:
+    """The decoder's failures: plain exceptions, and Rust panics (pyo3's ``PanicException``
+    derives from BaseException; other BaseExceptions, e.g. KeyboardInterrupt, propagate)."""
+    return isinstance(e, Exception) or type(e).__name__ == "PanicException"
+
+
 def _decoder(path: Path) -> Any:
     import aedat
 
     try:
         return aedat.Decoder(str(path))
-    except Exception as e:  # the decoder raises plain exceptions with its parser's message
+    except BaseException as e:  # the decoder raises plain exceptions with its parser's message
+        if not _decoder_error(e):
+            raise
         msg = " ".join(str(e).split())[:160]
         raise FormatError(path, f"not a readable AEDAT4 file ({msg}); is it an .aedat4 recording "
                           "from DV?") from None
@@ -92,7 +100,9 @@ def iter_aedat4_events(path: Path, stream_id: int, chunk_events: int) -> Iterato
             pk = next(it)
         except StopIteration:
             break
-        except Exception as e:
+        except BaseException as e:
+            if not _decoder_error(e):
+                raise
             msg = " ".join(str(e).split())[:160]
             raise FormatError(path, f"damaged AEDAT4 packet after event {offset + have} ({msg}); "
                               "the recording was cut off or corrupted") from None

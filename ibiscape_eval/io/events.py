@@ -21,8 +21,10 @@ Formats
       ``events/p`` (0/1); DSEC adds ``ms_to_idx`` (index of the first event at or after each
       millisecond, relative to ``t_offset``), which is recomputed when writing;
     - the same four datasets ``x, y, t, p`` at the file's root (integer microseconds);
-    - event_utils (``events/xs, ys, ts, ps``, ``ts`` in float seconds, rounded to the
-      microsecond).
+    - event_utils (``events/xs, ys, ts, ps``; ``ts`` in float seconds, rounded to the
+      microsecond, or integer microseconds);
+    - MVSEC (``davis/left/events``, ``davis/right/events``: float64 rows ``x, y, t [s], p``
+      with p = -1/1; ``topic`` chooses ``left`` or ``right`` when both are present).
 
     The sensor size comes from the attributes ``width``/``height``, ``sensor_width``/
     ``sensor_height`` or ``sensor_resolution`` (height, width; event_utils), on the file or
@@ -248,12 +250,31 @@ def _h5_size(f: Any) -> tuple[int, int] | None:
     return None
 
 
-def _open_hdf5(p: Path) -> EventSource:
+def _open_mvsec(p: Path, f: Any, topic: str | None) -> EventSource:
+    sides = [s for s in ("left", "right") if f"davis/{s}/events" in f]
+    if topic is not None and topic not in sides:
+        raise FormatError(p, f"no davis/{topic}/events; the file has "
+                          + ", ".join(f"davis/{s}/events" for s in sides))
+    if topic is None and len(sides) > 1:
+        raise FormatError(p, "two event cameras (davis/left, davis/right); choose one with "
+                          "--topic left|right")
+    key = f"davis/{topic or sides[0]}/events"
+    d = f[key]
+    if d.ndim != 2 or d.shape[1] != 4 or d.dtype.kind != "f":
+        raise FormatError(p, f"{key} must be float rows x, y, t [s], p; got {d.shape} {d.dtype}")
+    meta = {"layout": "mvsec", "keys": (key,), "t_unit": "s", "t_offset_us": 0,
+            "attrs": {k: f.attrs[k] for k in f.attrs}}
+    return EventSource(p, "hdf5", n_events=int(d.shape[0]), meta=meta)
+
+
+def _open_hdf5(p: Path, topic: str | None = None) -> EventSource:
     h5py = _h5py()
     try:
         with h5py.File(p, "r") as f:
             layout = next((name for name, (keys, _) in H5_LAYOUTS.items()
                            if all(k in f for k in keys)), None)
+            if layout is None and ("davis/left/events" in f or "davis/right/events" in f):
+                return _open_mvsec(p, f, topic)
             if layout is None:
                 part = next(([k for k in keys if k not in f] for keys, _ in H5_LAYOUTS.values()
                              if any(k in f for k in keys)), None)
@@ -262,10 +283,12 @@ def _open_hdf5(p: Path) -> EventSource:
                                       f"{_h5_datasets(f)}")
                 raise FormatError(
                     p, f"unknown HDF5 event layout; found {_h5_datasets(f)}; expected events/x, "
-                    "events/y, events/t, events/p (DSEC/E2CALIB), x, y, t, p, or events/xs, ys, "
-                    "ts, ps (event_utils)"
+                    "events/y, events/t, events/p (DSEC/E2CALIB), x, y, t, p, events/xs, ys, "
+                    "ts, ps (event_utils) or davis/left/events (MVSEC)"
                 )
             keys, unit = H5_LAYOUTS[layout]
+            if layout == "event_utils" and f[keys[0]].dtype.kind in "iu":
+                unit = "us"  # some writers store integer microseconds under events/ts
             ds = {k: f[path] for k, path in zip(NPZ_KEYS, keys, strict=True)}
             lens = {k: d.shape[0] if d.ndim == 1 else -1 for k, d in ds.items()}
             if len(set(lens.values())) != 1 or -1 in lens.values():
@@ -276,9 +299,9 @@ def _open_hdf5(p: Path) -> EventSource:
             if ds["x"].dtype.kind not in "iu" or ds["y"].dtype.kind not in "iu":
                 raise FormatError(p, f"{keys[1]}, {keys[2]} must be integer datasets")
             tkind = ds["t"].dtype.kind
-            if (unit == "us" and tkind not in "iu") or (unit == "s" and tkind not in "iuf"):
+            if (unit == "us" and tkind not in "iu") or (unit == "s" and tkind != "f"):
                 raise FormatError(p, f"{keys[0]} must be integer microseconds, got {ds['t'].dtype}"
-                                  if unit == "us" else f"{keys[0]} must be numeric seconds")
+                                  if unit == "us" else f"{keys[0]} must be float seconds")
             t_offset = 0
             if "t_offset" in f:
                 t_offset = int(np.asarray(f["t_offset"][()]).reshape(-1)[0])
@@ -378,7 +401,7 @@ def open_events(path: str | os.PathLike[str], *, fmt: str | None = None,
         return EventSource(p, fmt, sensor_size=size, meta={"header": header},
                            size_from="the header line" if size else "")
     if fmt == "hdf5":
-        return _open_hdf5(p)
+        return _open_hdf5(p, topic)
     if fmt == "aedat4":
         from .event_aedat4 import open_aedat4
 
@@ -513,7 +536,17 @@ def _chunks_hdf5(src: EventSource, chunk_events: int) -> Iterator[EventChunk]:
             n = ds[0].shape[0]
             for s in range(0, n, chunk_events):
                 e = min(n, s + chunk_events)
-                t, x, y, p = (d[s:e] for d in ds)
+                if len(ds) == 1:  # MVSEC rows x, y, t, p
+                    rows = ds[0][s:e]
+                    x, y, t, p = (rows[:, k] for k in range(4))
+                    if x.size and (not np.isfinite(rows).all() or min(x.min(), y.min()) < 0
+                                   or max(x.max(), y.max()) > 65535
+                                   or (x != np.floor(x)).any() or (y != np.floor(y)).any()):
+                        raise FormatError(src.path, f"{keys[0]} rows {s}..{e}: x, y must be "
+                                          "integers in 0..65535 and every value finite")
+                    x, y = x.astype(np.int64), y.astype(np.int64)
+                else:
+                    t, x, y, p = (d[s:e] for d in ds)
                 if seconds:
                     t = np.rint(np.asarray(t, np.float64) * 1e6)
                     if t.size and not np.isfinite(t).all():
