@@ -125,7 +125,7 @@ def hotpix(
         rate_window_ns=None if rate_window_ms is None else round(rate_window_ms * 1e6),
     )
     with progress_bar(src.n_events, "counting", unit="ev") as bar:
-        for chunk in iter_event_chunks(src):
+        for chunk in iter_event_chunks(src, reuse_buffers=True):  # the counter keeps nothing
             counter.add(chunk.events, chunk)
             bar.update(len(chunk.events))
     size = counter.sensor_size

@@ -20,6 +20,18 @@ def first_decrease(t, prev):
     return -1
 
 
+@njit(cache=True, nogil=True)
+def us_to_ns(t_us, off_ns, lim_us, out):
+    """``out[i] = t_us[i] * 1000 + off_ns`` (integer microseconds to int64 ns) in one pass;
+    returns the index of the first stamp with ``|t_us| > lim_us`` (beyond int64 ns), or -1."""
+    for i in range(t_us.shape[0]):
+        v = np.int64(t_us[i])
+        if v > lim_us or v < -lim_us:
+            return i
+        out[i] = v * 1000 + off_ns
+    return -1
+
+
 
 # --------------------------------------------------------------------------------------------
 # rpg / ESIM text: "t x y p" per line, t in decimal seconds, parsed exactly into int64 ns.
