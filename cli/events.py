@@ -74,8 +74,8 @@ def frames(
     """
     from functools import partial
 
-    from ibiscape_eval.events.frames import frame_to_uint8, iter_frames
     from ibiscape_eval.core.events import Events
+    from ibiscape_eval.events.frames import frame_to_uint8, iter_frames
     from ibiscape_eval.io.events import iter_event_chunks, open_events, write_frames_png
 
     size = parse_sensor_size(sensor_size)

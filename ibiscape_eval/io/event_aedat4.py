@@ -87,10 +87,13 @@ def open_aedat4(path: Path, stream: str | None = None) -> dict[str, Any]:
             "meta": {"stream_id": sid, "streams": found}}
 
 
-def iter_aedat4_events(path: Path, stream_id: int, chunk_events: int) -> Iterator[tuple[Events, int]]:
+def iter_aedat4_events(path: Path, stream_id: int,
+                       chunk_events: int) -> Iterator[tuple[Events, int, bool]]:
     """Events of one stream, gathered into chunks of about ``chunk_events``; yields
-    ``(events, offset of the chunk's first event)``."""
+    ``(events, offset of the chunk's first event, in time order)`` (the order is checked while
+    the stamps are converted; a chunk out of order is left to the caller to report)."""
     dec = _decoder(path)
+    state = [np.iinfo(np.int64).min]
     parts: list[np.ndarray] = []
     have = 0
     offset = 0
@@ -111,22 +114,27 @@ def iter_aedat4_events(path: Path, stream_id: int, chunk_events: int) -> Iterato
         parts.append(pk["events"])
         have += len(pk["events"])
         if have >= chunk_events:
-            yield _to_events(path, parts), offset
+            ev, ok = _to_events(path, parts, state, offset)
+            yield ev, offset, ok
             offset += have
             parts, have = [], 0
     if parts:
-        yield _to_events(path, parts), offset
+        ev, ok = _to_events(path, parts, state, offset)
+        yield ev, offset, ok
 
 
-def _to_events(path: Path, parts: list[np.ndarray]) -> Events:
+def _to_events(path: Path, parts: list[np.ndarray], state: list[int], offset: int) -> tuple[Events, bool]:
+    from . import _event_text_kernels as _kernels
+
     a = parts[0] if len(parts) == 1 else np.concatenate(parts)
-    t = a["t"]
-    if t.size and int(t.max()) > _MAX_US:
-        raise FormatError(path, f"event stamp {int(t.max())} us lies beyond int64 nanoseconds "
-                          "(year 2262); the file is damaged")
-    t_ns = t.astype(np.int64)
-    t_ns *= 1000
-    return Events(t_ns, a["x"], a["y"], a["on"])
+    t_ns = np.empty(a.shape[0], np.int64)
+    code, bad = (int(v) for v in _kernels.us_to_ns(a["t"], 0, _MAX_US, state[0], t_ns))
+    if code == 1:
+        raise FormatError(path, f"event {offset + bad}: stamp {int(a['t'][bad])} us lies beyond int64 "
+                          "nanoseconds (year 2262); the file is damaged")
+    if t_ns.size:
+        state[0] = int(t_ns[-1])
+    return Events(t_ns, a["x"], a["y"], a["on"]), code == 0
 
 
 def _description(sensor_size: tuple[int, int], source: str, compression: str) -> bytes:

@@ -29,8 +29,8 @@ from ibiscape_eval.core.events import Events
 __all__ = [
     "DVS_MSGS_ROS1",
     "DVS_MSGS_ROS2",
-    "BagEventWriter",
     "EVENT_ARRAY_MSGTYPE",
+    "BagEventWriter",
     "decode_event_array",
     "dvs_typestore",
     "encode_event_array",
@@ -195,9 +195,11 @@ def open_bag_events(path: Path, topic: str | None) -> dict[str, Any]:
     return {"sensor_size": size, "meta": {"topic": chosen, "n_messages": n_msgs}}
 
 
-def iter_bag_event_arrays(path: Path, topic: str, chunk_events: int) -> Iterator[tuple[Events, int]]:
+def iter_bag_event_arrays(path: Path, topic: str,
+                          chunk_events: int) -> Iterator[tuple[Events, int, bool]]:
     """Events of ``topic`` in message order, gathered into chunks of about ``chunk_events``;
-    yields ``(events, offset of the chunk's first event)``."""
+    yields ``(events, offset of the chunk's first event, False)`` (the caller checks the
+    order)."""
     from .bag import _damaged
 
     reader = _open_reader(path)
@@ -211,11 +213,11 @@ def iter_bag_event_arrays(path: Path, topic: str, chunk_events: int) -> Iterator
             parts.append(got[:4])
             have += got[0].size
             if have >= chunk_events:
-                yield _join(parts), offset
+                yield _join(parts), offset, False
                 offset += have
                 parts, have = [], 0
         if parts:
-            yield _join(parts), offset
+            yield _join(parts), offset, False
     except IbiscapeError:
         raise
     except Exception as e:

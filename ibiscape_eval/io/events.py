@@ -524,7 +524,8 @@ def _chunks_text(src: EventSource, chunk_events: int) -> Iterator[EventChunk]:
                 break
 
 
-def _chunks_hdf5(src: EventSource, chunk_events: int, reuse: bool = False) -> Iterator[EventChunk]:
+def _chunks_hdf5(src: EventSource, chunk_events: int,
+                 reuse: bool = False) -> Iterator[EventChunk | tuple[EventChunk, bool]]:
     """HDF5 slices of ``chunk_events``; integer-microsecond layouts go through one numba pass
     (stamps to ns with the range check); with ``reuse`` the arrays of one chunk are overwritten
     by the next (no allocation, no page faults: for consumers that keep nothing)."""
@@ -580,11 +581,12 @@ def _chunks_hdf5(src: EventSource, chunk_events: int, reuse: bool = False) -> It
 
 
 def _chunks_hdf5_fast(src: EventSource, ds: list[Any], n: int, chunk_events: int, off_ns: int,
-                      lim_us: int, reuse: bool) -> Iterator[EventChunk]:
+                      lim_us: int, reuse: bool) -> Iterator[tuple[EventChunk, bool]]:
     from . import _event_text_kernels as _kernels
 
     size = min(chunk_events, max(n, 1))
     bufs: list[np.ndarray] = []
+    prev = np.iinfo(np.int64).min
     for s in range(0, n, chunk_events):
         e = min(n, s + chunk_events)
         k = e - s
@@ -595,17 +597,21 @@ def _chunks_hdf5_fast(src: EventSource, ds: list[Any], n: int, chunk_events: int
         for d, b in zip(ds, raw, strict=True):
             d.read_direct(b, np.s_[s:e], np.s_[0:k])
         t_ns, p = bufs[4][:k], bufs[5][:k]
-        bad = int(_kernels.us_to_ns(raw[0], off_ns, lim_us, t_ns))
-        if bad >= 0:
+        code, bad = (int(v) for v in _kernels.us_to_ns(raw[0], off_ns, lim_us, prev, t_ns))
+        if code == 1:
             raise FormatError(src.path, f"{src.meta.get('keys', ('t',))[0]}[{s + bad}] = {int(raw[0][bad])} us lies "
                               "beyond int64 nanoseconds (year 2262); the file is damaged")
         np.greater(raw[3], 0, out=p)
-        yield EventChunk(Events(t_ns, raw[1], raw[2], p), str(src.path), s)
+        if k:
+            prev = int(t_ns[-1])
+        # (chunk, in order): the order was checked here, iter_event_chunks need not repeat it
+        yield EventChunk(Events(t_ns, raw[1], raw[2], p), str(src.path), s), code == 0
 
 
-def _chunks_stream(src: EventSource, it: Iterator[tuple[Events, int]]) -> Iterator[EventChunk]:
-    for ev, offset in it:
-        yield EventChunk(ev, str(src.path), offset)
+def _chunks_stream(src: EventSource, it: Iterator[tuple[Events, int, bool]]
+                   ) -> Iterator[tuple[EventChunk, bool]]:
+    for ev, offset, in_order in it:
+        yield EventChunk(ev, str(src.path), offset), in_order
 
 
 def iter_event_chunks(
@@ -635,6 +641,7 @@ def iter_event_chunks(
     from . import _event_text_kernels as _kernels
 
     src = source if isinstance(source, EventSource) else open_events(source)
+    it: Iterator[Any]
     if src.fmt == "ibiscape":
         it = _chunks_npz_files([w[2] for w in src.windows])
     elif src.fmt == "npz":
@@ -654,9 +661,13 @@ def iter_event_chunks(
     prev = np.iinfo(np.int64).min
     prev_where = ""
     total = 0
-    for chunk in it:
+    for item in it:
+        chunk, in_order = item if isinstance(item, tuple) else (item, False)
         t = chunk.events.t_ns
-        if check_sorted and t.size:
+        if in_order and t.size:
+            prev = int(t[-1])
+            prev_where = chunk.source
+        elif check_sorted and t.size:
             bad = int(_kernels.first_decrease(t, prev))
             if bad >= 0:
                 path, line, what = chunk.where(bad)

@@ -116,13 +116,13 @@ def test_filtered_output_in_the_input_format(run_cli, tmp_path, stream, name):
 
 def _aedat4_without_events(path: Path) -> None:
     """An AEDAT4 file by hand (flatbuffer I/O header) whose only streams are IMU and triggers."""
-    xml = ('<dv version="2.0"><node name="outInfo" path="/mainloop/Recorder/outInfo/">'
-           '<node name="2" path="/mainloop/Recorder/outInfo/2/">'
-           '<attr key="compression" type="string">NONE</attr>'
-           '<attr key="typeIdentifier" type="string">IMUS</attr></node>'
-           '<node name="3" path="/mainloop/Recorder/outInfo/3/">'
-           '<attr key="compression" type="string">NONE</attr>'
-           '<attr key="typeIdentifier" type="string">TRIG</attr></node></node></dv>').encode()
+    xml = (b'<dv version="2.0"><node name="outInfo" path="/mainloop/Recorder/outInfo/">'
+           b'<node name="2" path="/mainloop/Recorder/outInfo/2/">'
+           b'<attr key="compression" type="string">NONE</attr>'
+           b'<attr key="typeIdentifier" type="string">IMUS</attr></node>'
+           b'<node name="3" path="/mainloop/Recorder/outInfo/3/">'
+           b'<attr key="compression" type="string">NONE</attr>'
+           b'<attr key="typeIdentifier" type="string">TRIG</attr></node></node></dv>')
     body = (struct.pack("<I4s5H6xiiqI", 24, b"IOHE", 10, 20, 4, 8, 16, 16, 0, -1, 4)
             + struct.pack("<I", len(xml)) + xml + b"\0")
     body += b"\0" * (-len(body) % 8)

@@ -263,3 +263,33 @@ def test_aedat4_sorted_check_names_the_event(tmp_path, real):
     write_events(p, bad, sensor_size=SIZE)
     with pytest.raises(FormatError, match="timestamps go backwards at event 1500"):
         read_events(p)
+
+
+@pytest.mark.parametrize("at", [10, 4999, 5000, 5001])
+def test_hdf5_order_and_range_checks_in_the_fast_path(tmp_path, real, at):
+    """The one-pass HDF5 reader (stamps converted and checked together) names the first event
+    out of order, inside a chunk or across a chunk boundary, and refuses stamps beyond int64 ns."""
+    import h5py
+
+    from ibiscape_eval.core.errors import FormatError
+    from ibiscape_eval.io.events import iter_event_chunks
+
+    ev = Events(real.t_ns[:20000], real.x[:20000], real.y[:20000], real.p[:20000])
+    p = tmp_path / "d.h5"
+    _dsec(p, ev, SIZE)
+    with h5py.File(p, "r+") as f:
+        t = f["events/t"][:]
+        t[at] = t[at - 1] - 1 if t[at - 1] > 0 else 0
+        if at == 10:
+            t[at] = 0
+        f["events/t"][:] = t
+    with pytest.raises(FormatError, match=f"timestamps go backwards at event {at}:"):
+        for _ in iter_event_chunks(open_events(p), chunk_events=5000, reuse_buffers=True):
+            pass
+    q = tmp_path / "far.h5"
+    with h5py.File(q, "w") as f:
+        for k, a in (("t", np.array([1, 2, 2**62], np.int64)), ("x", np.zeros(3, np.uint16)),
+                     ("y", np.zeros(3, np.uint16)), ("p", np.ones(3, np.uint8))):
+            f.create_dataset(f"events/{k}", data=a)
+    with pytest.raises(FormatError, match=r"events/t\[2\] = 4611686018427387904 us lies beyond int64"):
+        read_events(q)
