@@ -320,6 +320,8 @@ def _open_hdf5(p: Path, topic: str | None = None) -> EventSource:
                                size_from="HDF5 attributes" if size else "")
     except OSError as e:
         raise FormatError(p, f"cannot read as HDF5 ({e}); is it an .h5 file?") from None
+    except (RuntimeError, KeyError, ValueError, TypeError) as e:  # h5py on damaged metadata
+        raise FormatError(p, f"damaged HDF5 file ({' '.join(str(e).split())[:120]})") from None
 
 
 def _sequence_size(root: Path) -> tuple[int, int] | None:
@@ -578,6 +580,8 @@ def _chunks_hdf5(src: EventSource, chunk_events: int,
             src.path, f"cannot read the event datasets ({e}); DSEC files are Blosc-compressed: "
             "install hdf5plugin and retry"
         ) from None
+    except (RuntimeError, KeyError, ValueError, TypeError) as e:  # h5py on damaged data
+        raise FormatError(src.path, f"damaged HDF5 file ({' '.join(str(e).split())[:120]})") from None
 
 
 def _chunks_hdf5_fast(src: EventSource, ds: list[Any], n: int, chunk_events: int, off_ns: int,
@@ -661,9 +665,18 @@ def iter_event_chunks(
     prev = np.iinfo(np.int64).min
     prev_where = ""
     total = 0
+    size = src.sensor_size
     for item in it:
         chunk, in_order = item if isinstance(item, tuple) else (item, False)
         t = chunk.events.t_ns
+        if size is not None and t.size and (int(chunk.events.x.max()) >= size[0]
+                                            or int(chunk.events.y.max()) >= size[1]):
+            ev = chunk.events
+            i = int(np.flatnonzero((ev.x >= size[0]) | (ev.y >= size[1]))[0])
+            path, line, what = chunk.where(i)
+            raise FormatError(path, f"{what} at pixel ({int(ev.x[i])}, {int(ev.y[i])}) lies outside "
+                              f"the {size[0]}x{size[1]} sensor {src.size_from or 'the file states'}"
+                              " gives; the file is damaged, or the size is wrong", line=line)
         if in_order and t.size:
             prev = int(t[-1])
             prev_where = chunk.source
@@ -770,10 +783,14 @@ class _Writer:
                 from .event_bag import BagEventWriter
 
                 ros2 = self.tmp.is_dir()
-                self.tmp.rmdir() if ros2 else self.tmp.unlink()  # rosbags refuses an existing path
+                # rosbags refuses an existing path, and names a ROS 2 bag's storage file after
+                # its folder: write <staging folder>/<target name> and move that in commit
+                target = self.tmp / self.dst.name if ros2 else self.tmp
+                if not ros2:
+                    self.tmp.unlink()
                 topic = (self.like.meta.get("topic") if self.like is not None and self.like.fmt == "bag"
                          else None) or "/dvs/events"
-                self._stream = BagEventWriter(self.tmp, topic=topic, sensor_size=self.size or (0, 0),
+                self._stream = BagEventWriter(target, topic=topic, sensor_size=self.size or (0, 0),
                                               ros2=ros2)
         self._stream.add(ev)
 
@@ -837,6 +854,10 @@ class _Writer:
             if self._stream is None:
                 self._add_stream(Events.empty())
             self._stream.close()
+            if self.tmp.is_dir():  # a ROS 2 bag folder inside the staging folder
+                publish(self.tmp / self.dst.name, self.dst)
+                discard(self.tmp)
+                return
         else:
             if self._h5 is None:
                 self._add_h5(Events.empty())

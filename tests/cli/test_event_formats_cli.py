@@ -107,6 +107,9 @@ def test_filtered_output_in_the_input_format(run_cli, tmp_path, stream, name):
     np.testing.assert_array_equal(got.x, want.x)
     assert open_events(out).fmt == open_events(src).fmt
     assert open_events(out).sensor_size == SIZE
+    assert not [f for f in tmp_path.rglob(".*")], "staging files left behind"
+    if name == "ev_ros2":  # the storage file is named after the bag folder
+        assert sorted(f.name for f in out.iterdir()) == [f"{out.name}.db3", "metadata.yaml"]
 
 
 # ------------------------------------------------------------------------------------------
