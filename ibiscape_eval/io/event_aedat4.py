@@ -56,15 +56,55 @@ def _decoder(path: Path) -> Any:
                           "from DV?") from None
 
 
+def _description_xml(path: Path, buf: bytes) -> str:
+    """The XML stream table of the I/O header flatbuffer ``buf``, bounds-checked (the decoder's
+    XML parser panics on damaged text, so the header is checked here first)."""
+
+    def u32(at: int) -> int:
+        if at < 0 or at + 4 > len(buf):
+            raise ValueError("offset outside the header")
+        return int.from_bytes(buf[at:at + 4], "little")
+
+    table = u32(0)
+    vtable = table - int.from_bytes(buf[table:table + 4], "little", signed=True)
+    if vtable < 0 or vtable + 10 > len(buf):
+        raise ValueError("vtable outside the header")
+    field = int.from_bytes(buf[vtable + 8:vtable + 10], "little")  # field 2: description
+    if field == 0:
+        raise ValueError("no description")
+    at = table + field
+    start = at + u32(at)
+    n = u32(start)
+    if start + 4 + n > len(buf):
+        raise ValueError("description outside the header")
+    return buf[start + 4:start + 4 + n].decode("utf-8")
+
+
+def _check_header(path: Path) -> None:
+    import xml.etree.ElementTree as ET
+
+    with open(path, "rb") as f:
+        head = f.read(len(AEDAT4_MAGIC))
+        if head != AEDAT4_MAGIC:
+            what = "AEDAT 2/3 (jAER / cAER)" if head.startswith(b"#!AER-DAT") else "not AEDAT"
+            raise FormatError(path, f"expected an AEDAT4 file (#!AER-DAT4.0), found {what}; convert "
+                              "it with DV or give an AEDAT4 recording")
+        raw = f.read(4)
+        size = int.from_bytes(raw, "little") if len(raw) == 4 else -1
+        buf = f.read(size) if 0 < size <= 1 << 24 else b""
+    try:
+        if len(buf) != size:
+            raise ValueError(f"header of {size} bytes cut off")
+        ET.fromstring(_description_xml(path, buf))
+    except (ValueError, ET.ParseError) as e:
+        raise FormatError(path, f"damaged AEDAT4 header ({e}); the file was cut off or corrupted "
+                          "at its start") from None
+
+
 def open_aedat4(path: Path, stream: str | None = None) -> dict[str, Any]:
     """Check the file's stream table and choose its polarity-event stream; returns the
     :class:`EventSource` fields (``sensor_size`` from the stream's ``sizeX``/``sizeY``)."""
-    with open(path, "rb") as f:
-        head = f.read(len(AEDAT4_MAGIC))
-    if head != AEDAT4_MAGIC:
-        what = "AEDAT 2/3 (jAER / cAER)" if head.startswith(b"#!AER-DAT") else "not AEDAT"
-        raise FormatError(path, f"expected an AEDAT4 file (#!AER-DAT4.0), found {what}; convert "
-                          "it with DV or give an AEDAT4 recording")
+    _check_header(path)
     streams = _decoder(path).id_to_stream()
     found = ", ".join(f"{sid} ({s.get('type')})" for sid, s in sorted(streams.items())) or "none"
     ev = sorted(sid for sid, s in streams.items() if s.get("type") == "events")

@@ -205,3 +205,37 @@ def test_bag_without_event_topic_and_with_several(run_cli, tmp_path, stream):
         w.add_connection("/imu", "sensor_msgs/msg/Imu", typestore=ts)
     assert_one_error_line(run_cli("hotpix", q), str(q), "no dvs_msgs/msg/EventArray topic",
                           "/imu (sensor_msgs/msg/Imu)")
+
+
+def test_aedat4_damaged_header_is_checked_before_the_decoder(tmp_path, capfd):
+    """The decoder's XML parser panics on some damaged stream tables (a Rust panic message on
+    stderr); the header is checked first, so 60 damaged headers give FormatErrors and stderr
+    stays empty."""
+    from ibiscape_eval.core.errors import FormatError
+    from ibiscape_eval.io.events import read_events
+
+    real = Path(__file__).resolve().parents[1] / "data" / "real" / "tonic_dvxplorer" / "sample.aedat4"
+    data = real.read_bytes()
+    end = data.index(b"</dv>") + 5
+    rng = np.random.default_rng(21)
+    refused = 0
+    for k in range(60):
+        b = bytearray(data[:200_000])
+        i = int(rng.integers(14, end))
+        if k % 2:
+            b[i] ^= int(rng.integers(1, 256))
+        else:
+            del b[i: i + int(rng.integers(1, 40))]
+        p = tmp_path / f"m{k}.aedat4"
+        p.write_bytes(bytes(b))
+        try:
+            read_events(p)
+        except FormatError as e:
+            refused += 1
+            assert str(p) in str(e)
+    assert refused >= 40
+    assert "panicked" not in capfd.readouterr().err
+    bad = tmp_path / "xml.aedat4"
+    bad.write_bytes(data.replace(b"</dv>", b"</dx>"))
+    with pytest.raises(FormatError, match="damaged AEDAT4 header"):
+        read_events(bad)
