@@ -43,6 +43,9 @@ def events() -> None:
               help="Sensor size in pixels (default: from the file or the data).")
 @click.option("--format", "fmt", type=click.Choice(FORMAT_CHOICES), default="auto", show_default=True,
               help="Input format.")
+@click.option("--topic", default=None, metavar="NAME",
+              help="ROS bag: the dvs_msgs/EventArray topic; AEDAT4: the event stream id; "
+              "sequence folder: the DVS camera.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document on stdout.")
 @user_errors
 def frames(
@@ -55,6 +58,7 @@ def frames(
     tau_ms: float,
     sensor_size: str | None,
     fmt: str,
+    topic: str | None,
     as_json: bool,
 ) -> None:
     """Render EVENTS as accumulation frames or time surfaces (PNG, one per window).
@@ -66,15 +70,17 @@ def frames(
     Examples:
       ibiscape-eval events frames FULL_Dynamic_1/davisL --out frames/ --rate-hz 20
       ibiscape-eval events frames events.h5 --out ts/ --kind time-surface --tau-ms 50
+      ibiscape-eval events frames dvxplorer.aedat4 --out frames/ --rate-hz 30
     """
     from functools import partial
 
+    from ibiscape_eval.core.events import Events
     from ibiscape_eval.events.frames import frame_to_uint8, iter_frames
-    from ibiscape_eval.io.events import open_events, read_events, write_frames_png
+    from ibiscape_eval.io.events import iter_event_chunks, open_events, write_frames_png
 
     size = parse_sensor_size(sensor_size)
-    src = open_events(events_path, fmt=None if fmt == "auto" else fmt)
-    ev = read_events(src.path, fmt=src.fmt)
+    src = open_events(events_path, fmt=None if fmt == "auto" else fmt, topic=topic)
+    ev = Events.concatenate([c.events for c in iter_event_chunks(src)])
     if size is None and src.sensor_size is None:
         size = (int(ev.x.max()) + 1, int(ev.y.max()) + 1) if len(ev) else (1, 1)
         info(f"note: {events_path}: sensor size {size[0]}x{size[1]} inferred from the largest "

@@ -51,7 +51,11 @@ def parse_sensor_size(text: str | None) -> tuple[int, int] | None:
               help="Write the events without the hot pixels here, in the input's format "
               "(a new folder for an IBISCape DVS folder).")
 @click.option("--format", "fmt", type=click.Choice(FORMAT_CHOICES), default="auto", show_default=True,
-              help="Input format (auto: folder -> ibiscape, .npz, .txt -> text, .h5 -> hdf5).")
+              help="Input format (auto: folder -> ibiscape (a ROS 2 bag folder -> bag), .npz, "
+              ".txt -> text, .h5 -> hdf5, .aedat4, .bag/.db3/.mcap -> bag).")
+@click.option("--topic", default=None, metavar="NAME",
+              help="ROS bag: the dvs_msgs/EventArray topic; AEDAT4: the event stream id; "
+              "sequence folder: the DVS camera (needed when there are several).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document on stdout.")
 @click.option("--plot", type=click.Path(path_type=Path), default=None,
               help="Save count histograms before/after (log scale) and a sensor heat map.")
@@ -68,13 +72,17 @@ def hotpix(
     hot_out: Path | None,
     filtered_out: Path | None,
     fmt: str,
+    topic: str | None,
     as_json: bool,
     plot: Path | None,
 ) -> None:
     """Detect and remove DVS hot pixels in EVENTS.
 
-    EVENTS is an IBISCape DVS folder (timestamps.csv + events/<ns>.npz), an .npz file, an
-    rpg/ESIM text file (t x y p, seconds) or an E2CALIB/DSEC .h5 file.  Per-pixel event counts
+    EVENTS is an IBISCape DVS folder (timestamps.csv + events/<ns>.npz) or a sequence folder
+    with one DVS camera, an .npz file, an rpg/ESIM text file (t x y p, seconds), an .h5 file
+    (DSEC/E2CALIB, event_utils), an AEDAT4 file (iniVation DV) or a ROS 1/2 bag with
+    dvs_msgs/EventArray.  The sensor size is taken from the file or sequence.yaml when they
+    state it.  Per-pixel event counts
     over the whole recording decide: the --top-n N largest counts, counts above
     mean + --n-sigma S x std (default S = 5, as dvs_tools), and/or a rate criterion.  Files larger
     than memory are streamed.
@@ -85,6 +93,8 @@ def hotpix(
           --filtered-out davisL_filtered --plot hotpix.png
       ibiscape-eval hotpix events.txt --top-n 20 --sensor-size 346x260 --json
       ibiscape-eval hotpix events.h5 --apply hot_pixels.txt --filtered-out events_clean.h5
+      ibiscape-eval hotpix dvxplorer.aedat4 --top-n 10 --hot-out hot_pixels.txt
+      ibiscape-eval hotpix recording.bag --topic /dvs/events --n-sigma 5
     """
     import numpy as np
 
@@ -104,7 +114,7 @@ def hotpix(
     if (rate_min_events is None) != (rate_window_ms is None):
         raise IbiscapeError("the rate criterion needs both --rate-min-events and --rate-window-ms")
     size = parse_sensor_size(sensor_size)
-    src = open_events(events, fmt=None if fmt == "auto" else fmt)
+    src = open_events(events, fmt=None if fmt == "auto" else fmt, topic=topic)
     size = size or src.sensor_size
     applied = read_hot_pixels(apply_path) if apply_path is not None else None
 
@@ -115,7 +125,7 @@ def hotpix(
         rate_window_ns=None if rate_window_ms is None else round(rate_window_ms * 1e6),
     )
     with progress_bar(src.n_events, "counting", unit="ev") as bar:
-        for chunk in iter_event_chunks(src):
+        for chunk in iter_event_chunks(src, reuse_buffers=True):  # the counter keeps nothing
             counter.add(chunk.events, chunk)
             bar.update(len(chunk.events))
     size = counter.sensor_size
@@ -156,6 +166,8 @@ def hotpix(
 
     doc: dict[str, Any] = {"input": str(events), "format": src.fmt, **result.to_dict()}
     doc["sensor_size"] = list(size)
+    doc["sensor_size_from"] = ("--sensor-size" if parse_sensor_size(sensor_size) is not None
+                               else src.size_from or "the largest event coordinates")
     doc["criteria"] = {
         "applied_list": None if apply_path is None else str(apply_path),
         **doc["criteria"],

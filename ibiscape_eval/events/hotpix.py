@@ -533,6 +533,10 @@ class PixelCounter:
         self.n_events = 0
         self._planes = 2 if per_polarity else 1
         self._counts = np.zeros((self._planes, self.h, self.w), np.int64)
+        # chunks are counted into one padded uint32 accumulator (no allocation per chunk),
+        # folded into the int64 counts before it could overflow
+        self._acc = np.zeros(self._planes * self.h * (self.w + _PAD), np.uint32)
+        self._acc_n = 0
         self._t0: int | None = None
         self._rate_state: list[np.ndarray] = []
         if rate_window_ns is not None:
@@ -542,7 +546,15 @@ class PixelCounter:
     def _new_rate_state(h: int, w: int) -> list[np.ndarray]:
         return [np.full(h * w, -1, np.int64), np.zeros(h * w, np.int64), np.zeros(h * w, np.int64)]
 
+    def _flush(self) -> None:
+        if self._acc_n:
+            self._counts += self._acc.reshape(self._planes, self.h, self.w + _PAD)[:, :, : self.w]
+            self._acc[:] = 0
+            self._acc_n = 0
+
     def _grow(self, w: int, h: int) -> None:
+        self._flush()
+        self._acc = np.zeros(self._planes * h * (w + _PAD), np.uint32)
         counts = np.zeros((self._planes, h, w), np.int64)
         counts[:, : self.h, : self.w] = self._counts
         if self._rate_state:
@@ -564,10 +576,27 @@ class PixelCounter:
             mw, mh = int(events.x.max()) + 1, int(events.y.max()) + 1
             if mw > self.w or mh > self.h:
                 self._grow(max(mw, self.w), max(mh, self.h))
-        part = _count_padded(events.x, events.y, events.p if self.per_polarity else None,
-                             self.w, self.h)
-        if isinstance(part, int):
-            i = part
+        if self._acc_n + n >= 2**32 - 1:
+            self._flush()
+        if n >= 2**32 - 1:  # one chunk beyond uint32: count it apart
+            part = _count_padded(events.x, events.y, events.p if self.per_polarity else None,
+                                 self.w, self.h)
+            bad = part if isinstance(part, int) else -1
+        else:
+            stride = self.w + _PAD
+            if self.per_polarity:
+                bad = int(_kernels.count_xyp(events.x, events.y, events.p, self.w, self.h,
+                                             stride, self._acc))
+            else:
+                bad = int(_kernels.count_xy(events.x, events.y, self.w, self.h, stride, self._acc))
+            if bad >= 0:  # undo the events counted before the bad one: the counts stay valid
+                xs, ys = events.x[:bad].astype(np.int64), events.y[:bad].astype(np.int64)
+                plane = (events.p[:bad].astype(np.int64) * (self.h * stride) if self.per_polarity
+                         else 0)
+                np.subtract.at(self._acc, plane + ys * stride + xs, np.uint32(1))
+            part = None
+        if bad >= 0:
+            i = bad
             msg = (
                 f"pixel (x={int(events.x[i])}, y={int(events.y[i])}) lies outside the "
                 f"{self.w}x{self.h} sensor; pass the right --sensor-size WxH"
@@ -576,7 +605,11 @@ class PixelCounter:
                 path, line, what = chunk.where(i)
                 raise FormatError(path, f"{what}: {msg}", line=line)
             raise IbiscapeError(f"event {self.n_events + i}: {msg}")
-        self._counts += part
+        if part is None:
+            self._acc_n += n
+        else:
+            assert not isinstance(part, int)
+            self._counts += part
         if self._rate_state:
             if self._t0 is None:
                 self._t0 = int(events.t_ns[0])
@@ -587,6 +620,7 @@ class PixelCounter:
     @property
     def count_map(self) -> npt.NDArray[np.int64]:
         """(H, W) or, per polarity, (2, H, W) counts so far."""
+        self._flush()
         return self._counts[0] if self._planes == 1 else self._counts
 
     @property

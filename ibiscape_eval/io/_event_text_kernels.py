@@ -20,6 +20,28 @@ def first_decrease(t, prev):
     return -1
 
 
+@njit(cache=True, nogil=True)
+def us_to_ns(t_us, off_ns, lim_us, prev, out):
+    """``out[i] = t_us[i] * 1000 + off_ns`` (integer microseconds to int64 ns) in one pass,
+    with the range and order checks; returns ``(0, -1)``, ``(1, i)`` for the first stamp with
+    ``|t_us| > lim_us`` (beyond int64 ns) or ``(2, i)`` for the first ``out[i] < out[i-1]``
+    (``out[-1]`` taken as ``prev``)."""
+    order = -1
+    last = prev
+    for i in range(t_us.shape[0]):
+        v = np.int64(t_us[i])
+        if v > lim_us or v < -lim_us:
+            return 1, i
+        t = v * 1000 + off_ns
+        if t < last and order < 0:
+            order = i
+        out[i] = t
+        last = t
+    if order >= 0:
+        return 2, order
+    return 0, -1
+
+
 
 # --------------------------------------------------------------------------------------------
 # rpg / ESIM text: "t x y p" per line, t in decimal seconds, parsed exactly into int64 ns.

@@ -378,3 +378,40 @@ FAMILIES: dict[str, Family] = {
                                                                 "--json", "--hot-out", str(o / "hot.txt")],
                                 mutable=_dvs_window, text=False),
 }
+
+
+# ---- event files as people have them (AEDAT4, HDF5, ROS bags with dvs_msgs/EventArray) ----
+
+
+def _events_us() -> object:
+    from ibiscape_eval.core.events import Events
+
+    ev = _events()
+    assert isinstance(ev, Events)
+    return Events(ev.t_ns // 1000 * 1000, ev.x, ev.y, ev.p)  # AEDAT4/HDF5 hold microseconds
+
+
+def _event_file_seed(name: str, fmt: str):  # type: ignore[no-untyped-def]
+    def build(folder: Path) -> Path:
+        from ibiscape_eval.io.events import write_events
+
+        p = folder / name
+        write_events(p, _events_us(), fmt=fmt, sensor_size=(64, 48))  # type: ignore[arg-type]
+        return p
+
+    return build
+
+
+def _hotpix_argv(p: Path, o: Path) -> list[str]:
+    return ["hotpix", str(p), "--json", "--hot-out", str(o / "hot.txt"), "--filtered-out",
+            str(o / f"clean{p.suffix}")]
+
+
+FAMILIES["events_aedat4"] = Family(_event_file_seed("events.aedat4", "aedat4"), _hotpix_argv,
+                                   text=False)
+FAMILIES["events_hdf5"] = Family(_event_file_seed("events.h5", "hdf5"),
+                                 lambda p, o: ["events", "frames", str(p), "--out", str(o / "frames"),
+                                               "--json"], text=False)
+FAMILIES["events_bag_ros1"] = Family(_event_file_seed("events.bag", "bag"), _hotpix_argv, text=False)
+FAMILIES["events_bag_ros2"] = Family(_event_file_seed("events_ros2", "bag"), _hotpix_argv,
+                                     mutable=lambda p: p / f"{p.name}.db3", text=False)
