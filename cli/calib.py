@@ -110,15 +110,15 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
         detect_frames,
     )
     from ibiscape_eval.calib.report import compare_with_truth, format_report, truth_from_sequence
-    from ibiscape_eval.calib.targets import target_from_kalibr
     from ibiscape_eval.core.errors import IbiscapeError
+    from ibiscape_eval.core.kalibr import CameraChain, target_from_kalibr
     from ibiscape_eval.io.image_sets import (
         find_image_sets,
         image_sets_from_globs,
         pair_views,
         read_image,
     )
-    from ibiscape_eval.io.kalibr import CameraChain, read_camchain, read_target_yaml, write_camchain
+    from ibiscape_eval.io.kalibr import read_camchain, read_target, write_camchain
     from ibiscape_eval.io.sequence import read_sequence_yaml
 
     if imu_yaml is None and (cams_path or imu_data or force or frame_step != 1):
@@ -142,7 +142,7 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
     if seq is not None and (seq / "sequence.yaml").is_file():
         seq_doc = read_sequence_yaml(seq / "sequence.yaml")
     if target_path is not None:
-        target = target_from_kalibr(read_target_yaml(target_path), source=str(target_path))
+        target = read_target(target_path)
     elif seq_doc is not None and isinstance(seq_doc.get("target"), dict):
         target = target_from_kalibr(seq_doc["target"], source=f"{seq}/sequence.yaml: target")
     else:
@@ -186,7 +186,7 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
     if check_path is not None:
         chain = read_camchain(check_path)
         doc = {**base, "check": str(check_path),
-               **check_frames(target, summary, chain.cameras, chain.T_cn_cnm1)}
+               **check_frames(target, summary, chain.models, chain.relative_transforms)}
         if as_json:
             echo_json(doc)
             return
@@ -209,9 +209,9 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
                    if isinstance(seq_cams.get(c.name), dict) else f"/{c.name}/image_raw"
                    for c in result.cameras)
     if yaml_out is not None:
-        write_camchain(yaml_out, CameraChain(tuple(c.name for c in result.cameras),
-                                             tuple(c.camera for c in result.cameras),
-                                             result.T_cn_cnm1, topics))
+        write_camchain(yaml_out, CameraChain.from_relative(tuple(c.name for c in result.cameras),
+                                                           tuple(c.camera for c in result.cameras),
+                                                           result.T_cn_cnm1, topics))
     plots: list[str] = []
     if plot_dir is not None:
         from ibiscape_eval.calib.plots import calibration_figures

@@ -40,10 +40,9 @@ def run_sequence(seq: Path, imu_yaml: Path, *, camchain: Path | None, imu_data: 
     read_imu_noise(imu_yaml)  # a bad imu.yaml fails before anything else is read
     target = None
     if target_path is not None:
-        from ibiscape_eval.calib.targets import target_from_kalibr
-        from ibiscape_eval.io.kalibr import read_target_yaml
+        from ibiscape_eval.io.kalibr import read_target
 
-        target = target_from_kalibr(read_target_yaml(target_path), source=str(target_path))
+        target = read_target(target_path)
     with progress_bar(1000, "calib --imu", unit="‰", unit_scale=False) as bar:
         res = calibrate_sequence(seq, imu_yaml, camchain=camchain, cameras=cameras, force=force,
                                  progress=fraction_callback(bar, "calib --imu"), imu_data=imu_data,

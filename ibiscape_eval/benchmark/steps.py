@@ -98,7 +98,7 @@ def _camera_calibration(seq: str, cameras: Sequence[str], model: str, max_views:
     from ibiscape_eval.calib.events import event_set_frames
     from ibiscape_eval.calib.pipeline import CameraFrames, calibrate_frames, detect_frames
     from ibiscape_eval.calib.report import compare_with_truth, truth_from_sequence
-    from ibiscape_eval.calib.targets import target_from_kalibr
+    from ibiscape_eval.core.kalibr import target_from_kalibr
     from ibiscape_eval.io.image_sets import find_image_sets, pair_views, read_image
 
     doc = _sequence_doc(seq)

@@ -198,9 +198,9 @@ def read_sequence_yaml(path: str | os.PathLike[str]) -> dict[str, Any]:
     FormatError
         Not YAML, missing keys (naming them), malformed transforms.
     """
-    from .paths import safe_yaml
+    from .yaml_file import read_yaml
 
-    doc = safe_yaml(path, what="sequence.yaml")
+    doc = read_yaml(path, what="sequence.yaml")
     if not isinstance(doc, dict):
         raise FormatError(path, "expected a mapping at the top level")
     missing = [k for k in SEQUENCE_KEYS if k not in doc]

@@ -17,7 +17,8 @@ from click.testing import CliRunner
 
 from ibiscape_eval.cli.main import cli
 from ibiscape_eval.core.errors import CalibrationError, DegenerateInputError, FormatError
-from ibiscape_eval.io.stereo import read_euroc_sensor_yaml, read_kalibr_camchain
+from ibiscape_eval.io.asl import read_asl_sensor_yaml
+from ibiscape_eval.io.kalibr import read_camchain
 from ibiscape_eval.vio import run_vio
 from ibiscape_eval.vio.inputs import load_sequence
 from ibiscape_eval.vio.params import ImuNoiseDensities
@@ -206,10 +207,11 @@ def test_camchain_reader_refuses_a_non_rotation(tmp_path):
            "T_cam_imu": ROT_NOT_ORTHONORMAL}
     f.write_text(yaml.safe_dump({"cam0": cam}))
     with pytest.raises(FormatError, match=r"camchain\.yaml: cam0\.T_cam_imu: the rotation"):
-        read_kalibr_camchain(f)
+        read_camchain(f)
     cam["T_cam_imu"] = np.eye(4).tolist()
     f.write_text(yaml.safe_dump({"cam0": cam}))
-    assert np.array_equal(read_kalibr_camchain(f)["cam0"]["T_cam_imu"], np.eye(4))
+    T = read_camchain(f).cameras[0].T_cam_imu
+    assert T is not None and np.array_equal(T, np.eye(4))
 
 
 def test_euroc_sensor_yaml_refuses_a_reflection(tmp_path):
@@ -217,15 +219,15 @@ def test_euroc_sensor_yaml_refuses_a_reflection(tmp_path):
     f.write_text(yaml.safe_dump({"T_BS": {"rows": 4, "cols": 4,
                                           "data": np.ravel(REFLECTION).tolist()}}))
     with pytest.raises(FormatError, match=r"sensor\.yaml: T_BS: the rotation"):
-        read_euroc_sensor_yaml(f)
+        read_asl_sensor_yaml(f)
 
 
 # --------------------------------------------------------------------- GTSAM numerical failure
 def _unchecked(monkeypatch: pytest.MonkeyPatch) -> None:
     """Switch off the rigid-transform check so that a broken T_body_imu reaches GTSAM."""
-    import ibiscape_eval.io.stereo as stereo
+    import ibiscape_eval.core.kalibr as kalibr
 
-    monkeypatch.setattr(stereo, "rigid_transform_problem", lambda T: None)
+    monkeypatch.setattr(kalibr, "rigid_transform_problem", lambda T: None)
 
 
 @pytest.mark.filterwarnings("ignore:invalid value:RuntimeWarning")  # numpy on the inf pose

@@ -43,9 +43,9 @@ MAX_SHIFT_NS = 100_000_000
 def read_imu_noise(path: str | os.PathLike[str]) -> ImuNoiseDensities:
     """A Kalibr ``imu.yaml`` (the ``allan`` command's output; ``yaml.safe_load``); a missing or bad
     key is a :class:`FormatError` naming the file and the key."""
-    from ibiscape_eval.io.paths import safe_yaml
+    from ibiscape_eval.io.yaml_file import read_yaml
 
-    doc: Any = safe_yaml(path, what="Kalibr imu.yaml")
+    doc: Any = read_yaml(path, what="Kalibr imu.yaml")
     return ImuNoiseDensities.from_kalibr(doc, source=str(path))
 
 
@@ -144,20 +144,12 @@ def canonical_checkerboard(ids: npt.ArrayLike, pixels_px: npt.ArrayLike, target:
 
 
 def _camchain_cameras(path: str | os.PathLike[str], names: Sequence[str]) -> dict[str, CameraModel]:
-    """Intrinsics of ``names`` from a Kalibr camchain: by the rostopic ``/<name>/...`` or the
-    ``cam<i>`` key, else by chain order."""
+    """Intrinsics of ``names`` from a Kalibr camchain (:meth:`CameraChain.match`: by the rostopic
+    ``/<name>/...`` or the ``cam<i>`` key, else by chain order)."""
     from ibiscape_eval.io.kalibr import read_camchain
 
     chain = read_camchain(path)
-    out: dict[str, CameraModel] = {}
-    for i, name in enumerate(names):
-        hit = [k for k, t in enumerate(chain.rostopics) if f"/{name}/" in f"{t}/"]
-        hit = hit or [k for k, n in enumerate(chain.names) if n == name]
-        if hit:
-            out[name] = chain.cameras[hit[0]]
-        elif not any(f"/{n}/" in f"{t}/" for t in chain.rostopics for n in names) and i < len(chain.cameras):
-            out[name] = chain.cameras[i]  # a camchain of other names: chain order
-    return out
+    return {name: chain.cameras[i].camera for name, i in chain.match(names).items()}
 
 
 def _require_intrinsics(names: Sequence[str], models: dict[str, CameraModel],
@@ -261,7 +253,7 @@ def calibrate_sequence(sequence: str | os.PathLike[str],
         calibrate_frames,
         detect_frames,
     )
-    from ibiscape_eval.calib.targets import target_from_kalibr
+    from ibiscape_eval.core.kalibr import target_from_kalibr
     from ibiscape_eval.io.image_sets import find_image_sets, pair_views, read_image
     from ibiscape_eval.io.sequence import read_sequence_yaml
     from ibiscape_eval.io.stereo import read_imu_samples

@@ -53,9 +53,9 @@ def write_kalibr_imu_yaml(
 
 def read_kalibr_imu_yaml(path: str | os.PathLike[str]) -> dict[str, Any]:
     """Read a Kalibr ``imu.yaml`` (``yaml.safe_load``); checks the six keys."""
-    from ..paths import safe_yaml
+    from ..yaml_file import read_yaml
 
-    doc = safe_yaml(path, what="Kalibr imu.yaml")
+    doc = read_yaml(path, what="Kalibr imu.yaml")
     keys = ("accelerometer_noise_density", "accelerometer_random_walk", "gyroscope_noise_density",
             "gyroscope_random_walk", "rostopic", "update_rate")
     if not isinstance(doc, dict) or any(k not in doc for k in keys):
