@@ -64,9 +64,11 @@ def _labeler(paths: Sequence[Path]) -> Callable[[int], str]:
               help="Corners beyond this many robust standard deviations are rejected.")
 @click.option("--workers", type=click.IntRange(min=1), default=None,
               help="Detection threads (default: the usable CPUs).")
-@click.option("--imu", "imu_yaml", type=click.Path(path_type=Path), default=None,
-              help="Camera-IMU calibration: the IMU's Kalibr imu.yaml (the allan command's output); "
-              "estimates T_cam_imu and timeshift_cam_imu of every camera (--yaml writes "
+@click.option("--imu", "imu_yaml", type=str, default=None, is_flag=False, flag_value="",
+              metavar="[IMU_YAML]",
+              help="Camera-IMU calibration: the IMU's Kalibr imu.yaml (the allan command's output, or a "
+              "sequence.yaml); without a file (SEQ first: calib SEQ --imu) the noise SEQ/sequence.yaml "
+              "states; estimates T_cam_imu and timeshift_cam_imu of every camera (--yaml writes "
               "camchain-imucam.yaml).")
 @click.option("--cams", "cams_path", type=click.Path(path_type=Path), default=None,
               help="With --imu: take the intrinsics from this Kalibr camchain.yaml (default: "
@@ -84,7 +86,7 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
           cameras: str | None, yaml_out: Path | None, as_json: bool, plot_dir: Path | None,
           check_path: Path | None, max_views: int, max_frames: int, reconstruction: str,
           event_corners: str, sensor_size: str | None, outlier_sigma: float, workers: int | None,
-          imu_yaml: Path | None = None, cams_path: Path | None = None, imu_data: Path | None = None,
+          imu_yaml: str | None = None, cams_path: Path | None = None, imu_data: Path | None = None,
           force: bool = False, frame_step: int = 1) -> None:
     """Calibrate cameras from checkerboard or AprilGrid images (mono, stereo, chains; RGB and DVS).
 
@@ -130,7 +132,8 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
         from .calib_imu import run_sequence
 
         names_imu = [c.strip() for c in cameras.split(",") if c.strip()] if cameras else None
-        run_sequence(seq, imu_yaml, camchain=cams_path, imu_data=imu_data, cameras=names_imu,
+        run_sequence(seq, Path(imu_yaml) if imu_yaml else None, camchain=cams_path, imu_data=imu_data,
+                     cameras=names_imu,
                      target_path=target_path, force=force, frame_step=frame_step, yaml_path=yaml_out,
                      json_out=as_json, plot_dir=plot_dir, workers=workers)
         return

@@ -27,9 +27,9 @@ import numpy.typing as npt
 
 from ibiscape_eval.core.camera import CameraModel
 from ibiscape_eval.core.errors import CalibrationError, FormatError, IbiscapeError
+from ibiscape_eval.core.kalibr import ImuNoise
 from ibiscape_eval.core.trajectory import Trajectory
 
-from .params import ImuNoiseDensities
 from .rig import StereoRig
 
 __all__ = ["StereoSequence", "load_sequence"]
@@ -46,7 +46,7 @@ class StereoSequence:
     path, layout : str
         The folder and ``"ibiscape"`` or ``"euroc"``.
     rig : StereoRig
-    noise : ImuNoiseDensities
+    noise : ImuNoise
     imu_stamps_ns, gyro_rad_s, accel_m_s2 : ndarray
         IMU samples (N,), (N, 3), (N, 3) in the IMU frame (right-handed).
     T_body_imu : ndarray, shape (4, 4)
@@ -60,7 +60,7 @@ class StereoSequence:
     path: str
     layout: str
     rig: StereoRig
-    noise: ImuNoiseDensities
+    noise: ImuNoise
     imu_stamps_ns: npt.NDArray[np.int64]
     gyro_rad_s: FloatArray
     accel_m_s2: FloatArray
@@ -127,7 +127,7 @@ def load_sequence(path: str | os.PathLike[str], *, calib: str | os.PathLike[str]
 
 def _load_ibiscape(p: Path, calib: Any, imu_yaml: Any, require_images: bool) -> StereoSequence:
     from ibiscape_eval.io import read_trajectory
-    from ibiscape_eval.io.imu import read_kalibr_imu_yaml
+    from ibiscape_eval.io.kalibr import read_imu_noise
     from ibiscape_eval.io.sequence import read_sequence_yaml
     from ibiscape_eval.io.stereo import read_imu_samples
 
@@ -163,9 +163,9 @@ def _load_ibiscape(p: Path, calib: Any, imu_yaml: Any, require_images: bool) -> 
     T_body_imu = (_T(imu_entry, "T_body_imu", p / "sequence.yaml", "imus")
                   if "T_body_imu" in imu_entry else np.eye(4))
     if imu_yaml is not None:
-        noise = ImuNoiseDensities.from_kalibr(read_kalibr_imu_yaml(imu_yaml), where=str(imu_yaml))
+        noise = read_imu_noise(imu_yaml)
     elif imu_entry:
-        noise = ImuNoiseDensities.from_kalibr(imu_entry, where=str(p / "sequence.yaml"))
+        noise = ImuNoise.from_kalibr(imu_entry, source=f"{p / 'sequence.yaml'}: imus")
     else:
         raise IbiscapeError(f"{p}: no IMU noise (sequence.yaml has no imus); give --imu imu.yaml")
     # frames
@@ -289,7 +289,7 @@ def _rig_from_camchain(calib: str | os.PathLike[str]) -> StereoRig:
 def _load_euroc(m: Path, calib: Any, imu_yaml: Any, require_images: bool) -> StereoSequence:
     from ibiscape_eval.io import read_trajectory
     from ibiscape_eval.io.asl import read_asl_sensor_yaml
-    from ibiscape_eval.io.imu import read_kalibr_imu_yaml
+    from ibiscape_eval.io.kalibr import read_imu_noise
     from ibiscape_eval.io.stereo import read_imu_samples
 
     if calib is not None:
@@ -314,11 +314,11 @@ def _load_euroc(m: Path, calib: Any, imu_yaml: Any, require_images: bool) -> Ste
     T_body_imu = np.eye(4)
     sensor = m / "imu0" / "sensor.yaml"
     if imu_yaml is not None:
-        noise = ImuNoiseDensities.from_kalibr(read_kalibr_imu_yaml(imu_yaml), where=str(imu_yaml))
+        noise = read_imu_noise(imu_yaml)
     elif sensor.is_file():
         d = read_asl_sensor_yaml(sensor)
         T_body_imu = d["T_BS"]
-        noise = ImuNoiseDensities.from_kalibr(d, where=str(sensor))
+        noise = ImuNoise.from_kalibr(d, source=str(sensor))
     else:
         raise IbiscapeError(f"{sensor}: missing; give --imu imu.yaml")
     frames, lf, rf = _frames(m / "cam0", m / "cam1", "data.csv", "data", require_images)
@@ -361,7 +361,7 @@ def _check_coverage(seq: StereoSequence) -> None:
         return
     t_img0, t_img1 = int(seq.frame_stamps_ns[0]), int(seq.frame_stamps_ns[-1])
     t_imu0, t_imu1 = int(seq.imu_stamps_ns[0]), int(seq.imu_stamps_ns[-1])
-    slack = int(2e9 / max(seq.noise.rate_hz, 1.0))
+    slack = int(2e9 / max(seq.noise.update_rate_hz, 1.0))
     if t_imu0 > t_img0 + slack or t_imu1 < t_img1 - slack:
         raise IbiscapeError(
             f"{seq.path}: the IMU stream ({t_imu0 * 1e-9:.3f}..{t_imu1 * 1e-9:.3f} s) does not "

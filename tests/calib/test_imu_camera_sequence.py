@@ -18,9 +18,10 @@ import pytest
 import yaml
 from click.testing import CliRunner
 
-from ibiscape_eval.calib.imu_camera import calibrate_sequence, read_imu_noise
+from ibiscape_eval.calib.imu_camera import calibrate_sequence
 from ibiscape_eval.cli.main import cli
 from ibiscape_eval.core.errors import CalibrationError
+from ibiscape_eval.io.kalibr import read_imu_noise
 from ibiscape_eval.sim import preset
 from ibiscape_eval.sim.calib_scene import write_board_frames
 from ibiscape_eval.sim.config import with_resolution

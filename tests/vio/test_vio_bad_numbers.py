@@ -17,11 +17,11 @@ from click.testing import CliRunner
 
 from ibiscape_eval.cli.main import cli
 from ibiscape_eval.core.errors import CalibrationError, DegenerateInputError, FormatError
+from ibiscape_eval.core.kalibr import ImuNoise
 from ibiscape_eval.io.asl import read_asl_sensor_yaml
 from ibiscape_eval.io.kalibr import read_camchain
 from ibiscape_eval.vio import run_vio
 from ibiscape_eval.vio.inputs import load_sequence
-from ibiscape_eval.vio.params import ImuNoiseDensities
 
 IMU_YAML = {"accelerometer_noise_density": 0.02, "accelerometer_random_walk": 4e-4,
             "gyroscope_noise_density": 2e-3, "gyroscope_random_walk": 2e-5, "update_rate": 200.0,
@@ -157,8 +157,11 @@ def test_imu_yaml_numbers(street, tmp_path, key, value, words):
 
 
 def test_zero_noise_means_an_ideal_sensor_and_is_floored():
-    """Noise-free generated sequences write zeros: accepted, floored to a small positive value."""
-    n = ImuNoiseDensities.from_kalibr({**IMU_YAML, "gyroscope_noise_density": 0.0})
+    """Noise-free generated sequences write zeros: read as they are, floored (to a small positive
+    value) by the estimator."""
+    n = ImuNoise.from_kalibr({**IMU_YAML, "gyroscope_noise_density": 0.0})
+    assert n.is_ideal and n.gyro_noise_density_rad_s_sqrt_hz == 0.0
+    n = n.floored()
     assert 0.0 < n.gyro_noise_density_rad_s_sqrt_hz <= 1e-5
     assert n.accel_noise_density_m_s2_sqrt_hz == IMU_YAML["accelerometer_noise_density"]
 

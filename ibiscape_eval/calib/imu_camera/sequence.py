@@ -28,25 +28,17 @@ import numpy.typing as npt
 
 from ibiscape_eval.core.camera import CameraModel
 from ibiscape_eval.core.errors import CalibrationError, FormatError, IbiscapeError, IbiscapeWarning
+from ibiscape_eval.core.kalibr import ImuNoise
 
-from .inputs import CameraObservations, ImuData, ImuNoiseDensities
+from .inputs import CameraObservations, ImuData
 from .kalibr import errors_against_truth
 from .result import ImuCameraResult
 
-__all__ = ["SequenceCalibration", "calibrate_sequence", "event_frame_stamps_ns", "read_imu_noise"]
+__all__ = ["SequenceCalibration", "calibrate_sequence", "event_frame_stamps_ns"]
 
 Progress = Callable[[float, str], None]
 #: the camera clocks may be this far off the IMU's (the solve's search range of the offset)
 MAX_SHIFT_NS = 100_000_000
-
-
-def read_imu_noise(path: str | os.PathLike[str]) -> ImuNoiseDensities:
-    """A Kalibr ``imu.yaml`` (the ``allan`` command's output; ``yaml.safe_load``); a missing or bad
-    key is a :class:`FormatError` naming the file and the key."""
-    from ibiscape_eval.io.yaml_file import read_yaml
-
-    doc: Any = read_yaml(path, what="Kalibr imu.yaml")
-    return ImuNoiseDensities.from_kalibr(doc, source=str(path))
 
 
 @dataclass(frozen=True, eq=False)
@@ -197,7 +189,7 @@ def _truth(doc: dict[str, Any], names: Sequence[str]) -> dict[str, dict[str, Any
 
 # ------------------------------------------------------------------------------------------ the call
 def calibrate_sequence(sequence: str | os.PathLike[str],
-                       noise: ImuNoiseDensities | str | os.PathLike[str], *,
+                       noise: ImuNoise | str | os.PathLike[str] | None = None, *,
                        camchain: str | os.PathLike[str] | None = None,
                        cameras: Sequence[str] | None = None, force: bool = False,
                        progress: Progress | None = None,
@@ -213,8 +205,9 @@ def calibrate_sequence(sequence: str | os.PathLike[str],
     sequence : path
         IBISCape-layout folder (camera folders with ``timestamps.csv``, ``other_sensors/imu0.csv``,
         ``sequence.yaml`` with the target) or EuRoC ASL folder (with ``imu_data``).
-    noise : ImuNoiseDensities or path
-        The IMU's continuous-time noise (Kalibr ``imu.yaml``, the ``allan`` command's output).
+    noise : ImuNoise or path, optional
+        The IMU's continuous-time noise (Kalibr ``imu.yaml``, the ``allan`` command's output, or a
+        ``sequence.yaml``); default: the noise the sequence's ``sequence.yaml`` states for its IMU.
     camchain : path, optional
         Kalibr ``camchain.yaml`` with the intrinsics (default: calibrate the cameras on the same
         frames first).
@@ -255,6 +248,7 @@ def calibrate_sequence(sequence: str | os.PathLike[str],
     )
     from ibiscape_eval.core.kalibr import target_from_kalibr
     from ibiscape_eval.io.image_sets import find_image_sets, pair_views, read_image
+    from ibiscape_eval.io.kalibr import read_imu_noise
     from ibiscape_eval.io.sequence import read_sequence_yaml
     from ibiscape_eval.io.stereo import read_imu_samples
 
@@ -272,9 +266,18 @@ def calibrate_sequence(sequence: str | os.PathLike[str],
     if isinstance(frame_step, bool) or not isinstance(frame_step, int) or frame_step < 1:
         raise IbiscapeError(f"frame_step must be an integer >= 1, got {frame_step!r}")
     noise_src = "imu.yaml"
-    if not isinstance(noise, ImuNoiseDensities):
+    if noise is None:
+        if not (seq / "sequence.yaml").is_file():
+            raise IbiscapeError(f"{seq}: no IMU noise (no sequence.yaml states it); give --imu "
+                                "imu.yaml (Kalibr's format, e.g. from `ibiscape-eval allan`)")
+        noise = seq / "sequence.yaml"
+    if not isinstance(noise, ImuNoise):
         noise_src = str(noise)
         noise = read_imu_noise(noise)
+    if noise.is_ideal:
+        raise CalibrationError(f"{noise_src}: states zero IMU noise (an ideal sensor); the "
+                               "camera-IMU calibration weighs the IMU by its noise: give the IMU's "
+                               "densities (e.g. `ibiscape-eval allan IMU --yaml imu.yaml`)")
     doc: dict[str, Any] = {}
     if (seq / "sequence.yaml").is_file():
         doc = read_sequence_yaml(seq / "sequence.yaml")
