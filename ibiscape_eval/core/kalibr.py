@@ -53,6 +53,12 @@ __all__ = [
 
 FloatArray = npt.NDArray[np.float64]
 TARGET_TYPES = ("checkerboard", "aprilgrid")
+#: the largest board a target description may give: squares / tags up to 10 m, up to 1000 rows or
+#: columns, a checkerboard cell at most 10 times longer than wide, tag gaps up to 10 tag sizes
+MAX_TARGET_CELL_M = 10.0
+MAX_TARGET_COUNT = 1000
+MAX_CELL_ASPECT = 10.0
+MAX_TAG_SPACING = 10.0
 
 
 # ============================================================================================ target
@@ -83,18 +89,24 @@ class CalibrationTarget:
     def __post_init__(self) -> None:
         if self.target_type not in TARGET_TYPES:
             raise IbiscapeError(f"target_type {self.target_type!r}: use checkerboard or aprilgrid")
-        if self.rows < 1 or self.cols < 1:
-            raise IbiscapeError(f"target size {self.rows}x{self.cols}: give positive counts")
+        if not (1 <= self.rows <= MAX_TARGET_COUNT and 1 <= self.cols <= MAX_TARGET_COUNT):
+            raise IbiscapeError(f"target size {self.rows}x{self.cols}: give counts in 1..{MAX_TARGET_COUNT}")
         if self.target_type == "checkerboard":
             if self.rows < 2 or self.cols < 2:
                 raise IbiscapeError(f"checkerboard with {self.rows}x{self.cols} inner corners: "
                                     "give at least 2x2 (inner corners, not squares)")
-            if not (self.spacing_x_m > 0 and self.spacing_y_m > 0):
-                raise IbiscapeError(f"checkerboard spacing {self.spacing_x_m} x {self.spacing_y_m} m: "
-                                    "give positive rowSpacingMeters and colSpacingMeters")
-        elif not (self.tag_size_m > 0 and self.tag_spacing > 0):
+            sx, sy = self.spacing_x_m, self.spacing_y_m
+            if not (0 < sx <= MAX_TARGET_CELL_M and 0 < sy <= MAX_TARGET_CELL_M):
+                raise IbiscapeError(f"checkerboard spacing {sx} x {sy} m: give rowSpacingMeters and "
+                                    f"colSpacingMeters in (0, {MAX_TARGET_CELL_M:g}] m (the square size)")
+            if max(sx / sy, sy / sx) > MAX_CELL_ASPECT:
+                raise IbiscapeError(f"checkerboard spacing {sx} x {sy} m: a square more than "
+                                    f"{MAX_CELL_ASPECT:g} times longer than wide; check the units of "
+                                    "rowSpacingMeters and colSpacingMeters")
+        elif not (0 < self.tag_size_m <= MAX_TARGET_CELL_M and 0 < self.tag_spacing <= MAX_TAG_SPACING):
             raise IbiscapeError(f"aprilgrid tagSize {self.tag_size_m} m, tagSpacing {self.tag_spacing}: "
-                                "give positive values (tagSpacing is the gap / tag size, e.g. 0.3)")
+                                f"give tagSize in (0, {MAX_TARGET_CELL_M:g}] m and tagSpacing in (0, "
+                                f"{MAX_TAG_SPACING:g}] (the gap / tag size, e.g. 0.3)")
 
     @classmethod
     def checkerboard(cls, rows: int, cols: int, square_m: float) -> CalibrationTarget:
@@ -272,12 +284,12 @@ class ImuNoise:
         for key, name, hi, unit in _IMU_KEYS:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int | float) or not (0.0 <= v <= hi):
-                raise IbiscapeError(f"{key} = {v!r}: give a number in [0, {hi:g}] {unit} "
+                raise IbiscapeError(f"{key} = {v!r} is out of range; give a number in [0, {hi:g}] {unit} "
                                     "(e.g. from `ibiscape-eval allan IMU --yaml imu.yaml`)")
             object.__setattr__(self, name, float(v))
         r = self.update_rate_hz
         if isinstance(r, bool) or not isinstance(r, int | float) or not (0.0 < r <= MAX_IMU_RATE_HZ):
-            raise IbiscapeError(f"update_rate = {r!r}: give the IMU sample rate in Hz, in "
+            raise IbiscapeError(f"update_rate = {r!r} is out of range; give the IMU sample rate in Hz, in "
                                 f"(0, {MAX_IMU_RATE_HZ:g}]")
         object.__setattr__(self, "update_rate_hz", float(r))
         if self.rostopic is not None and not isinstance(self.rostopic, str):
@@ -532,7 +544,7 @@ class CameraChain:
 
 
 def check_camchain_matches(chain: CameraChain, cameras: Mapping[str, tuple[int, int] | None], *,
-                           source: str) -> dict[str, int]:
+                           source: str, require_all: bool = True) -> dict[str, int]:
     """Check a camchain against a sequence's cameras and say which entry each camera is.
 
     Parameters
@@ -543,6 +555,9 @@ def check_camchain_matches(chain: CameraChain, cameras: Mapping[str, tuple[int, 
         when the sequence does not state it.
     source : str
         The camchain file, for the message.
+    require_all : bool
+        Refuse a sequence camera without an entry (default); False: leave it out of the result
+        (the caller says what is missing), still checking the resolutions of the others.
 
     Returns
     -------
@@ -558,12 +573,12 @@ def check_camchain_matches(chain: CameraChain, cameras: Mapping[str, tuple[int, 
     names = list(cameras)
     found = chain.match(names)
     missing = [n for n in names if n not in found]
-    if missing:
+    if missing and require_all:
         have = ", ".join(f"{c.name}{f' ({c.rostopic})' if c.rostopic else ''}" for c in chain.cameras)
         raise FormatError(source, f"has no entry for the sequence's camera(s) {', '.join(missing)} "
                           f"(it has {have}; the sequence has {', '.join(names)}); give the "
                           "camchain of this rig or name its rostopics /<camera>/image_raw")
-    for n in names:
+    for n in found:
         size = cameras[n]
         cam = chain.cameras[found[n]]
         if size is not None and tuple(int(v) for v in size) != cam.resolution:

@@ -161,6 +161,9 @@ def _chain_camera(entry: Any, key: str) -> ChainCamera:
         cam = CameraModel.from_kalibr(dict(entry))
     except IbiscapeError as e:
         raise IbiscapeError(f"{key}: {e}") from None
+    except OverflowError:  # int(inf)
+        raise IbiscapeError(f"{key}: intrinsics [fu, fv, pu, pv] and resolution [w, h] must be "
+                            "finite numbers") from None
     T_cn = _matrix(entry["T_cn_cnm1"], f"{key}.T_cn_cnm1") if "T_cn_cnm1" in entry else None
     T_ci = _matrix(entry["T_cam_imu"], f"{key}.T_cam_imu") if "T_cam_imu" in entry else None
     if "T_imu_cam" in entry:  # OpenVINS writes the inverse

@@ -78,7 +78,7 @@ def test_camchain_imucam_writer_and_imu_yaml_round_trip(tmp_path_factory, m, shi
 
     T = np.eye(4)
     T[:3, :3] = Rotation.from_rotvec(np.asarray(m[:3]) * 1e-3).as_matrix()
-    T[:3, 3] = m[3:6]
+    T[:3, 3] = np.asarray(m[3:6]) * 0.1  # lever arms within the 1000 m a rig may have
     cam = CameraModel(640, 480, 500.0, 500.0, 319.5, 239.5)
     chain = CameraChain.from_imu_extrinsics(["rgbL", "rgbR"], [cam, cam], [T, T @ T], [shift, -shift])
     path = tmp_path_factory.mktemp("y") / "camchain-imucam.yaml"

@@ -135,13 +135,25 @@ def canonical_checkerboard(ids: npt.ArrayLike, pixels_px: npt.ArrayLike, target:
     return best[order], px[order]
 
 
-def _camchain_cameras(path: str | os.PathLike[str], names: Sequence[str]) -> dict[str, CameraModel]:
+def _camchain_cameras(path: str | os.PathLike[str], names: Sequence[str],
+                      seq_cams: dict[str, Any]) -> dict[str, CameraModel]:
     """Intrinsics of ``names`` from a Kalibr camchain (:meth:`CameraChain.match`: by the rostopic
-    ``/<name>/...`` or the ``cam<i>`` key, else by chain order)."""
+    ``/<name>/...`` or the ``cam<i>`` key, else by chain order); a camchain whose resolution differs
+    from the one ``sequence.yaml`` states is refused."""
+    from ibiscape_eval.core.kalibr import check_camchain_matches
     from ibiscape_eval.io.kalibr import read_camchain
 
+    def size(n: str) -> tuple[int, int] | None:
+        res = (seq_cams.get(n) or {}).get("resolution") if isinstance(seq_cams.get(n), dict) else None
+        try:
+            return (int(res[0]), int(res[1])) if res is not None and len(res) == 2 else None
+        except (TypeError, ValueError):
+            return None
+
     chain = read_camchain(path)
-    return {name: chain.cameras[i].camera for name, i in chain.match(names).items()}
+    found = check_camchain_matches(chain, {n: size(n) for n in names}, source=str(path),
+                                   require_all=False)
+    return {name: chain.cameras[i].camera for name, i in found.items()}
 
 
 def _require_intrinsics(names: Sequence[str], models: dict[str, CameraModel],
@@ -331,7 +343,7 @@ def calibrate_sequence(sequence: str | os.PathLike[str],
                 f"the images of camera {n} ({stc[0]}..{stc[-1]} ns); give the IMU recording of the same run")
     models: dict[str, CameraModel] = {}
     if camchain is not None:
-        models = _camchain_cameras(camchain, names)
+        models = _camchain_cameras(camchain, names, seq_cams)
         _require_intrinsics(names, models, camchain)
     # the view table pairs simultaneous frames (the camera calibration's stereo views); every
     # frame_step-th instant is detected
