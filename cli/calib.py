@@ -64,9 +64,11 @@ def _labeler(paths: Sequence[Path]) -> Callable[[int], str]:
               help="Corners beyond this many robust standard deviations are rejected.")
 @click.option("--workers", type=click.IntRange(min=1), default=None,
               help="Detection threads (default: the usable CPUs).")
-@click.option("--imu", "imu_yaml", type=click.Path(path_type=Path), default=None,
-              help="Camera-IMU calibration: the IMU's Kalibr imu.yaml (the allan command's output); "
-              "estimates T_cam_imu and timeshift_cam_imu of every camera (--yaml writes "
+@click.option("--imu", "imu_yaml", type=str, default=None, is_flag=False, flag_value="",
+              metavar="[IMU_YAML]",
+              help="Camera-IMU calibration: the IMU's Kalibr imu.yaml (the allan command's output, or a "
+              "sequence.yaml); without a file (SEQ first: calib SEQ --imu) the noise SEQ/sequence.yaml "
+              "states; estimates T_cam_imu and timeshift_cam_imu of every camera (--yaml writes "
               "camchain-imucam.yaml).")
 @click.option("--cams", "cams_path", type=click.Path(path_type=Path), default=None,
               help="With --imu: take the intrinsics from this Kalibr camchain.yaml (default: "
@@ -84,7 +86,7 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
           cameras: str | None, yaml_out: Path | None, as_json: bool, plot_dir: Path | None,
           check_path: Path | None, max_views: int, max_frames: int, reconstruction: str,
           event_corners: str, sensor_size: str | None, outlier_sigma: float, workers: int | None,
-          imu_yaml: Path | None = None, cams_path: Path | None = None, imu_data: Path | None = None,
+          imu_yaml: str | None = None, cams_path: Path | None = None, imu_data: Path | None = None,
           force: bool = False, frame_step: int = 1) -> None:
     """Calibrate cameras from checkerboard or AprilGrid images (mono, stereo, chains; RGB and DVS).
 
@@ -101,6 +103,7 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
       ibiscape-eval calib --target april_6x6.yaml --images cam0='left/*.png' --images cam1='right/*.png'
       ibiscape-eval calib SVI_calib_checkerboard --check camchain.yaml
       ibiscape-eval calib SVI_1_calib --imu imu.yaml --yaml camchain-imucam.yaml --plot imu_plots/
+      ibiscape-eval calib SVI_1_calib --imu --yaml camchain-imucam.yaml   (noise from sequence.yaml)
     """
     from ibiscape_eval.calib.events import event_set_frames
     from ibiscape_eval.calib.pipeline import (
@@ -110,15 +113,15 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
         detect_frames,
     )
     from ibiscape_eval.calib.report import compare_with_truth, format_report, truth_from_sequence
-    from ibiscape_eval.calib.targets import target_from_kalibr
     from ibiscape_eval.core.errors import IbiscapeError
+    from ibiscape_eval.core.kalibr import CameraChain, target_from_kalibr
     from ibiscape_eval.io.image_sets import (
         find_image_sets,
         image_sets_from_globs,
         pair_views,
         read_image,
     )
-    from ibiscape_eval.io.kalibr import CameraChain, read_camchain, read_target_yaml, write_camchain
+    from ibiscape_eval.io.kalibr import read_camchain, read_target, write_camchain
     from ibiscape_eval.io.sequence import read_sequence_yaml
 
     if imu_yaml is None and (cams_path or imu_data or force or frame_step != 1):
@@ -130,7 +133,8 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
         from .calib_imu import run_sequence
 
         names_imu = [c.strip() for c in cameras.split(",") if c.strip()] if cameras else None
-        run_sequence(seq, imu_yaml, camchain=cams_path, imu_data=imu_data, cameras=names_imu,
+        run_sequence(seq, Path(imu_yaml) if imu_yaml else None, camchain=cams_path, imu_data=imu_data,
+                     cameras=names_imu,
                      target_path=target_path, force=force, frame_step=frame_step, yaml_path=yaml_out,
                      json_out=as_json, plot_dir=plot_dir, workers=workers)
         return
@@ -142,7 +146,7 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
     if seq is not None and (seq / "sequence.yaml").is_file():
         seq_doc = read_sequence_yaml(seq / "sequence.yaml")
     if target_path is not None:
-        target = target_from_kalibr(read_target_yaml(target_path), source=str(target_path))
+        target = read_target(target_path)
     elif seq_doc is not None and isinstance(seq_doc.get("target"), dict):
         target = target_from_kalibr(seq_doc["target"], source=f"{seq}/sequence.yaml: target")
     else:
@@ -186,7 +190,7 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
     if check_path is not None:
         chain = read_camchain(check_path)
         doc = {**base, "check": str(check_path),
-               **check_frames(target, summary, chain.cameras, chain.T_cn_cnm1)}
+               **check_frames(target, summary, chain.models, chain.relative_transforms)}
         if as_json:
             echo_json(doc)
             return
@@ -209,9 +213,9 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
                    if isinstance(seq_cams.get(c.name), dict) else f"/{c.name}/image_raw"
                    for c in result.cameras)
     if yaml_out is not None:
-        write_camchain(yaml_out, CameraChain(tuple(c.name for c in result.cameras),
-                                             tuple(c.camera for c in result.cameras),
-                                             result.T_cn_cnm1, topics))
+        write_camchain(yaml_out, CameraChain.from_relative(tuple(c.name for c in result.cameras),
+                                                           tuple(c.camera for c in result.cameras),
+                                                           result.T_cn_cnm1, topics))
     plots: list[str] = []
     if plot_dir is not None:
         from ibiscape_eval.calib.plots import calibration_figures

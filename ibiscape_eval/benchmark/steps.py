@@ -98,7 +98,7 @@ def _camera_calibration(seq: str, cameras: Sequence[str], model: str, max_views:
     from ibiscape_eval.calib.events import event_set_frames
     from ibiscape_eval.calib.pipeline import CameraFrames, calibrate_frames, detect_frames
     from ibiscape_eval.calib.report import compare_with_truth, truth_from_sequence
-    from ibiscape_eval.calib.targets import target_from_kalibr
+    from ibiscape_eval.core.kalibr import target_from_kalibr
     from ibiscape_eval.io.image_sets import find_image_sets, pair_views, read_image
 
     doc = _sequence_doc(seq)
@@ -153,16 +153,13 @@ def imu_camera_calibration(seq: str, cameras: Sequence[str]) -> dict[str, Any]:
     ``translation_error_mm``, ``timeshift_error_ms``, the reprojection RMS and the estimated and
     true time offsets; the solver's weak-direction warnings are kept in ``warnings``.
     """
-    from ibiscape_eval.calib.imu_camera import ImuNoiseDensities, calibrate_sequence
+    from ibiscape_eval.calib.imu_camera import calibrate_sequence
     from ibiscape_eval.core.errors import IbiscapeWarning
 
-    doc = _sequence_doc(seq)
-    imu0 = (doc.get("imus") or {}).get("imu0")
-    noise = ImuNoiseDensities.from_kalibr(imu0 if isinstance(imu0, dict) else {},
-                                          source=f"{seq}/sequence.yaml (imus.imu0)")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IbiscapeWarning)
-        res = calibrate_sequence(seq, noise, cameras=list(cameras))
+        # noise=None: the densities sequence.yaml states for its IMU (imus.imu0)
+        res = calibrate_sequence(seq, None, cameras=list(cameras))
     rows = []
     for c in res.result.cameras:
         er = res.errors_vs_truth.get(c.name, {})

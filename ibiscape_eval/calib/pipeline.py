@@ -16,11 +16,11 @@ import numpy as np
 import numpy.typing as npt
 
 from ibiscape_eval.core.errors import CalibrationError, IbiscapeError
+from ibiscape_eval.core.kalibr import CalibrationTarget
 
 from .calibrate import CalibrationResult, Observations, calibrate, evaluate
 from .detect import Detection, detect_corners, sharpness
 from .select import preselect_frames, select_views
-from .targets import CalibrationTarget
 
 __all__ = ["CameraFrames", "DetectionSummary", "calibrate_frames", "check_frames", "detect_frames"]
 

@@ -27,9 +27,9 @@ import numpy.typing as npt
 
 from ibiscape_eval.core.camera import CameraModel
 from ibiscape_eval.core.errors import CalibrationError, FormatError, IbiscapeError
+from ibiscape_eval.core.kalibr import ImuNoise
 from ibiscape_eval.core.trajectory import Trajectory
 
-from .params import ImuNoiseDensities
 from .rig import StereoRig
 
 __all__ = ["StereoSequence", "load_sequence"]
@@ -46,7 +46,7 @@ class StereoSequence:
     path, layout : str
         The folder and ``"ibiscape"`` or ``"euroc"``.
     rig : StereoRig
-    noise : ImuNoiseDensities
+    noise : ImuNoise
     imu_stamps_ns, gyro_rad_s, accel_m_s2 : ndarray
         IMU samples (N,), (N, 3), (N, 3) in the IMU frame (right-handed).
     T_body_imu : ndarray, shape (4, 4)
@@ -60,7 +60,7 @@ class StereoSequence:
     path: str
     layout: str
     rig: StereoRig
-    noise: ImuNoiseDensities
+    noise: ImuNoise
     imu_stamps_ns: npt.NDArray[np.int64]
     gyro_rad_s: FloatArray
     accel_m_s2: FloatArray
@@ -127,7 +127,7 @@ def load_sequence(path: str | os.PathLike[str], *, calib: str | os.PathLike[str]
 
 def _load_ibiscape(p: Path, calib: Any, imu_yaml: Any, require_images: bool) -> StereoSequence:
     from ibiscape_eval.io import read_trajectory
-    from ibiscape_eval.io.imu import read_kalibr_imu_yaml
+    from ibiscape_eval.io.kalibr import read_imu_noise
     from ibiscape_eval.io.sequence import read_sequence_yaml
     from ibiscape_eval.io.stereo import read_imu_samples
 
@@ -163,9 +163,9 @@ def _load_ibiscape(p: Path, calib: Any, imu_yaml: Any, require_images: bool) -> 
     T_body_imu = (_T(imu_entry, "T_body_imu", p / "sequence.yaml", "imus")
                   if "T_body_imu" in imu_entry else np.eye(4))
     if imu_yaml is not None:
-        noise = ImuNoiseDensities.from_kalibr(read_kalibr_imu_yaml(imu_yaml), where=str(imu_yaml))
+        noise = read_imu_noise(imu_yaml)
     elif imu_entry:
-        noise = ImuNoiseDensities.from_kalibr(imu_entry, where=str(p / "sequence.yaml"))
+        noise = ImuNoise.from_kalibr(imu_entry, source=f"{p / 'sequence.yaml'}: imus")
     else:
         raise IbiscapeError(f"{p}: no IMU noise (sequence.yaml has no imus); give --imu imu.yaml")
     # frames
@@ -195,7 +195,7 @@ def _stereo_folders(p: Path, cams: dict[str, Any]) -> tuple[str, str]:
 
 
 def _T(entry: Any, key: str, where: Path, name: str) -> FloatArray:
-    from ibiscape_eval.io.stereo import rigid_transform_problem
+    from ibiscape_eval.core.kalibr import rigid_transform_problem
 
     if not isinstance(entry, dict) or key not in entry:
         raise CalibrationError(f"{where}: {name} lacks {key}; give --calib")
@@ -246,12 +246,15 @@ def _checked_rig(where: Path, left: CameraModel, right: CameraModel, T_body_left
 
 
 def _camera(entry: Any, where: Path, name: str) -> CameraModel:
-    if not isinstance(entry, dict):
+    if isinstance(entry, CameraModel):
+        cam = entry
+    elif not isinstance(entry, dict):
         raise CalibrationError(f"{where}: camera {name} is not a mapping")
-    try:
-        cam = CameraModel.from_kalibr(entry)
-    except (IbiscapeError, OverflowError) as e:
-        raise CalibrationError(f"{where}: camera {name}: {e}") from None
+    else:
+        try:
+            cam = CameraModel.from_kalibr(entry)
+        except (IbiscapeError, OverflowError) as e:
+            raise CalibrationError(f"{where}: camera {name}: {e}") from None
     problem = _camera_range_problem(cam)
     if problem:
         raise CalibrationError(f"{where}: camera {name}: {problem}; fix the intrinsics")
@@ -259,24 +262,23 @@ def _camera(entry: Any, where: Path, name: str) -> CameraModel:
 
 
 def _rig_from_camchain(calib: str | os.PathLike[str]) -> StereoRig:
-    from ibiscape_eval.io.stereo import read_kalibr_camchain
+    from ibiscape_eval.io.kalibr import read_camchain
 
-    chain = read_kalibr_camchain(calib)
-    if "cam0" not in chain or "cam1" not in chain:
+    chain = read_camchain(calib)
+    if len(chain) < 2:
         raise CalibrationError(f"{calib}: needs cam0 (left) and cam1 (right)")
-    c0, c1 = chain["cam0"], chain["cam1"]
-    if "T_cam_imu" not in c0:
+    c0, c1 = chain.cameras[0], chain.cameras[1]
+    if c0.T_cam_imu is None:
         raise CalibrationError(f"{calib}: cam0 lacks T_cam_imu (use camchain-imucam.yaml from "
                                "the camera-IMU calibration)")
-    T_b_c0 = np.linalg.inv(c0["T_cam_imu"])
-    if "T_cam_imu" in c1:
-        T_b_c1 = np.linalg.inv(c1["T_cam_imu"])
-    elif "T_cn_cnm1" in c1:
-        T_b_c1 = T_b_c0 @ np.linalg.inv(c1["T_cn_cnm1"])
+    T_b_c0: FloatArray = np.asarray(np.linalg.inv(c0.T_cam_imu), dtype=np.float64)
+    if c1.T_cam_imu is not None:
+        T_b_c1: FloatArray = np.asarray(np.linalg.inv(c1.T_cam_imu), dtype=np.float64)
     else:
-        raise CalibrationError(f"{calib}: cam1 lacks T_cam_imu and T_cn_cnm1")
-    left = _camera(c0, Path(calib), "cam0")
-    right = _camera(c1, Path(calib), "cam1")
+        assert c1.T_cn_cnm1 is not None  # a chain has it from cam1 on
+        T_b_c1 = T_b_c0 @ np.linalg.inv(c1.T_cn_cnm1)
+    left = _camera(c0.camera, Path(calib), "cam0")
+    right = _camera(c1.camera, Path(calib), "cam1")
     return _checked_rig(Path(calib), left, right, T_b_c0, T_b_c1)
 
 
@@ -286,8 +288,9 @@ def _rig_from_camchain(calib: str | os.PathLike[str]) -> StereoRig:
 
 def _load_euroc(m: Path, calib: Any, imu_yaml: Any, require_images: bool) -> StereoSequence:
     from ibiscape_eval.io import read_trajectory
-    from ibiscape_eval.io.imu import read_kalibr_imu_yaml
-    from ibiscape_eval.io.stereo import read_euroc_sensor_yaml, read_imu_samples
+    from ibiscape_eval.io.asl import read_asl_sensor_yaml
+    from ibiscape_eval.io.kalibr import read_imu_noise
+    from ibiscape_eval.io.stereo import read_imu_samples
 
     if calib is not None:
         rig = _rig_from_camchain(calib)
@@ -297,7 +300,7 @@ def _load_euroc(m: Path, calib: Any, imu_yaml: Any, require_images: bool) -> Ste
             f = m / c / "sensor.yaml"
             if not f.is_file():
                 raise CalibrationError(f"{f}: missing; give --calib camchain-imucam.yaml")
-            d = read_euroc_sensor_yaml(f)
+            d = read_asl_sensor_yaml(f)
             model = {"radial-tangential": "radtan", "equidistant": "equidistant"}.get(
                 str(d.get("distortion_model", "radial-tangential")), "radtan")
             entry = {"intrinsics": d.get("intrinsics"), "resolution": d.get("resolution"),
@@ -311,11 +314,11 @@ def _load_euroc(m: Path, calib: Any, imu_yaml: Any, require_images: bool) -> Ste
     T_body_imu = np.eye(4)
     sensor = m / "imu0" / "sensor.yaml"
     if imu_yaml is not None:
-        noise = ImuNoiseDensities.from_kalibr(read_kalibr_imu_yaml(imu_yaml), where=str(imu_yaml))
+        noise = read_imu_noise(imu_yaml)
     elif sensor.is_file():
-        d = read_euroc_sensor_yaml(sensor)
+        d = read_asl_sensor_yaml(sensor)
         T_body_imu = d["T_BS"]
-        noise = ImuNoiseDensities.from_kalibr(d, where=str(sensor))
+        noise = ImuNoise.from_kalibr(d, source=str(sensor))
     else:
         raise IbiscapeError(f"{sensor}: missing; give --imu imu.yaml")
     frames, lf, rf = _frames(m / "cam0", m / "cam1", "data.csv", "data", require_images)
@@ -358,7 +361,7 @@ def _check_coverage(seq: StereoSequence) -> None:
         return
     t_img0, t_img1 = int(seq.frame_stamps_ns[0]), int(seq.frame_stamps_ns[-1])
     t_imu0, t_imu1 = int(seq.imu_stamps_ns[0]), int(seq.imu_stamps_ns[-1])
-    slack = int(2e9 / max(seq.noise.rate_hz, 1.0))
+    slack = int(2e9 / max(seq.noise.update_rate_hz, 1.0))
     if t_imu0 > t_img0 + slack or t_imu1 < t_img1 - slack:
         raise IbiscapeError(
             f"{seq.path}: the IMU stream ({t_imu0 * 1e-9:.3f}..{t_imu1 * 1e-9:.3f} s) does not "

@@ -28,25 +28,17 @@ import numpy.typing as npt
 
 from ibiscape_eval.core.camera import CameraModel
 from ibiscape_eval.core.errors import CalibrationError, FormatError, IbiscapeError, IbiscapeWarning
+from ibiscape_eval.core.kalibr import ImuNoise
 
-from .inputs import CameraObservations, ImuData, ImuNoiseDensities
+from .inputs import CameraObservations, ImuData
 from .kalibr import errors_against_truth
 from .result import ImuCameraResult
 
-__all__ = ["SequenceCalibration", "calibrate_sequence", "event_frame_stamps_ns", "read_imu_noise"]
+__all__ = ["SequenceCalibration", "calibrate_sequence", "event_frame_stamps_ns"]
 
 Progress = Callable[[float, str], None]
 #: the camera clocks may be this far off the IMU's (the solve's search range of the offset)
 MAX_SHIFT_NS = 100_000_000
-
-
-def read_imu_noise(path: str | os.PathLike[str]) -> ImuNoiseDensities:
-    """A Kalibr ``imu.yaml`` (the ``allan`` command's output; ``yaml.safe_load``); a missing or bad
-    key is a :class:`FormatError` naming the file and the key."""
-    from ibiscape_eval.io.paths import safe_yaml
-
-    doc: Any = safe_yaml(path, what="Kalibr imu.yaml")
-    return ImuNoiseDensities.from_kalibr(doc, source=str(path))
 
 
 @dataclass(frozen=True, eq=False)
@@ -143,21 +135,25 @@ def canonical_checkerboard(ids: npt.ArrayLike, pixels_px: npt.ArrayLike, target:
     return best[order], px[order]
 
 
-def _camchain_cameras(path: str | os.PathLike[str], names: Sequence[str]) -> dict[str, CameraModel]:
-    """Intrinsics of ``names`` from a Kalibr camchain: by the rostopic ``/<name>/...`` or the
-    ``cam<i>`` key, else by chain order."""
+def _camchain_cameras(path: str | os.PathLike[str], names: Sequence[str],
+                      seq_cams: dict[str, Any]) -> dict[str, CameraModel]:
+    """Intrinsics of ``names`` from a Kalibr camchain (:meth:`CameraChain.match`: by the rostopic
+    ``/<name>/...`` or the ``cam<i>`` key, else by chain order); a camchain whose resolution differs
+    from the one ``sequence.yaml`` states is refused."""
+    from ibiscape_eval.core.kalibr import check_camchain_matches
     from ibiscape_eval.io.kalibr import read_camchain
 
+    def size(n: str) -> tuple[int, int] | None:
+        res = (seq_cams.get(n) or {}).get("resolution") if isinstance(seq_cams.get(n), dict) else None
+        try:
+            return (int(res[0]), int(res[1])) if res is not None and len(res) == 2 else None
+        except (TypeError, ValueError):
+            return None
+
     chain = read_camchain(path)
-    out: dict[str, CameraModel] = {}
-    for i, name in enumerate(names):
-        hit = [k for k, t in enumerate(chain.rostopics) if f"/{name}/" in f"{t}/"]
-        hit = hit or [k for k, n in enumerate(chain.names) if n == name]
-        if hit:
-            out[name] = chain.cameras[hit[0]]
-        elif not any(f"/{n}/" in f"{t}/" for t in chain.rostopics for n in names) and i < len(chain.cameras):
-            out[name] = chain.cameras[i]  # a camchain of other names: chain order
-    return out
+    found = check_camchain_matches(chain, {n: size(n) for n in names}, source=str(path),
+                                   require_all=False)
+    return {name: chain.cameras[i].camera for name, i in found.items()}
 
 
 def _require_intrinsics(names: Sequence[str], models: dict[str, CameraModel],
@@ -205,7 +201,7 @@ def _truth(doc: dict[str, Any], names: Sequence[str]) -> dict[str, dict[str, Any
 
 # ------------------------------------------------------------------------------------------ the call
 def calibrate_sequence(sequence: str | os.PathLike[str],
-                       noise: ImuNoiseDensities | str | os.PathLike[str], *,
+                       noise: ImuNoise | str | os.PathLike[str] | None = None, *,
                        camchain: str | os.PathLike[str] | None = None,
                        cameras: Sequence[str] | None = None, force: bool = False,
                        progress: Progress | None = None,
@@ -221,8 +217,9 @@ def calibrate_sequence(sequence: str | os.PathLike[str],
     sequence : path
         IBISCape-layout folder (camera folders with ``timestamps.csv``, ``other_sensors/imu0.csv``,
         ``sequence.yaml`` with the target) or EuRoC ASL folder (with ``imu_data``).
-    noise : ImuNoiseDensities or path
-        The IMU's continuous-time noise (Kalibr ``imu.yaml``, the ``allan`` command's output).
+    noise : ImuNoise or path, optional
+        The IMU's continuous-time noise (Kalibr ``imu.yaml``, the ``allan`` command's output, or a
+        ``sequence.yaml``); default: the noise the sequence's ``sequence.yaml`` states for its IMU.
     camchain : path, optional
         Kalibr ``camchain.yaml`` with the intrinsics (default: calibrate the cameras on the same
         frames first).
@@ -261,8 +258,9 @@ def calibrate_sequence(sequence: str | os.PathLike[str],
         calibrate_frames,
         detect_frames,
     )
-    from ibiscape_eval.calib.targets import target_from_kalibr
+    from ibiscape_eval.core.kalibr import target_from_kalibr
     from ibiscape_eval.io.image_sets import find_image_sets, pair_views, read_image
+    from ibiscape_eval.io.kalibr import read_imu_noise
     from ibiscape_eval.io.sequence import read_sequence_yaml
     from ibiscape_eval.io.stereo import read_imu_samples
 
@@ -280,9 +278,18 @@ def calibrate_sequence(sequence: str | os.PathLike[str],
     if isinstance(frame_step, bool) or not isinstance(frame_step, int) or frame_step < 1:
         raise IbiscapeError(f"frame_step must be an integer >= 1, got {frame_step!r}")
     noise_src = "imu.yaml"
-    if not isinstance(noise, ImuNoiseDensities):
+    if noise is None:
+        if not (seq / "sequence.yaml").is_file():
+            raise IbiscapeError(f"{seq}: no IMU noise (no sequence.yaml states it); give --imu "
+                                "imu.yaml (Kalibr's format, e.g. from `ibiscape-eval allan`)")
+        noise = seq / "sequence.yaml"
+    if not isinstance(noise, ImuNoise):
         noise_src = str(noise)
         noise = read_imu_noise(noise)
+    if noise.is_ideal:
+        raise CalibrationError(f"{noise_src}: states zero IMU noise (an ideal sensor); the "
+                               "camera-IMU calibration weighs the IMU by its noise: give the IMU's "
+                               "densities (e.g. `ibiscape-eval allan IMU --yaml imu.yaml`)")
     doc: dict[str, Any] = {}
     if (seq / "sequence.yaml").is_file():
         doc = read_sequence_yaml(seq / "sequence.yaml")
@@ -336,7 +343,7 @@ def calibrate_sequence(sequence: str | os.PathLike[str],
                 f"the images of camera {n} ({stc[0]}..{stc[-1]} ns); give the IMU recording of the same run")
     models: dict[str, CameraModel] = {}
     if camchain is not None:
-        models = _camchain_cameras(camchain, names)
+        models = _camchain_cameras(camchain, names, seq_cams)
         _require_intrinsics(names, models, camchain)
     # the view table pairs simultaneous frames (the camera calibration's stereo views); every
     # frame_step-th instant is detected
