@@ -216,3 +216,24 @@ def test_missing_and_failed_cells_are_marked() -> None:
     tex = t.to_latex()
     assert "--" in tex and "no estimate" in tex
     assert "no estimate" in t.to_html()
+
+
+def test_plot_plane_defaults_per_format_and_can_be_chosen(tmp_path) -> None:
+    # a KITTI ground truth (camera frame: y down, the ground is x-z) and a KITTI estimate
+    import numpy as np
+
+    t = np.arange(30.0)
+    gt = Trajectory((t * 1e8).astype(np.int64), np.c_[t, np.zeros(30), 0.1 * t**1.5],
+                    np.tile([0.0, 0.0, 0.0, 1.0], (30, 1)), "gt")
+    runs = tmp_path / "runs"
+    (runs / "00" / "odo" / "1").mkdir(parents=True)
+    write_trajectory(runs / "00" / "groundtruth.txt", gt, "kitti")
+    write_trajectory(runs / "00" / "odo" / "1" / "poses.txt", gt, "kitti")
+    for plane, args in (("x-z", ()), ("y-z", ("--plot-plane", "yz"))):
+        out = tmp_path / f"out{plane}"
+        res = CliRunner().invoke(cli, ["report", str(runs), "--no-cache", "--workers", "1",
+                                       "--out", str(out), *args])
+        assert res.exit_code == 0, res.output
+        assert f"00 ({plane} plane)" in (out / "report.html").read_text()
+    res = CliRunner().invoke(cli, ["report", str(runs), "--plot-plane", "xw"])
+    assert res.exit_code == 2
