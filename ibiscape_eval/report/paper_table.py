@@ -220,8 +220,11 @@ class PaperTable:
         if len(used) == 1:
             (al,) = used
             return f"Alignment: {ALIGN_TEXT.get(al, al)}, every algorithm."
+        groups: dict[str, list[str]] = {}
+        for a in self.algorithms:
+            groups.setdefault(self.alignments.get(a, "?"), []).append(esc(a))
         return "Alignment per algorithm: " + "; ".join(
-            f"{esc(a)} {self.alignments.get(a, '?')}" for a in self.algorithms) + "."
+            f"{', '.join(algs)}: {al}" for al, algs in groups.items()) + "."
 
     def caption(self, metrics: Sequence[str] | None = None, *, esc: Callable[[str], str] = str,
                 pm: str = "±") -> str:
