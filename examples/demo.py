@@ -381,6 +381,10 @@ def benchmark_numbers(report_json: Path) -> dict[str, Any]:
     out["hot_pixels"] = {"removed_pct": _span([100 * (v["fraction_removed"] or 0.0) for v in hot]),
                          "precision": _span([v["precision"] for v in hot]),
                          "recall": _span([v["recall"] for v in hot])}
+    vio = [v.get("stats") or {} for v in ok.get("vio", [])]
+    out["vio"] = {"frames": _span([st.get("frames") for st in vio]),
+                  "frames_estimated": _span([st.get("frames_estimated") for st in vio]),
+                  "failure_spans": sum(len(st.get("failures") or []) for st in vio)}
     ev = ok.get("evaluation", [])
     out["evaluation"] = {"ate_m": _span([v["ate_rmse_m"] for v in ev]),
                          "rpe_m": _span([v["rpe_m"] for v in ev]),
