@@ -286,7 +286,7 @@ def report(out: Path) -> None:
     # fr1/xyz and V1_02 (real data and real estimates) plus the simulated FULL_dynamic sequence of
     # step 2 (ground truth and GNSS read from its IBISCape folder with --sequences).
     runs = make_runs_folder(out / "runs", sim_sequences=out)
-    args = ["report", runs, "--sequences", out, "--cache", out / ".cache"]
+    args: list[str | Path] = ["report", runs, "--sequences", out, "--cache", out / ".cache"]
     sh(*args, "--out", out / "report")
     sh(*args)  # again, table on stdout: every finished run now comes from the cache
     if find_chromium() is None:

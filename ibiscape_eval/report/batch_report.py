@@ -42,11 +42,11 @@ def _safe_name(text: str) -> str:
 
 
 def runs_csv(evaluation: RunsEvaluation) -> str:
-    """One line per run: identity, status, statistics, error message."""
+    """One line per run: identity, alignment, status, statistics, error message."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    cols = ["sequence", "algorithm", "trial", "status", "n_matched", "ate_rmse_m", "ate_mean_m",
-            "ate_rot_rmse_deg", "rpe_m_mean", "rpe_m_std", "rpe_deg_mean", "rpe_deg_std",
+    cols = ["sequence", "algorithm", "trial", "align", "status", "n_matched", "ate_rmse_m",
+            "ate_mean_m", "ate_rot_rmse_deg", "rpe_m_mean", "rpe_m_std", "rpe_deg_mean", "rpe_deg_std",
             "drift_translation_pct", "drift_rotation_deg_per_m", "error", "path"]
     w.writerow(cols)
 
@@ -58,7 +58,7 @@ def runs_csv(evaluation: RunsEvaluation) -> str:
         return repr(float(d))
 
     for r in evaluation.runs:
-        w.writerow([r["sequence"], r["algorithm"], r["trial"], r["status"],
+        w.writerow([r["sequence"], r["algorithm"], r["trial"], r.get("align") or "", r["status"],
                     "" if r.get("n_matched") is None else r["n_matched"],
                     g(r, "ate", "translation_m", "rmse"), g(r, "ate", "translation_m", "mean"),
                     g(r, "ate", "rotation_deg", "rmse"),

@@ -346,7 +346,7 @@ class PaperTable:
         w.writerow(["sequence", "algorithm", "n_trials", "n_ok", "success_rate", "ate_rmse_m",
                     "rpe_m_mean", "rpe_m_std", "rpe_deg_mean", "rpe_deg_std",
                     "drift_translation_pct", "drift_rotation_deg_per_m",
-                    "best_ate_m", "best_rpe_m", "best_rpe_deg"])
+                    "best_ate_m", "best_rpe_m", "best_rpe_deg", "alignment"])
         for s in self.sequences:
             for a in self.algorithms:
                 c = self.cell(s, a)
@@ -356,7 +356,8 @@ class PaperTable:
                         c.drift_pct, c.drift_deg_per_m]
                 w.writerow([s, a, c.n_trials, c.n_ok, repr(c.success_rate),
                             *("" if v is None else repr(v) for v in vals),
-                            *(int(self.is_best(s, a, m)) for m, _ in METRICS)])
+                            *(int(self.is_best(s, a, m)) for m, _ in METRICS),
+                            self.alignments.get(a, "")])
         return buf.getvalue()
 
     def to_html(self) -> str:
@@ -393,6 +394,7 @@ class PaperTable:
                 if c is not None:
                     rows.append({"sequence": s, "algorithm": a, "n_trials": c.n_trials,
                                  "n_ok": c.n_ok, "success_rate": c.success_rate,
+                                 "alignment": self.alignments.get(a),
                                  "ate_rmse_m": c.ate_m, "rpe_m_mean": c.rpe_m_mean,
                                  "rpe_m_std": c.rpe_m_std, "rpe_deg_mean": c.rpe_deg_mean,
                                  "rpe_deg_std": c.rpe_deg_std, "drift_translation_pct": c.drift_pct,
