@@ -237,3 +237,13 @@ def test_plot_plane_defaults_per_format_and_can_be_chosen(tmp_path) -> None:
         assert f"00 ({plane} plane)" in (out / "report.html").read_text()
     res = CliRunner().invoke(cli, ["report", str(runs), "--plot-plane", "xw"])
     assert res.exit_code == 2
+
+
+def test_readme_quotes_the_mono_numbers_this_test_computes(expected) -> None:
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+    gt, mono = read_trajectory(GT), read_trajectory(MONO)
+    shipped_se3 = ate(mono, gt, align="se3").translation_m.rmse
+    assert (f"score {expected['mono_se3']:.2f} m ATE with `se3` and "
+            f"{1000 * expected['mono_sim3']:.1f} mm with `sim3`") in readme
+    assert (f"at scale 0.9: {1000 * shipped_se3:.0f} mm and "
+            f"{1000 * expected['mono_sim3']:.1f} mm") in readme
