@@ -161,6 +161,16 @@ def _align_caption(aligns: dict[str, str]) -> str:
     return "aligned: " + ", ".join(f"{a} {al}" for a, al in aligns.items())
 
 
+def _shown_options(evaluation: RunsEvaluation) -> dict[str, Any]:
+    """The options as the page's header shows them: the alignment each algorithm got."""
+    opts = evaluation.options.to_dict()
+    aligns = _alignment_of(evaluation)
+    if len(set(aligns.values())) > 1:
+        opts.pop("align_by_algorithm", None)
+        opts["align"] = "per algorithm: " + ", ".join(f"{a} {al}" for a, al in aligns.items())
+    return opts
+
+
 def _check_out(out: Path) -> None:
     if out.exists() and not out.is_dir():
         raise IbiscapeError(f"{out}: exists and is a file; --out needs a folder")
@@ -191,7 +201,7 @@ def write_report(
     page = report_html(
         table,
         title=f"Evaluation of {Path(evaluation.layout.root).name or evaluation.layout.root}",
-        options=evaluation.options.to_dict(),
+        options=_shown_options(evaluation),
         summary=evaluation.summary,
         figures=[(cap, png) for _, cap, png in figs],
         failed=[r for r in evaluation.runs if r["status"] != "ok"],
