@@ -137,7 +137,11 @@ def main() -> int:
         for p in problems:
             print(p)
         return 1 if problems else 0
-    new = rewrite(readme, recorded)
+    try:
+        new = rewrite(readme, recorded)
+    except (KeyError, IndexError) as e:
+        print(f"error: {RECORDED}: {e}; README.md left unchanged", file=sys.stderr)
+        return 2
     if new != readme:
         tmp = README.with_suffix(".md.tmp")
         tmp.write_text(new, encoding="utf-8")
