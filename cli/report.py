@@ -9,6 +9,30 @@ import click
 from ._common import echo_json, fail, info, user_errors
 
 _ALIGNMENTS = ("none", "origin", "se3", "sim3", "yaw")
+_PLANES = ("xy", "xz", "yz")
+
+
+def _alignments(values: tuple[str, ...]) -> tuple[str, tuple[tuple[str, str], ...]]:
+    """``--align`` values: at most one plain ALIGNMENT (every algorithm's default) and any
+    number of NAME=ALIGNMENT."""
+    default: str | None = None
+    named: list[tuple[str, str]] = []
+    for v in values:
+        name, eq, al = v.rpartition("=")
+        if al not in _ALIGNMENTS:
+            raise click.BadParameter(f"{al!r} in {v!r} is not one of {', '.join(_ALIGNMENTS)}",
+                                     param_hint="--align")
+        if not eq:
+            if default is not None:
+                raise click.BadParameter(f"one plain alignment for every algorithm, got "
+                                         f"{default} and {al}; name the others: NAME={al}",
+                                         param_hint="--align")
+            default = al
+        elif not name:
+            raise click.BadParameter(f"{v!r}: expected NAME=ALIGNMENT", param_hint="--align")
+        else:
+            named.append((name, al))
+    return default or "se3", tuple(named)
 
 
 def _pct_list(text: str) -> tuple[float, ...]:
@@ -28,10 +52,15 @@ Layout of RUNS_DIR:
   <sequence>/groundtruth.<ext>           (or --sequences DIR/<sequence>/vehicle_gt/groundtruth_sync.csv)
   <sequence>/gnss.csv                    optional, drawn on the trajectory figure
   <sequence>/<algorithm>/<trial>/<one trajectory file, any format the readers know>
+  <sequence>/<algorithm>/[<trial>/]run.yaml  optional: "align: sim3" (e.g. a monocular run)
+
+\b
+Alignment of an algorithm: --align NAME=A, else its run.yaml, else the plain --align A (se3).
 
 \b
 Examples:
   ibiscape-eval report runs/ --out report/
+  ibiscape-eval report runs/ --align ORB_mono=sim3 --align yaw --out report/
   ibiscape-eval report runs/ --sequences IBISCape/ --align sim3 --json > runs.json
   ibiscape-eval report runs/ --out report/ --scheduler tcp://10.0.0.5:8786
 """,
@@ -40,8 +69,13 @@ Examples:
 @click.option("--sequences", "sequences_dir", type=click.Path(path_type=Path), default=None,
               help="Folder of IBISCape-layout sequences holding the ground truth "
                    "(<sequence>/vehicle_gt/groundtruth_sync.csv, other_sensors/gnss.csv).")
-@click.option("--align", "alignment", type=click.Choice(_ALIGNMENTS), default="se3",
-              show_default=True, help="Alignment of every estimate (ATE, RPE and drift).")
+@click.option("--align", "alignment", multiple=True, metavar="[NAME=]ALIGNMENT",
+              help="Alignment (none, origin, se3, sim3, yaw) of ATE, RPE and drift: plain for "
+                   "every algorithm (default se3), NAME=A for one (repeatable; e.g. "
+                   "ORB_mono=sim3 for a monocular run). Wins over a run's run.yaml.")
+@click.option("--plot-plane", type=click.Choice(_PLANES), default=None,
+              help="Plane of the trajectory figures [default: per ground-truth format, KITTI "
+                   "xz, others xy].")
 @click.option("--json", "as_json", is_flag=True,
               help="Print one JSON document (runs, table, summary) on stdout.")
 @click.option("--out", type=click.Path(path_type=Path), default=None,
@@ -69,7 +103,8 @@ Examples:
 def report(
     runs_dir: Path,
     sequences_dir: Path | None,
-    alignment: str,
+    alignment: tuple[str, ...],
+    plot_plane: str | None,
     as_json: bool,
     out: Path | None,
     scheduler: str | None,
@@ -97,14 +132,21 @@ def report(
     if rpe_delta_unit == "frames" and rpe_delta != int(rpe_delta):
         raise click.BadParameter("a delta in frames must be a whole number",
                                  param_hint="--rpe-delta")
-    options = EvaluationOptions(align=alignment, max_diff_s=max_diff_s, rpe_delta=rpe_delta,
+    default_align, named = _alignments(alignment)
+    options = EvaluationOptions(align=default_align, max_diff_s=max_diff_s, rpe_delta=rpe_delta,
                                 rpe_delta_unit=rpe_delta_unit, rpe_pairs=rpe_pairs,
-                                drift_lengths_pct=_pct_list(drift_lengths_pct))
+                                drift_lengths_pct=_pct_list(drift_lengths_pct),
+                                align_by_algorithm=named)
     if out is not None and out.exists() and not out.is_dir():
         fail(f"{out}: exists and is a file; --out needs a folder")
     layout = discover_runs(runs_dir, sequences_dir=sequences_dir)
     for path, why in layout.ignored:
         info(f"ignored {path}: {why}")
+    from ibiscape_eval.report.evaluate import resolve_alignments
+
+    aligns = resolve_alignments(layout, options)  # refuses unknown names before any work
+    if len({a for a, _ in aligns.values()}) > 1 or any(s != "default" for _, s in aligns.values()):
+        info("alignment: " + ", ".join(f"{alg} {a} ({s})" for alg, (a, s) in aligns.items()))
     info(f"{len(layout.runs)} runs: {len(layout.sequences)} sequences x "
          f"{len(layout.algorithms)} algorithms"
          + (f" on the Dask scheduler {scheduler}" if scheduler else ""))
@@ -134,7 +176,7 @@ def report(
     if out is not None:
         from ibiscape_eval.report.batch_report import write_report
 
-        files = write_report(out, evaluation, figures=not no_figures)
+        files = write_report(out, evaluation, figures=not no_figures, plot_plane=plot_plane)
         info(f"wrote {len(files)} files to {out} (open {out / 'report.html'})")
     if as_json:
         doc = evaluation.to_dict()

@@ -23,11 +23,20 @@ Steps:
      a stereo event camera on a short drive (frames from events, corners refined from the events);
   7. camera-IMU calibration (extrinsics and clock offsets, ``calib --imu``) on a calibration drive;
   8. a rendered SVI drive exported to EuRoC, the stereo-VIO baseline on the export, scored with ``ate``.
+
+What it measured goes to ``--out``/numbers.json: the wall time of every step and of the whole demo,
+the machine (CPUs, load), and the benchmark's accuracies against the truth (ranges over its jobs, read
+from the benchmark's report.json).  The README quotes these numbers through
+``benchmarks/update_readme_numbers.py --from demo-output/numbers.json``, and ``tests/test_readme.py``
+fails when the README and the recorded copy (``benchmarks/measured/demo.json``) disagree.
 """
 
 from __future__ import annotations
 
 import argparse
+import datetime
+import json
+import os
 import shlex
 import shutil
 import subprocess
@@ -35,6 +44,7 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 HERE = Path(__file__).resolve().parent
 DATA = HERE / "data"
@@ -276,7 +286,7 @@ def report(out: Path) -> None:
     # fr1/xyz and V1_02 (real data and real estimates) plus the simulated FULL_dynamic sequence of
     # step 2 (ground truth and GNSS read from its IBISCape folder with --sequences).
     runs = make_runs_folder(out / "runs", sim_sequences=out)
-    args = ["report", runs, "--sequences", out, "--cache", out / ".cache"]
+    args: list[str | Path] = ["report", runs, "--sequences", out, "--cache", out / ".cache"]
     sh(*args, "--out", out / "report")
     sh(*args)  # again, table on stdout: every finished run now comes from the cache
     if find_chromium() is None:
@@ -326,6 +336,95 @@ def vio(out: Path) -> None:
        "--plot", out / "vio_ate.png")
 
 
+def _span(values: list[Any]) -> list[float] | None:
+    """``[min, max]`` of the finite numbers (absolute values: errors), or None."""
+    v = [abs(float(x)) for x in values if isinstance(x, int | float) and x == x]
+    return [min(v), max(v)] if v else None
+
+
+def benchmark_numbers(report_json: Path) -> dict[str, Any]:
+    """The benchmark's measured numbers (ranges over its jobs) from its ``report.json``."""
+    doc = json.loads(report_json.read_text(encoding="utf-8"))
+    steps = doc["steps"]
+    out: dict[str, Any] = {"scale": doc["scale"], "n_jobs": doc["summary"]["n_jobs"],
+                           "n_failed": doc["summary"]["n_failed"], "steps": {}}
+    for name, wall in doc["wall_s"].items():
+        recs = steps.get(name, [])
+        out["steps"][name] = {"wall_s": wall, "jobs": len(recs),
+                              "failed": sum(r["status"] != "ok" for r in recs)}
+    out["total_wall_s"] = sum(doc["wall_s"].values())
+    ok = {k: [r["value"] for r in v if r["status"] == "ok" and r["value"]]
+          for k, v in steps.items()}
+    cams: dict[str, Any] = {}
+    for v in ok.get("camera_calibration", []):
+        t = cams.setdefault(str(v.get("target")), {"focal": [], "principal": [], "baseline": [],
+                                                   "rms": []})
+        for c in v["cameras"]:
+            t["focal"] += [c["fx_error_px"], c["fy_error_px"]]
+            t["principal"] += [c["cx_error_px"], c["cy_error_px"]]
+        t["baseline"] += [c["baseline_error_mm"] for c in v["chain"]]
+        t["rms"].append(v.get("rms_px"))
+    out["camera_calibration"] = {
+        target: {"focal_error_px": _span(t["focal"]), "principal_error_px": _span(t["principal"]),
+                 "baseline_error_mm": _span(t["baseline"]), "rms_px": _span(t["rms"])}
+        for target, t in cams.items()}
+    imucam = [c for v in ok.get("imu_camera", []) for c in v["cameras"]]
+    out["imu_camera"] = {
+        "rotation_error_deg": _span([c["rotation_error_deg"] for c in imucam]),
+        "translation_error_mm": _span([c["translation_error_mm"] for c in imucam]),
+        "timeshift_error_ms": _span([c["timeshift_error_ms"] for c in imucam])}
+    noise = ok.get("imu_noise", [])
+    if noise:
+        out["imu_noise"] = {"duration_h": noise[0]["duration_h"],
+                            "error_pct": {k["key"]: k["error_pct"] for k in noise[0]["rows"]}}
+    hot = ok.get("hot_pixels", [])
+    out["hot_pixels"] = {"removed_pct": _span([100 * (v["fraction_removed"] or 0.0) for v in hot]),
+                         "precision": _span([v["precision"] for v in hot]),
+                         "recall": _span([v["recall"] for v in hot])}
+    vio = [v.get("stats") or {} for v in ok.get("vio", [])]
+    out["vio"] = {"frames": _span([st.get("frames") for st in vio]),
+                  "frames_estimated": _span([st.get("frames_estimated") for st in vio]),
+                  "failure_spans": sum(len(st.get("failures") or []) for st in vio)}
+    ev = ok.get("evaluation", [])
+    out["evaluation"] = {"ate_m": _span([v["ate_rmse_m"] for v in ev]),
+                         "rpe_m": _span([v["rpe_m"] for v in ev]),
+                         "rpe_deg": _span([v["rpe_deg"] for v in ev])}
+    return out
+
+
+def write_numbers(out: Path, steps_wall_s: dict[str, float], complete: bool,
+                  load_start: float | None) -> Path:
+    """``out/numbers.json``: what this demo run measured (see the module docstring)."""
+    from ibiscape_eval.io.atomic import atomic_write
+
+    doc: dict[str, Any] = {
+        "schema": "ibiscape-eval demo numbers 1",
+        "recorded_utc": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%MZ"),
+        "machine": {"cpus": os.cpu_count(), "load_1min_start": load_start,
+                    "load_1min_end": _load()},
+        "complete": complete,
+        "steps": list(steps_wall_s),
+        "wall_s": dict(steps_wall_s),
+    }
+    if complete:  # the whole demo's time only from a whole run
+        doc["wall_s"]["total"] = sum(steps_wall_s.values())
+        doc["wall_min"] = doc["wall_s"]["total"] / 60.0
+    report_json = out / "bench" / "report" / "report.json"
+    if "benchmark" in steps_wall_s and report_json.is_file():
+        doc["benchmark"] = benchmark_numbers(report_json)
+    path = out / "numbers.json"
+    with atomic_write(path) as f:
+        f.write(json.dumps(doc, indent=1, allow_nan=False) + "\n")
+    return path
+
+
+def _load() -> float | None:
+    try:
+        return round(os.getloadavg()[0], 2)
+    except OSError:
+        return None
+
+
 STEPS: list[tuple[str, Callable[[Path], None]]] = [
     ("trajectories", trajectories),
     ("sim", simulate),
@@ -356,10 +455,17 @@ def main() -> None:
     args.out.mkdir(parents=True, exist_ok=True)
     marker.touch()
     t0 = time.perf_counter()
+    load_start = _load()
+    walls: dict[str, float] = {}
     for name, step in STEPS:
         if args.only is None or name in args.only:
+            t_step = time.perf_counter()
             step(args.out)
+            walls[name] = round(time.perf_counter() - t_step, 1)
     banner(f"demo finished in {time.perf_counter() - t0:.1f} s; figures and files in {args.out}/")
+    numbers = write_numbers(args.out, walls, complete=args.only is None, load_start=load_start)
+    print(f"measured numbers: {numbers} (README: benchmarks/update_readme_numbers.py --from "
+          f"{numbers})")
     for p in sorted(args.out.iterdir()):
         if p.is_dir():
             print(f"  {p}/  ({sum(1 for q in p.rglob('*') if q.is_file())} files)")

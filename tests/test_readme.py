@@ -148,3 +148,53 @@ def test_readme_commands_run(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) ->
     not_illustrative = [(c, m) for c, m in skipped if not set(m) <= ILLUSTRATIVE]
     assert not not_illustrative, f"README commands skipped for missing inputs: {not_illustrative}"
     assert ran >= 20, f"only {ran} README commands ran"
+
+
+# -- the README's measured numbers are produced, not typed -------------------------------------------
+
+RECORDED = ROOT / "benchmarks" / "measured" / "demo.json"
+
+
+def _numbers_script():
+    import importlib.util
+
+    path = ROOT / "benchmarks" / "update_readme_numbers.py"
+    spec = importlib.util.spec_from_file_location("update_readme_numbers", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_readme_numbers_are_the_recorded_ones() -> None:
+    """Every marked number of the README equals the demo's recorded numbers at its printed
+    precision (rewrite them with benchmarks/update_readme_numbers.py --from demo-output/numbers.json)."""
+    mod = _numbers_script()
+    readme = (ROOT / "README.md").read_text()
+    recorded = json.loads(RECORDED.read_text())
+    keys = mod.marked_keys(readme)
+    # the quick start's demo time and the benchmark's accuracies are marked, not typed
+    assert "wall_min" in keys
+    for part in ("camera_calibration", "imu_camera", "imu_noise", "hot_pixels", "evaluation"):
+        assert any(k.startswith(f"benchmark.{part}.") for k in keys), part
+    assert mod.check(readme, recorded) == []
+    # no demo time typed outside the marks
+    unmarked = mod.MARK.sub("", readme)
+    assert not re.search(r"demo[^.]*\b\d+ s measured", unmarked)
+
+
+def test_the_number_check_catches_a_typed_number() -> None:
+    mod = _numbers_script()
+    recorded = {"wall_min": 17.4, "b": {"focal": [0.32, 0.41], "k": -0.4}}
+    readme = ("took <!-- measured:wall_min .0f -->17<!-- /measured --> minutes; focal "
+              "<!-- measured:b.focal .2f -->0.32-0.41<!-- /measured --> px, K "
+              "<!-- measured:b.k +.1f -->-0.4<!-- /measured --> %")
+    assert mod.check(readme, recorded) == []
+    for wrong in (readme.replace("-->17<", "-->4<"), readme.replace("0.32-0.41", "0.32-1.1"),
+                  readme.replace("-->-0.4<", "-->+0.4<"), readme.replace("wall_min", "wall_h")):
+        assert mod.check(wrong, recorded), wrong
+        if "wall_h" not in wrong:
+            assert mod.check(mod.rewrite(wrong, recorded), recorded) == []
+    # the printed precision is the noise: 0.318 printed as 0.32 agrees, 0.33 does not
+    assert mod.check(readme, {**recorded, "b": {"focal": [0.318, 0.41], "k": -0.4}}) == []
+    assert mod.check(readme, {**recorded, "b": {"focal": [0.33, 0.41], "k": -0.4}})

@@ -3,11 +3,13 @@
 ``write_report(out, evaluation)`` creates, atomically (the folder appears complete or not at all)::
 
     out/
-      table.md  table.tex  table.csv   the paper-style table (see paper_table)
+      table.md  table.csv              the paper-style table (see paper_table), with its caption
+      table.tex                        two LaTeX tables: ATE (table:ate) and RPE (table:rpe)
       runs.csv                         one line per run (status, error, every statistic)
       report.json                      the ``report --json`` document plus the table
       report.html                      self-contained page, figures embedded
-      figures/trajectories_<sequence>.png   ground truth, GNSS, aligned estimates (top view)
+      figures/trajectories_<sequence>.png   ground truth, GNSS, aligned estimates (in the plot
+                                       plane of the ground truth's format: KITTI x-z, else x-y)
       figures/errors_boxplot.png       ATE/RPE error distributions per sequence and algorithm
 """
 
@@ -21,6 +23,8 @@ import re
 import warnings
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from ibiscape_eval.batch.files import atomic_output_dir
 from ibiscape_eval.core.errors import IbiscapeError, IbiscapeWarning
@@ -38,11 +42,11 @@ def _safe_name(text: str) -> str:
 
 
 def runs_csv(evaluation: RunsEvaluation) -> str:
-    """One line per run: identity, status, statistics, error message."""
+    """One line per run: identity, alignment, status, statistics, error message."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    cols = ["sequence", "algorithm", "trial", "status", "n_matched", "ate_rmse_m", "ate_mean_m",
-            "ate_rot_rmse_deg", "rpe_m_mean", "rpe_m_std", "rpe_deg_mean", "rpe_deg_std",
+    cols = ["sequence", "algorithm", "trial", "align", "status", "n_matched", "ate_rmse_m",
+            "ate_mean_m", "ate_rot_rmse_deg", "rpe_m_mean", "rpe_m_std", "rpe_deg_mean", "rpe_deg_std",
             "drift_translation_pct", "drift_rotation_deg_per_m", "error", "path"]
     w.writerow(cols)
 
@@ -54,7 +58,7 @@ def runs_csv(evaluation: RunsEvaluation) -> str:
         return repr(float(d))
 
     for r in evaluation.runs:
-        w.writerow([r["sequence"], r["algorithm"], r["trial"], r["status"],
+        w.writerow([r["sequence"], r["algorithm"], r["trial"], r.get("align") or "", r["status"],
                     "" if r.get("n_matched") is None else r["n_matched"],
                     g(r, "ate", "translation_m", "rmse"), g(r, "ate", "translation_m", "mean"),
                     g(r, "ate", "rotation_deg", "rmse"),
@@ -66,10 +70,24 @@ def runs_csv(evaluation: RunsEvaluation) -> str:
     return buf.getvalue()
 
 
-def sequence_figures(evaluation: RunsEvaluation) -> list[tuple[str, str, bytes]]:
-    """``(file name, caption, png)`` of every figure: one top view per sequence and the box
-    plots.  A GNSS file that cannot be placed is left out of its figure with a warning."""
-    from ibiscape_eval.io import read_gnss, read_trajectory
+def _alignment_of(evaluation: RunsEvaluation) -> dict[str, str]:
+    """Algorithm -> alignment its runs were evaluated with."""
+    if evaluation.alignments:
+        return {a: al for a, (al, _) in evaluation.alignments.items()}
+    return {a: evaluation.options.align for a in evaluation.layout.algorithms}
+
+
+def sequence_figures(
+    evaluation: RunsEvaluation, *, plot_plane: str | None = None
+) -> list[tuple[str, str, bytes]]:
+    """``(file name, caption, png)`` of every figure: one view of each sequence and the box
+    plots.  A GNSS file that cannot be placed is left out of its figure with a warning.
+
+    ``plot_plane`` (``"xy"``, ``"xz"``, ``"yz"``) is the plane of the trajectory figures; by
+    default each sequence's comes from its ground truth's format
+    (:func:`ibiscape_eval.report.plots.default_plot_plane`: x-z for KITTI, x-y otherwise).
+    """
+    from ibiscape_eval.io import detect_trajectory_format, read_gnss, read_trajectory
 
     from ..metrics.gnss import gnss_in_reference_frame
     from .figures import (
@@ -79,16 +97,27 @@ def sequence_figures(evaluation: RunsEvaluation) -> list[tuple[str, str, bytes]]
         representative_runs,
         sequence_trajectories_figure,
     )
+    from .plots import PLOT_PLANES, default_plot_plane
 
+    if plot_plane is not None and plot_plane not in PLOT_PLANES:
+        raise IbiscapeError(f"unknown plot plane {plot_plane!r}; use one of "
+                            f"{', '.join(PLOT_PLANES)}")
     reps = representative_runs(evaluation.runs)
     colors = algorithm_colors(evaluation.layout.algorithms)
+    aligns = _alignment_of(evaluation)
+    mixed = len(set(aligns.values())) > 1
+    # with different alignments the legend says each algorithm's
+    name = {a: (f"{a} ({al})" if mixed else a) for a, al in aligns.items()}
+    legend_colors = {name[a]: c for a, c in colors.items() if a in name}
+    title_align = "per algorithm" if mixed else next(iter(aligns.values()), "se3")
     out = []
     for seq in evaluation.layout.sequences:
         truth = evaluation.layout.truths[seq]
-        tracks = {a: r["track_xyz_m"] for (s, a), r in sorted(reps.items())
+        tracks = {name[a]: r["track_xyz_m"] for (s, a), r in sorted(reps.items())
                   if s == seq and r.get("track_xyz_m")}
         try:
             gt = read_trajectory(truth.groundtruth)
+            plane = plot_plane or default_plot_plane(detect_trajectory_format(truth.groundtruth))
         except (IbiscapeError, OSError) as e:
             warnings.warn(f"figure of {seq} left out: {e}", IbiscapeWarning, stacklevel=2)
             continue
@@ -100,16 +129,46 @@ def sequence_figures(evaluation: RunsEvaluation) -> list[tuple[str, str, bytes]]
             except (IbiscapeError, OSError) as e:
                 warnings.warn(f"{truth.gnss}: GNSS left out of the figure of {seq}: {e}",
                               IbiscapeWarning, stacklevel=2)
-        fig = sequence_trajectories_figure(seq, gt.pos_m, tracks, gnss_xyz_m=gnss,
-                                           align=evaluation.options.align, colors=colors)
+        # the figure draws columns 0 and 1: put the plane's axes there and name them
+        cols = [_AXIS[plane[0]], _AXIS[plane[1]]]
+        cols.append(3 - sum(cols))
+        fig = sequence_trajectories_figure(
+            seq, gt.pos_m[:, cols],
+            {a: np.asarray(xyz, dtype=np.float64).reshape(-1, 3)[:, cols]
+             for a, xyz in tracks.items()},
+            gnss_xyz_m=None if gnss is None else np.asarray(gnss)[:, cols],
+            align=title_align, colors=legend_colors)
+        ax = fig.axes[0]
+        ax.set_xlabel(f"{plane[0]} [m]")
+        ax.set_ylabel(f"{plane[1]} [m]")
         out.append((f"trajectories_{_safe_name(seq)}.png",
-                    f"{seq}: ground truth{', GNSS' if gnss is not None else ''} and the aligned "
-                    "estimate of each algorithm (median-ATE trial)", figure_png(fig)))
+                    f"{seq} ({plane[0]}-{plane[1]} plane): ground truth"
+                    f"{', GNSS' if gnss is not None else ''} and the aligned estimate of each "
+                    f"algorithm (median-ATE trial; {_align_caption(aligns)})", figure_png(fig)))
     if reps:
         out.append(("errors_boxplot.png", "ATE and RPE error distributions per sequence and "
                     "algorithm (median-ATE trial)", figure_png(error_boxplot_figure(
                         evaluation.runs, colors=colors))))
     return out
+
+
+_AXIS = {"x": 0, "y": 1, "z": 2}
+
+
+def _align_caption(aligns: dict[str, str]) -> str:
+    if len(set(aligns.values())) <= 1:
+        return f"aligned: {next(iter(aligns.values()), 'se3')}"
+    return "aligned: " + ", ".join(f"{a} {al}" for a, al in aligns.items())
+
+
+def _shown_options(evaluation: RunsEvaluation) -> dict[str, Any]:
+    """The options as the page's header shows them: the alignment each algorithm got."""
+    opts = evaluation.options.to_dict()
+    aligns = _alignment_of(evaluation)
+    if len(set(aligns.values())) > 1:
+        opts.pop("align_by_algorithm", None)
+        opts["align"] = "per algorithm: " + ", ".join(f"{a} {al}" for a, al in aligns.items())
+    return opts
 
 
 def _check_out(out: Path) -> None:
@@ -123,16 +182,18 @@ def _check_out(out: Path) -> None:
 
 
 def write_report(
-    out: str | os.PathLike[str], evaluation: RunsEvaluation, *, figures: bool = True
+    out: str | os.PathLike[str], evaluation: RunsEvaluation, *, figures: bool = True,
+    plot_plane: str | None = None,
 ) -> ReportFiles:
     """Write the report folder ``out`` (see the module docstring); returns name -> path.
 
     An existing ``out`` is replaced only if it is empty or holds an earlier report.
+    ``plot_plane``: see :func:`sequence_figures`.
     """
     target = Path(out)
     _check_out(target)
     table = PaperTable.from_runs(evaluation.runs)
-    figs = sequence_figures(evaluation) if figures else []
+    figs = sequence_figures(evaluation, plot_plane=plot_plane) if figures else []
     doc = evaluation.to_dict()
     doc["table"] = table.to_dict()
     from .html import report_html
@@ -140,7 +201,7 @@ def write_report(
     page = report_html(
         table,
         title=f"Evaluation of {Path(evaluation.layout.root).name or evaluation.layout.root}",
-        options=evaluation.options.to_dict(),
+        options=_shown_options(evaluation),
         summary=evaluation.summary,
         figures=[(cap, png) for _, cap, png in figs],
         failed=[r for r in evaluation.runs if r["status"] != "ok"],
@@ -148,7 +209,7 @@ def write_report(
     )
     texts = {
         "table.md": table.to_markdown(),
-        "table.tex": table.to_latex(),
+        "table.tex": table.to_latex_tables(),
         "table.csv": table.to_csv(),
         "runs.csv": runs_csv(evaluation),
         "report.json": json.dumps(doc, indent=1, allow_nan=False) + "\n",

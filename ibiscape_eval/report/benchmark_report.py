@@ -50,7 +50,8 @@ class Table:
         if not self.rows:
             body = f'<tr><td colspan="{len(self.header)}">(none)</td></tr>'
         return (f"<h2>{e(self.title)}</h2><p>{e(self.note)}</p>"
-                f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>")
+                f'<div class="table-scroll"><table><thead><tr>{head}</tr></thead>'
+                f"<tbody>{body}</tbody></table></div>")
 
 
 _NOTES = ("FAILED: ", "not applicable: ")
@@ -221,11 +222,11 @@ def benchmark_html(res: BenchmarkResult) -> str:
                      f"<figcaption>{e(caption)}</figcaption></figure>")
     fails = res.failed()
     if fails:
-        parts += ["<h2>Failed jobs</h2>", '<table class="failed"><thead><tr><th>step</th>'
-                  "<th>job</th><th>error</th></tr></thead><tbody>"]
+        parts += ["<h2>Failed jobs</h2>", '<div class="table-scroll"><table class="failed">'
+                  "<thead><tr><th>step</th><th>job</th><th>error</th></tr></thead><tbody>"]
         parts += [f"<tr><td>{e(f['step'])}</td><td>{e(f['key'])}</td><td>{e(str(f['error']))}"
                   "</td></tr>" for f in fails]
-        parts.append("</tbody></table>")
+        parts.append("</tbody></table></div>")
     parts += ["</body>", "</html>"]
     return "\n".join(parts) + "\n"
 

@@ -7,6 +7,8 @@ call starts a throw-away browser profile in a temporary folder; nothing else is 
 
 from __future__ import annotations
 
+import html
+import json
 import os
 import re
 import shutil
@@ -18,7 +20,7 @@ from pathlib import Path
 from ibiscape_eval.batch.files import atomic_output_path
 from ibiscape_eval.core.errors import IbiscapeError
 
-__all__ = ["BrowserCheck", "check_page", "find_chromium"]
+__all__ = ["BrowserCheck", "Overflow", "check_page", "find_chromium", "page_overflow"]
 
 _NAMES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
 # "[pid:tid:date:INFO:CONSOLE:12] "message", source: file:///... (12)" (older builds: CONSOLE(12))
@@ -109,3 +111,96 @@ def check_page(
         raise IbiscapeError(f"{exe} could not load {page} (exit {dom.returncode}): "
                             f"{dom.stderr.strip()[-300:]}")
     return BrowserCheck(console, dom.stdout, shot)
+
+
+@dataclass(frozen=True)
+class Overflow:
+    """How a page fits a window ``viewport_px`` wide.
+
+    Attributes
+    ----------
+    viewport_px : int
+        The window's inner width, CSS pixels.
+    page_width_px : int
+        The document's scroll width: wider than ``viewport_px`` when something sticks out and the
+        reader must scroll the whole page sideways.
+    offenders : tuple of str
+        Elements reaching past the window's edge (tag, class, right edge) that are not inside a
+        box that scrolls or clips on its own; empty when the page fits.
+    """
+
+    viewport_px: int
+    page_width_px: int
+    offenders: tuple[str, ...]
+
+    @property
+    def fits(self) -> bool:
+        return self.page_width_px <= self.viewport_px and not self.offenders
+
+
+# Measures after layout; an element inside a box with its own horizontal overflow handling (a
+# table in a scrolling div) does not count: the reader scrolls that box, not the page.
+_MEASURE = """<script>
+(function () {
+  const W = document.documentElement.clientWidth;
+  const page = document.documentElement.scrollWidth;
+  const bad = [];
+  for (const el of document.body.querySelectorAll("*")) {
+    let p = el.parentElement, boxed = false;
+    while (p && p !== document.body) {
+      const ox = getComputedStyle(p).overflowX;
+      if (ox === "auto" || ox === "scroll" || ox === "hidden") { boxed = true; break; }
+      p = p.parentElement;
+    }
+    if (boxed) continue;
+    const r = el.getBoundingClientRect();
+    if (r.width > 0 && (r.right > W + 0.5 || r.left < -0.5)) {
+      bad.push(el.tagName.toLowerCase() + (el.className ? "." + el.className : "")
+               + " right=" + Math.round(r.right));
+    }
+  }
+  const out = document.createElement("pre");
+  out.id = "ibiscape-overflow";
+  out.textContent = JSON.stringify({viewport: window.innerWidth, page: page,
+                                    offenders: bad.slice(0, 20)});
+  document.body.appendChild(out);
+})();
+</script>"""
+_RESULT = re.compile(r'<pre id="ibiscape-overflow">(.*?)</pre>', re.S)
+
+
+def page_overflow(
+    page: str | os.PathLike[str],
+    *,
+    width: int,
+    height: int = 1200,
+    timeout_s: float = 90.0,
+    chromium: str | None = None,
+) -> Overflow:
+    """Load a copy of ``page`` in headless Chromium in a window ``width`` CSS pixels wide and
+    measure what sticks out of it (the page itself is not changed: the measuring script goes into
+    a temporary copy).
+
+    Raises
+    ------
+    IbiscapeError
+        No Chromium found, or it failed to load the page.
+    """
+    exe = chromium or find_chromium()
+    if exe is None:
+        raise IbiscapeError("no chromium executable on PATH; install Debian's chromium package "
+                            "(make test / make demo do it)")
+    text = Path(page).read_text(encoding="utf-8")
+    cut = text.rfind("</body>")
+    text = (text[:cut] + _MEASURE + text[cut:]) if cut >= 0 else text + _MEASURE
+    with tempfile.TemporaryDirectory(prefix="ibiscape-overflow-") as tmp:
+        copy = Path(tmp) / "page.html"
+        copy.write_text(text, encoding="utf-8")
+        res = _run(exe, [f"--window-size={width},{height}", "--dump-dom", copy.as_uri()],
+                   timeout_s)
+    m = _RESULT.search(res.stdout)
+    if res.returncode != 0 or m is None:
+        raise IbiscapeError(f"{exe} could not measure {page} (exit {res.returncode}): "
+                            f"{res.stderr.strip()[-300:]}")
+    doc = json.loads(html.unescape(m.group(1)))
+    return Overflow(int(doc["viewport"]), int(doc["page"]), tuple(doc["offenders"]))

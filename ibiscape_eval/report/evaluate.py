@@ -28,6 +28,7 @@ __all__ = [
     "box_stats",
     "evaluate_run",
     "evaluate_runs",
+    "resolve_alignments",
     "run_job_for",
 ]
 
@@ -41,8 +42,11 @@ class EvaluationOptions:
     """Metric options shared by every run (the ``report`` command's options).
 
     ``align`` applies to ATE, RPE and drift alike (only ``sim3`` changes RPE and drift: it fixes
-    the scale); RPE pairs are ``rpe_delta`` ``rpe_delta_unit`` apart; drift segments are
-    ``drift_lengths_pct`` percent of each reference path (rpg_trajectory_evaluation's choice).
+    the scale); it is the default of every algorithm that neither ``align_by_algorithm`` (name,
+    alignment pairs, the command line's ``--align NAME=A``) nor a ``run.yaml`` of its runs names
+    (see :func:`resolve_alignments`).  RPE pairs are ``rpe_delta`` ``rpe_delta_unit`` apart;
+    drift segments are ``drift_lengths_pct`` percent of each reference path
+    (rpg_trajectory_evaluation's choice).
     """
 
     align: str = "se3"
@@ -51,16 +55,82 @@ class EvaluationOptions:
     rpe_delta_unit: str = "frames"
     rpe_pairs: str = "consecutive"
     drift_lengths_pct: tuple[float, ...] = (10.0, 20.0, 30.0, 40.0, 50.0)
+    align_by_algorithm: tuple[tuple[str, str], ...] = ()
 
     def __post_init__(self) -> None:
-        if self.align not in ALIGNMENTS:
-            raise IbiscapeError(f"unknown alignment {self.align!r}; use one of "
-                                f"{', '.join(ALIGNMENTS)}")
+        for a in (self.align, *(a for _, a in self.align_by_algorithm)):
+            if a not in ALIGNMENTS:
+                raise IbiscapeError(f"unknown alignment {a!r}; use one of "
+                                    f"{', '.join(ALIGNMENTS)}")
+        names = [n for n, _ in self.align_by_algorithm]
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise IbiscapeError(f"alignment of {', '.join(dup)} given more than once")
 
     def to_dict(self) -> dict[str, Any]:
-        return {"align": self.align, "max_diff_s": self.max_diff_s, "rpe_delta": self.rpe_delta,
-                "rpe_delta_unit": self.rpe_delta_unit, "rpe_pairs": self.rpe_pairs,
-                "drift_lengths_pct": list(self.drift_lengths_pct)}
+        doc = {"align": self.align, "max_diff_s": self.max_diff_s, "rpe_delta": self.rpe_delta,
+               "rpe_delta_unit": self.rpe_delta_unit, "rpe_pairs": self.rpe_pairs,
+               "drift_lengths_pct": list(self.drift_lengths_pct)}
+        if self.align_by_algorithm:
+            doc["align_by_algorithm"] = dict(self.align_by_algorithm)
+        return doc
+
+    def for_run(self, align: str) -> EvaluationOptions:
+        """These options with ``align`` for one run (what its batch job gets)."""
+        return EvaluationOptions(align, self.max_diff_s, self.rpe_delta, self.rpe_delta_unit,
+                                 self.rpe_pairs, self.drift_lengths_pct)
+
+
+def resolve_alignments(
+    layout: RunsLayout, options: EvaluationOptions
+) -> dict[str, tuple[str, str]]:
+    """The alignment of every algorithm of ``layout`` and where it comes from.
+
+    In order: ``options.align_by_algorithm`` (``--align NAME=A``), the ``run.yaml`` of its runs
+    (:mod:`ibiscape_eval.io.run_meta`), ``options.align``.
+
+    Returns
+    -------
+    dict
+        Algorithm -> (alignment, source): ``"--align NAME=A"``, the ``run.yaml`` path, or
+        ``"default"``.
+
+    Raises
+    ------
+    IbiscapeError
+        ``align_by_algorithm`` names an algorithm the layout does not have (a misspelt name would
+        otherwise leave the run with the default), or the runs of one algorithm ask for different
+        alignments (the table gives one number per algorithm and its caption one alignment).
+    """
+    algs = layout.algorithms
+    by_name = dict(options.align_by_algorithm)
+    unknown = [n for n in by_name if n not in algs]
+    if unknown:
+        raise IbiscapeError(
+            f"--align {unknown[0]}={by_name[unknown[0]]}: no algorithm {unknown[0]!r} in "
+            f"{layout.root} (algorithms: {', '.join(algs)})"
+        )
+    out: dict[str, tuple[str, str]] = {}
+    for alg in algs:
+        if alg in by_name:
+            out[alg] = (by_name[alg], f"--align {alg}={by_name[alg]}")
+            continue
+        asked: dict[str, list[RunSpec]] = {}
+        for r in layout.runs:
+            if r.algorithm == alg:
+                asked.setdefault(r.align or options.align, []).append(r)
+        if len(asked) > 1:
+            what = "; ".join(
+                f"{a} for {len(rs)} run{'s' if len(rs) > 1 else ''} (e.g. "
+                f"{rs[0].meta_path or rs[0].key + ', the default'})" for a, rs in asked.items())
+            raise IbiscapeError(
+                f"algorithm {alg}: its runs ask for different alignments ({what}); one alignment "
+                f"per algorithm: fix the run.yaml files or give --align {alg}=A"
+            )
+        ((align, runs),) = asked.items()
+        meta = next((r.meta_path for r in runs if r.align is not None and r.meta_path), None)
+        out[alg] = (align, meta or "default")
+    return out
 
 
 def box_stats(values: npt.ArrayLike) -> dict[str, float] | None:
@@ -154,7 +224,8 @@ def evaluate_run(
 
 
 def run_job_for(run: RunSpec, groundtruth: str, options: EvaluationOptions) -> Job:
-    """The batch job that evaluates ``run`` against ``groundtruth``."""
+    """The batch job that evaluates ``run`` against ``groundtruth`` with ``options`` (give it
+    :meth:`EvaluationOptions.for_run` of the run's alignment)."""
     inputs = [run.path, groundtruth] + ([run.times_path] if run.times_path else [])
     return Job(
         key=run.key,
@@ -175,14 +246,18 @@ class RunsEvaluation:
         What was evaluated.
     options : EvaluationOptions
     runs : tuple of dict
-        Per run, in layout order: ``sequence, algorithm, trial, path, status ("ok"/"failed"),
-        error, cached, n_matched, ate, rpe, drift`` and the figure data (``track_xyz_m``, ``box``).
+        Per run, in layout order: ``sequence, algorithm, trial, path, align, status
+        ("ok"/"failed"), error, cached, n_matched, ate, rpe, drift`` and the figure data
+        (``track_xyz_m``, ``box``).
+    alignments : dict
+        Algorithm -> (alignment, source), see :func:`resolve_alignments`.
     """
 
     layout: RunsLayout
     options: EvaluationOptions
     runs: tuple[dict[str, Any], ...]
     summary: dict[str, int] = field(default_factory=dict)
+    alignments: dict[str, tuple[str, str]] = field(default_factory=dict)
 
     @property
     def n_failed(self) -> int:
@@ -190,13 +265,15 @@ class RunsEvaluation:
 
     def to_dict(self) -> dict[str, Any]:
         """The ``report --json`` document: ``runs`` (without figure data and cache flags, so
-        it does not depend on where or whether a run was computed), ``options``, ``summary``,
-        ``ignored``."""
+        it does not depend on where or whether a run was computed), ``options``,
+        ``alignments`` (algorithm -> ``{"align", "source"}``), ``summary``, ``ignored``."""
         slim = [{k: v for k, v in r.items() if k not in ("track_xyz_m", "box", "cached")}
                 for r in self.runs]
         return {
             "runs_dir": self.layout.root,
             "options": self.options.to_dict(),
+            "alignments": {a: {"align": al, "source": src}
+                           for a, (al, src) in self.alignments.items()},
             "summary": dict(self.summary),
             "runs": slim,
             "ignored": [{"path": p, "reason": why} for p, why in self.layout.ignored],
@@ -225,7 +302,9 @@ def evaluate_runs(
         See :func:`ibiscape_eval.batch.run_jobs` (default: a local process pool, no cache).
     """
     o = options or EvaluationOptions()
-    jobs = [run_job_for(r, layout.truths[r.sequence].groundtruth, o) for r in layout.runs]
+    aligns = resolve_alignments(layout, o)
+    jobs = [run_job_for(r, layout.truths[r.sequence].groundtruth,
+                        o.for_run(aligns[r.algorithm][0])) for r in layout.runs]
     results, summary = run_jobs(jobs, executor, cache=cache, progress=progress)
     runs: list[dict[str, Any]] = []
     for spec in layout.runs:
@@ -235,6 +314,7 @@ def evaluate_runs(
             "algorithm": spec.algorithm,
             "trial": spec.trial,
             "path": spec.path,
+            "align": aligns[spec.algorithm][0],
             "status": res.status,
             "error": res.error,
             "cached": res.cached,
@@ -246,7 +326,7 @@ def evaluate_runs(
         if res.ok and res.value is not None:
             rec.update(res.value)
         runs.append(rec)
-    return RunsEvaluation(layout, o, tuple(runs), summary.to_dict())
+    return RunsEvaluation(layout, o, tuple(runs), summary.to_dict(), aligns)
 
 
 def ok_runs(runs: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:

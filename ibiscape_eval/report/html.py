@@ -13,19 +13,27 @@ from .paper_table import PaperTable
 
 __all__ = ["report_html"]
 
+# Readable at any width: the page never gets wider than the window.  A wide table scrolls sideways
+# inside its own box (.table-scroll), long words (paths, option lists) break, figures shrink.
 _CSS = """
-body { font-family: sans-serif; margin: 2em; color: #222; max-width: 1400px; }
+*, *::before, *::after { box-sizing: border-box; }
+body { font-family: sans-serif; margin: 2em auto; padding: 0 1em; color: #222;
+       max-width: 1400px; overflow-wrap: anywhere; }
 h1 { font-size: 1.5em; } h2 { font-size: 1.2em; margin-top: 1.6em; }
+.table-scroll { max-width: 100%; overflow-x: auto; margin: 0.6em 0; }
 table { border-collapse: collapse; font-size: 0.9em; margin: 0.6em 0; }
-th, td { border: 1px solid #bbb; padding: 0.25em 0.6em; text-align: right; white-space: nowrap; }
+.table-scroll > table { margin: 0; }
+th, td { border: 1px solid #bbb; padding: 0.25em 0.6em; text-align: right; white-space: nowrap;
+         overflow-wrap: normal; }
 thead th { background: #eee; text-align: center; }
 tbody th { text-align: left; font-family: monospace; font-weight: normal; }
 td strong { color: #000; }
-figure { margin: 1em 0; display: inline-block; vertical-align: top; }
-figure img { max-width: 100%; border: 1px solid #ddd; }
+figure { margin: 1em 0; display: inline-block; vertical-align: top; max-width: 100%; }
+figure img { max-width: 100%; height: auto; border: 1px solid #ddd; }
 figcaption { font-size: 0.85em; color: #555; }
-.meta { color: #555; font-size: 0.9em; }
-.failed td, .ignored td { text-align: left; font-family: monospace; font-size: 0.85em; }
+.meta, .caption { color: #555; font-size: 0.9em; }
+.failed td, .ignored td { text-align: left; font-family: monospace; font-size: 0.85em;
+                          white-space: normal; overflow-wrap: anywhere; }
 """
 
 
@@ -73,9 +81,7 @@ def report_html(
         f"<h1>{e(title)}</h1>",
         f'<p class="meta">{e(opts)}<br>runs: {e(counts)}</p>',
         "<h2>Evaluation</h2>",
-        "<p>ATE [m]: RMSE of the translation errors; RPE: mean ± std; median over the successful "
-        "trials (ok/total); best of each row in bold.</p>",
-        table.to_html(),
+        table.to_html(),  # with its caption: alignment, RPE distance and unit, marks
     ]
     if figures:
         parts.append("<h2>Figures</h2>")
@@ -83,17 +89,17 @@ def report_html(
             parts.append(f"<figure>{_img(png, caption)}<figcaption>{e(caption)}</figcaption>"
                          "</figure>")
     if failed:
-        parts += ["<h2>Failed runs</h2>", '<table class="failed"><thead><tr><th>run</th>'
-                  "<th>error</th></tr></thead><tbody>"]
+        parts += ["<h2>Failed runs</h2>", '<div class="table-scroll"><table class="failed">'
+                  "<thead><tr><th>run</th><th>error</th></tr></thead><tbody>"]
         for r in failed:
             key = f"{r['sequence']}/{r['algorithm']}/{r['trial']}"
             parts.append(f"<tr><td>{e(key)}</td><td>{e(str(r.get('error')))}</td></tr>")
-        parts.append("</tbody></table>")
+        parts.append("</tbody></table></div>")
     if ignored:
-        parts += ["<h2>Ignored paths</h2>", '<table class="ignored"><thead><tr><th>path</th>'
-                  "<th>reason</th></tr></thead><tbody>"]
+        parts += ["<h2>Ignored paths</h2>", '<div class="table-scroll"><table class="ignored">'
+                  "<thead><tr><th>path</th><th>reason</th></tr></thead><tbody>"]
         for p, why in ignored:
             parts.append(f"<tr><td>{e(p)}</td><td>{e(why)}</td></tr>")
-        parts.append("</tbody></table>")
+        parts.append("</tbody></table></div>")
     parts += ["</body>", "</html>"]
     return "\n".join(parts) + "\n"

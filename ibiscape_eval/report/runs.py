@@ -8,8 +8,10 @@ Layout (documented in the README, ``report`` section)::
                                    the IBISCape sequence DIR/<sequence>/ given by --sequences
         gnss.csv                   optional GNSS fixes (IBISCape gnss.csv) for the figures
         <algorithm>/
+          run.yaml                 optional, every trial of the algorithm: ``align: sim3``
           <trial>/
             <trajectory file>      exactly one (TUM, KITTI [+ <stem>.times.txt], EuRoC, bag, ...)
+            run.yaml               optional, this trial (wins over the algorithm's run.yaml)
 
 Hidden entries (``.name``) are skipped silently; anything else that does not fit is listed in
 :attr:`RunsLayout.ignored` with the reason, so the command line can say what it left out.
@@ -24,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from ibiscape_eval.core.errors import IbiscapeError
+from ibiscape_eval.io.run_meta import RUN_META_NAME, read_run_meta
 
 __all__ = ["RunSpec", "RunsLayout", "SequenceTruth", "discover_runs", "natural_key"]
 
@@ -40,13 +43,19 @@ def natural_key(text: str) -> tuple[Any, ...]:
 
 @dataclass(frozen=True)
 class RunSpec:
-    """One estimated trajectory: ``RUNS_DIR/<sequence>/<algorithm>/<trial>/<path>``."""
+    """One estimated trajectory: ``RUNS_DIR/<sequence>/<algorithm>/<trial>/<path>``.
+
+    ``align`` is the alignment its ``run.yaml`` asks for (None: none asked), ``meta_path`` that
+    file (the trial's, else the algorithm's).
+    """
 
     sequence: str
     algorithm: str
     trial: str
     path: str
     times_path: str | None = None
+    align: str | None = None
+    meta_path: str | None = None
 
     @property
     def key(self) -> str:
@@ -107,7 +116,7 @@ def _is_bag_folder(p: Path) -> bool:
 
 def _trial_file(trial: Path, ignored: list[tuple[str, str]]) -> tuple[Path, Path | None] | None:
     """The one trajectory of a trial folder (and its KITTI times file), or None (ignored)."""
-    entries = _visible(trial)
+    entries = [e for e in _visible(trial) if e.name != RUN_META_NAME]
     if _is_bag_folder(trial):
         return trial, None
     times = {e for e in entries if e.is_file() and e.name.endswith(".times.txt")}
@@ -193,7 +202,11 @@ def discover_runs(
                 ignored.append((str(alg_dir), "a file in a sequence folder that is neither "
                                               "groundtruth.<ext> nor gnss.csv"))
                 continue
+            alg_meta = alg_dir / RUN_META_NAME
+            alg_align = read_run_meta(alg_meta).align if alg_meta.is_file() else None
             for trial_dir in _visible(alg_dir):
+                if trial_dir == alg_meta:
+                    continue
                 if not trial_dir.is_dir():
                     ignored.append((str(trial_dir), "a file in an algorithm folder (expected "
                                                     "<trial>/ folders holding one trajectory)"))
@@ -201,8 +214,14 @@ def discover_runs(
                 found = _trial_file(trial_dir, ignored)
                 if found is not None:
                     est, times = found
+                    align, meta = alg_align, (str(alg_meta) if alg_align else None)
+                    trial_meta = trial_dir / RUN_META_NAME
+                    if trial_meta.is_file() and not _is_bag_folder(trial_dir):
+                        own = read_run_meta(trial_meta).align
+                        if own is not None:
+                            align, meta = own, str(trial_meta)
                     seq_runs.append(RunSpec(seq, alg_dir.name, trial_dir.name, str(est),
-                                            None if times is None else str(times)))
+                                            None if times is None else str(times), align, meta))
         if not seq_runs:
             ignored.append((str(seq_dir), "sequence folder without any <algorithm>/<trial>/"
                                           "<trajectory> run"))

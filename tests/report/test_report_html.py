@@ -77,3 +77,26 @@ def test_the_check_reports_console_errors(chromium, tmp_path) -> None:
     res = check_page(bad, chromium=chromium)
     assert any("deliberate failure" in m for m in res.console)
     assert any("undefinedCall" in m for m in res.console)
+
+
+@pytest.mark.parametrize("width", [500, 1600])  # 500: headless Chromium's narrowest
+def test_nothing_overflows_the_page_at_narrow_and_wide_viewports(chromium, report_dir,
+                                                                 width) -> None:
+    from ibiscape_eval.report.browser import page_overflow
+
+    res = page_overflow(report_dir / "report.html", width=width, chromium=chromium)
+    assert res.viewport_px == width
+    # the page is never wider than the window; a wide table scrolls inside its own box
+    assert res.page_width_px <= width, res
+    assert res.offenders == (), res
+
+
+def test_the_overflow_check_catches_a_wide_page(chromium, tmp_path) -> None:
+    from ibiscape_eval.report.browser import page_overflow
+
+    wide = tmp_path / "wide.html"
+    wide.write_text('<!DOCTYPE html><html><head><meta charset="utf-8"><title>t</title></head>'
+                    '<body><table><tr>' + "<td>0.123456789&nbsp;±&nbsp;0.1</td>" * 30
+                    + "</tr></table></body></html>")
+    res = page_overflow(wide, width=500, chromium=chromium)
+    assert res.page_width_px > 500 and res.offenders

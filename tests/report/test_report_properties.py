@@ -58,13 +58,13 @@ def test_csv_round_trips_cells_and_bold_is_the_row_minimum(runs) -> None:
         for m, _ in METRICS:
             vals = {a: c.value(m) for a in t.algorithms
                     if (c := t.cell(s, a)) is not None and c.value(m) is not None}
-            if not vals:
+            if len(vals) < 2:  # nothing to compare with: nothing is best
                 assert not any(t.is_best(s, a, m) for a in t.algorithms)
                 continue
             low = min(round(v, DECIMALS) for v in vals.values())
             assert {a for a in t.algorithms if t.is_best(s, a, m)} == \
                 {a for a, v in vals.items() if round(v, DECIMALS) == low}
-    md = t.to_markdown().splitlines()
+    md = [ln for ln in t.to_markdown().splitlines() if ln.startswith("|")]
     assert len(md) == 2 + len(t.sequences)
     assert all(line.count(" | ") == md[0].count(" | ") for line in md[2:])
 
