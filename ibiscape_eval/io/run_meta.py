@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 from ibiscape_eval.core.errors import FormatError
 
-from .paths import safe_yaml
+from .yaml_file import read_yaml
 
 __all__ = ["RUN_META_ALIGNMENTS", "RUN_META_NAME", "RunMeta", "read_run_meta"]
 
@@ -44,7 +44,7 @@ def read_run_meta(path: str | os.PathLike[str]) -> RunMeta:
         Not valid YAML, not a mapping, an unknown key or an unknown alignment (the message names
         the file and the accepted values).
     """
-    doc = safe_yaml(path, what="run.yaml")
+    doc = read_yaml(path, what="run.yaml")
     if doc is None:
         return RunMeta(str(path))
     if not isinstance(doc, dict):
