@@ -33,7 +33,16 @@ from ibiscape_eval.core.errors import CalibrationError, IbiscapeError, IbiscapeW
 
 from .initial import FramePoses, align_rotations, frame_poses, integrate_gyro
 from .inputs import CameraObservations, ImuData, ImuNoiseDensities
-from .problem import CameraBlock, Problem, State, camera_block, cost, imu_block, normal_equations
+from .problem import (
+    CameraBlock,
+    Problem,
+    State,
+    camera_block,
+    cost,
+    estimate_covariance,
+    imu_block,
+    normal_equations,
+)
 from .result import CameraImuCalibration, Excitation, ImuCameraResult, ResidualSeries
 from .spline import basis, exp_so3, position, rotation
 
@@ -650,12 +659,15 @@ def _result(prob: Problem, st: State, H: Any, exc: Excitation, warn: list[str], 
     Hs = sp.csc_matrix(H) + sp.identity(prob.n_params, format="csc") * 1e-12
     E = np.zeros((prob.n_params, gl.size))
     E[gl, np.arange(gl.size)] = 1.0
-    cov = _factor(prob, Hs).solve(E)[gl]
+    fac = _factor(prob, Hs)
+    plain = fac.solve(E)[gl]
+    cov, scales = estimate_covariance(prob, st, fac.solve, gl)
     r_imu, _, _, _ = imu_block(prob, st, jac=False)
     n_res = r_imu.size
     chi2 = float(np.sum(r_imu**2))
     cams = []
     reproj = {}
+    plain_sd: dict[str, list[float]] = {}
     for c in range(C):
         rc, _, _, valid = camera_block(prob, st, c, jac=False)
         chi2 += float(np.sum(rc**2))
@@ -664,6 +676,7 @@ def _result(prob: Problem, st: State, H: Any, exc: Excitation, warn: list[str], 
         k = 2 + w * c
         cc = cov[k : k + 7, k : k + 7]
         var = np.clip(np.diag(cc), 0.0, None)
+        plain_sd[prob.cams[c].name] = np.sqrt(np.clip(np.diag(plain[k : k + 7, k : k + 7]), 0, None)).tolist()
         R_ci = st.R_ci[c]
         cov_pos = R_ci.T @ cc[3:6, 3:6] @ R_ci  # position of the camera in the IMU frame (linear part)
         T = np.eye(4)
@@ -705,5 +718,6 @@ def _result(prob: Problem, st: State, H: Any, exc: Excitation, warn: list[str], 
         float(np.sqrt(np.mean((r_imu[:, :3] * prob.sigma_gyro) ** 2))),
         float(np.sqrt(np.mean((r_imu[:, 3:] * prob.sigma_accel) ** 2))),
         chi2_dof, iterations, converged, forced, tuple(warn), prob.dt_s,
-        time.perf_counter() - t_start, res)
+        time.perf_counter() - t_start, res,
+        {"method": "sandwich", **scales, "std_plain": plain_sd})
 
