@@ -30,6 +30,7 @@ are reduced first).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
@@ -421,8 +422,8 @@ def normal_equations(prob: Problem, st: State) -> tuple[Any, FloatArray, float]:
 
 
 def estimate_covariance(prob: Problem, st: State, solve: Callable[[FloatArray], FloatArray],
-                        columns: IntArray, *, n_probe: int = 16, chunk: int = 2048
-                        ) -> tuple[FloatArray, dict[str, Any]]:
+                        columns: IntArray, *, n_probe: int = 16, chunk: int = 2048,
+                        block_s: float = 1.0) -> tuple[FloatArray, dict[str, Any]]:
     """Covariance of the least-squares estimate of the parameters ``columns``, with the noise the
     residuals show rather than the noise the weights assume (a sandwich estimator).
 
@@ -445,8 +446,16 @@ def estimate_covariance(prob: Problem, st: State, solve: Callable[[FloatArray], 
       Its contribution is summed exactly over the walk's increments (reverse cumulative sums of
       ``G`` within each knot interval).
 
+    Errors that the model takes for white but that are correlated over a fraction of a second
+    to a second (a detector's bias that follows the board's slowly changing pose in the image,
+    motion faster than the knots) are not in either term.  They are measured from the residuals
+    by batch means: the scores ``G_i^T r_i`` of all residuals (IMU and cameras) are summed over
+    blocks of ``block_s`` seconds, and ``B / (B - 1) sum_b U_b U_b^T`` (``B`` blocks) is a
+    covariance that holds whatever the correlation within a block.  Per parameter the larger of
+    the two variances is reported (with the model's correlations).
+
     Returns the (k, k) covariance and ``{"residual_scale": {group: variance ratio},
-    "dof_absorbed": {group: p_g}}``.
+    "dof_absorbed": {group: p_g}, "batch_means_ratio": [std ratio per column]}``.
     """
     n_par = prob.n_params
     k = columns.size
@@ -463,11 +472,16 @@ def estimate_covariance(prob: Problem, st: State, solve: Callable[[FloatArray], 
 
     r_imu, _, _, _ = imu_block(prob, st, jac=False)
     n = r_imu.shape[0]
+    t_lo = float(prob.pieces[0][0])
+    n_blocks = max(1, math.ceil((float(prob.imu_t_s.max(initial=t_lo)) - t_lo) / block_s) + 1)
+    U = np.zeros((n_blocks + 1, k))  # batch-means scores per block of time
     A_imu = np.empty((n, 6, W.shape[1]))
     for a in range(0, n, chunk):
         sl = slice(a, min(n, a + chunk))
         _, J, cols, _ = _imu_rows(prob, st, sl)
         A_imu[sl] = J @ W[cols]
+    blk = np.clip(((prob.imu_t_s - t_lo) / block_s).astype(np.int64), 0, n_blocks)
+    np.add.at(U, blk, np.einsum("nak,na->nk", A_imu[..., :k], r_imu))
     groups: list[tuple[str, float, float, float, FloatArray]] = []  # name, SSR, rows, p_g, G^T G
     for name, ax in (("gyro", slice(0, 3)), ("accel", slice(3, 6))):
         GtG, p_abs = part(A_imu[:, ax].reshape(-1, W.shape[1]))
@@ -478,8 +492,12 @@ def estimate_covariance(prob: Problem, st: State, solve: Callable[[FloatArray], 
         F = Jc.shape[0]
         Jf = Jc.reshape(F, -1, Jc.shape[-1])  # (F, 2M, 31 [+ 4])
         GtG, p_abs = np.zeros((k, k)), 0.0
+        rf = rc.reshape(F, -1)
+        blk = np.clip(((prob.cams[c].t_s + st.shift_s[c] - t_lo) / block_s).astype(np.int64), 0, n_blocks)
         for a in range(0, F, 64):
-            g, pa = part((Jf[a:a + 64] @ W[colc[a:a + 64]]).reshape(-1, W.shape[1]))
+            Af = Jf[a:a + 64] @ W[colc[a:a + 64]]
+            np.add.at(U, blk[a:a + 64], np.einsum("frk,fr->fk", Af[..., :k], rf[a:a + 64]))
+            g, pa = part(Af.reshape(-1, W.shape[1]))
             GtG += g
             p_abs += pa
         groups.append((f"cam{c}", float(np.sum(rc**2)), 2.0 * int(valid.sum()), p_abs, GtG))
@@ -509,7 +527,17 @@ def estimate_covariance(prob: Problem, st: State, solve: Callable[[FloatArray], 
     _, Jp, colp = prior_block(prob, st)
     Gp = np.einsum("nj,njk->nk", Jp, W[colp, :k])
     cov += Gp.T @ Gp
-    return 0.5 * (cov + cov.T), info
+    cov = 0.5 * (cov + cov.T)
+    used = np.flatnonzero(np.any(U != 0, axis=1))
+    B = used.size
+    if B >= 4:
+        Ub = U[used]
+        cov_bm = B / (B - 1) * (Ub.T @ Ub)
+        ratio = np.sqrt(np.diag(cov_bm) / np.maximum(np.diag(cov), 1e-300))
+        info["batch_means_ratio"] = ratio.tolist()
+        f = np.maximum(ratio, 1.0)
+        cov = cov * np.outer(f, f)
+    return cov, info
 
 
 def _imu_rows(prob: Problem, st: State, sl: slice
