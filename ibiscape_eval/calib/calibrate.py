@@ -116,6 +116,9 @@ class CameraCalibration:
     corners_px: FloatArray
     view_rms_px: dict[int, float]
     n_rejected: int
+    #: covariance (8, 8) of ``fx, fy, cx, cy`` and the distortion coefficients (what ``std`` is
+    #: the square root of the diagonal of); e.g. for ``calibrate_imu_camera``'s propagation
+    covariance: FloatArray | None = None
 
     def to_dict(self) -> dict[str, Any]:
         d = self.camera.to_kalibr()
@@ -761,7 +764,7 @@ def calibrate(target: CalibrationTarget, observations: Sequence[Observations], *
             o.name, cam, {"intrinsics": [float(v) for v in sd[:4]],
                           "distortion_coeffs": [float(v) for v in sd[4:]]},
             ResidualStats.of(r, len(view_rms)), r.copy(), prob.uv[sel].copy(), view_rms,
-            int((~keep & (full.cam_i == n)).sum())))
+            int((~keep & (full.cam_i == n)).sum()), cov[8 * n:8 * n + 8, 8 * n:8 * n + 8].copy()))
     Ts, Tstd, base, base_sd = [], [], [], []
     for k in range(len(cams) - 1):
         T = _T(chain[k, :3], chain[k, 3:])

@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 import time
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
 from typing import Any
 
@@ -276,6 +276,7 @@ def calibrate_imu_camera(
     keep_residuals: bool = True,
     reweight_cameras: bool = True,
     estimate_corner_noise: bool = False,
+    intrinsics_covariance: Mapping[str, npt.ArrayLike] | None = None,
     progress: Progress | None = None,
 ) -> ImuCameraResult:
     """Estimate ``T_cam_imu`` and ``timeshift_cam_imu`` of every camera, jointly.
@@ -317,6 +318,10 @@ def calibrate_imu_camera(
     estimate_corner_noise : bool
         Solve once with ``sigma_px``, then weigh every camera by its own reprojection RMS (at
         least 0.02 px) and solve again.
+    intrinsics_covariance : mapping camera name -> (8, 8) array, optional
+        Covariance of ``fx, fy, cx, cy`` and the distortion coefficients from the camera
+        calibration the intrinsics come from (``CameraCalibration.covariance``); the error of the
+        parameters held in the solve is propagated into the reported standard deviations.
     progress : callable(fraction, label), optional
 
     Returns
@@ -489,8 +494,11 @@ def calibrate_imu_camera(
                     "frames, e.g. reconstructed from events); weighed down accordingly, its "
                     "extrinsics and offset may be off by more than their std")
     step(0.95, "covariance")
+    icov = {c: np.asarray(intrinsics_covariance[cb.name], dtype=np.float64)
+            for c, cb in enumerate(prob.cams)
+            if intrinsics_covariance is not None and cb.name in intrinsics_covariance}
     result = _result(prob, st, H, exc, warn, iterations, converged, force, t_start,
-                     observations, keep_residuals)
+                     observations, keep_residuals, icov)
     for text in result.warnings:
         warnings.warn(text, IbiscapeWarning, stacklevel=2)
     step(1.0, "done")
@@ -650,7 +658,8 @@ def _solve(prob: Problem, st: State, max_iterations: int, step: Callable[[float,
 
 def _result(prob: Problem, st: State, H: Any, exc: Excitation, warn: list[str], iterations: int,
             converged: bool, forced: bool, t_start: float, observations: Sequence[CameraObservations],
-            keep_residuals: bool) -> ImuCameraResult:
+            keep_residuals: bool, intrinsics_cov: dict[int, FloatArray] | None = None
+            ) -> ImuCameraResult:
     import scipy.sparse as sp
 
     C = len(prob.cams)
@@ -661,7 +670,7 @@ def _result(prob: Problem, st: State, H: Any, exc: Excitation, warn: list[str], 
     E[gl, np.arange(gl.size)] = 1.0
     fac = _factor(prob, Hs)
     plain = fac.solve(E)[gl]
-    cov, scales = estimate_covariance(prob, st, fac.solve, gl)
+    cov, scales = estimate_covariance(prob, st, fac.solve, gl, intrinsics_cov=intrinsics_cov or None)
     r_imu, _, _, _ = imu_block(prob, st, jac=False)
     n_res = r_imu.size
     chi2 = float(np.sum(r_imu**2))

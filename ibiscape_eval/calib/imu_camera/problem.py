@@ -423,7 +423,8 @@ def normal_equations(prob: Problem, st: State) -> tuple[Any, FloatArray, float]:
 
 def estimate_covariance(prob: Problem, st: State, solve: Callable[[FloatArray], FloatArray],
                         columns: IntArray, *, n_probe: int = 16, chunk: int = 2048,
-                        block_s: float = 1.0) -> tuple[FloatArray, dict[str, Any]]:
+                        block_s: float = 1.0, intrinsics_cov: dict[int, FloatArray] | None = None
+                        ) -> tuple[FloatArray, dict[str, Any]]:
     """Covariance of the least-squares estimate of the parameters ``columns``, with the noise the
     residuals show rather than the noise the weights assume (a sandwich estimator).
 
@@ -454,6 +455,12 @@ def estimate_covariance(prob: Problem, st: State, solve: Callable[[FloatArray], 
     covariance that holds whatever the correlation within a block.  Per parameter the larger of
     the two variances is reported (with the model's correlations).
 
+    Intrinsics held in the solve (the distortion; all eight when they are not refined) are
+    known only as well as the camera calibration they come from: with ``intrinsics_cov[c]``
+    (8x8, ``fx, fy, cx, cy, d0..d3``) their error propagates as ``S Cov_held S^T`` with the
+    response ``S = -G^T J_held`` (central differences of the projection).  On the 24 s rendered
+    drive with its own camera calibration this term is most of the error (0.44 deg, 45 mm).
+
     Returns the (k, k) covariance and ``{"residual_scale": {group: variance ratio},
     "dof_absorbed": {group: p_g}, "batch_means_ratio": [std ratio per column]}``.
     """
@@ -483,6 +490,7 @@ def estimate_covariance(prob: Problem, st: State, solve: Callable[[FloatArray], 
     blk = np.clip(((prob.imu_t_s - t_lo) / block_s).astype(np.int64), 0, n_blocks)
     np.add.at(U, blk, np.einsum("nak,na->nk", A_imu[..., :k], r_imu))
     groups: list[tuple[str, float, float, float, FloatArray]] = []  # name, SSR, rows, p_g, G^T G
+    held_cov = np.zeros((k, k))
     for name, ax in (("gyro", slice(0, 3)), ("accel", slice(3, 6))):
         GtG, p_abs = part(A_imu[:, ax].reshape(-1, W.shape[1]))
         groups.append((name, float(np.sum(r_imu[:, ax] ** 2)), 3.0 * n, p_abs, GtG))
@@ -500,10 +508,20 @@ def estimate_covariance(prob: Problem, st: State, solve: Callable[[FloatArray], 
             g, pa = part(Af.reshape(-1, W.shape[1]))
             GtG += g
             p_abs += pa
+        if intrinsics_cov is not None and c in intrinsics_cov:
+            held = np.arange(4 if prob.n_intr else 0, 8)
+            Jh = camera_param_jacobian(prob, st, c)[..., held].reshape(F, -1, held.size)
+            S = np.zeros((k, held.size))
+            for a in range(0, F, 64):
+                Gf = (Jf[a:a + 64] @ W[colc[a:a + 64], :k])
+                S -= np.einsum("frk,frh->kh", Gf, Jh[a:a + 64])
+            Ch = np.asarray(intrinsics_cov[c], dtype=np.float64)[np.ix_(held, held)]
+            held_cov += S @ Ch @ S.T
         groups.append((f"cam{c}", float(np.sum(rc**2)), 2.0 * int(valid.sum()), p_abs, GtG))
     cov = np.zeros((k, k))
     info: dict[str, Any] = {"residual_scale": {}, "dof_absorbed": {}}
     for name, ssr, rows, p_abs, GtG in groups:
+        p_abs = min(max(p_abs, 0.0), rows)  # a probe estimate: keep it inside [0, rows]
         s2 = ssr / (rows - p_abs) if rows - p_abs > 1 else 1.0
         info["residual_scale"][name] = s2
         info["dof_absorbed"][name] = p_abs
@@ -527,10 +545,12 @@ def estimate_covariance(prob: Problem, st: State, solve: Callable[[FloatArray], 
     _, Jp, colp = prior_block(prob, st)
     Gp = np.einsum("nj,njk->nk", Jp, W[colp, :k])
     cov += Gp.T @ Gp
-    cov = 0.5 * (cov + cov.T)
+    cov = 0.5 * (cov + cov.T) + 0.5 * (held_cov + held_cov.T)
+    if intrinsics_cov:
+        info["held_intrinsics_share"] = (np.diag(held_cov) / np.maximum(np.diag(cov), 1e-300)).tolist()
     used = np.flatnonzero(np.any(U != 0, axis=1))
     B = used.size
-    if B >= 4:
+    if B >= 4:  # batch means: a second estimate of the whole; the larger variance is kept
         Ub = U[used]
         cov_bm = B / (B - 1) * (Ub.T @ Ub)
         ratio = np.sqrt(np.diag(cov_bm) / np.maximum(np.diag(cov), 1e-300))
@@ -538,6 +558,32 @@ def estimate_covariance(prob: Problem, st: State, solve: Callable[[FloatArray], 
         f = np.maximum(ratio, 1.0)
         cov = cov * np.outer(f, f)
     return cov, info
+
+
+def camera_param_jacobian(prob: Problem, st: State, c: int, *, h: float = 1e-6) -> FloatArray:
+    """Whitened reprojection residuals of camera ``c`` differentiated by its intrinsics
+    ``fx, fy, cx, cy, d0..d3`` (F, M, 2, 8); zero on padding (central differences)."""
+    cb = prob.cams[c]
+    base, u, inside = prob.locate(cb.t_s + st.shift_s[c])
+    idx = base[:, None] + _ARANGE4
+    R, _ = rotation(st.R_ctrl[idx], u, prob.dt_s, angular_velocity=False)
+    p, _, _ = position(st.P_ctrl[idx], u, prob.dt_s)
+    pc = ((cb.X - p[:, None, :]) @ R) @ st.R_ci[c].T + st.t_ci[c]
+    valid = (cb.mask > 0) & inside[:, None] & (pc[..., 2] > 1e-3)
+    pcv = np.where(valid[..., None], pc, np.array([0.0, 0.0, 1.0]))
+    cam = st.camera(prob, c)
+    x0 = np.array([cam.fx, cam.fy, cam.cx, cam.cy, *cam.coeffs])
+    out = np.zeros((*valid.shape, 2, 8))
+    for j in range(8):
+        step = h * max(abs(float(x0[j])), 1.0)
+        uv = []
+        for sgn in (1.0, -1.0):
+            x = x0.copy()
+            x[j] += sgn * step
+            uv.append(replace(cam, fx=float(x[0]), fy=float(x[1]), cx=float(x[2]), cy=float(x[3]),
+                              coeffs=(float(x[4]), float(x[5]), float(x[6]), float(x[7]))).project(pcv))
+        out[..., j] = (uv[0] - uv[1]) / (2 * step)
+    return out * (valid[..., None, None] / prob.cam_sigma_px(c))
 
 
 def _imu_rows(prob: Problem, st: State, sl: slice
