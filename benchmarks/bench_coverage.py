@@ -19,7 +19,8 @@ std is conservative.  Camera calibration: stereo pair, 480x360 radtan cameras
 (``--view-offset``: plus an offset per view and camera of the same size, a detector error shared
 by a view's corners; ``--rendered``: the board rendered and detected).  Camera-IMU: the
 simulator's svi calibration drive (bumps), corners projected with 0.2 px noise, the default IMU
-noise; ``--misweighted``: ``imu.yaml`` densities 4x the truth and ``sigma_px`` 2x the corner noise
+noise; ``--intrinsics-error``: each camera's intrinsics off by a draw from ``INTR_COV``, focal
+lengths and principal point refined, the covariance given; ``--misweighted``: ``imu.yaml`` densities 4x the truth and ``sigma_px`` 2x the corner noise
 (Kalibr advises inflating the densities of real IMUs).  ``--seq``: ``calibrate_sequence`` on a
 rendered drive (``--make-drive`` writes one like ``examples/calibrate_imu_camera.py``'s: board
 frames at 10 Hz, 384 px), every parameter's error beside the std before and after.
@@ -39,6 +40,10 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 SHIFTS = {"rgbL": 0.0123, "rgbR": -0.0171}
+#: --intrinsics-error: the intrinsics' covariance (fx, fy, cx, cy [px], k1, k2, p1, p2)
+_SD = np.array([0.5, 0.5, 0.5, 0.5, 1e-2, 1e-2, 1e-3, 1e-3])
+INTR_COV = np.diag(_SD**2)
+INTR_COV[4, 5] = INTR_COV[5, 4] = -0.5 * _SD[4] * _SD[5]
 
 
 def coverage_table(rows: dict[str, dict[str, list[np.ndarray]]]) -> None:
@@ -158,11 +163,23 @@ def imu(a: argparse.Namespace) -> None:
         sc = calibration_scene(simulate_calibration(cfg, timeshifts_s=SHIFTS), noise_px=0.2,
                                min_spacing_px=4.0)
         noise, sigma_px = sc.noise, 0.2
+        obs, icov, refine = sc.observations, None, False
+        if a.intrinsics_error:  # intrinsics drawn from INTR_COV, focal/principal point refined
+            rng = np.random.default_rng(100 + seed)
+            L = np.linalg.cholesky(INTR_COV)
+            obs = []
+            for o in sc.observations:
+                d = L @ rng.normal(size=8)
+                obs.append(replace(o, camera=replace(
+                    o.camera, fx=o.camera.fx + d[0], fy=o.camera.fy + d[1], cx=o.camera.cx + d[2],
+                    cy=o.camera.cy + d[3], coeffs=tuple(float(v) for v in d[4:]))))
+            icov, refine = {o.name: INTR_COV for o in obs}, True
         if a.misweighted:
             noise = replace(noise, gyro_noise_density_rad_s_sqrt_hz=4 * noise.gyro_noise_density_rad_s_sqrt_hz,
                             accel_noise_density_m_s2_sqrt_hz=4 * noise.accel_noise_density_m_s2_sqrt_hz)
             sigma_px = 0.4
-        res = calibrate_imu_camera(sc.observations, sc.imu, noise, sc.corners_target_m, sigma_px=sigma_px)
+        res = calibrate_imu_camera(obs, sc.imu, noise, sc.corners_target_m, sigma_px=sigma_px,
+                                   refine_intrinsics=refine, intrinsics_covariance=icov)
         errs = imu_errors(res, sc.T_cam_imu, sc.timeshift_cam_imu_s)
         _imu_rows(rows, errs)
         if a.verbose:
@@ -171,6 +188,7 @@ def imu(a: argparse.Namespace) -> None:
     print(f"camera-IMU calibration, {a.seeds} seeds, svi drive {a.duration_s:g} s with bumps, stereo "
           f"{a.size} px at {a.rate_hz:g} Hz, 0.2 px corners"
           + (", imu.yaml densities 4x and sigma_px 2x the truth" if a.misweighted else "")
+          + (", intrinsics drawn from INTR_COV (distortion held)" if a.intrinsics_error else "")
           + f"; CPU {time.process_time() - t0:.0f} s")
     coverage_table(rows)
 
@@ -220,6 +238,8 @@ def main() -> None:
     ap.add_argument("--noise-px", type=float, default=0.1)
     ap.add_argument("--imu", action="store_true")
     ap.add_argument("--misweighted", action="store_true")
+    ap.add_argument("--intrinsics-error", action="store_true", help="--imu: intrinsics off by a "
+                    "draw from INTR_COV, given as intrinsics_covariance")
     ap.add_argument("--seeds", type=int, default=16)
     ap.add_argument("--duration-s", type=float, default=12.0)
     ap.add_argument("--size", type=int, default=384)
