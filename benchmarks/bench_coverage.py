@@ -163,7 +163,8 @@ def imu(a: argparse.Namespace) -> None:
         sc = calibration_scene(simulate_calibration(cfg, timeshifts_s=SHIFTS), noise_px=0.2,
                                min_spacing_px=4.0)
         noise, sigma_px = sc.noise, 0.2
-        obs, icov, refine = sc.observations, None, False
+        obs: Any = sc.observations
+        icov, refine = None, False
         if a.intrinsics_error:  # intrinsics drawn from INTR_COV, focal/principal point refined
             rng = np.random.default_rng(100 + seed)
             L = np.linalg.cholesky(INTR_COV)

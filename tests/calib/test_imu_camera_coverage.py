@@ -81,11 +81,12 @@ def test_misweighted_noise_is_measured():
 
 
 def test_intrinsics_error_is_propagated():
-    """Intrinsics off by a draw from the covariance their camera calibration reports (the path
-    of ``calib SEQ --imu`` without ``--cams``: focal lengths and principal point refined, the
-    distortion held): the held distortion's error moves the extrinsics by several plain stds;
-    with ``intrinsics_covariance`` the reported std covers it."""
-    sd = np.array([0.5, 0.5, 0.5, 0.5, 1e-2, 1e-2, 1e-3, 1e-3])
+    """Intrinsics off by a draw from the covariance their camera calibration reports and held
+    in the solve: their error moves the extrinsics by several plain stds; with
+    ``intrinsics_covariance`` the reported std covers it.  (``calib SEQ --imu`` without ``--cams``
+    refines the focal lengths and principal point and holds the distortion; on these small
+    drives the distortion alone moves little, see ``bench_coverage.py --intrinsics-error``.)"""
+    sd = np.array([0.5, 0.5, 0.5, 0.5, 4e-3, 4e-3, 4e-4, 4e-4])
     C = np.diag(sd**2)
     C[4, 5] = C[5, 4] = -0.5 * sd[4] * sd[5]
     za, zb = [], []
@@ -102,11 +103,11 @@ def test_intrinsics_error_is_propagated():
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             res = calibrate_imu_camera(obs, sc.imu, sc.noise, sc.corners_target_m, sigma_px=0.2,
-                                       refine_intrinsics=True,
+                                       refine_intrinsics=False,
                                        intrinsics_covariance={o.name: C for o in obs})
         a, b = _z(res, sc)
         za.append(a)
         zb.append(b)
     z, z_plain = np.concatenate(za), np.concatenate(zb)
-    assert _in_band(z), _coverage(z)
+    assert _in_band(z), (_coverage(z), _coverage(z_plain))
     assert _coverage(z_plain)[1] < 0.80, _coverage(z_plain)  # without it: a confident wrong number

@@ -63,6 +63,14 @@ ABS_COST_TOL = 0.01
 NOISY_CAMERA_RATIO = 1.5
 #: the least corner noise an estimated weight assumes [px]
 MIN_SIGMA_PX = 0.02
+#: factor on the reported rotation std beyond the sandwich covariance (:func:`.problem.
+#: estimate_covariance`): measured by ``benchmarks/bench_coverage.py --imu`` on the simulator's
+#: 12 s drives (16 seeds default noise, 8 with misweighted noise, 16 with intrinsics errors; 240
+#: rotation errors): the rotation's 1-sigma covered 58-66 % (median |z| / 0.6745 = 1.06, 1.14,
+#: 1.10) while translation and time offset were conservative (0.73-1.05, left as they are).  The
+#: rotation's remaining excess is not modelled (candidates: the spline's rotation between knots,
+#: the linearisation of the gyroscope residuals).
+ROTATION_STD_INFLATION = 1.1
 
 
 def _check_inputs(observations: Sequence[CameraObservations], imu: ImuData,
@@ -693,7 +701,7 @@ def _result(prob: Problem, st: State, H: Any, exc: Excitation, warn: list[str], 
         T[:3, 3] = st.t_ci[c]
         cams.append(CameraImuCalibration(
             prob.cams[c].name, st.camera(prob, c), T, float(st.shift_s[c]),
-            np.degrees(np.sqrt(var[:3])), np.sqrt(var[3:6]),
+            ROTATION_STD_INFLATION * np.degrees(np.sqrt(var[:3])), np.sqrt(var[3:6]),
             np.sqrt(np.clip(np.diag(cov_pos), 0.0, None)), float(math.sqrt(var[6])),
             float(np.sqrt(np.mean(np.sum(e_px**2, axis=1)))) if len(e_px) else float("nan"),
             int(valid.any(axis=1).sum()), int(valid.sum())))
@@ -728,5 +736,8 @@ def _result(prob: Problem, st: State, H: Any, exc: Excitation, warn: list[str], 
         float(np.sqrt(np.mean((r_imu[:, 3:] * prob.sigma_accel) ** 2))),
         chi2_dof, iterations, converged, forced, tuple(warn), prob.dt_s,
         time.perf_counter() - t_start, res,
-        {"method": "sandwich", **scales, "std_plain": plain_sd})
+        {"method": "sandwich: per-group residual variance, bias random-walk bridge, batch means "
+         "(1 s), held intrinsics", **scales,
+         "inflation": {"rotation": ROTATION_STD_INFLATION, "translation": 1.0, "timeshift": 1.0},
+         "std_plain": plain_sd})
 
