@@ -15,8 +15,9 @@ Pipeline (one function, :func:`calibrate`):
    :class:`~ibiscape_eval.core.camera.CameraModel`), a target pose per view in camera 0 and the
    chain ``T_cn_cnm1``.  Corners whose residual exceeds ``outlier_sigma`` robust standard
    deviations are removed and the problem re-solved until none is.
-4. Parameter standard deviations from the Gauss-Newton covariance ``s^2 (J^T J)^-1`` with
-   ``s^2 = SSR / (m - p)``.
+4. Parameter standard deviations from sandwich covariances around ``(J^T J)^-1``: the larger, per
+   parameter, of one with each camera's own residual variance and a per-view cluster-robust one
+   (:func:`_covariance`; coverage measured by ``benchmarks/bench_coverage.py --camera``).
 """
 
 from __future__ import annotations

@@ -5,8 +5,10 @@ IMU pose ``T_target_imu(t)`` is a continuous-time cumulative cubic B-spline on S
 (:mod:`.spline`); gyroscope, accelerometer and reprojection residuals are minimised jointly over the
 spline, gravity in the target frame, slowly varying biases, and each camera's ``T_cam_imu`` and time
 offset (:mod:`.problem`).  The sparse normal equations are solved by a Levenberg-Marquardt loop with
-a sparse LU factorisation; the inverse of ``J^T J`` at the solution gives the parameter standard
-deviations (the residuals are whitened by the IMU densities and the corner noise).
+a sparse LU factorisation.  The standard deviations come from a sandwich covariance around
+``(J^T J)^-1`` with the residuals' measured noise, the bias random walk between knots, a batch-means
+check and the propagated intrinsics' covariance (:func:`.problem.estimate_covariance`), the rotation's
+then inflated by :data:`ROTATION_STD_INFLATION` (coverage: ``benchmarks/bench_coverage.py --imu``).
 
 Initialisation (:mod:`.initial`): per-frame planar PnP (both IPPE solutions), then the time offset
 and ``R_cam_imu`` from the PnP rotations versus the integrated gyroscope (the hand-eye problem
