@@ -17,6 +17,9 @@ and run time.
 stereo DVS (the simulator's DVS model on the exact board images; frames reconstructed from the
 events as in the camera calibration) in one problem, with their own intrinsics
 (``tests/calib/test_imu_camera_dvs.py``'s drive, at a bigger size).
+The std are the reported ones (how they are made and how often they cover the truth:
+``benchmarks/bench_coverage.py``); ``err/std`` is each error in units of its std (rotation rows: truth and estimate as rotation
+vectors, the error about the IMU axes, which the std refers to).
 ``--rendered`` renders the 60 s svi calibration drive with bumps once per (target, offset), one
 clock offset for the synchronised stereo pair (a cached render is reused), and runs the whole
 ``calib SEQ --imu`` on it with the drive's own intrinsics; ``--flat`` also the flat-road drive at
@@ -80,25 +83,29 @@ def one(size: int, bumps: bool, duration_s: float, seed: int, four: bool = False
 
 
 def table(res, T_truth, shift_truth, err) -> None:  # type: ignore[no-untyped-def]
-    """Truth, estimate, error and std per parameter and camera."""
-    print(f"{'camera':<6} {'parameter':<16} {'truth':>12} {'estimate':>12} {'error':>10} {'std':>9}")
+    """Truth, estimate, error, std and error / std per parameter and camera."""
+    print(f"{'camera':<6} {'parameter':<16} {'truth':>12} {'estimate':>12} {'error':>10} {'std':>9} {'err/std':>8}")
     for cal in res.cameras:
         if cal.name not in T_truth:
             continue
         T = np.asarray(T_truth[cal.name], dtype=float)
         rv_true = log_so3(T[:3, :3])
         rv_est = log_so3(cal.T_cam_imu[:3, :3])
+        # the error about the IMU axes (R_est = R_true Exp(e)), the axes the std refers to
+        e_rot = np.degrees(log_so3(T[:3, :3].T @ cal.T_cam_imu[:3, :3]))
         for k, ax in enumerate("xyz"):
             print(f"{cal.name:<6} {'rotvec ' + ax + ' [deg]':<16} {np.degrees(rv_true[k]):12.4f} "
-                  f"{np.degrees(rv_est[k]):12.4f} {np.degrees(rv_est[k] - rv_true[k]):10.4f} "
-                  f"{cal.rotation_std_deg[k]:9.4f}")
+                  f"{np.degrees(rv_est[k]):12.4f} {e_rot[k]:10.4f} "
+                  f"{cal.rotation_std_deg[k]:9.4f} {e_rot[k] / cal.rotation_std_deg[k]:8.2f}")
         for k, ax in enumerate("xyz"):
             print(f"{cal.name:<6} {'t ' + ax + ' [mm]':<16} {T[k, 3] * 1e3:12.2f} "
                   f"{cal.T_cam_imu[k, 3] * 1e3:12.2f} {(cal.T_cam_imu[k, 3] - T[k, 3]) * 1e3:10.2f} "
-                  f"{cal.translation_std_m[k] * 1e3:9.2f}")
+                  f"{cal.translation_std_m[k] * 1e3:9.2f} "
+                  f"{(cal.T_cam_imu[k, 3] - T[k, 3]) / cal.translation_std_m[k]:8.2f}")
         ts = shift_truth[cal.name]
         print(f"{cal.name:<6} {'shift [ms]':<16} {ts * 1e3:12.4f} {cal.timeshift_cam_imu_s * 1e3:12.4f} "
-              f"{(cal.timeshift_cam_imu_s - ts) * 1e3:10.4f} {cal.timeshift_std_s * 1e3:9.4f}")
+              f"{(cal.timeshift_cam_imu_s - ts) * 1e3:10.4f} {cal.timeshift_std_s * 1e3:9.4f} "
+              f"{(cal.timeshift_cam_imu_s - ts) / cal.timeshift_std_s:8.2f}")
         e = err[cal.name]
         print(f"{cal.name:<6} TOTAL rotation {e['rotation_error_deg']:.4f} deg (goal 0.05), translation "
               f"{e['translation_error_m'] * 1e3:.2f} mm (goal 5), time {abs(e['timeshift_error_s']) * 1e3:.4f}"

@@ -150,6 +150,11 @@ def format_report(result: CalibrationResult, truth: TruthComparison | None = Non
         lines.append(f"T_{b}_{a}   t = [{t[0]:.5f}, {t[1]:.5f}, {t[2]:.5f}] m   baseline "
                      f"{1e3 * result.baselines_m[k]:.2f} +- {1e3 * result.baselines_std_m[k]:.2f} mm")
     lines.append(f"rms          {result.rms_px:.4f} px over all cameras")
+    unc = result.extra.get("uncertainty")
+    if unc:
+        lines.append("std          the larger of each camera's own residual variance and a per-view "
+                     "(cluster-robust) estimate"
+                     + (f", x{unc['inflation']:g}" if unc.get("inflation", 1.0) != 1.0 else ""))
     if truth is not None:
         lines.append("")
         lines.append("against ground truth (table:camerasintrinsics)")

@@ -146,6 +146,8 @@ class ImuCameraResult:
     knot_spacing_s: float
     runtime_s: float
     residuals: ResidualSeries | None = None
+    #: how the standard deviations were made (method, measured residual scales, inflation)
+    uncertainty: dict[str, Any] = field(default_factory=dict)
 
     def camera(self, name: str) -> CameraImuCalibration:
         for c in self.cameras:
@@ -169,6 +171,7 @@ class ImuCameraResult:
             "warnings": list(self.warnings),
             "knot_spacing_s": self.knot_spacing_s,
             "runtime_s": _f(self.runtime_s),
+            "uncertainty": self.uncertainty,
         }
 
     def __repr__(self) -> str:

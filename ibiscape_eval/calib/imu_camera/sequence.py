@@ -376,6 +376,7 @@ def calibrate_sequence(sequence: str | os.PathLike[str],
     step(0.45, "intrinsics")
     source: dict[str, str] = {}
     cam_calib: dict[str, Any] | None = None
+    icov: dict[str, Any] = {}  # the camera calibration's intrinsics covariance, propagated
     if camchain is not None:
         source = {n: str(camchain) for n in models}
     else:
@@ -402,6 +403,7 @@ def calibrate_sequence(sequence: str | os.PathLike[str],
                     raise CalibrationError(f"{seq}: the camera calibration of the {what} for the "
                                            f"intrinsics failed ({e}); give --cams camchain.yaml") from None
             models.update({c.name: c.camera for c in cres.cameras})
+            icov.update({c.name: c.covariance for c in cres.cameras if c.covariance is not None})
             cmp = compare_with_truth(cres, truth_from_sequence(doc))
             cam_calib["views"] += int(cres.n_views)
             cam_calib["cameras"] += [{"name": c.name, "camera": c.camera.to_kalibr(),
@@ -427,7 +429,8 @@ def calibrate_sequence(sequence: str | os.PathLike[str],
     try:
         result = calibrate_imu_camera(obs, imu, noise, corners, sigma_px=sigma_px, force=force,
                                       refine_intrinsics=refine, progress=solve_progress,
-                                      estimate_corner_noise=estimate_corner_noise)
+                                      estimate_corner_noise=estimate_corner_noise,
+                                      intrinsics_covariance=icov or None)
     except CalibrationError as e:
         msg = str(e)
         if "update_rate" in msg or "IMU stream" in msg:
