@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import re
 import tempfile
 from collections.abc import Iterable, Mapping
 from pathlib import Path
@@ -138,10 +139,26 @@ def _time_unit(p: Path, layout: ImuLayout, first: np.ndarray) -> ImuLayout:
     return dataclasses.replace(layout, time_unit=unit, time_unit_from=how, notes=notes)
 
 
+_DECIMAL = re.compile(r"\d+\.\d*")
+
+
+def _decimal_ns(col: Any, f: int) -> np.ndarray:
+    """Decimal text ``"1403636579.758555392"`` in a unit of ``f`` ns to exact int64 ns."""
+    parts = col.astype(str).str.strip().str.split(".", n=1, expand=True)
+    if parts.shape[1] != 2 or parts.isna().to_numpy().any():
+        raise ValueError("not all stamps are decimals")
+    digits = len(str(f)) - 1
+    whole = parts[0].astype(np.int64).to_numpy()
+    frac = parts[1].str.ljust(digits, "0").str.slice(0, digits).replace("", "0")
+    return whole * np.int64(f) + frac.astype(np.int64).to_numpy()
+
+
 def _stamps_ns(col: Any, unit: str) -> np.ndarray:
-    """A parsed time column (int64 or float64) to int64 ns."""
+    """A parsed time column (int64, float64 or decimal text) to int64 ns."""
     f = STAMP_UNITS[unit]
     a = np.asarray(col)
+    if a.dtype.kind == "O":
+        return _decimal_ns(col, f)
     if a.dtype.kind in "iu":
         return a.astype(np.int64) * np.int64(f)
     return np.round(a.astype(np.float64) * f)
@@ -196,10 +213,15 @@ def read_imu_csv(p: Path, cols: Mapping[str, str | int], spill_bytes: int,
     try:
         # integer stamps are parsed exactly (float64 would round 1.4e18 ns to 256 ns)
         fields = first_row.split(",")
-        int_time = t_col is not None and fields[t_col].strip().isdigit()
+        t_text = fields[t_col].strip() if t_col is not None else ""
+        int_time = t_col is not None and t_text.isdigit()
+        # decimal stamps (seconds with 9 decimals) are parsed exactly from their text
+        dec_time = t_col is not None and _DECIMAL.fullmatch(t_text) is not None
         dtypes: dict[int, Any] = {i: np.float64 for i in read_cols}
         if int_time:
             dtypes[t_col] = np.int64  # type: ignore[index]
+        elif dec_time:
+            dtypes[t_col] = str  # type: ignore[index]
         reader = pd.read_csv(p, header=None, skiprows=skip,
                              usecols=None if len(read_cols) == n_fields else read_cols,
                              dtype=dtypes, engine="c", chunksize=CHUNK_ROWS, skip_blank_lines=True)
@@ -212,13 +234,19 @@ def read_imu_csv(p: Path, cols: Mapping[str, str | int], spill_bytes: int,
                 raise _diagnose(p, skip + 1 + n, n_fields, used) from None
             if chunk.shape[1] != len(read_cols):
                 raise _diagnose(p, skip + 1 + n, n_fields, used)
-            arr = chunk.to_numpy(dtype=np.float64)
+            try:
+                tcol = None if t_col is None else _stamps_ns(chunk.iloc[:, pos[t_col]], unit)  # type: ignore[index]
+                if dec_time:
+                    chunk = chunk.drop(columns=chunk.columns[pos[t_col]])  # type: ignore[index]
+                    chunk.insert(pos[t_col], "t", 0.0)  # type: ignore[index]
+                arr = chunk.to_numpy(dtype=np.float64)
+            except (ValueError, TypeError):
+                raise _diagnose(p, skip + 1 + n, n_fields, used) from None
             if not np.isfinite(arr[:, u_pos]).all():
                 raise _diagnose(p, skip + 1 + n, n_fields, used)
             data = arr[:, a_pos]
             check_samples(p, data, skip + 1 + n)
-            if timing_acc is not None:
-                tcol = _stamps_ns(chunk.iloc[:, pos[t_col]], unit)  # type: ignore[index]
+            if timing_acc is not None and tcol is not None:
                 if tcol.dtype.kind == "f":
                     check_stamp_dtype(p, tcol)
                 timing_acc.add(tcol)

@@ -33,7 +33,7 @@ __all__ = ["SensorMeans", "check_sensor_layout", "sensor_means"]
 #: tell g from 0 and from 1).
 G_TOLERANCE = 0.15
 #: Below this mean norm (m/s^2) the accelerometer is taken as gravity-compensated.
-NO_GRAVITY_M_S2 = 0.5
+NO_GRAVITY_M_S2 = 2.5
 
 
 @dataclass(frozen=True)
