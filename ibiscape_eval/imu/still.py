@@ -243,7 +243,7 @@ def assess_stillness(samples: np.ndarray | ChunkedSamples, rate_hz: float, *,
     big = np.abs(dw) > 6.0 * math.sqrt(2.0) * explained
     moving = big.any(axis=1)
     frac = float(moving.mean())
-    first = float(np.flatnonzero(moving)[0] * m0 * k / rate_hz) if moving.any() else None
+    first = float((np.flatnonzero(moving)[0] + 1) * m0 * k / rate_hz) if moving.any() else None
     if ratios[i] > MAX_RATIO:
         unit = "rad/s" if i < 3 else "m/s^2"
         what = "accelerometer norm" if i == 6 else names[i]
