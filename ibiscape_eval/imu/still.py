@@ -252,7 +252,10 @@ def assess_stillness(samples: np.ndarray | ChunkedSamples, rate_hz: float, *,
             f"(Allan deviation), {ratios[i]:.3g} x what a still IMU with this noise shows "
             f"(<= {explained[i]:.3g}); {100 * frac:.2g} % of the windows move"
             + (f", first at {first:.4g} s" if first is not None else ""))
-    pad = (lambda a: tuple(float(v) for v in a) + (() if gravity else (math.nan,)))
+
+    def pad(a: np.ndarray) -> tuple[float, ...]:
+        return tuple(float(v) for v in a) + (() if gravity else (math.nan,))
+
     return StillnessReport(
         still=not reasons, tested=True, window_s=m0 * k / rate_hz, short_s=m0 / rate_hz,
         n_windows=n_w, gyro_mean_rad_s=tuple(map(float, g_mean)),

@@ -64,7 +64,7 @@ def test_short_pick_up_in_a_still_record_is_found() -> None:
 
 def test_turning_table_and_wrong_gravity_are_refused() -> None:
     _, g, a = still_imu(duration_s=60.0, seed=4)
-    turning = assess_stillness(_six(g + [0.0, 0.0, 0.3], a), 200.0)
+    turning = assess_stillness(_six(g + np.array([0.0, 0.0, 0.3]), a), 200.0)
     assert not turning.still and "gyro mean 0.3" in turning.reasons[0]
     assert "deg/s" in turning.reasons[0]
     light = assess_stillness(_six(g, a * 0.9), 200.0)

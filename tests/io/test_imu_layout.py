@@ -14,7 +14,7 @@ from ibiscape_eval.core.errors import FormatError
 from ibiscape_eval.io.imu import read_imu
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "imu"))
-from _still_data import still_imu, write_table  # noqa: E402
+from _still_data import still_imu, write_table
 
 F = "%.9g"
 

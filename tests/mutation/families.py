@@ -139,6 +139,31 @@ def _imu_csv_seed(folder: Path) -> Path:
     return p
 
 
+def _imu_named_csv_seed(folder: Path) -> Path:
+    """Accelerometer first, columns found by header name, stamps in seconds (issue 22)."""
+    s, g, a = _imu_arrays()
+    p = folder / "imu_named.csv"
+    rows = [f"{t // 10**9}.{t % 10**9:09d}," + ",".join(f"{v:.9g}" for v in (*ai, *gi))
+            for t, ai, gi in zip(s.tolist(), a, g, strict=True)]
+    p.write_text("\n".join(["time,acc_x,acc_y,acc_z,gyro_x,gyro_y,gyro_z", *rows]) + "\n")
+    return p
+
+
+def _imu_rostopic_seed(folder: Path) -> Path:
+    """A ``rostopic echo -p`` CSV: text frame_id, covariances, ns stamps (issue 22)."""
+    s, g, a = _imu_arrays()
+    p = folder / "imu_rostopic.csv"
+    head = ["%time", "field.header.seq", "field.header.stamp", "field.header.frame_id",
+            *[f"field.orientation.{c}" for c in "xyzw"],
+            *[f"field.angular_velocity.{c}" for c in "xyz"],
+            *[f"field.linear_acceleration.{c}" for c in "xyz"],
+            *[f"field.linear_acceleration_covariance{i}" for i in range(3)]]
+    rows = [f"{t + 777},{i},{t},imu4,0,0,0,1," + ",".join(f"{v:.9g}" for v in (*gi, *ai))
+            + ",0,0,0" for i, (t, gi, ai) in enumerate(zip(s.tolist(), g, a, strict=True))]
+    p.write_text("\n".join([",".join(head), *rows]) + "\n")
+    return p
+
+
 def _imu_npy_seed(folder: Path) -> Path:
     s, g, a = _imu_arrays()
     p = folder / "imu.npy"
@@ -336,6 +361,9 @@ FAMILIES: dict[str, Family] = {
     "imu_csv": Family(_imu_csv_seed, lambda p, o: ["allan", str(p), "--json", "--csv",
                                                    str(o / "curves.csv")]),
     "imu_npy": Family(_imu_npy_seed, lambda p, o: ["allan", str(p), "--json"], text=False),
+    "imu_named_csv": Family(_imu_named_csv_seed, lambda p, o: ["allan", str(p), "--json", "--csv",
+                                                               str(o / "curves.csv")]),
+    "imu_rostopic_csv": Family(_imu_rostopic_seed, lambda p, o: ["allan", str(p), "--json"]),
     "imu_npz": Family(_imu_npz_seed, lambda p, o: ["allan", str(p), "--json"], text=False),
     "events_npz": Family(_events_npz_seed, lambda p, o: ["hotpix", str(p), "--json", "--hot-out",
                                                          str(o / "hot.txt")], text=False),

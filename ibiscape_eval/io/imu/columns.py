@@ -18,10 +18,10 @@ magnitude of epoch stamps, else from the sample interval (:func:`stamp_unit`).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 from collections.abc import Mapping, Sequence
-import dataclasses
 from dataclasses import dataclass
 from typing import Any
 

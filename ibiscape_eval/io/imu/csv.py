@@ -15,7 +15,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ibiscape_eval.core.errors import FormatError, IbiscapeError
-from ibiscape_eval.core.imu import AXES, CHUNK_ROWS, ImuRecord
+from ibiscape_eval.core.imu import CHUNK_ROWS, ImuRecord
 
 from .._text import write_table
 from ..atomic import atomic_write
@@ -235,7 +235,7 @@ def read_imu_csv(p: Path, cols: Mapping[str, str | int], spill_bytes: int,
             if chunk.shape[1] != len(read_cols):
                 raise _diagnose(p, skip + 1 + n, n_fields, used)
             try:
-                tcol = None if t_col is None else _stamps_ns(chunk.iloc[:, pos[t_col]], unit)  # type: ignore[index]
+                tcol = None if t_col is None else _stamps_ns(chunk.iloc[:, pos[t_col]], unit)
                 if dec_time:
                     chunk = chunk.drop(columns=chunk.columns[pos[t_col]])  # type: ignore[index]
                     chunk.insert(pos[t_col], "t", 0.0)  # type: ignore[index]
