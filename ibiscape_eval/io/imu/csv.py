@@ -145,11 +145,11 @@ _DECIMAL = re.compile(r"\d+\.\d*")
 def _decimal_ns(col: Any, f: int) -> np.ndarray:
     """Decimal text ``"1403636579.758555392"`` in a unit of ``f`` ns to exact int64 ns."""
     parts = col.astype(str).str.strip().str.split(".", n=1, expand=True)
-    if parts.shape[1] != 2 or parts.isna().to_numpy().any():
-        raise ValueError("not all stamps are decimals")
+    if parts.shape[1] == 1:
+        parts[1] = "0"
     digits = len(str(f)) - 1
     whole = parts[0].astype(np.int64).to_numpy()
-    frac = parts[1].str.ljust(digits, "0").str.slice(0, digits).replace("", "0")
+    frac = parts[1].fillna("0").str.ljust(digits, "0").str.slice(0, digits).replace("", "0")
     return whole * np.int64(f) + frac.astype(np.int64).to_numpy()
 
 
@@ -187,8 +187,10 @@ def read_imu_csv(p: Path, cols: Mapping[str, str | int], spill_bytes: int,
         layout = override_units(layout, units)
     t_col = layout.time_column
     axis_cols = list(layout.axis_columns)
+    first_t = np.zeros(0)
     if t_col is not None:
-        layout = _time_unit(p, layout, _first_stamps(p, skip, t_col))
+        first_t = _first_stamps(p, skip, t_col)
+        layout = _time_unit(p, layout, first_t)
     unit = layout.time_unit or "ns"
     used = sorted(set(layout.used_columns))
     # a file of numbers only is read whole (pandas checks every row's field count); a file with
@@ -214,7 +216,9 @@ def read_imu_csv(p: Path, cols: Mapping[str, str | int], spill_bytes: int,
         # integer stamps are parsed exactly (float64 would round 1.4e18 ns to 256 ns)
         fields = first_row.split(",")
         t_text = fields[t_col].strip() if t_col is not None else ""
-        int_time = t_col is not None and t_text.isdigit()
+        # (only when the first thousands are all whole: "%g" writes 0, 0.005, ...)
+        int_time = (t_col is not None and t_text.isdigit()
+                    and bool(np.all(first_t == np.round(first_t))))
         # decimal stamps (seconds with 9 decimals) are parsed exactly from their text
         dec_time = t_col is not None and _DECIMAL.fullmatch(t_text) is not None
         dtypes: dict[int, Any] = {i: np.float64 for i in read_cols}
