@@ -154,3 +154,13 @@ def test_accel_in_g_without_a_stated_unit_is_refused(tmp_path: Path, still) -> N
         read_imu(p)
     rec = read_imu(p, units="accel=g")
     np.testing.assert_allclose(rec.accel_m_s2, a, rtol=1e-7)
+
+
+@pytest.mark.parametrize("fortran", [False, True])
+def test_npy_with_seconds_stamps(tmp_path: Path, still, fortran: bool) -> None:
+    t, g, a = still
+    arr = np.column_stack([(t - t[0]) / 1e9 + 1000.0, g, a])
+    np.save(tmp_path / "imu.npy", np.asfortranarray(arr) if fortran else arr)
+    rec = read_imu(tmp_path / "imu.npy")
+    assert rec.rate_hz == pytest.approx(200.0, rel=1e-6)
+    assert any("timestamps read as s" in n for n in rec.notes)
