@@ -142,8 +142,7 @@ def test_headerless_accel_first_is_refused_by_gravity(tmp_path: Path, still) -> 
     """No header: the default (gyro-first) order would read gravity as a rotation rate."""
     t, g, a = still
     p = write_table(tmp_path / "imu.csv", None, [t, *a.T, *g.T], ["%d"] + [F] * 6)
-    with pytest.raises(FormatError, match=r"imu.csv: .*swapped.*--columns t=0,w_x=4,w_y=5,w_z=6,"
-                       r"a_x=1,a_y=2,a_z=3"):
+    with pytest.raises(FormatError, match=r"imu.csv: .*swapped.*--columns t,ax,ay,az,gx,gy,gz$"):
         read_imu(p)
 
 

@@ -122,6 +122,14 @@ class ImuLayout:
         """The ``--columns`` value that reads this file with gyro and accelerometer exchanged."""
         a = self.axis_columns
         swapped = (*a[3:], *a[:3])
+        width = max((*swapped, -1 if self.time_column is None else self.time_column)) + 1
+        if width <= 10:  # the file's columns in order: t,ax,ay,az,gx,gy,gz
+            roles = ["_"] * width
+            if self.time_column is not None:
+                roles[self.time_column] = "t"
+            for name, c in zip(("gx", "gy", "gz", "ax", "ay", "az"), swapped, strict=True):
+                roles[c] = name
+            return ",".join(roles)
         parts = [] if self.time_column is None else [f"t={self.time_column}"]
         parts += [f"{name}={c}" for name, c in zip(AXES, swapped, strict=True)]
         return ",".join(parts)
