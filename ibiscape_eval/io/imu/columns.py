@@ -58,7 +58,7 @@ _GYRO_PREFIX = ("w", "g", "gyr", "gyro", "gyroscope", "omega", "angular_velocity
 _ACCEL_PREFIX = ("a", "acc", "accel", "accelerometer", "acceleration", "linear_acceleration",
                  "lin_acc", "linacc", "a_rs_s", "accl")
 _TIME_NAMES = ("t", "time", "timestamp", "stamp", "stamps", "ts", "header_stamp", "%time",
-               "field_header_stamp", "time_stamp", "stamps_ns")
+               "time_stamp")
 #: name suffixes that state a unit (``gyro_x_dps``)
 _SUFFIX_UNITS = {"rad_s": "rad/s", "rads": "rad/s", "dps": "deg/s", "deg_s": "deg/s",
                  "degs": "deg/s", "m_s2": "m/s^2", "mps2": "m/s^2", "ms2": "m/s^2", "g": "g",
@@ -186,8 +186,8 @@ def _classify(name: str) -> _Role | None:
             unit, known = raw_unit, False
     # time
     for tn in _TIME_NAMES:
-        if base == tn.replace("%", "%") or base == tn:
-            if base == "%time" or base in ("header_stamp", "field_header_stamp"):
+        if base == tn:
+            if base in ("%time", "header_stamp"):
                 unit = unit or "ns"  # rostopic echo -p prints stamps in ns
             return _Role("t", unit, known)
         for suf, u in _SUFFIX_UNITS.items():
