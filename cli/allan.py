@@ -113,7 +113,6 @@ def allan(imu: str, fmt: str | None, columns: str | None, units: str | None, ros
     """
     from ibiscape_eval.core.errors import IbiscapeError
     from ibiscape_eval.imu import allan_deviation, check_gaps, check_still, fit_noise_model
-    from ibiscape_eval.imu.still import forced_warning
     from ibiscape_eval.io.imu import read_imu
 
     fallback = _pair(rw_fallback, "--random-walk-fallback")
@@ -136,7 +135,7 @@ def allan(imu: str, fmt: str | None, columns: str | None, units: str | None, ros
     still = check_still(rec, rec.rate_hz, path=imu, force=force)
     for note in still.notes:
         info(f"note: {note}")
-    warning = None if still.still else forced_warning(still)
+    warning = still.warning
     if warning:
         info(warning)
 

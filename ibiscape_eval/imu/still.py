@@ -128,6 +128,12 @@ class StillnessReport:
                 "of a moving IMU reads the motion as noise: record the IMU at rest, cut the "
                 "moving part, or pass --force to analyse anyway")
 
+    @property
+    def warning(self) -> str | None:
+        """The line every output of an analysis forced past this report carries (None when
+        still)."""
+        return None if self.still else forced_warning(self)
+
     def to_dict(self) -> dict[str, Any]:
         def f(v: float | None) -> float | None:
             return None if v is None or not math.isfinite(v) else float(v)
