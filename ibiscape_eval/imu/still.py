@@ -17,7 +17,8 @@ The test compares how much the window means move with what noise can explain:
    norm, must stay within :data:`MAX_RATIO` of that.  Motion (turns, acceleration, handling)
    moves the window means by orders of magnitude more: smooth motion grows as ``tau^+1``.
 4. A still gyroscope averages its bias (< :data:`GYRO_MEAN_MAX_RAD_S`), a still accelerometer
-   gravity (within :data:`GRAVITY_TOLERANCE` of 9.80665 m/s^2; skipped for gravity-free data).
+   gravity (within :data:`GRAVITY_TOLERANCE` of 9.80665 m/s^2, a note beyond
+   :data:`GRAVITY_NOTE`; skipped for gravity-free data).
 
 :func:`check_still` refuses a record that fails, naming the numbers and ``--force``.
 """
@@ -56,8 +57,11 @@ ACCEL_FLOOR_M_S2 = 5e-3
 MAX_RATIO = 3.0
 #: Largest gyroscope mean (norm) of a still IMU, rad/s: real biases reach ~0.1 rad/s.
 GYRO_MEAN_MAX_RAD_S = 0.2
-#: Largest relative distance of the accelerometer's mean norm from standard gravity.
-GRAVITY_TOLERANCE = 0.05
+#: Largest relative distance of the accelerometer's mean norm from standard gravity (a wrong unit
+#: is a factor 9.8 or 1000 off; a real, uncalibrated MPU-6050 at rest reads 0.91 g).
+GRAVITY_TOLERANCE = 0.15
+#: Beyond this relative distance a note says that the scale is off.
+GRAVITY_NOTE = 0.03
 #: Below this mean norm (m/s^2) the accelerometer is gravity-free (compensated or simulated).
 NO_GRAVITY_M_S2 = 2.5
 #: Fewer windows than this cannot tell motion from noise.
@@ -218,6 +222,10 @@ def assess_stillness(samples: np.ndarray | ChunkedSamples, rate_hz: float, *,
     elif abs(a_norm - G) > GRAVITY_TOLERANCE * G:
         reasons.append(f"accelerometer mean norm {a_norm:.4g} m/s^2 where a still IMU reads "
                        f"g = {G:.4g} +- {100 * GRAVITY_TOLERANCE:g} % (moving, or a wrong unit)")
+    elif abs(a_norm - G) > GRAVITY_NOTE * G:
+        notes.append(f"accelerometer mean norm {a_norm:.4g} m/s^2 is {100 * (a_norm / G - 1):+.1f} % "
+                     "from g: an uncalibrated scale or zero-g offset; the accelerometer's noise "
+                     "values carry that scale error")
     nan7 = (math.nan,) * 7
     if n_w < MIN_WINDOWS:
         notes.append(f"record too short to test stillness ({n_w} windows of {window_s:g} s)")
