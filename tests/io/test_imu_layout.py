@@ -163,3 +163,14 @@ def test_npy_with_seconds_stamps(tmp_path: Path, still, fortran: bool) -> None:
     rec = read_imu(tmp_path / "imu.npy")
     assert rec.rate_hz == pytest.approx(200.0, rel=1e-6)
     assert any("timestamps read as s" in n for n in rec.notes)
+
+
+def test_columns_by_name_keep_the_header_units(tmp_path: Path, still) -> None:
+    t, g, a = still
+    p = write_table(tmp_path / "imu.csv",
+                    "time_ns,gyro_x [deg/s],gyro_y [deg/s],gyro_z [deg/s],acc_x [g],acc_y [g],acc_z [g]",
+                    [t, *(np.degrees(g)).T, *(a / 9.80665).T], ["%d"] + ["%.12g"] * 6)
+    rec = read_imu(p, columns="t=0,w_x=gyro_x [deg/s],w_y=gyro_y,w_z=gyro_z,a_x=4,a_y=5,a_z=6")
+    np.testing.assert_allclose(rec.gyro_rad_s, g, rtol=1e-9, atol=1e-14)
+    np.testing.assert_allclose(rec.accel_m_s2, a, rtol=1e-9, atol=1e-12)
+    assert any("converted to rad/s" in n for n in rec.notes)

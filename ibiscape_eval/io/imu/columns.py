@@ -286,6 +286,33 @@ def check_rate(p: Any, unit: str, med_interval: float, how: str) -> None:
                       f"which no IMU has{hint}")
 
 
+def _header_scales(p: Any, names: Sequence[str] | None, axis: Sequence[int],
+                   notes: list[str]) -> tuple[float, float]:
+    """Units the header states for the columns ``--columns`` chose (1.0 where it states none)."""
+    if names is None:
+        return 1.0, 1.0
+    out = []
+    for cols, table, what, target in ((axis[:3], _GYRO_SCALE, "gyro", "rad/s"),
+                                      (axis[3:], _ACCEL_SCALE, "accelerometer", "m/s^2")):
+        units: set[str] = set()
+        for c in cols:
+            raw = _split_unit(names[c])[1]
+            u = _norm_unit(raw) if raw else None
+            if u is None and raw is None:
+                r = _classify(names[c])
+                u = r.unit if r is not None and r.role != "t" else None
+            if u is not None:
+                units.add(u)
+        if len(units) > 1 or (units and next(iter(units)) not in table):
+            raise FormatError(p, f"the header states the {what} columns in {sorted(units)}, not "
+                              f"one {what} unit; give --units")
+        scale = table[units.pop()] if units else 1.0
+        if scale != 1.0:
+            notes.append(f"{what} columns in a unit the header states, converted to {target}")
+        out.append(scale)
+    return out[0], out[1]
+
+
 def resolve_layout(p: Any, cols: Mapping[str, str | int], names: Sequence[str] | None,
                    n_fields: int) -> ImuLayout:
     """Columns of a table file from ``--columns`` (``cols``), else the header, else the default
@@ -322,7 +349,8 @@ def resolve_layout(p: Any, cols: Mapping[str, str | int], names: Sequence[str] |
             if r is not None and r.role == "t" and r.unit in STAMP_UNITS:
                 unit, how = r.unit, "header"
         axis = tuple(idx(cols[a]) for a in AXES)
-        return ImuLayout(t_col, unit, how, axis, mapped_by="--columns", names=names_t,
+        gs, as_ = _header_scales(p, names, axis, notes)
+        return ImuLayout(t_col, unit, how, axis, gs, as_, mapped_by="--columns", names=names_t,
                          notes=tuple(notes))
     if names is not None:
         try:
