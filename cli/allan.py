@@ -59,6 +59,8 @@ Examples:
   ibiscape-eval allan log.csv --columns t_s=time,w_x=gx,w_y=gy,w_z=gz,a_x=ax,a_y=ay,a_z=az \\
       --units gyro=deg/s,accel=g
   ibiscape-eval allan recording.bag --rostopic /imu0 --yaml imu.yaml
+  ibiscape-eval allan accel_first.csv --columns t,ax,ay,az,gx,gy,gz
+  ibiscape-eval allan drive_imu.csv --force     (a record that is not still, analysed anyway)
 """,
 )
 @click.argument("imu", type=click.Path(dir_okay=True, path_type=str))
@@ -66,8 +68,11 @@ Examples:
               help="Input format (default: from the file name). 'ibiscape' is the EuRoC csv in "
               "CARLA's left-handed frame, converted to right-handed (w_x, w_z, a_y negated); "
               "chosen by itself for <seq>/other_sensors/imu*.csv next to <seq>/vehicle_gt/.")
-@click.option("--columns", help="Generic CSV/parquet column mapping: t=0 (ns) or t_s=NAME (s), "
-              "w_x..a_z = index or header name.")
+@click.option("--columns", help="Column mapping when the header names do not say (they are "
+              "recognised by themselves: ax/acc_x/a_RS_S_x..., gx/gyro_x/w_RS_S_x/"
+              "field.angular_velocity.x...): t=0 (stamp unit from the header or the sample "
+              "interval; t_s, t_ms, t_us, t_ns state it), w_x..a_z = 0-based index or header name; "
+              "or the file's columns in order, e.g. t,ax,ay,az,gx,gy,gz (_ skips one).")
 @click.option("--units", help="Units of the file, e.g. gyro=deg/s,accel=g (default rad/s, m/s^2).")
 @click.option("--rostopic", help="sensor_msgs/Imu topic in a bag (also written to --yaml).")
 @click.option("--rate-hz", type=float, help="Sample rate for files without timestamps (.npy (N, 6)).")
@@ -87,20 +92,27 @@ Examples:
 @click.option("--csv", "csv_path", type=click.Path(dir_okay=False), help="Write the curves (one row per tau).")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="Write a log-log figure (png/pdf/svg).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document instead of the table.")
+@click.option("--force", is_flag=True, help="Analyse a record that the stillness test refuses "
+              "(moving IMU); every output then says so.")
 @user_errors
 def allan(imu: str, fmt: str | None, columns: str | None, units: str | None, rostopic: str | None,
           rate_hz: float | None, allow_gaps: bool, max_missing: float, points_per_decade: int,
           white_range: str | None, walk_range: str | None, yaml_path: str | None,
-          rw_fallback: str | None, inflate: float, csv_path: str | None, plot_path: str | None, as_json: bool) -> None:
+          rw_fallback: str | None, inflate: float, csv_path: str | None, plot_path: str | None, as_json: bool,
+          force: bool) -> None:
     """IMU noise from the overlapping Allan deviation of a still recording.
 
     Prints the white-noise density N (slope -1/2 read at 1 s), the rate random walk K (slope +1/2
     read at 3 s) and the bias instability B (minimum / 0.664) of the three gyro and three
     accelerometer axes, with one-sigma uncertainties, as continuous-time densities (Kalibr's
     convention) and as per-sample sigmas at the file's rate.
+
+    The record must be of an IMU at rest: the window means of every axis may move only as much
+    as noise explains, the gyro mean stays below 0.2 rad/s, the accelerometer reads g (exit 2
+    otherwise, or --force and a warning in every output).
     """
     from ibiscape_eval.core.errors import IbiscapeError
-    from ibiscape_eval.imu import allan_deviation, check_gaps, fit_noise_model
+    from ibiscape_eval.imu import allan_deviation, check_gaps, check_still, fit_noise_model
     from ibiscape_eval.io.imu import read_imu
 
     fallback = _pair(rw_fallback, "--random-walk-fallback")
@@ -117,7 +129,15 @@ def allan(imu: str, fmt: str | None, columns: str | None, units: str | None, ros
              f"{rec.n_samples / rec.rate_hz / 3600:.3g} h; {tm.n_gaps} gap(s), "
              f"{100 * tm.missing_fraction:.3g} % missing, largest interval {tm.largest_gap_s:.4g} s, "
              f"jitter {tm.jitter_s * 1e6:.3g} us")
+    for note in rec.notes:
+        info(f"note: {note}")
     check_gaps(tm, imu, max_missing=max_missing, allow_gaps=allow_gaps)
+    still = check_still(rec, rec.rate_hz, path=imu, force=force)
+    for note in still.notes:
+        info(f"note: {note}")
+    warning = still.warning
+    if warning:
+        info(warning)
 
     from .progress import progress_bar
 
@@ -130,12 +150,16 @@ def allan(imu: str, fmt: str | None, columns: str | None, units: str | None, ros
     if csv_path:
         from ibiscape_eval.io.atomic import atomic_write
 
+        frame = res.to_frame()
+        if warning:
+            frame["forced_not_still"] = True
         with atomic_write(csv_path) as fh:
-            res.to_frame().to_csv(fh, index=False, float_format="%.17g", lineterminator="\n")
+            frame.to_csv(fh, index=False, float_format="%.17g", lineterminator="\n")
     if plot_path:
         from ibiscape_eval.report.plots import plot_allan
 
-        plot_allan(plot_path, res, model, title="overlapping Allan deviation")
+        plot_allan(plot_path, res, model, title="overlapping Allan deviation" + (
+            "\nNOT STILL: analysed with --force, the curves include the motion" if warning else ""))
 
     kalibr: dict[str, Any] = {
         **model.kalibr(gyro=rec.names[:3], accel=rec.names[3:]),
@@ -153,6 +177,11 @@ def allan(imu: str, fmt: str | None, columns: str | None, units: str | None, ros
             "n_samples": rec.n_samples,
             "duration_s": res.duration_s,
             "timing": dataclasses.asdict(tm),
+            "forced_not_still": bool(warning),
+            "warning": warning,
+            "stillness": still.to_dict(),
+            "layout": rec.layout.to_dict() if rec.layout is not None else None,
+            "notes": list(rec.notes),
             "n_taus": int(res.taus_s.size),
             "confidence": res.ci,
             "edf_model": "white FM (NIST SP 1065 Table 5), chi-squared bounds",
@@ -161,6 +190,8 @@ def allan(imu: str, fmt: str | None, columns: str | None, units: str | None, ros
             "kalibr": kalibr,
         })
     else:
+        if warning:
+            click.echo(warning)
         _table(model, rec.rate_hz)
 
     if yaml_path:
@@ -187,6 +218,7 @@ def allan(imu: str, fmt: str | None, columns: str | None, units: str | None, ros
             yaml_path, noise,
             comments=[
                 f"ibiscape-eval allan {imu}: largest value over the three axes, continuous time",
+                *([warning] if warning else []),
                 *notes,
                 f"per-sample (discrete) sigmas at {rate:.6g} Hz:",
                 f"  gyroscope_noise_sigma: {vals['gyroscope_noise_density'] * root:.6g} rad/s",

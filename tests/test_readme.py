@@ -80,6 +80,21 @@ def make_demo_output(root: Path) -> None:
     np.savetxt(root / "log.csv", cols, delimiter=",", header="time,gx,gy,gz,ax,ay,az", comments="",
                fmt="%.12g")
     write_events(root / "events.txt", ev.events, fmt="text")
+    # the allan section's foreign layouts (issue 22): accelerometer first by name and without a
+    # header, a rostopic echo -p csv, and a generated drive (not still)
+    acc_first = np.column_stack((10**12 + np.arange(m) * 5_000_000, s[:m, 3:], s[:m, :3]))
+    for name, head in (("phone.csv", "timestamp,ax,ay,az,gx,gy,gz"), ("noheader.csv", "")):
+        np.savetxt(root / name, acc_first, delimiter=",", header=head, comments="",
+                   fmt=["%d"] + ["%.9g"] * 6)
+    ros = ["%time,field.header.seq,field.header.stamp,field.header.frame_id,"
+           + ",".join(f"field.angular_velocity.{c}" for c in "xyz") + ","
+           + ",".join(f"field.linear_acceleration.{c}" for c in "xyz")]
+    ros += [f"{10**12 + 5_000_000 * i + 99},{i},{10**12 + 5_000_000 * i},imu,"
+            + ",".join(f"{v:.9g}" for v in row) for i, row in enumerate(s[:m])]
+    (root / "imu_echo.csv").write_text("\n".join(ros) + "\n")
+    from ibiscape_eval.sim import generate, preset
+
+    generate(preset("svi", "slam", "clear", duration_s=30.0, seed=4), root / "drive")
 
     # a small rendered SVI drive and its EuRoC export, as `make demo`'s vio step writes them
     res = CliRunner().invoke(cli, ["sim", "--setup", "svi", "--kind", "slam", "--duration-s", "4",

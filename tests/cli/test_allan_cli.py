@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -157,3 +158,129 @@ def test_format_ibiscape_gives_the_same_noise(run_cli, tmp_path: Path) -> None:
             assert va == (pytest.approx(vb, rel=1e-12) if isinstance(vb, float) else vb), (name, key)
     assert da["w_z"]["noise_density"] == pytest.approx(N_TRUE[2], rel=0.05)
     assert "ibiscape" in run_cli("allan", "--help").stdout
+
+
+# --- issue 22: the traps of a new user's file ------------------------------------------------
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "imu"))
+from _still_data import ACCEL_N, GYRO_N, driving_imu, still_imu, write_table  # noqa: E402
+
+_F = "%.9g"
+
+
+@pytest.fixture(scope="module")
+def still_arrays() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    return still_imu(duration_s=100.0, seed=7)
+
+
+@pytest.fixture(scope="module")
+def drive_csv(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return driving_imu(tmp_path_factory.mktemp("drive"), duration_s=30.0)
+
+
+def _densities(res) -> dict[str, float]:  # type: ignore[no-untyped-def]
+    assert res.exit_code == 0, res.output
+    return {k: v["noise_density"] for k, v in json.loads(res.stdout)["axes"].items()}
+
+
+def test_accel_first_header_gives_the_gyro_density(run_cli, tmp_path: Path, still_arrays) -> None:
+    t, g, a = still_arrays
+    p = write_table(tmp_path / "imu.csv", "timestamp,ax,ay,az,gx,gy,gz", [t, *a.T, *g.T],
+                    ["%d"] + [_F] * 6)
+    d = _densities(run_cli("allan", p, "--json"))
+    for ax in ("w_x", "w_y", "w_z"):
+        assert d[ax] == pytest.approx(GYRO_N, rel=0.1)
+    for ax in ("a_x", "a_y", "a_z"):
+        assert d[ax] == pytest.approx(ACCEL_N, rel=0.1)
+
+
+def test_headerless_accel_first_is_refused_with_the_fix(run_cli, tmp_path: Path, still_arrays) -> None:
+    t, g, a = still_arrays
+    p = write_table(tmp_path / "imu.csv", None, [t, *a.T, *g.T], ["%d"] + [_F] * 6)
+    res = run_cli("allan", p, "--csv", tmp_path / "c.csv", "--yaml", tmp_path / "imu.yaml")
+    assert_one_error_line(res, "imu.csv", "swapped", "--columns t,ax,ay,az,gx,gy,gz")
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["imu.csv"]
+    d = _densities(run_cli("allan", p, "--columns", "t,ax,ay,az,gx,gy,gz", "--json"))
+    assert d["w_x"] == pytest.approx(GYRO_N, rel=0.1)
+    d = _densities(run_cli("allan", p, "--columns", "t=0,a_x=1,a_y=2,a_z=3,w_x=4,w_y=5,w_z=6",
+                           "--json"))
+    assert d["w_z"] == pytest.approx(GYRO_N, rel=0.1)
+
+
+def test_moving_record_refused_without_output(run_cli, tmp_path: Path, drive_csv: Path) -> None:
+    out = tmp_path / "out"
+    out.mkdir()
+    res = run_cli("allan", drive_csv, "--csv", out / "c.csv", "--yaml", out / "imu.yaml",
+                  "--plot", out / "a.png", "--random-walk-fallback", "1e-5,1e-3")
+    assert_one_error_line(res, str(drive_csv), "not a still IMU record",
+                          "x what a still IMU with this noise shows", "--force")
+    assert list(out.iterdir()) == []
+
+
+def test_moving_record_forced_is_marked_everywhere(run_cli, tmp_path: Path, drive_csv: Path) -> None:
+    res = run_cli("allan", drive_csv, "--force", "--csv", tmp_path / "c.csv",
+                  "--plot", tmp_path / "a.png")
+    assert res.exit_code == 0, res.output
+    assert res.stdout.startswith("WARNING: not a still IMU record, analysed anyway (--force)")
+    assert "forced_not_still" in (tmp_path / "c.csv").read_text().splitlines()[0]
+    assert (tmp_path / "a.png").exists()
+    doc = json.loads(run_cli("allan", drive_csv, "--force", "--json").stdout)
+    assert doc["forced_not_still"] is True and "not a still IMU" in doc["warning"]
+    assert doc["stillness"]["still"] is False and doc["stillness"]["ratio"] > 30
+
+
+def test_still_record_is_not_marked(run_cli, tmp_path: Path, still_arrays) -> None:
+    from ibiscape_eval.io.imu import write_imu_csv
+
+    write_imu_csv(tmp_path / "imu.csv", *still_arrays)
+    res = run_cli("allan", tmp_path / "imu.csv", "--json")
+    doc = json.loads(res.stdout)
+    assert doc["forced_not_still"] is False and doc["warning"] is None
+    assert doc["stillness"]["still"] is True
+    assert "WARNING" not in run_cli("allan", tmp_path / "imu.csv").stdout
+
+
+@pytest.mark.parametrize(("scale", "fmt"), [(1e-9, "%s"), (1e-6, "%d"), (1e-3, "%d")],
+                         ids=["s", "ms", "us"])
+def test_stamps_in_seconds_ms_us(run_cli, tmp_path: Path, still_arrays, scale: float, fmt: str) -> None:
+    t, g, a = still_arrays
+    if fmt == "%s":  # exact decimal seconds, 9 digits
+        st = np.array([f"{v // 10**9}.{v % 10**9:09d}" for v in t.tolist()])
+    else:
+        st = np.round(t * scale).astype(np.int64)
+    p = write_table(tmp_path / "imu.csv", "time,w_x,w_y,w_z,a_x,a_y,a_z", [st, *g.T, *a.T],
+                    [fmt] + [_F] * 6)
+    res = run_cli("allan", p, "--json")
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.stdout)["rate_hz"] == pytest.approx(200.0, rel=1e-9)
+
+
+def test_rostopic_csv_and_numeric_columns_by_name(run_cli, tmp_path: Path, still_arrays) -> None:
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "io"))
+    from test_imu_layout import _rostopic_csv
+
+    t, g, a = still_arrays
+    p = _rostopic_csv(tmp_path / "imu.csv", t, g, a)
+    d = _densities(run_cli("allan", p, "--json"))
+    assert d["w_y"] == pytest.approx(GYRO_N, rel=0.1)
+    cols = ("t=field.header.stamp,w_x=field.angular_velocity.x,w_y=field.angular_velocity.y,"
+            "w_z=field.angular_velocity.z,a_x=field.linear_acceleration.x,"
+            "a_y=field.linear_acceleration.y,a_z=field.linear_acceleration.z")
+    assert _densities(run_cli("allan", p, "--columns", cols, "--json")) == d
+
+
+def test_forced_yaml_says_so(run_cli, tmp_path: Path, still_arrays) -> None:
+    """A still record picked up for 3 s: refused, and with --force the imu.yaml says why."""
+    from ibiscape_eval.io.imu import write_imu_csv
+
+    t, g, a = still_arrays
+    g = g.copy()
+    s = (t - t[0]) / 1e9
+    g[(s > 50) & (s < 53), 1] += 0.03
+    write_imu_csv(tmp_path / "imu.csv", t, g, a)
+    assert_one_error_line(run_cli("allan", tmp_path / "imu.csv", "--yaml", tmp_path / "imu.yaml"),
+                          "w_y", "first at 5", "--force")
+    res = run_cli("allan", tmp_path / "imu.csv", "--force", "--yaml", tmp_path / "imu.yaml",
+                  "--random-walk-fallback", "1e-5,1e-3")
+    assert res.exit_code == 0, res.output
+    assert "# WARNING: not a still IMU record" in (tmp_path / "imu.yaml").read_text()

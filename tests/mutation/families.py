@@ -139,6 +139,31 @@ def _imu_csv_seed(folder: Path) -> Path:
     return p
 
 
+def _imu_named_csv_seed(folder: Path) -> Path:
+    """Accelerometer first, columns found by header name, stamps in seconds (issue 22)."""
+    s, g, a = _imu_arrays()
+    p = folder / "imu_named.csv"
+    rows = [f"{t // 10**9}.{t % 10**9:09d}," + ",".join(f"{v:.9g}" for v in (*ai, *gi))
+            for t, ai, gi in zip(s.tolist(), a, g, strict=True)]
+    p.write_text("\n".join(["time,acc_x,acc_y,acc_z,gyro_x,gyro_y,gyro_z", *rows]) + "\n")
+    return p
+
+
+def _imu_rostopic_seed(folder: Path) -> Path:
+    """A ``rostopic echo -p`` CSV: text frame_id, covariances, ns stamps (issue 22)."""
+    s, g, a = _imu_arrays()
+    p = folder / "imu_rostopic.csv"
+    head = ["%time", "field.header.seq", "field.header.stamp", "field.header.frame_id",
+            *[f"field.orientation.{c}" for c in "xyzw"],
+            *[f"field.angular_velocity.{c}" for c in "xyz"],
+            *[f"field.linear_acceleration.{c}" for c in "xyz"],
+            *[f"field.linear_acceleration_covariance{i}" for i in range(3)]]
+    rows = [f"{t + 777},{i},{t},imu4,0,0,0,1," + ",".join(f"{v:.9g}" for v in (*gi, *ai))
+            + ",0,0,0" for i, (t, gi, ai) in enumerate(zip(s.tolist(), g, a, strict=True))]
+    p.write_text("\n".join([",".join(head), *rows]) + "\n")
+    return p
+
+
 def _imu_npy_seed(folder: Path) -> Path:
     s, g, a = _imu_arrays()
     p = folder / "imu.npy"
@@ -427,6 +452,10 @@ FAMILIES: dict[str, Family] = {
                                    lambda p, o: _vio_argv(p.parent, o, None, "--imu", str(p))),
     "calib_target_yaml": Family(_calib_target_seed, lambda p, o: ["calib", str(p.parent), "--target",
                                                                   str(p), "--json"]),
+    # issue 22's IMU tables (after the others, so that their mutants keep their seeds)
+    "imu_named_csv": Family(_imu_named_csv_seed, lambda p, o: ["allan", str(p), "--json", "--csv",
+                                                               str(o / "curves.csv")]),
+    "imu_rostopic_csv": Family(_imu_rostopic_seed, lambda p, o: ["allan", str(p), "--json"]),
 }
 
 

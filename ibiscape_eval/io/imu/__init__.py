@@ -50,6 +50,7 @@ sequence layout); everywhere else a csv is read as it stands (EuRoC).
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Mapping
 from pathlib import Path
@@ -58,11 +59,13 @@ from ibiscape_eval.core.errors import FormatError, IbiscapeError
 from ibiscape_eval.core.imu import AXES, ImuRecord, ImuTiming
 
 from ..bag import read_imu_bag
+from .columns import STAMP_UNITS, ImuFileRecord, ImuLayout, classify_header, stamp_unit, with_layout
 from .csv import IMU_CSV_HEADER, read_imu_csv, write_imu_csv, write_imu_csv_chunks
 from .frames import IBISCAPE_IMU_SIGNS, IMU_FRAMES, check_imu_frame, mirror_ibiscape_imu
 from .npy import read_imu_npy, read_imu_npz, write_imu_npy
 from .options import STANDARD_GRAVITY_M_S2, parse_columns, parse_units
 from .parquet import read_imu_parquet
+from .plausible import SensorMeans, check_sensor_layout, sensor_means
 from .timing import record_from_parts
 
 __all__ = [
@@ -72,14 +75,22 @@ __all__ = [
     "IMU_CSV_HEADER",
     "IMU_FRAMES",
     "SPILL_BYTES",
+    "STAMP_UNITS",
     "STANDARD_GRAVITY_M_S2",
+    "ImuFileRecord",
+    "ImuLayout",
     "ImuRecord",
     "ImuTiming",
+    "SensorMeans",
     "check_imu_frame",
+    "check_sensor_layout",
+    "classify_header",
     "mirror_ibiscape_imu",
     "parse_columns",
     "parse_units",
     "read_imu",
+    "sensor_means",
+    "stamp_unit",
     "write_imu_csv",
     "write_imu_csv_chunks",
     "write_imu_npy",
@@ -100,7 +111,8 @@ def read_imu(
     rostopic: str | None = None,
     rate_hz: float | None = None,
     spill_bytes: int = SPILL_BYTES,
-) -> ImuRecord:
+    check_physics: bool = True,
+) -> ImuFileRecord:
     """Read IMU samples from any supported file.
 
     Parameters
@@ -125,12 +137,22 @@ def read_imu(
         Sample rate for files without timestamps, Hz.
     spill_bytes : int
         CSV files larger than this are parsed into a temporary ``.npy`` (bounded memory).
+    check_physics : bool
+        Refuse a gyro/accelerometer swap or an accelerometer in g read as m/s^2, judged by
+        gravity (see :mod:`ibiscape_eval.io.imu.plausible`).
+
+    Returns
+    -------
+    ImuFileRecord
+        The record; ``layout`` says how a table's columns, units and stamps were read (header
+        names, ``columns``, or the EuRoC order) and ``notes`` every conversion and check made.
 
     Raises
     ------
     FormatError
         Naming the file and 1-based line: non-numeric rows, wrong column count, non-increasing
-        timestamps, missing keys or columns, too few samples.
+        timestamps, missing keys or columns, too few samples, stamps whose unit gives no IMU's
+        rate, swapped gyro/accelerometer, an accelerometer in g.
     FileNotFoundError
         The file does not exist.
     """
@@ -142,29 +164,37 @@ def read_imu(
         check_input(p, "file")
     gscale, ascale = parse_units(units)
     cols = parse_columns(columns)
+    scales = None if units is None else (gscale, ascale)
     if f in ("euroc", "csv", "ibiscape"):
-        rec = read_imu_csv(p, cols, spill_bytes, rate_hz,
-                        signs=IBISCAPE_IMU_SIGNS if f == "ibiscape" else None)
+        rec: ImuRecord = read_imu_csv(p, cols, spill_bytes, rate_hz,
+                                      signs=IBISCAPE_IMU_SIGNS if f == "ibiscape" else None,
+                                      units=scales)
+        scales = None  # applied while parsing
     elif f == "npy":
         rec = read_imu_npy(p, rate_hz)
     elif f == "npz":
         rec = read_imu_npz(p, rate_hz)
     elif f == "parquet":
-        rec = read_imu_parquet(p, cols, rate_hz)
+        rec = read_imu_parquet(p, cols, rate_hz, units=scales)
+        scales = None
     elif f == "rosbag":
         stamps, data, topic = read_imu_bag(p, rostopic)
         rec = record_from_parts(p, stamps, data, None, rostopic=topic)
     else:
         raise IbiscapeError(f"unknown IMU format {fmt!r}; use one of {', '.join(FORMATS)}")
-    if (gscale, ascale) != (1.0, 1.0):
+    if scales is not None and scales != (1.0, 1.0):
         if rec.samples is None:
             raise IbiscapeError(f"{p}: --units is not supported for records read from disk in chunks")
         s = rec.samples.copy()
-        s[:, :3] *= gscale
-        s[:, 3:] *= ascale
-        rec = ImuRecord(path=rec.path, n_samples=rec.n_samples, rate_hz=rec.rate_hz,
-                        timing=rec.timing, rostopic=rec.rostopic, samples=s)
-    return rec
+        s[:, :3] *= scales[0]
+        s[:, 3:] *= scales[1]
+        rec = dataclasses.replace(rec, samples=s)
+    layout = getattr(rec, "layout", None)
+    notes: tuple[str, ...] = ()
+    if check_physics:
+        stated = units is not None or (layout is not None and layout.accel_scale != 1.0)
+        notes = check_sensor_layout(p, rec, layout, accel_unit_stated=stated)
+    return with_layout(rec, None, notes)
 
 
 def _guess_format(p: Path) -> str:

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
+import re
 import tempfile
 from collections.abc import Iterable, Mapping
 from pathlib import Path
@@ -13,10 +15,19 @@ import numpy as np
 import numpy.typing as npt
 
 from ibiscape_eval.core.errors import FormatError, IbiscapeError
-from ibiscape_eval.core.imu import AXES, CHUNK_ROWS, ImuRecord
+from ibiscape_eval.core.imu import CHUNK_ROWS, ImuRecord
 
 from .._text import write_table
 from ..atomic import atomic_write
+from .columns import (
+    STAMP_UNITS,
+    ImuLayout,
+    check_rate,
+    override_units,
+    resolve_layout,
+    stamp_unit,
+    with_layout,
+)
 from .frames import check_imu_frame, mirror_ibiscape_imu
 from .npy import NpyRows, NpyStreamWriter
 from .timing import (
@@ -57,8 +68,10 @@ def _header_lines(p: Path) -> tuple[int, list[str] | None]:
     return n, names
 
 
-def _diagnose(p: Path, start_line: int, n_fields: int) -> FormatError:
-    """Find the first bad line at or after ``start_line`` (1-based) of a CSV."""
+def _diagnose(p: Path, start_line: int, n_fields: int, used: list[int] | None = None) -> FormatError:
+    """Find the first bad line at or after ``start_line`` (1-based) of a CSV; only the ``used``
+    columns (default: all) must be numbers."""
+    cols = set(range(n_fields) if used is None else used)
     with open(p, encoding="utf-8", errors="replace") as fh:
         for i, line in enumerate(fh, start=1):
             if i < start_line or not line.strip():
@@ -70,6 +83,8 @@ def _diagnose(p: Path, start_line: int, n_fields: int) -> FormatError:
                 return FormatError(p, f"expected {n_fields} comma-separated columns, got "
                                    f"{len(parts)}; fix or delete this row", line=i)
             for j, v in enumerate(parts):
+                if j not in cols:
+                    continue
                 try:
                     x = float(v)
                 except ValueError:
@@ -84,31 +99,76 @@ def _diagnose(p: Path, start_line: int, n_fields: int) -> FormatError:
 
 
 def resolve_columns(cols: Mapping[str, str | int], names: list[str] | None, n_fields: int,
-             p: Path) -> tuple[int | None, bool, list[int]]:
-    """Indices of (time column, time-in-seconds?, six axis columns)."""
-    if not cols:
-        if n_fields < 7:
-            raise FormatError(p, f"expected 7 columns (timestamp ns, w_x w_y w_z rad/s, a_x a_y a_z "
-                              f"m/s^2), got {n_fields}; give --columns for another layout", line=None)
-        return 0, False, list(range(1, 7))
+                    p: Path) -> ImuLayout:
+    """The :class:`ImuLayout` of a table (``--columns``, else header names, else EuRoC order)."""
+    return resolve_layout(p, cols, names, n_fields)
 
-    def idx(v: str | int) -> int:
-        if isinstance(v, int):
-            if not 0 <= v < n_fields:
-                raise FormatError(p, f"--columns index {v} is outside the file's {n_fields} columns")
-            return v
-        if names is None or v not in names:
-            raise FormatError(p, f"--columns names {v!r}, which is not in the header "
-                              f"({', '.join(names or [])})")
-        return names.index(v)
 
-    t_key = "t" if "t" in cols else ("t_s" if "t_s" in cols else None)
-    t = idx(cols[t_key]) if t_key else None
-    return t, t_key == "t_s", [idx(cols[a]) for a in AXES]
+def _all_numbers(row: str, n_fields: int) -> bool:
+    parts = row.rstrip("\r\n").rstrip().rstrip(",").split(",")
+    try:
+        [float(v) for v in parts[:n_fields]]
+    except ValueError:
+        return False
+    return True
+
+
+def _first_stamps(p: Path, skip: int, t_col: int, rows: int = 4000) -> np.ndarray:
+    """The first ``rows`` values of the time column as float64 (for the unit decision)."""
+    import pandas as pd
+
+    try:
+        df = pd.read_csv(p, header=None, skiprows=skip, usecols=[t_col], nrows=rows,
+                         dtype=np.float64, engine="c", skip_blank_lines=True)
+    except (ValueError, OverflowError, pd.errors.ParserError, UnicodeDecodeError):
+        return np.zeros(0)
+    return df.to_numpy(dtype=np.float64).ravel()
+
+
+def _time_unit(p: Path, layout: ImuLayout, first: np.ndarray) -> ImuLayout:
+    """Fill in (or check) the stamp unit from the first stamps."""
+    d = np.diff(first[np.isfinite(first)])
+    med = float(np.median(d[d > 0])) if np.any(d > 0) else math.nan
+    if layout.time_unit is not None:
+        check_rate(p, layout.time_unit, med, layout.time_unit_from or "stated")
+        return layout
+    unit, how = stamp_unit(first)
+    notes = layout.notes
+    if unit != "ns":
+        notes = (*notes, f"timestamps read as {unit} ({how})")
+    return dataclasses.replace(layout, time_unit=unit, time_unit_from=how, notes=notes)
+
+
+_DECIMAL = re.compile(r"\d+\.\d*")
+
+
+def _decimal_ns(col: Any, f: int) -> np.ndarray:
+    """Decimal text ``"1403636579.758555392"`` in a unit of ``f`` ns to exact int64 ns."""
+    parts = col.astype(str).str.strip().str.split(".", n=1, expand=True)
+    if parts.shape[1] == 1:
+        parts[1] = "0"
+    digits = len(str(f)) - 1
+    whole = parts[0].astype(np.int64).to_numpy()
+    frac = parts[1].fillna("0").str.ljust(digits, "0").str.slice(0, digits).replace("", "0")
+    return whole * np.int64(f) + frac.astype(np.int64).to_numpy()
+
+
+def _stamps_ns(col: Any, unit: str) -> np.ndarray:
+    """A parsed time column (int64, float64 or decimal text) to int64 ns."""
+    f = STAMP_UNITS[unit]
+    a = np.asarray(col)
+    if a.dtype.kind == "O":
+        return _decimal_ns(col, f)
+    if a.dtype.kind in "iu":
+        return a.astype(np.int64) * np.int64(f)
+    return np.round(a.astype(np.float64) * f)
 
 
 def read_imu_csv(p: Path, cols: Mapping[str, str | int], spill_bytes: int,
-              rate_hz: float | None, *, signs: np.ndarray | None = None) -> ImuRecord:
+                 rate_hz: float | None, *, signs: np.ndarray | None = None,
+                 units: tuple[float, float] | None = None) -> ImuRecord:
+    """Read an IMU table; ``record.layout`` (see :func:`ibiscape_eval.io.imu.read_imu`) says how
+    the columns were mapped."""
     import pandas as pd
 
     skip, names = _header_lines(p)
@@ -120,11 +180,26 @@ def read_imu_csv(p: Path, cols: Mapping[str, str | int], spill_bytes: int,
         else:
             raise FormatError(p, "no data rows; an Allan deviation needs thousands of samples")
     n_fields = len(first_row.rstrip("\r\n").rstrip().rstrip(",").split(","))
-    t_col, t_in_s, axis_cols = resolve_columns(cols, names, n_fields, p)
-    if t_col is None:
-        timing_acc = None
-    else:
-        timing_acc = TimingAccumulator(str(p), first_line=skip + 1)
+    if names is not None and len(names) != n_fields:
+        names = None if len(names) < 7 and n_fields >= 7 else names
+    layout = resolve_columns(cols, names, n_fields, p)
+    if units is not None:
+        layout = override_units(layout, units)
+    t_col = layout.time_column
+    axis_cols = list(layout.axis_columns)
+    first_t = np.zeros(0)
+    if t_col is not None:
+        first_t = _first_stamps(p, skip, t_col)
+        layout = _time_unit(p, layout, first_t)
+    unit = layout.time_unit or "ns"
+    used = sorted(set(layout.used_columns))
+    # a file of numbers only is read whole (pandas checks every row's field count); a file with
+    # text columns (rostopic's frame_id) is read through the used columns only
+    read_cols = list(range(n_fields)) if _all_numbers(first_row, n_fields) else used
+    pos = {c: i for i, c in enumerate(read_cols)}
+    u_pos = [pos[c] for c in used]
+    a_pos = [pos[c] for c in axis_cols]
+    timing_acc = None if t_col is None else TimingAccumulator(str(p), first_line=skip + 1)
     spill = p.stat().st_size > spill_bytes
     keep: tempfile.TemporaryDirectory[str] | None = None
     parts: list[np.ndarray] = []
@@ -134,37 +209,53 @@ def read_imu_csv(p: Path, cols: Mapping[str, str | int], spill_bytes: int,
         spill_path = os.path.join(keep.name, "imu.npy")
         writer = NpyStreamWriter(spill_path, 6)
     n = 0
+    scale = np.array([layout.gyro_scale] * 3 + [layout.accel_scale] * 3)
+    if signs is not None:
+        scale = scale * signs
     try:
-        # integer ns stamps are parsed exactly (float64 would round 1.4e18 ns to 256 ns)
+        # integer stamps are parsed exactly (float64 would round 1.4e18 ns to 256 ns)
         fields = first_row.split(",")
-        int_time = t_col is not None and not t_in_s and fields[t_col].strip().isdigit()
-        dtypes: dict[int, Any] = {i: np.float64 for i in range(n_fields)}
+        t_text = fields[t_col].strip() if t_col is not None else ""
+        # (only when the first thousands are all whole: "%g" writes 0, 0.005, ...)
+        int_time = (t_col is not None and t_text.isdigit()
+                    and bool(np.all(first_t == np.round(first_t))))
+        # decimal stamps (seconds with 9 decimals) are parsed exactly from their text
+        dec_time = t_col is not None and _DECIMAL.fullmatch(t_text) is not None
+        dtypes: dict[int, Any] = {i: np.float64 for i in read_cols}
         if int_time:
             dtypes[t_col] = np.int64  # type: ignore[index]
-        reader = pd.read_csv(p, header=None, skiprows=skip, dtype=dtypes, engine="c",
-                             chunksize=CHUNK_ROWS, skip_blank_lines=True)
+        elif dec_time:
+            dtypes[t_col] = str  # type: ignore[index]
+        reader = pd.read_csv(p, header=None, skiprows=skip,
+                             usecols=None if len(read_cols) == n_fields else read_cols,
+                             dtype=dtypes, engine="c", chunksize=CHUNK_ROWS, skip_blank_lines=True)
         while True:
             try:
                 chunk = next(reader)
             except StopIteration:
                 break
             except (ValueError, OverflowError, pd.errors.ParserError, UnicodeDecodeError):
-                raise _diagnose(p, skip + 1 + n, n_fields) from None
-            if chunk.shape[1] != n_fields:
-                raise _diagnose(p, skip + 1 + n, n_fields)
-            arr = chunk.to_numpy(dtype=np.float64)
-            if not np.isfinite(arr).all():
-                raise _diagnose(p, skip + 1 + n, n_fields)
-            check_samples(p, arr[:, axis_cols], skip + 1 + n)
-            if timing_acc is not None:
-                tcol = np.asarray(chunk.iloc[:, t_col])  # type: ignore[index]
-                if t_in_s:
-                    tcol = np.round(tcol * 1e9)
+                raise _diagnose(p, skip + 1 + n, n_fields, used) from None
+            if chunk.shape[1] != len(read_cols):
+                raise _diagnose(p, skip + 1 + n, n_fields, used)
+            try:
+                tcol = None if t_col is None else _stamps_ns(chunk.iloc[:, pos[t_col]], unit)
+                if dec_time:
+                    chunk = chunk.drop(columns=chunk.columns[pos[t_col]])  # type: ignore[index]
+                    chunk.insert(pos[t_col], "t", 0.0)  # type: ignore[index]
+                arr = chunk.to_numpy(dtype=np.float64)
+            except (ValueError, TypeError):
+                raise _diagnose(p, skip + 1 + n, n_fields, used) from None
+            if not np.isfinite(arr[:, u_pos]).all():
+                raise _diagnose(p, skip + 1 + n, n_fields, used)
+            data = arr[:, a_pos]
+            check_samples(p, data, skip + 1 + n)
+            if timing_acc is not None and tcol is not None:
+                if tcol.dtype.kind == "f":
                     check_stamp_dtype(p, tcol)
                 timing_acc.add(tcol)
-            data = arr[:, axis_cols]
-            if signs is not None:
-                data = data * signs
+            if np.any(scale != 1.0):
+                data = data * scale
             if writer is not None:
                 writer.write(data)
             else:
@@ -180,10 +271,12 @@ def read_imu_csv(p: Path, cols: Mapping[str, str | int], spill_bytes: int,
     if writer is not None:
         writer.close()
         assert keep is not None
-        return finish_record(str(p), None, n, timing, rate_hz,
-                             _source=NpyRows(writer.path, keep=keep))
-    samples = np.concatenate(parts, axis=0) if parts else np.zeros((0, 6))
-    return finish_record(str(p), samples, n, timing, rate_hz)
+        rec = finish_record(str(p), None, n, timing, rate_hz,
+                            _source=NpyRows(writer.path, keep=keep))
+    else:
+        samples = np.concatenate(parts, axis=0) if parts else np.zeros((0, 6))
+        rec = finish_record(str(p), samples, n, timing, rate_hz)
+    return with_layout(rec, layout)
 
 
 def write_imu_csv(path: str | os.PathLike[str], stamps_ns: npt.ArrayLike, gyro_rad_s: npt.ArrayLike,

@@ -25,6 +25,7 @@ from ibiscape_eval.core.errors import FormatError
 from ibiscape_eval.core.imu import CHUNK_ROWS, ImuRecord
 
 from ..atomic import atomic_output_path
+from .columns import STAMP_UNITS, stamp_unit, with_layout
 from .timing import (
     TimingAccumulator,
     check_samples,
@@ -166,18 +167,29 @@ def read_imu_npy(p: Path, rate_hz: float | None) -> ImuRecord:
         arr = np.ascontiguousarray(arr)
         return record_from_array(p, arr, rate_hz)
     first = width - 6
+    unit = "ns"
+    notes: tuple[str, ...] = ()
     if first:
         acc = TimingAccumulator(str(p), first_line=1)
+        factor = 1
         for i, block in enumerate(iter_npy_blocks(str(p), offset, dtype, width, n, CHUNK_ROWS)):
+            if i == 0:
+                unit, how = stamp_unit(block[:4000, 0])
+                factor = STAMP_UNITS[unit]
+                if unit != "ns":
+                    notes = (f"timestamps read as {unit} ({how})",)
             if i == 0 or (dtype.kind == "f" and not np.isfinite(block[:, 0]).all()):
                 check_stamp_dtype(p, block[:, 0])
-            acc.add(block[:, 0].astype(np.int64))
+            t = block[:, 0]
+            acc.add(t.astype(np.int64) if factor == 1
+                    else np.round(t.astype(np.float64) * factor).astype(np.int64))
         timing = acc.result()
     else:
         timing = no_stamp_timing(str(p), rate_hz, "an (N, 6) .npy")
     for block in iter_npy_blocks(str(p), offset, dtype, width, min(n, CHUNK_ROWS), CHUNK_ROWS):
         check_samples(p, block[:, first:].astype(np.float64))
-    return finish_record(str(p), None, n, timing, rate_hz, _source=NpyRows(str(p), first=first))
+    rec = finish_record(str(p), None, n, timing, rate_hz, _source=NpyRows(str(p), first=first))
+    return with_layout(rec, None, notes) if notes else rec
 
 
 

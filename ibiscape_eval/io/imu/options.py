@@ -40,26 +40,47 @@ def parse_units(text: str | Mapping[str, str] | None) -> tuple[float, float]:
     return gyro, accel
 
 
-def parse_columns(text: str | Mapping[str, str | int] | None) -> dict[str, str | int]:
-    """Column mapping from ``"t=0,w_x=1,...,a_z=6"`` (indices) or names of the header row.
+_TIME_KEYS = ("t", "t_s", "t_ms", "t_us", "t_ns")
+_ALIAS = {"wx": "w_x", "wy": "w_y", "wz": "w_z", "gx": "w_x", "gy": "w_y", "gz": "w_z",
+          "ax": "a_x", "ay": "a_y", "az": "a_z", "time": "t", "timestamp": "t"}
+_SKIP = ("_", "-", "skip", "")
 
-    Keys: ``t`` (ns) or ``t_s`` (seconds), and the six axes ``w_x w_y w_z a_x a_y a_z``
-    (``wx gx ax`` spellings are accepted).  Values: 0-based column numbers or header names.
+
+def parse_columns(text: str | Mapping[str, str | int] | None) -> dict[str, str | int]:
+    """Column mapping from ``"t=0,w_x=1,...,a_z=6"`` (0-based indices or header names), or the
+    file's columns in order, ``"t,ax,ay,az,gx,gy,gz"`` (``_`` skips a column).
+
+    Keys: ``t`` (unit from the header or the sample interval) or ``t_s``, ``t_ms``, ``t_us``,
+    ``t_ns`` (stated unit), and the six axes ``w_x w_y w_z a_x a_y a_z`` (``wx gx ax``
+    spellings are accepted).  Values: 0-based column numbers or header names.
     """
     if text is None:
         return {}
-    raw = dict(text) if isinstance(text, Mapping) else _pairs(text, "--columns")
-    alias = {"wx": "w_x", "wy": "w_y", "wz": "w_z", "gx": "w_x", "gy": "w_y", "gz": "w_z",
-             "ax": "a_x", "ay": "a_y", "az": "a_z", "t_ns": "t"}
+    if isinstance(text, str) and "=" not in text:
+        raw: dict[str, str | int] = {}
+        for i, part in enumerate(text.split(",")):
+            k = part.strip().lower()
+            if k in _SKIP:
+                continue
+            if k in raw:
+                raise IbiscapeError(f"--columns names {part.strip()!r} twice")
+            raw[k] = i
+    else:
+        raw = dict(text) if isinstance(text, Mapping) else dict(_pairs(text, "--columns"))
     out: dict[str, str | int] = {}
     for key, val in raw.items():
-        k = alias.get(key.lower(), key.lower())
-        if k not in (*AXES, "t", "t_s"):
-            raise IbiscapeError(f"unknown --columns key {key!r}; use t (ns) or t_s, w_x .. a_z")
+        k = _ALIAS.get(key.lower(), key.lower())
+        if k not in (*AXES, *_TIME_KEYS):
+            raise IbiscapeError(f"unknown --columns key {key!r}; use t (or t_s, t_ms, t_us, t_ns) "
+                                "and w_x .. a_z (gx, ax ...)")
+        if k in out:
+            raise IbiscapeError(f"--columns maps {k} twice")
         v: str | int = val
         if isinstance(val, str) and val.strip().lstrip("-").isdigit():
             v = int(val)
         out[k] = v
+    if sum(k in _TIME_KEYS for k in out) > 1:
+        raise IbiscapeError("--columns maps the time twice; give one of t, t_s, t_ms, t_us, t_ns")
     missing = [a for a in AXES if a not in out]
     if missing:
         raise IbiscapeError(f"--columns lacks {', '.join(missing)}; map all six axes")

@@ -1,22 +1,31 @@
-"""Parquet IMU files (EuRoC column names, or a column mapping)."""
+"""Parquet IMU files (columns by header name, in any order, or a column mapping)."""
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 
 from ibiscape_eval.core.errors import FormatError
-from ibiscape_eval.core.imu import AXES, ImuRecord
+from ibiscape_eval.core.imu import ImuRecord
 
-from .csv import resolve_columns
+from .columns import (
+    STAMP_UNITS,
+    check_rate,
+    override_units,
+    resolve_layout,
+    stamp_unit,
+    with_layout,
+)
 from .timing import record_from_parts
 
 __all__ = ["read_imu_parquet"]
 
 
-def read_imu_parquet(p: Path, cols: Mapping[str, str | int], rate_hz: float | None) -> ImuRecord:
+def read_imu_parquet(p: Path, cols: Mapping[str, str | int], rate_hz: float | None, *,
+                     units: tuple[float, float] | None = None) -> ImuRecord:
     import pandas as pd
 
     try:
@@ -24,24 +33,31 @@ def read_imu_parquet(p: Path, cols: Mapping[str, str | int], rate_hz: float | No
     except Exception as e:  # pyarrow raises many types for a broken file
         raise FormatError(p, f"not a readable parquet file ({type(e).__name__}: {e})") from None
     names = [str(c) for c in df.columns]
-    if not cols:
-        norm = {n.lstrip("#").split(" ")[0].split("[")[0].strip(): n for n in names}
-        t_name = next((norm[k] for k in ("timestamp", "stamps_ns", "t", "t_ns") if k in norm), None)
-        missing = [a for a in AXES if a not in norm]
-        if missing:
-            raise FormatError(p, f"columns {', '.join(missing)} not found (have {', '.join(names)}); "
-                              "give --columns")
-        t_idx = None if t_name is None else names.index(t_name)
-        axis_idx = [names.index(norm[a]) for a in AXES]
-        t_s = False
-    else:
-        t_idx, t_s, axis_idx = resolve_columns(cols, names, len(names), p)
-    arr = df.to_numpy()
+    layout = resolve_layout(p, cols, names, len(names))
+    if layout.mapped_by == "default order":
+        raise FormatError(p, f"gyro/accelerometer columns not recognised (have {', '.join(names)}); "
+                          "give --columns")
+    if units is not None:
+        layout = override_units(layout, units)
     try:
-        data = arr[:, axis_idx].astype(np.float64)
-        stamps = None if t_idx is None else arr[:, t_idx].astype(np.float64)
+        data = df.iloc[:, list(layout.axis_columns)].to_numpy(dtype=np.float64)
+        t_col = layout.time_column
+        stamps = None if t_col is None else df.iloc[:, t_col].to_numpy()
     except (TypeError, ValueError):
         raise FormatError(p, "a mapped column is not numeric") from None
-    if stamps is not None and t_s:
-        stamps = np.round(stamps * 1e9)
-    return record_from_parts(p, stamps, data, rate_hz)
+    data = data * np.array([layout.gyro_scale] * 3 + [layout.accel_scale] * 3)
+    if stamps is not None:
+        if stamps.dtype.kind not in "fiu":
+            raise FormatError(p, "the time column is not numeric")
+        unit, how = layout.time_unit, layout.time_unit_from
+        head = np.asarray(stamps[:4000], dtype=np.float64)
+        if unit is None:
+            unit, how = stamp_unit(head)
+            layout = dataclasses.replace(layout, time_unit=unit, time_unit_from=how)
+        else:
+            d = np.diff(head)
+            check_rate(p, unit, float(np.median(d[d > 0])) if np.any(d > 0) else float("nan"), how)
+        f = STAMP_UNITS[unit]
+        stamps = (stamps.astype(np.int64) * np.int64(f) if stamps.dtype.kind in "iu"
+                  else np.round(stamps.astype(np.float64) * f))
+    return with_layout(record_from_parts(p, stamps, data, rate_hz), layout)

@@ -152,7 +152,17 @@ def record_from_array(p: Path, arr: np.ndarray, rate_hz: float | None) -> ImuRec
         raise FormatError(p, f"expected a numeric array, got dtype {arr.dtype}")
     first = arr.shape[1] - 6
     data = np.asarray(arr[:, first:], dtype=np.float64)
-    return record_from_parts(p, arr[:, 0] if first else None, data, rate_hz)
+    if not first:
+        return record_from_parts(p, None, data, rate_hz)
+    from .columns import STAMP_UNITS, stamp_unit, with_layout
+
+    stamps = arr[:, 0]
+    unit, how = stamp_unit(stamps[:4000])
+    if unit == "ns":
+        return record_from_parts(p, stamps, data, rate_hz)
+    scaled = np.round(np.asarray(stamps, dtype=np.float64) * STAMP_UNITS[unit])
+    return with_layout(record_from_parts(p, scaled, data, rate_hz), None,
+                       (f"timestamps read as {unit} ({how})",))
 
 
 def record_from_parts(p: Path, stamps: np.ndarray | None, data: np.ndarray, rate_hz: float | None,
