@@ -71,20 +71,25 @@ def _render(weather: str, out: Path, *, seed: int, duration_s: float, resolution
                          "--synthetic or --sequences)")
 
 
+def _ate(est: Any, gt: Any, **kw: Any) -> tuple[Any, str]:
+    """ATE after SE(3) alignment, or after 4-DoF (yaw) alignment on a straight path (a short
+    sequence), where the roll about the path line is undetermined."""
+    from ibiscape_eval.core.errors import DegenerateInputError
+    from ibiscape_eval.metrics import ate
+
+    try:
+        return ate(est, gt, align="se3", **kw), "se3"
+    except DegenerateInputError:
+        return ate(est, gt, align="yaw", **kw), "yaw"
+
+
 def _score(est_path: Path, seq: Path) -> dict[str, float]:
     from ibiscape_eval.io import read_trajectory
-    from ibiscape_eval.metrics import ate, rpe
+    from ibiscape_eval.metrics import rpe
 
     est = read_trajectory(est_path, "tum")
     gt = read_trajectory(seq / "vehicle_gt" / "groundtruth_sync.csv", "ibiscape")
-    from ibiscape_eval.core.errors import DegenerateInputError
-
-    align = "se3"
-    try:
-        a = ate(est, gt, align="se3", max_diff_s=0.02)
-    except DegenerateInputError:  # a short straight sequence: the roll about the path is free
-        align = "yaw"
-        a = ate(est, gt, align="yaw", max_diff_s=0.02)
+    a, align = _ate(est, gt, max_diff_s=0.02)
     r = rpe(est, gt, delta=1.0, delta_unit="seconds", max_diff_s=0.02)
     return {"ate_m": a.translation_m.rmse, "length_m": float(a.ref.path_length_m()[-1]),
             "yaw_aligned": float(align == "yaw"), "rpe_m": r.translation_m.mean, "rpe_m_std": r.translation_m.std,
@@ -157,7 +162,7 @@ def _inprocess(seq: Path, max_frames: int | None) -> dict[str, float]:
 def _synthetic(seq: Path) -> dict[str, float]:
     import numpy as np
 
-    from ibiscape_eval.metrics import ate, rpe
+    from ibiscape_eval.metrics import rpe
     from ibiscape_eval.vio import Estimator, StereoRig, VioParams, load_sequence
     from ibiscape_eval.vio.synthetic import random_landmarks, synthetic_observations
 
@@ -174,11 +179,11 @@ def _synthetic(seq: Path) -> dict[str, float]:
     est.finish()
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     tr = est.trajectory()
-    a = ate(tr, gt, align="se3")
+    a, align = _ate(tr, gt)
     r = rpe(tr, gt, delta=1.0, delta_unit="seconds")
     dur = (gt.stamps_ns[-1] - gt.stamps_ns[0]) * 1e-9
     return {"ate_m": a.translation_m.rmse, "length_m": float(gt.path_length_m()[-1]),
-            "rpe_m": r.translation_m.mean, "rpe_m_std": r.translation_m.std,
+            "yaw_aligned": float(align == "yaw"), "rpe_m": r.translation_m.mean, "rpe_m_std": r.translation_m.std,
             "rpe_deg": r.rotation_deg.mean, "rpe_deg_std": r.rotation_deg.std,
             "wall_s": wall, "peak_mb": float("nan"), "speed": dur / wall, "cpu_speed": dur / cpu,
             "failures": len(est.failures), "poses": len(tr), "frames": len(obs),
