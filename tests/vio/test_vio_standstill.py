@@ -254,3 +254,13 @@ def test_estimator_starts_still_on_the_real_rotor_vibration_and_bias() -> None:
     up_est = rot.inv().apply([0.0, 0.0, 1.0])       # gravity direction in the body
     up_true = R.T @ [0.0, 0.0, 1.0]
     assert np.degrees(np.arccos(np.clip(up_est @ up_true, -1, 1))).max() < 0.5
+
+
+def test_the_test_result_is_a_plain_mapping() -> None:
+    import json
+
+    r = _test(imu_stream("slow_start", seed=0))
+    d = json.loads(json.dumps(r.to_dict()))
+    assert d["still"] is False and d["reason"] == r.reason
+    assert d["accel_axis_std_m_s2"] == pytest.approx(r.accel_axis_std_m_s2)
+    assert len(d["mean_gyro_rad_s"]) == 3
