@@ -66,3 +66,22 @@ if gt is not None:
     print(f"RPE over 1 s: {r.translation_m.mean:.4f} ± {r.translation_m.std:.4f} m, "
           f"{r.rotation_deg.mean:.4f} ± {r.rotation_deg.std:.4f} deg")
     print(f"final position error: {np.linalg.norm(a.est_aligned.pos_m[-1] - a.ref.pos_m[-1]):.3f} m")
+
+# %% Did it start from a standstill? The test on the first 0.45 s of IMU, with what it measured
+from ibiscape_eval.vio.initialise import detect_standstill, standstill_at
+
+t0 = int(seq.frame_stamps_ns[0]) if seq.n_frames else int(gt.stamps_ns[0])
+still = standstill_at(*seq.imu, t0, VioParams())
+print(f"standstill: {still.still} {still.reason}")
+print(f"  gyro variance {still.gyro_var_rad2_s2:.2e} (limit {still.gyro_var_limit_rad2_s2:.1e}) rad^2/s^2, "
+      f"accel norm std {still.accel_norm_std_m_s2:.3f}, axis std {still.accel_axis_std_m_s2:.3f} "
+      f"(limit {still.accel_std_limit_m_s2}) m/s^2; gyro bias {np.round(still.mean_gyro_rad_s, 4)} rad/s")
+# any window: e.g. the 2 s after the start
+print(detect_standstill(*seq.imu, t0, t0 + 2_000_000_000).still)
+
+# %% The top view: the ground truth is drawn over the estimate's span +- 1 s only
+from ibiscape_eval.vio.plots import save_figure, top_view_figure
+
+if gt is not None:
+    fig = top_view_figure(a.est_aligned, gt, title="VIO top view")
+    save_figure(fig, Path(tempfile.mkdtemp(prefix="vio_plot_")) / "top.png")

@@ -27,7 +27,13 @@ from ibiscape_eval.core.kalibr import ImuNoise
 from ibiscape_eval.core.trajectory import Trajectory
 
 from .backend import GRAVITY_M_S2, Backend, StereoObservations, integrate_imu
-from .initialise import InitialState, initialise_moving, initialise_standstill
+from .initialise import (
+    InitialState,
+    StandstillTest,
+    initialise_moving,
+    initialise_standstill,
+    standstill_at,
+)
 from .params import VioParams
 from .rig import RectifiedStereo
 
@@ -107,6 +113,8 @@ class Estimator:
         self._last_pose: FloatArray | None = None  # latest pose estimate (for re-initialisation)
         self._prev_t: int | None = None
         self.last_error = ""
+        #: the first standstill test of the run (what was measured, the limits), None before it
+        self.standstill_test: StandstillTest | None = None
 
     # ------------------------------------------------------------------------------ frames
     def gyro_rotation(self, t0_ns: int, t1_ns: int) -> FloatArray:
@@ -263,6 +271,8 @@ class Estimator:
         st: InitialState | None = None
         if (obs.stamp_ns - first.stamp_ns) * 1e-9 >= p.still_window_s:
             R_bi = None if self.T_body_imu is None else self.T_body_imu[:3, :3]
+            if self.standstill_test is None:
+                self.standstill_test = standstill_at(*self.imu, first.stamp_ns, p)
             still = initialise_standstill(*self.imu, first.stamp_ns, p, R_bi)
             if still is not None and self._image_still(first, obs):
                 T = still.T_world_body

@@ -73,14 +73,21 @@ class StereoFrontEnd:
                                              guess.reshape(-1, 1, 2).copy(), winSize=self.win,
                                              maxLevel=self.levels, criteria=crit,
                                              flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
-        pb, stb, _ = cv2.calcOpticalFlowPyrLK(pyr1, pyr0, p1, p0.reshape(-1, 1, 2).copy(),
-                                              winSize=self.win, maxLevel=self.levels,
-                                              criteria=crit, flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
         p1 = p1.reshape(-1, 2)
-        fb = np.linalg.norm(pb.reshape(-1, 2) - p0.reshape(-1, 2), axis=1)
         w, h = self.rig.size
-        ok = (st.ravel() == 1) & (stb.ravel() == 1) & (fb < self.fb_px)
+        ok = (st.ravel() == 1)
         ok &= (p1[:, 0] >= 0) & (p1[:, 0] <= w - 1) & (p1[:, 1] >= 0) & (p1[:, 1] <= h - 1)
+        # backward check only for the forward survivors: OpenCV tracks every point on its own,
+        # so the subset gets exactly the values a call with all points would give
+        fwd = np.flatnonzero(ok)
+        if len(fwd):
+            q0 = p0.reshape(-1, 2)[fwd]
+            pb, stb, _ = cv2.calcOpticalFlowPyrLK(pyr1, pyr0, p1[fwd].reshape(-1, 1, 2).copy(),
+                                                  q0.reshape(-1, 1, 2).copy(), winSize=self.win,
+                                                  maxLevel=self.levels, criteria=crit,
+                                                  flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
+            fb = np.linalg.norm(pb.reshape(-1, 2) - q0, axis=1)
+            ok[fwd] = (stb.ravel() == 1) & (fb < self.fb_px)
         return p1.astype(np.float32), ok
 
     def _predict(self, R_b0_b1: FloatArray | None) -> npt.NDArray[np.float32]:
