@@ -203,10 +203,10 @@ def test_estimator_starts_still_on_the_real_rotor_vibration_and_bias() -> None:
     with a still stereo view: standstill start with the mean rate as gyro bias (the old test,
     |mean rate| < 0.02 rad/s, never started still here), and the estimate stays put."""
     from ibiscape_eval.core.camera import CameraModel
+    from ibiscape_eval.core.kalibr import ImuNoise
     from ibiscape_eval.core.trajectory import Trajectory
     from ibiscape_eval.vio.estimator import Estimator
     from ibiscape_eval.vio.initialise import gravity_alignment
-    from ibiscape_eval.vio.params import ImuNoiseDensities
     from ibiscape_eval.vio.rig import StereoRig
     from ibiscape_eval.vio.synthetic import synthetic_observations
 
@@ -232,7 +232,10 @@ def test_estimator_starts_still_on_the_real_rotor_vibration_and_bias() -> None:
     T_wc[:3, 3] = R @ T_l[:3, 3]
     landmarks = pc @ T_wc[:3, :3].T + T_wc[:3, 3]
     obs = synthetic_observations(gt, rig, frames, landmarks, pixel_sigma_px=0.3, seed=1)
-    noise = ImuNoiseDensities(1.6968e-4, 1.9393e-5, 2.0e-3, 3.0e-3, 200.0)
+    noise = ImuNoise(gyro_noise_density_rad_s_sqrt_hz=1.6968e-4,
+                     gyro_random_walk_rad_s2_sqrt_hz=1.9393e-5,
+                     accel_noise_density_m_s2_sqrt_hz=2.0e-3,
+                     accel_random_walk_m_s3_sqrt_hz=3.0e-3, update_rate_hz=200.0)
     est = Estimator(rig.rectified(), imu, noise, VioParams())
     for o in obs:
         est.process(o)
