@@ -92,7 +92,7 @@ def _matrix4(path: Path, value: Any, key: str) -> npt.NDArray[np.float64]:
         raise FormatError(path, f"{key} must be a 4x4 matrix (16 numbers)") from None
     problem = rigid_transform_problem(T)
     if problem:
-        raise FormatError(path, f"{key} {problem}; fix the calibration file")
+        raise FormatError(path, f"{key}: {problem}; fix the calibration file")
     return T
 
 
