@@ -25,27 +25,22 @@ def load_imu_noise(path: str) -> Any:
     return read_imu_noise(path)
 
 
-def run_sequence(seq: Path, imu_yaml: Path, *, camchain: Path | None, imu_data: Path | None,
-                 cameras: Sequence[str] | None, target_path: Path | None, force: bool,
-                 frame_step: int, yaml_path: Path | None, json_out: bool, plot_dir: Path | None,
-                 workers: int | None) -> Any:
-    """``calib SEQ --imu imu.yaml``: calibrate, write ``--yaml`` (camchain-imucam) and ``--plot``
-    figures, print the table (or ``--json``)."""
+def run_sequence(seq: Any, imu_yaml: Path, *, camchain: Path | None, imu_data: Path | None,
+                 target: Any, force: bool, frame_step: int, yaml_path: Path | None, json_out: bool,
+                 plot_dir: Path | None, workers: int | None) -> Any:
+    """``calib SEQ --imu imu.yaml`` on an opened sequence: calibrate, write ``--yaml``
+    (camchain-imucam) and ``--plot`` figures, print the table (or ``--json``).  ``--imu
+    SEQ/sequence.yaml`` takes the noise the sequence states."""
     from ibiscape_eval.calib.imu_camera import calibrate_sequence, camchain_imucam_document
-    from ibiscape_eval.calib.imu_camera.sequence import read_imu_noise
     from ibiscape_eval.io.kalibr_imucam import write_camchain_imucam
 
     from .progress import fraction_callback, progress_bar
 
-    read_imu_noise(imu_yaml)  # a bad imu.yaml fails before anything else is read
-    target = None
-    if target_path is not None:
-        from ibiscape_eval.calib.targets import target_from_kalibr
-        from ibiscape_eval.io.kalibr import read_target_yaml
-
-        target = target_from_kalibr(read_target_yaml(target_path), source=str(target_path))
+    own = Path(seq.path) / "sequence.yaml"
+    if not (own.is_file() and Path(imu_yaml).resolve() == own.resolve()):
+        load_imu_noise(str(imu_yaml))  # a bad imu.yaml fails before anything else is read
     with progress_bar(1000, "calib --imu", unit="‰", unit_scale=False) as bar:
-        res = calibrate_sequence(seq, imu_yaml, camchain=camchain, cameras=cameras, force=force,
+        res = calibrate_sequence(seq, imu_yaml, camchain=camchain, force=force,
                                  progress=fraction_callback(bar, "calib --imu"), imu_data=imu_data,
                                  target=target, frame_step=frame_step, workers=workers)
     if yaml_path is not None:
