@@ -397,9 +397,9 @@ def calibrate_cameras(seq: Recording, *, target: CalibrationTarget | None = None
     IbiscapeError, CalibrationError
         No target, unknown sensor size of an event camera, no target found, too few views.
     """
-    from .report import compare_with_truth, truth_from_sequence
-
     from ibiscape_eval.io.image_sets import pair_views
+
+    from .report import compare_with_truth, truth_from_sequence
 
     tgt = sequence_target(seq, target)
     frames, recon = camera_frames(seq, tgt, reconstruction=reconstruction,

@@ -28,7 +28,7 @@ from .camera import CameraModel
 from .errors import IbiscapeError
 from .trajectory import Trajectory
 
-__all__ = ["CameraStream", "ImuStream", "Lazy", "Sequence", "SEQUENCE_LAYOUTS"]
+__all__ = ["SEQUENCE_LAYOUTS", "CameraStream", "ImuStream", "Lazy", "Sequence"]
 
 T = TypeVar("T")
 
@@ -41,7 +41,7 @@ FloatArray = npt.NDArray[np.float64]
 class Lazy(Generic[T]):
     """A value computed on first :meth:`get` (thread-safe), then kept."""
 
-    __slots__ = ("_fn", "_lock", "_value", "_done")
+    __slots__ = ("_done", "_fn", "_lock", "_value")
 
     def __init__(self, fn: Callable[[], T]):
         self._fn = fn

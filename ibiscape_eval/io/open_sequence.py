@@ -36,6 +36,7 @@ import re
 from collections.abc import Mapping
 from collections.abc import Sequence as Seq
 from dataclasses import replace
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -96,6 +97,15 @@ def _matrix4(path: Path, value: Any, key: str) -> npt.NDArray[np.float64]:
     return T
 
 
+def _inverse(T: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+    """The inverse of a rigid transform (checked by :func:`_matrix4`)."""
+    out = np.eye(4)
+    R = T[:3, :3]
+    out[:3, :3] = R.T
+    out[:3, 3] = -R.T @ T[:3, 3]
+    return out
+
+
 def read_sensor_yaml(path: str | os.PathLike[str]) -> dict[str, Any]:
     """An EuRoC/ASL ``sensor.yaml`` (``%YAML:1.0`` accepted): the mapping with ``T_BS`` as a 4x4
     array.  Raises :class:`FormatError` naming the file."""
@@ -145,9 +155,9 @@ def _gt_lazy(path: Path, fmt: str) -> tuple[Lazy[Any] | None, str | None]:
         return None, None
     with open(path, "rb") as fh:
         head = fh.read(4096)
-    if not any(ln.strip() and not ln.lstrip().startswith(b"#") for ln in head.splitlines()):
-        if len(head) < 4096:
-            return None, f"{path}: ground-truth csv is empty; the sequence has no ground truth"
+    rows = any(ln.strip() and not ln.lstrip().startswith(b"#") for ln in head.splitlines())
+    if not rows and len(head) < 4096:
+        return None, f"{path}: ground-truth csv is empty; the sequence has no ground truth"
 
     def read() -> Any:
         from .trajectory import read_trajectory
@@ -285,14 +295,14 @@ def _asl(root: Path, tumvi: bool) -> Sequence | str:
     for c in cams:
         stamps, files, n = _frame_list(c / "data.csv", [c / "data", c])
         entry: dict[str, Any] = {}
-        T_bc = None
+        T_bc: npt.NDArray[np.float64] | None = None
         src = ""
         rate = None
         if c.name in chain:
             entry = dict(chain[c.name])
             src = str(camchain)
             if "T_cam_imu" in entry:
-                T_bc = np.linalg.inv(_matrix4(camchain, entry["T_cam_imu"], f"{c.name}.T_cam_imu"))
+                T_bc = _inverse(_matrix4(camchain, entry["T_cam_imu"], f"{c.name}.T_cam_imu"))
         elif (c / "sensor.yaml").is_file():
             d = read_sensor_yaml(c / "sensor.yaml")
             dist = {"radial-tangential": "radtan", "radtan": "radtan", "equidistant": "equidistant"}.get(
@@ -394,7 +404,7 @@ def _bag(p: Path, image_topics: Seq[str] | None, imu_topic: str | None,
                                     exact_stamps=False))
     for t in chosen_ev:
         cameras.append(CameraStream(names[t], "events", None, p, rostopic=t,
-                                    events=Lazy(lambda t=t: _bag_events(p, t)), n=0))
+                                    events=Lazy(partial(_bag_events, p, t)), n=0))
     imu = None
     if imu_topic is not None:
         def read_imu(topic: str = imu_topic) -> Any:
@@ -431,13 +441,13 @@ def _topic_names(topics: Seq[str]) -> dict[str, str]:
 
 # ------------------------------------------------------------------------------------------ globs
 def _globs(specs: Seq[str]) -> Sequence:
-    from .image_sets import image_sets_from_globs, read_image
+    from .image_sets import image_sets_from_globs
 
     cams = []
     for s in image_sets_from_globs(specs):
         files = Lazy.of(s.paths)
         cams.append(CameraStream(s.name, "frames", s.stamps_ns, s.root, files=files,
-                                 loader=lambda i, p=s.paths: read_image(p[i]), n=len(s.paths),
+                                 loader=_image_loader(files), n=len(s.paths),
                                  exact_stamps=s.exact_stamps))
     return Sequence(Path(str(cams[0].root)) if cams else Path("."), "images", tuple(cams))
 
@@ -582,7 +592,7 @@ def apply_camchain(seq: Sequence, calib: str | os.PathLike[str]) -> Sequence:
                               "of this recording (or rescale the intrinsics)")
         T_bc = c.T_body_cam
         if "T_cam_imu" in v:
-            T_bc = np.linalg.inv(_matrix4(p, v["T_cam_imu"], f"{k}.T_cam_imu"))
+            T_bc = _inverse(_matrix4(p, v["T_cam_imu"], f"{k}.T_cam_imu"))
         cams.append(replace(c, camera=model, sensor_size=size, T_body_cam=T_bc, entry=v,
                             calibration_source=str(p), rostopic=v.get("rostopic", c.rostopic)))
     return seq.with_cameras(cams)

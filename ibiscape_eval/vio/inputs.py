@@ -21,14 +21,13 @@ not cover the images, non-monotonic stamps, left and right frame lists that do n
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-
-from collections.abc import Callable
 
 from ibiscape_eval.core.camera import CameraModel
 from ibiscape_eval.core.errors import CalibrationError, FormatError, IbiscapeError
