@@ -47,7 +47,7 @@ from ibiscape_eval.core.camera import CameraModel
 from ibiscape_eval.core.errors import FormatError, IbiscapeError
 from ibiscape_eval.core.sequence import CameraStream, ImuStream, Lazy, Sequence
 
-__all__ = ["NoLayoutError", "apply_camchain", "open_sequence", "read_sensor_yaml"]
+__all__ = ["NoLayoutError", "apply_camchain", "open_sequence", "read_sensor_yaml", "stated_sensor_size"]
 
 #: IBISCape camera folder names, in chain order
 CAMERA_FOLDERS = ("rgbL", "rgbR", "rgb", "davisL", "davisR")
@@ -206,6 +206,8 @@ def _ibiscape(root: Path) -> Sequence | str:
         return ("no sequence.yaml, no camera folder (rgbL, rgbR, rgb, davisL, davisR) with "
                 "timestamps.csv, no other_sensors/")
     doc: dict[str, Any] = read_sequence_yaml(root / "sequence.yaml") if has_doc else {}
+    if single and not has_doc and (root.parent / "sequence.yaml").is_file():
+        doc = read_sequence_yaml(root.parent / "sequence.yaml")  # a camera folder of a sequence
     seq_cams = doc.get("cameras") if isinstance(doc.get("cameras"), dict) else {}
     assert isinstance(seq_cams, dict)
     cameras: list[CameraStream] = []
@@ -222,8 +224,8 @@ def _ibiscape(root: Path) -> Sequence | str:
         common: dict[str, Any] = dict(
             root=folder, sensor_size=_size(entry.get("resolution")), rate_hz=_rate(entry.get("rate_hz")),
             camera=_model_or_none(entry) if "intrinsics" in entry else None, T_body_cam=T_bc,
-            rostopic=entry.get("rostopic"), entry=entry, calibration_source=str(root / "sequence.yaml")
-            if entry else "")
+            rostopic=entry.get("rostopic"), entry=entry,
+            calibration_source=str((root.parent if single else root) / "sequence.yaml") if entry else "")
         if (folder / "events").is_dir():
             from .events import open_events
 
@@ -596,3 +598,24 @@ def apply_camchain(seq: Sequence, calib: str | os.PathLike[str]) -> Sequence:
         cams.append(replace(c, camera=model, sensor_size=size, T_body_cam=T_bc, entry=v,
                             calibration_source=str(p), rostopic=v.get("rostopic", c.rostopic)))
     return seq.with_cameras(cams)
+
+
+def stated_sensor_size(path: str | os.PathLike[str], camera: str | None = None) -> tuple[int, int] | None:
+    """The sensor size ``(width, height)`` a recording states for an event camera, or None.
+
+    ``path`` is a sequence folder (``camera`` names the DVS camera; default: its only event camera),
+    a DVS camera folder of a sequence (``SEQ/davisL``: the size from ``SEQ/sequence.yaml``) or a
+    ROS bag; None for anything that states no size (a bare event file, a folder in no layout), so
+    the caller can fall back to ``--sensor-size`` or to inferring it.
+    """
+    p = Path(path)
+    if not (p.is_dir() or _is_bag(p)):
+        return None
+    try:
+        seq = open_sequence(p)
+    except IbiscapeError:
+        return None
+    cams = [c for c in seq.cameras if c.kind == "events"] or list(seq.cameras)
+    if camera is not None:
+        cams = [c for c in seq.cameras if c.name == camera]
+    return cams[0].sensor_size if len(cams) == 1 else None

@@ -274,3 +274,23 @@ def test_vio_on_a_ros2_bag_with_calib_and_imu_yaml(street_euroc, tmp_path):
     np.testing.assert_allclose(b.trajectory.pos_m, a.trajectory.pos_m, atol=1e-6)
     with pytest.raises(DegenerateInputError, match="only 3 stereo frames"):
         run_vio(door(bag), calib=calib, imu_yaml=imu, max_frames=3)
+
+
+def test_stated_sensor_size_for_hotpix_and_events_frames(tmp_path):
+    """What ``hotpix``/``events frames`` ask instead of inferring 256x256: the size sequence.yaml
+    states, for the sequence folder and for its DVS camera folder."""
+    from ibiscape_eval.io.open_sequence import stated_sensor_size
+    from ibiscape_eval.sim import generate, preset
+    from ibiscape_eval.sim.config import with_resolution
+
+    cfg = with_resolution(preset("esvi", "slam", "clear", duration_s=0.3, seed=2), 64, 48)
+    generate(cfg, tmp_path / "ESVI", render=True)
+    seq = open_sequence(tmp_path / "ESVI")
+    davis = [c for c in seq.cameras if c.kind == "events"]
+    assert [c.name for c in davis] == ["davisL", "davisR"]
+    assert all(c.sensor_size == (64, 48) and len(c) > 0 for c in davis)
+    assert stated_sensor_size(tmp_path / "ESVI", "davisR") == (64, 48)
+    assert stated_sensor_size(tmp_path / "ESVI" / "davisL") == (64, 48)
+    assert open_sequence(tmp_path / "ESVI" / "davisL").cameras[0].events.get() is not None
+    assert stated_sensor_size(tmp_path / "ESVI") is None  # two event cameras: name one
+    assert stated_sensor_size(tmp_path / "nothing.npz") is None
