@@ -124,6 +124,11 @@ def _frame_list(csv: Path, folders: Seq[Path]) -> tuple[npt.NDArray[np.int64], L
     from .stereo import read_frame_list
 
     stamps, names = read_frame_list(csv)
+    bad = next((i for i, n in enumerate(names) if "\x00" in n), None)
+    if bad is not None:  # a path cannot hold a NUL byte: name the line instead of failing later
+        with open(csv, "rb") as fh:
+            line = next(no for no, raw in enumerate(fh, start=1) if b"\x00" in raw)
+        raise FormatError(csv, "a file name holds a NUL byte; the frame list is damaged", line=line)
     base = next((f for f in folders if (f / names[0]).is_file()), folders[0])
     return stamps, Lazy(lambda: tuple(base / n for n in names)), len(names)
 
