@@ -47,7 +47,7 @@ def measure(seq: Path, frames: int) -> None:
     import cv2
 
     from ibiscape_eval.calib import detect_corners
-    from ibiscape_eval.calib.targets import target_from_kalibr
+    from ibiscape_eval.core.kalibr import target_from_kalibr
 
     cv2.setNumThreads(1)
     doc = yaml.safe_load((seq / "sequence.yaml").read_text())
@@ -86,7 +86,7 @@ def measure_dvs(seq: Path, frames: int) -> None:
 
     from ibiscape_eval.calib import detect_corners
     from ibiscape_eval.calib.events import event_set_frames
-    from ibiscape_eval.calib.targets import target_from_kalibr
+    from ibiscape_eval.core.kalibr import target_from_kalibr
     from ibiscape_eval.io.open_sequence import open_sequence
 
     cv2.setNumThreads(1)

@@ -164,7 +164,8 @@ def allan(imu: str, fmt: str | None, columns: str | None, units: str | None, ros
         _table(model, rec.rate_hz)
 
     if yaml_path:
-        from ibiscape_eval.io.imu import write_kalibr_imu_yaml
+        from ibiscape_eval.core.kalibr import ImuNoise
+        from ibiscape_eval.io.kalibr import write_imu_noise
 
         try:
             vals, notes = model.kalibr_values(random_walk_fallback=fallback, inflate=inflate,
@@ -173,14 +174,17 @@ def allan(imu: str, fmt: str | None, columns: str | None, units: str | None, ros
             raise IbiscapeError(f"{yaml_path} not written: {e}") from None
         rate = rec.rate_hz
         root = math.sqrt(rate)
-        write_kalibr_imu_yaml(
-            yaml_path,
-            accelerometer_noise_density=vals["accelerometer_noise_density"],
-            accelerometer_random_walk=vals["accelerometer_random_walk"],
-            gyroscope_noise_density=vals["gyroscope_noise_density"],
-            gyroscope_random_walk=vals["gyroscope_random_walk"],
-            update_rate_hz=rate,
-            rostopic=str(kalibr["rostopic"]),
+        bad = [k for k, v in vals.items() if not (math.isfinite(v) and v > 0)]
+        if bad:
+            raise IbiscapeError(f"cannot write {yaml_path}: {', '.join(bad)} not determined (NaN); "
+                                "record longer or give the fit ranges")
+        noise = ImuNoise(accel_noise_density_m_s2_sqrt_hz=vals["accelerometer_noise_density"],
+                         accel_random_walk_m_s3_sqrt_hz=vals["accelerometer_random_walk"],
+                         gyro_noise_density_rad_s_sqrt_hz=vals["gyroscope_noise_density"],
+                         gyro_random_walk_rad_s2_sqrt_hz=vals["gyroscope_random_walk"],
+                         update_rate_hz=rate, rostopic=str(kalibr["rostopic"]))
+        write_imu_noise(
+            yaml_path, noise,
             comments=[
                 f"ibiscape-eval allan {imu}: largest value over the three axes, continuous time",
                 *notes,

@@ -60,9 +60,11 @@ def _bar(desc: str) -> Any:
               help="Corners beyond this many robust standard deviations are rejected.")
 @click.option("--workers", type=click.IntRange(min=1), default=None,
               help="Detection threads (default: the usable CPUs).")
-@click.option("--imu", "imu_yaml", type=click.Path(path_type=Path), default=None,
-              help="Camera-IMU calibration: the IMU's Kalibr imu.yaml (the allan command's output); "
-              "estimates T_cam_imu and timeshift_cam_imu of every camera (--yaml writes "
+@click.option("--imu", "imu_yaml", type=str, default=None, is_flag=False, flag_value="",
+              metavar="[IMU_YAML]",
+              help="Camera-IMU calibration: the IMU's Kalibr imu.yaml (the allan command's output, or a "
+              "sequence.yaml); without a file (SEQ first: calib SEQ --imu) the noise SEQ/sequence.yaml "
+              "states; estimates T_cam_imu and timeshift_cam_imu of every camera (--yaml writes "
               "camchain-imucam.yaml).")
 @click.option("--cams", "cams_path", type=click.Path(path_type=Path), default=None,
               help="With --imu: take the intrinsics from this Kalibr camchain.yaml (default: "
@@ -81,7 +83,7 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
           yaml_out: Path | None, as_json: bool, plot_dir: Path | None,
           check_path: Path | None, max_views: int, max_frames: int, reconstruction: str,
           event_corners: str, sensor_size: str | None, outlier_sigma: float, workers: int | None,
-          imu_yaml: Path | None = None, cams_path: Path | None = None, imu_data: Path | None = None,
+          imu_yaml: str | None = None, cams_path: Path | None = None, imu_data: Path | None = None,
           force: bool = False, frame_step: int = 1) -> None:
     """Calibrate cameras from checkerboard or AprilGrid images (mono, stereo, chains; RGB and DVS).
 
@@ -104,9 +106,9 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
     """
     from ibiscape_eval.calib.pipeline import calibrate_cameras
     from ibiscape_eval.calib.report import format_report
-    from ibiscape_eval.calib.targets import target_from_kalibr
     from ibiscape_eval.core.errors import IbiscapeError
-    from ibiscape_eval.io.kalibr import CameraChain, read_camchain, read_target_yaml, write_camchain
+    from ibiscape_eval.core.kalibr import CameraChain
+    from ibiscape_eval.io.kalibr import read_camchain, read_target, write_camchain
     from ibiscape_eval.io.open_sequence import open_sequence
 
     from .hotpix import parse_sensor_size
@@ -115,16 +117,15 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
         raise IbiscapeError("--cams, --imu-data, --force and --frame-step belong to the camera-IMU "
                             "calibration: add --imu imu.yaml")
     names = [c.strip() for c in cameras.split(",") if c.strip()] if cameras else None
-    target = (target_from_kalibr(read_target_yaml(target_path), source=str(target_path))
-              if target_path is not None else None)
+    target = read_target(target_path) if target_path is not None else None
     if imu_yaml is not None:
         if seq is None or image_specs or check_path is not None:
             raise IbiscapeError("--imu calibrates a sequence folder: give SEQ (not --images or --check)")
         from .calib_imu import run_sequence
 
         opened = open_sequence(seq, cameras=names, image_topics=topics or None, imu_topic=imu_topic)
-        run_sequence(opened, imu_yaml, camchain=cams_path, imu_data=imu_data, target=target,
-                     force=force, frame_step=frame_step, yaml_path=yaml_out, json_out=as_json,
+        run_sequence(opened, Path(imu_yaml) if imu_yaml else None, camchain=cams_path,
+                     imu_data=imu_data, target=target, force=force, frame_step=frame_step, yaml_path=yaml_out, json_out=as_json,
                      plot_dir=plot_dir, workers=workers)
         return
     if seq is None and not image_specs:
@@ -168,9 +169,9 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
     assert result is not None
     topics_out = run.rostopics()
     if yaml_out is not None:
-        write_camchain(yaml_out, CameraChain(tuple(c.name for c in result.cameras),
-                                             tuple(c.camera for c in result.cameras),
-                                             result.T_cn_cnm1, topics_out))
+        write_camchain(yaml_out, CameraChain.from_relative(tuple(c.name for c in result.cameras),
+                                                           tuple(c.camera for c in result.cameras),
+                                                           result.T_cn_cnm1, topics_out))
     plots: list[str] = []
     if plot_dir is not None:
         from ibiscape_eval.calib.plots import calibration_figures

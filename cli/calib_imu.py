@@ -15,41 +15,34 @@ import click
 
 from ._common import echo_json, info
 
-__all__ = ["load_imu_noise", "print_result", "run_imu_camera", "run_sequence"]
+__all__ = ["print_result", "run_imu_camera", "run_sequence"]
 
 
-def load_imu_noise(path: str) -> Any:
-    """Read ``imu.yaml`` (``yaml.safe_load``) into :class:`ImuNoiseDensities`; errors name the file."""
-    from ibiscape_eval.calib.imu_camera.sequence import read_imu_noise
-
-    return read_imu_noise(path)
-
-
-def run_sequence(seq: Any, imu_yaml: Path, *, camchain: Path | None, imu_data: Path | None,
+def run_sequence(seq: Any, imu_yaml: Path | None, *, camchain: Path | None, imu_data: Path | None,
                  target: Any, force: bool, frame_step: int, yaml_path: Path | None, json_out: bool,
                  plot_dir: Path | None, workers: int | None) -> Any:
-    """``calib SEQ --imu imu.yaml`` on an opened sequence: calibrate, write ``--yaml``
-    (camchain-imucam) and ``--plot`` figures, print the table (or ``--json``).  ``--imu
-    SEQ/sequence.yaml`` takes the noise the sequence states."""
-    from ibiscape_eval.calib.imu_camera import calibrate_sequence, camchain_imucam_document
-    from ibiscape_eval.io.kalibr_imucam import write_camchain_imucam
+    """``calib SEQ --imu imu.yaml`` on an opened sequence (:func:`ibiscape_eval.io.open_sequence`):
+    calibrate, write ``--yaml`` (camchain-imucam) and ``--plot`` figures, print the table (or
+    ``--json``).  ``imu_yaml`` None (or ``SEQ/sequence.yaml``): the noise the sequence states."""
+    from ibiscape_eval.calib.imu_camera import calibrate_sequence, camchain_imucam
+    from ibiscape_eval.io.kalibr import read_imu_noise, write_camchain
 
     from .progress import fraction_callback, progress_bar
 
     own = Path(seq.path) / "sequence.yaml"
-    if not (own.is_file() and Path(imu_yaml).resolve() == own.resolve()):
-        load_imu_noise(str(imu_yaml))  # a bad imu.yaml fails before anything else is read
+    if imu_yaml is not None and not (own.is_file() and Path(imu_yaml).resolve() == own.resolve()):
+        read_imu_noise(imu_yaml)  # a bad imu.yaml fails before anything else is read
     with progress_bar(1000, "calib --imu", unit="‰", unit_scale=False) as bar:
         res = calibrate_sequence(seq, imu_yaml, camchain=camchain, force=force,
                                  progress=fraction_callback(bar, "calib --imu"), imu_data=imu_data,
                                  target=target, frame_step=frame_step, workers=workers)
     if yaml_path is not None:
-        write_camchain_imucam(yaml_path, camchain_imucam_document(res.result),
+        write_camchain(yaml_path, camchain_imucam(res.result),
                               comments=["camera-IMU calibration by ibiscape-eval calib --imu"])
     plots: list[str] = []
     if plot_dir is not None:
         from ibiscape_eval.calib.imu_camera.plots import figures
-        from ibiscape_eval.io.kalibr_imucam import write_figures
+        from ibiscape_eval.io.kalibr import write_figures
 
         plots = [str(p) for p in write_figures(plot_dir, figures(res.result))]
     if json_out:
@@ -113,12 +106,12 @@ def run_imu_camera(observations: Sequence[Any], imu: Any, imu_yaml: str, corners
     """
     from ibiscape_eval.calib.imu_camera import (
         calibrate_imu_camera,
-        camchain_imucam_document,
+        camchain_imucam,
         errors_against_truth,
     )
-    from ibiscape_eval.io.kalibr_imucam import write_camchain_imucam
+    from ibiscape_eval.io.kalibr import read_imu_noise, write_camchain
 
-    noise = load_imu_noise(imu_yaml)
+    noise = read_imu_noise(imu_yaml)
     from .progress import fraction_callback, progress_bar
 
     with progress_bar(1000, "imu-camera", unit="‰", unit_scale=False) as bar:
@@ -127,11 +120,11 @@ def run_imu_camera(observations: Sequence[Any], imu: Any, imu_yaml: str, corners
                                       force=force, progress=progress)
     errors = errors_against_truth(result, truth or {})
     if yaml_path:
-        write_camchain_imucam(yaml_path, camchain_imucam_document(result),
+        write_camchain(yaml_path, camchain_imucam(result),
                               comments=["camera-IMU calibration by ibiscape-eval calib --imu"])
     if plot_dir:
         from ibiscape_eval.calib.imu_camera.plots import figures
-        from ibiscape_eval.io.kalibr_imucam import write_figures
+        from ibiscape_eval.io.kalibr import write_figures
 
         written = write_figures(Path(plot_dir), figures(result))
         info(f"wrote {len(written)} figure(s) to {plot_dir}")

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from ibiscape_eval.calib.imu_camera import calibrate_sequence, camchain_imucam_document
+from ibiscape_eval.calib.imu_camera import calibrate_sequence, camchain_imucam
 from ibiscape_eval.core.errors import CalibrationError
 from ibiscape_eval.sim import preset
 from ibiscape_eval.sim.calib_scene import write_board_frames
@@ -76,9 +76,9 @@ if __name__ == "__main__":
 
     # %% Kalibr's camchain-imucam.yaml and the figures
     from ibiscape_eval.calib.imu_camera.plots import figures
-    from ibiscape_eval.io.kalibr_imucam import write_camchain_imucam, write_figures
+    from ibiscape_eval.io.kalibr import write_camchain, write_figures
 
-    write_camchain_imucam(root / "camchain-imucam.yaml", camchain_imucam_document(res.result))
+    write_camchain(root / "camchain-imucam.yaml", camchain_imucam(res.result))
     print("wrote", [str(p) for p in write_figures(root, figures(res.result))])
     print((root / "camchain-imucam.yaml").read_text()[:400])
 

@@ -20,12 +20,14 @@ centres at integer coordinates), so a renderer can map the image onto the board.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
 from ibiscape_eval.core.errors import IbiscapeError
+from ibiscape_eval.core.kalibr import CalibrationTarget
 
 __all__ = ["TARGET_KINDS", "Target", "make_target"]
 
@@ -51,26 +53,35 @@ class Target:
 
     Attributes
     ----------
-    target_type : str
-        ``"checkerboard"`` or ``"aprilgrid"``.
-    kalibr : dict
-        Kalibr's target yaml keys (``target_type`` included).
+    board : CalibrationTarget
+        The pattern (Kalibr's parameters and corner geometry).
     T_world_target : ndarray, shape (4, 4)
-    corners_target_m : ndarray, shape (M, 3)
-        Corner points in Kalibr's numbering, target frame, metres (z = 0).
     board_min_m, board_max_m : ndarray, shape (2,)
         Extent of the printed board (pattern plus white margin) in target x, y, metres.
     z_toward_observer : bool
         Whether the target z axis points toward the side the board is seen from.
     """
 
-    target_type: str
-    kalibr: dict[str, Any]
+    board: CalibrationTarget
     T_world_target: FloatArray
-    corners_target_m: FloatArray
     board_min_m: FloatArray
     board_max_m: FloatArray
     z_toward_observer: bool
+
+    @property
+    def target_type(self) -> str:
+        """``"checkerboard"`` or ``"aprilgrid"``."""
+        return self.board.target_type
+
+    @property
+    def kalibr(self) -> dict[str, Any]:
+        """Kalibr's target yaml keys (``target_type`` included)."""
+        return self.board.to_kalibr()
+
+    @cached_property
+    def corners_target_m(self) -> FloatArray:
+        """Corner points ``(M, 3)`` in Kalibr's numbering, target frame, metres (z = 0)."""
+        return self.board.object_points()
 
     @property
     def board_size_m(self) -> FloatArray:
@@ -186,21 +197,6 @@ class Target:
         return doc
 
 
-def _checker_corners(rows: int, cols: int, sy: float, sx: float) -> FloatArray:
-    r, c = np.divmod(np.arange(rows * cols), cols)
-    return np.stack((c * sx, r * sy, np.zeros(rows * cols)), -1)
-
-
-def aprilgrid_corners(tag_rows: int, tag_cols: int, tag_size_m: float, tag_spacing: float) -> FloatArray:
-    """Kalibr AprilGrid corner points ``(4 rows cols, 3)``, row-major from the bottom left."""
-    n_r, n_c = 2 * tag_rows, 2 * tag_cols
-    r, c = np.divmod(np.arange(n_r * n_c), n_c)
-    step = (1.0 + tag_spacing) * tag_size_m
-    x = (c // 2) * step + (c % 2) * tag_size_m
-    y = (r // 2) * step + (r % 2) * tag_size_m
-    return np.stack((x, y, np.zeros_like(x, dtype=np.float64)), -1).astype(np.float64)
-
-
 def make_target(kind: str, *, T_world_target: npt.ArrayLike, tag_size_m: float = APRIL_TAG_SIZE_M) -> Target:
     """A Kalibr target of the paper's layout (checkerboard 7x7 inner corners, AprilGrid 6x6).
 
@@ -225,33 +221,17 @@ def make_target(kind: str, *, T_world_target: npt.ArrayLike, tag_size_m: float =
         raise IbiscapeError("T_world_target's rotation is not a proper rotation matrix")
     if kind == "checkerboard":
         s, n = CHECKER_SQUARE_M, CHECKER_INNER
-        kalibr: dict[str, Any] = {
-            "target_type": "checkerboard",
-            "targetRows": n,
-            "targetCols": n,
-            "rowSpacingMeters": s,
-            "colSpacingMeters": s,
-        }
-        corners = _checker_corners(n, n, s, s)
         lo = np.array([-s - _MARGIN_M, -s - _MARGIN_M])
         hi = np.array([n * s + _MARGIN_M, n * s + _MARGIN_M])
-        return Target("checkerboard", kalibr, T, corners, lo, hi, False)
+        return Target(CalibrationTarget.checkerboard(n, n, s), T, lo, hi, False)
     if kind == "aprilgrid":
         ts, sp, n = float(tag_size_m), APRIL_TAG_SPACING, APRIL_TAGS
         if not ts > 0.0:
             raise IbiscapeError(f"tag_size_m must be > 0, got {tag_size_m}")
-        kalibr = {
-            "target_type": "aprilgrid",
-            "tagRows": n,
-            "tagCols": n,
-            "tagSize": ts,
-            "tagSpacing": sp,
-        }
-        corners = aprilgrid_corners(n, n, ts, sp)
         span = n * ts + (n - 1) * sp * ts
         lo = np.full(2, -sp * ts - _MARGIN_M)
         hi = np.full(2, span + sp * ts + _MARGIN_M)
-        return Target("aprilgrid", kalibr, T, corners, lo, hi, True)
+        return Target(CalibrationTarget.aprilgrid(n, n, ts, sp), T, lo, hi, True)
     raise IbiscapeError(f"target kind {kind!r} is unknown; use one of {TARGET_KINDS}")
 
 

@@ -124,17 +124,16 @@ def imu_camera_calibration(seq: str, cameras: Sequence[str]) -> dict[str, Any]:
     ``translation_error_mm``, ``timeshift_error_ms``, the reprojection RMS and the estimated and
     true time offsets; the solver's weak-direction warnings are kept in ``warnings``.
     """
-    from ibiscape_eval.calib.imu_camera import ImuNoiseDensities, calibrate_sequence
+    from ibiscape_eval.calib.imu_camera import calibrate_sequence
     from ibiscape_eval.core.errors import IbiscapeWarning
     from ibiscape_eval.io.open_sequence import open_sequence
 
     _sequence_doc(seq)
     opened = open_sequence(seq).select(list(cameras))
-    noise = ImuNoiseDensities.from_kalibr(dict(opened.imu.noise) if opened.imu and opened.imu.noise else {},
-                                          source=f"{seq}/sequence.yaml (imus.imu0)")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IbiscapeWarning)
-        res = calibrate_sequence(opened, noise)
+        # noise=None: the densities sequence.yaml states for its IMU (imus.imu0)
+        res = calibrate_sequence(opened, None)
     rows = []
     for c in res.result.cameras:
         er = res.errors_vs_truth.get(c.name, {})

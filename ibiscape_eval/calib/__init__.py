@@ -14,6 +14,8 @@ Heavy modules (cv2, scipy, matplotlib) load on first use.
 
 from __future__ import annotations
 
+from ibiscape_eval.core.kalibr import CalibrationTarget, target_from_kalibr
+
 from .calibrate import (
     MODELS,
     CalibrationResult,
@@ -25,7 +27,6 @@ from .calibrate import (
 from .detect import Detection, detect_corners, detect_many
 from .pipeline import CameraFrames, DetectionSummary, calibrate_frames, check_frames, detect_frames
 from .report import TruthComparison, compare_with_truth, format_report, truth_from_sequence
-from .targets import CalibrationTarget, target_from_kalibr
 
 __all__ = [
     "MODELS",

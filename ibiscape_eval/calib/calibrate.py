@@ -30,9 +30,9 @@ import numpy.typing as npt
 
 from ibiscape_eval.core.camera import CameraModel
 from ibiscape_eval.core.errors import CalibrationError, IbiscapeError
+from ibiscape_eval.core.kalibr import CalibrationTarget
 
 from .detect import Detection
-from .targets import CalibrationTarget
 
 __all__ = [
     "MODELS",

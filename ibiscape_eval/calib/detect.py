@@ -12,7 +12,7 @@
   proposes quads, which are read by correlation with the board's own codes, and the corners of
   the tags next to the read ones are added where the image has an X-junction.
 
-Corner ids follow Kalibr's numbering (:mod:`ibiscape_eval.calib.targets`).
+Corner ids follow Kalibr's numbering (:mod:`ibiscape_eval.core.kalibr`).
 """
 
 from __future__ import annotations
@@ -26,8 +26,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ibiscape_eval.core.errors import IbiscapeError
-
-from .targets import CalibrationTarget
+from ibiscape_eval.core.kalibr import CalibrationTarget
 
 __all__ = ["Detection", "detect_corners", "detect_many", "neighbour_residuals_px", "sharpness"]
 

@@ -53,8 +53,7 @@ import numpy.typing as npt
 
 from ibiscape_eval.core.errors import IbiscapeError
 from ibiscape_eval.core.events import Events
-
-from .targets import CalibrationTarget
+from ibiscape_eval.core.kalibr import CalibrationTarget
 
 __all__ = [
     "DEFAULT_TAU_S",

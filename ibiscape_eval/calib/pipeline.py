@@ -20,11 +20,11 @@ import numpy as np
 import numpy.typing as npt
 
 from ibiscape_eval.core.errors import CalibrationError, IbiscapeError
+from ibiscape_eval.core.kalibr import CalibrationTarget
 
 from .calibrate import CalibrationResult, Observations, calibrate, evaluate
 from .detect import Detection, detect_corners, sharpness
 from .select import preselect_frames, select_views
-from .targets import CalibrationTarget
 
 if TYPE_CHECKING:
     from ibiscape_eval.core.sequence import Sequence as Recording
@@ -262,7 +262,7 @@ def sequence_target(seq: Recording, target: CalibrationTarget | None = None) -> 
     """``target``, else the one the sequence names (``sequence.yaml``'s ``target``).
 
     Raises :class:`IbiscapeError` saying to give ``--target`` when neither is there."""
-    from .targets import target_from_kalibr
+    from ibiscape_eval.core.kalibr import target_from_kalibr
 
     if target is not None:
         return target
@@ -408,7 +408,7 @@ def calibrate_cameras(seq: Recording, *, target: CalibrationTarget | None = None
     summary = detect_frames(tgt, frames, views, max_detect=max_frames, workers=workers,
                             progress=progress, total=total)
     if check is not None:
-        doc = check_frames(tgt, summary, check.cameras, check.T_cn_cnm1)
+        doc = check_frames(tgt, summary, check.models, check.relative_transforms)
         return CameraCalibrationRun(seq, tgt, summary, recon, check=doc)
     result = calibrate_frames(tgt, summary, model=model, max_views=max_views,
                               outlier_sigma=outlier_sigma, progress=solve_progress)

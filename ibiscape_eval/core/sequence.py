@@ -26,6 +26,7 @@ import numpy.typing as npt
 
 from .camera import CameraModel
 from .errors import IbiscapeError
+from .kalibr import ImuNoise
 from .trajectory import Trajectory
 
 __all__ = ["SEQUENCE_LAYOUTS", "CameraStream", "ImuStream", "Lazy", "Sequence"]
@@ -176,12 +177,14 @@ class ImuStream:
         The csv (or bag) holding the samples.
     samples : Lazy of (stamps_ns (N,) int64, gyro_rad_s (N, 3), accel_m_s2 (N, 3))
         In the IMU frame (right-handed; IBISCape's left-handed files are converted by the reader).
-    noise : mapping or None
-        Kalibr's continuous-time keys (``gyroscope_noise_density`` [rad/s/sqrt(Hz)],
-        ``gyroscope_random_walk``, ``accelerometer_noise_density`` [m/s^2/sqrt(Hz)],
-        ``accelerometer_random_walk``, ``update_rate`` [Hz]) when the layout states them.
+    noise : ImuNoise or None
+        The continuous-time noise densities (Kalibr's ``imu.yaml`` convention) when the layout
+        states them.
     noise_source : str
         Where the noise came from (for messages).
+    noise_problem : str or None
+        What is wrong with noise the layout states but that cannot be used (a missing or bad
+        key); the consumers that need the noise refuse with it.
     rate_hz : float or None
         Stated sample rate.
     T_body_imu : ndarray (4, 4) or None
@@ -193,12 +196,13 @@ class ImuStream:
     name: str
     source: Path
     samples: Lazy[tuple[npt.NDArray[np.int64], FloatArray, FloatArray]]
-    noise: Mapping[str, Any] | None = None
+    noise: ImuNoise | None = None
     noise_source: str = ""
     rate_hz: float | None = None
     T_body_imu: FloatArray | None = None
     rostopic: str | None = None
     fmt: str = "euroc"
+    noise_problem: str | None = None
 
     def __repr__(self) -> str:
         rate = "?" if self.rate_hz is None else f"{self.rate_hz:g}"

@@ -32,7 +32,7 @@ from ._poses import finish_trajectory
 from ._text import decimal_to_ns, parse_table, read_bytes, write_table
 from .atomic import atomic_write
 from .framelists import ns_digits, read_stamped_rows, write_stamped_list
-from .paths import safe_yaml
+from .yaml_file import read_yaml_mapping
 
 __all__ = [
     "ASL_GROUNDTRUTH_HEADER",
@@ -186,14 +186,35 @@ def write_asl_sensor_yaml(path: str | os.PathLike[str], *, sensor_type: str, com
 
 
 def read_asl_sensor_yaml(path: str | os.PathLike[str]) -> dict[str, Any]:
-    """Read a ``sensor.yaml`` (``yaml.safe_load``); ``T_BS`` is returned as a (4, 4) array."""
+    """Read a ``sensor.yaml`` (plain or OpenCV ``%YAML:1.0``, as the EuRoC download has it) with
+    :func:`ibiscape_eval.io.yaml_file.read_yaml`; ``T_BS`` is returned as a (4, 4) array, checked to
+    be a rigid transform.
+
+    Raises
+    ------
+    FormatError
+        Not YAML, no ``T_BS``, or a ``T_BS`` that is not ``{cols: 4, rows: 4, data: [16 numbers]}``
+        (or an ``!!opencv-matrix``) of a rigid transform, naming the file.
+    """
+    from ibiscape_eval.core.kalibr import rigid_transform_problem
+
     p = Path(path)
-    doc = safe_yaml(p, what="EuRoC sensor.yaml")
-    if not isinstance(doc, dict) or "sensor_type" not in doc or "T_BS" not in doc:
-        raise FormatError(p, "expected a mapping with sensor_type and T_BS (EuRoC sensor.yaml)")
+    doc = read_yaml_mapping(p, what="EuRoC sensor.yaml")
+    if "T_BS" not in doc:
+        raise FormatError(p, "missing the key T_BS (EuRoC sensor.yaml expected)")
     T = doc["T_BS"]
     try:
-        doc["T_BS"] = np.asarray(T["data"], dtype=np.float64).reshape(int(T["rows"]), int(T["cols"]))
-    except (TypeError, KeyError, ValueError):
+        if isinstance(T, np.ndarray):
+            M = T.astype(np.float64).reshape(4, 4)
+        else:
+            M = np.asarray(T["data"], dtype=np.float64).reshape(int(T["rows"]), int(T["cols"]))
+            if M.shape != (4, 4):
+                raise ValueError
+    except (TypeError, KeyError, ValueError, OverflowError, IndexError):
         raise FormatError(p, "T_BS must be {cols: 4, rows: 4, data: [16 numbers]}") from None
+    problem = rigid_transform_problem(M)
+    if problem:
+        raise FormatError(p, f"T_BS: {problem}; fix the calibration file")
+    doc = dict(doc)
+    doc["T_BS"] = M
     return doc

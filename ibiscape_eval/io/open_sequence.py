@@ -32,7 +32,6 @@ disagrees with the recording on camera names or resolution is refused naming bot
 from __future__ import annotations
 
 import os
-import re
 from collections.abc import Mapping
 from collections.abc import Sequence as Seq
 from dataclasses import replace
@@ -61,44 +60,14 @@ class NoLayoutError(FormatError):
 
 # ------------------------------------------------------------------------------------------- YAML
 def _yaml(path: Path, what: str = "") -> dict[str, Any]:
-    """A YAML mapping, OpenCV FileStorage files included (``%YAML:1.0``, ``!!opencv-matrix``)."""
-    import yaml
+    """A YAML mapping through the one YAML reader (OpenCV's ``%YAML:1.0``, ``!!opencv-matrix``)."""
+    from .yaml_file import read_yaml_mapping
 
-    from .paths import read_text
-
-    text = read_text(path, what=what, max_bytes=16 << 20)
-    # OpenCV FileStorage: a "%YAML:1.0" directive (YAML 1.0's form, refused by YAML 1.1 parsers)
-    # and "!!opencv-matrix" tags on {rows, cols, dt, data} mappings
-    text = re.sub(r"\A(\ufeff)?%YAML[: ]1\.0[^\n]*\n", "", text)
-    text = text.replace("!!opencv-matrix", "")
-    try:
-        doc = yaml.safe_load(text)
-    except (yaml.YAMLError, ValueError, RecursionError) as e:
-        mark = getattr(e, "problem_mark", None)
-        raise FormatError(path, f"not valid YAML ({' '.join(str(e).split())[:200]})",
-                          line=None if mark is None else mark.line + 1) from None
-    if not isinstance(doc, dict):
-        raise FormatError(path, "expected a mapping at the top level")
-    return doc
-
-
-def _matrix4(path: Path, value: Any, key: str) -> npt.NDArray[np.float64]:
-    from .stereo import rigid_transform_problem
-
-    if isinstance(value, Mapping) and "data" in value:  # EuRoC / OpenCV {rows, cols, data}
-        value = value["data"]
-    try:
-        T = np.asarray(value, dtype=np.float64).reshape(4, 4)
-    except (TypeError, ValueError):
-        raise FormatError(path, f"{key} must be a 4x4 matrix (16 numbers)") from None
-    problem = rigid_transform_problem(T)
-    if problem:
-        raise FormatError(path, f"{key}: {problem}; fix the calibration file")
-    return T
+    return read_yaml_mapping(path, what=what)
 
 
 def _inverse(T: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
-    """The inverse of a rigid transform (checked by :func:`_matrix4`)."""
+    """The inverse of a rigid transform (checked by its reader)."""
     out = np.eye(4)
     R = T[:3, :3]
     out[:3, :3] = R.T
@@ -107,14 +76,11 @@ def _inverse(T: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
 
 
 def read_sensor_yaml(path: str | os.PathLike[str]) -> dict[str, Any]:
-    """An EuRoC/ASL ``sensor.yaml`` (``%YAML:1.0`` accepted): the mapping with ``T_BS`` as a 4x4
-    array.  Raises :class:`FormatError` naming the file."""
-    p = Path(path)
-    doc = dict(_yaml(p, "EuRoC sensor.yaml"))
-    if "T_BS" not in doc:
-        raise FormatError(p, "missing the key T_BS (EuRoC sensor.yaml expected)")
-    doc["T_BS"] = _matrix4(p, doc["T_BS"], "T_BS")
-    return doc
+    """An EuRoC/ASL ``sensor.yaml`` (``%YAML:1.0`` accepted), ``T_BS`` a checked 4x4 array: the
+    one reader, :func:`ibiscape_eval.io.asl.read_asl_sensor_yaml`."""
+    from .asl import read_asl_sensor_yaml
+
+    return read_asl_sensor_yaml(path)
 
 
 # ------------------------------------------------------------------------------------ frame lists
@@ -181,14 +147,17 @@ def _imu_lazy(path: Path, fmt: str) -> Lazy[Any]:
     return Lazy(read)
 
 
-def _noise(doc: Mapping[str, Any] | None) -> dict[str, Any] | None:
-    if not isinstance(doc, Mapping) or not all(k in doc for k in IMU_NOISE_KEYS):
-        return None
-    out = {k: doc[k] for k in IMU_NOISE_KEYS}
-    rate = doc.get("update_rate", doc.get("rate_hz"))
-    if rate is not None:
-        out["update_rate"] = rate
-    return out
+def _noise(doc: Mapping[str, Any] | None, source: str) -> tuple[Any, str | None]:
+    """``(ImuNoise, None)`` when ``doc`` states the densities, ``(None, problem)`` when it states
+    them badly, ``(None, None)`` when it states none."""
+    from ibiscape_eval.core.kalibr import ImuNoise
+
+    if not isinstance(doc, Mapping) or not any(k in doc for k in IMU_NOISE_KEYS):
+        return None, None
+    try:
+        return ImuNoise.from_kalibr(doc, source=source), None
+    except IbiscapeError as e:
+        return None, str(e).removeprefix(f"{source}: ")
 
 
 def _rate(v: Any) -> float | None:
@@ -271,10 +240,10 @@ def _ibiscape_imu(root: Path, doc: Mapping[str, Any]) -> ImuStream | None:
             T = np.asarray(entry["T_body_imu"], dtype=np.float64).reshape(4, 4)
         except (TypeError, ValueError):
             T = None
-    noise = _noise(entry)
-    return ImuStream(name, f, _imu_lazy(f, fmt), noise,
-                     f"{root / 'sequence.yaml'} (imus.{name})" if noise else "",
-                     _rate(entry.get("update_rate")), T, entry.get("rostopic"), fmt)
+    src = f"{root / 'sequence.yaml'}: imus"
+    noise, problem = _noise(entry, src)
+    return ImuStream(name, f, _imu_lazy(f, fmt), noise, src if noise or problem else "",
+                     _rate(entry.get("update_rate")), T, entry.get("rostopic"), fmt, problem)
 
 
 # ---------------------------------------------------------------------------------- EuRoC / TUM-VI
@@ -294,8 +263,9 @@ def _asl(root: Path, tumvi: bool) -> Sequence | str:
         return "no dso/camchain.yaml"
     chain: dict[str, Any] = {}
     if tumvi:
-        doc = _yaml(camchain, "Kalibr camchain")
-        chain = {k: v for k, v in doc.items() if str(k).startswith("cam") and isinstance(v, dict)}
+        from .kalibr import read_camchain
+
+        chain = {c.name: c for c in read_camchain(camchain).cameras}
     cams = sorted((c for c in m.glob("cam[0-9]*") if c.name[3:].isdigit() and (c / "data.csv").is_file()),
                   key=lambda c: int(c.name[3:]))
     cameras = []
@@ -305,11 +275,14 @@ def _asl(root: Path, tumvi: bool) -> Sequence | str:
         T_bc: npt.NDArray[np.float64] | None = None
         src = ""
         rate = None
+        model = None
         if c.name in chain:
-            entry = dict(chain[c.name])
+            cc = chain[c.name]
+            model = cc.camera
+            entry = {**model.to_kalibr(), **({"rostopic": cc.rostopic} if cc.rostopic else {})}
             src = str(camchain)
-            if "T_cam_imu" in entry:
-                T_bc = _inverse(_matrix4(camchain, entry["T_cam_imu"], f"{c.name}.T_cam_imu"))
+            if cc.T_cam_imu is not None:
+                T_bc = _inverse(np.asarray(cc.T_cam_imu, dtype=np.float64))
         elif (c / "sensor.yaml").is_file():
             d = read_sensor_yaml(c / "sensor.yaml")
             dist = {"radial-tangential": "radtan", "radtan": "radtan", "equidistant": "equidistant"}.get(
@@ -323,24 +296,25 @@ def _asl(root: Path, tumvi: bool) -> Sequence | str:
             rate = _rate(d.get("rate_hz"))
         cameras.append(CameraStream(
             c.name, "frames", stamps, c, _size(entry.get("resolution")), rate,
-            _model_or_none(entry) if "intrinsics" in entry else None, T_bc,
+            model or (_model_or_none(entry) if "intrinsics" in entry else None), T_bc,
             entry.get("rostopic"), entry, files=files, loader=_image_loader(files), n=n,
             calibration_source=src))
     imu = None
     if (m / "imu0" / "data.csv").is_file():
         f = m / "imu0" / "data.csv"
-        noise, nsrc, rate, T = None, "", None, None
+        noise, problem, nsrc, rate, T = None, None, "", None, None
         if (m / "imu0" / "sensor.yaml").is_file():
-            d = read_sensor_yaml(m / "imu0" / "sensor.yaml")
-            noise, nsrc, rate, T = _noise(d), str(m / "imu0" / "sensor.yaml"), _rate(d.get("rate_hz")), d["T_BS"]
+            nsrc = str(m / "imu0" / "sensor.yaml")
+            d = read_sensor_yaml(nsrc)
+            (noise, problem), rate, T = _noise(d, nsrc), _rate(d.get("rate_hz")), d["T_BS"]
         cfg = root / "dso" / "imu_config.yaml"
         if tumvi and cfg.is_file():
             d = _yaml(cfg, "imu_config.yaml")
-            if _noise(d):
-                noise, nsrc = _noise(d), str(cfg)
+            if any(k in d for k in IMU_NOISE_KEYS):
+                (noise, problem), nsrc = _noise(d, str(cfg)), str(cfg)
                 rate = _rate(d.get("update_rate")) or rate
-        imu = ImuStream("imu0", f, _imu_lazy(f, "euroc"), noise, nsrc if noise else "", rate,
-                        np.eye(4) if T is None and tumvi else T, None, "euroc")
+        imu = ImuStream("imu0", f, _imu_lazy(f, "euroc"), noise, nsrc if noise or problem else "", rate,
+                        np.eye(4) if T is None and tumvi else T, None, "euroc", problem)
     notes = []
     gt = None
     for sub in ("state_groundtruth_estimate0", "mocap0", "gt0"):
@@ -552,56 +526,28 @@ _LAYOUT_NAMES = {"rosbag": "ROS bag", "ibiscape": "IBISCape", "tumvi": "TUM-VI",
 def apply_camchain(seq: Sequence, calib: str | os.PathLike[str]) -> Sequence:
     """The sequence with the intrinsics (and ``T_body_cam = inv(T_cam_imu)`` when given) of a
     Kalibr camchain, matched to the cameras by the rostopic ``/<name>/...``, the ``camN`` key, or
-    chain order.
+    chain order (:func:`ibiscape_eval.core.kalibr.check_camchain_matches`).
 
     Raises
     ------
     FormatError
-        The camchain names cameras the sequence does not have, or a resolution differs from the
+        The camchain has no entry for a camera of the sequence, or a resolution differs from the
         size the recording states (naming both).
     """
-    p = Path(calib)
-    doc = _yaml(p, "Kalibr camchain")
-    chain = [(str(k), dict(v)) for k, v in doc.items() if str(k).startswith("cam") and isinstance(v, dict)]
-    if not chain:
-        raise FormatError(p, "no cam0/cam1 entries (Kalibr camchain format expected)")
-    chain.sort(key=lambda kv: int(kv[0][3:]) if kv[0][3:].isdigit() else 99)
-    names = seq.camera_names
-    topic_name = {k: (str(v.get("rostopic", "")).strip("/").split("/") or [""])[0] for k, v in chain}
-    matched: dict[str, tuple[str, dict[str, Any]]] = {}
-    for k, v in chain:
-        if topic_name[k] in names:
-            matched[topic_name[k]] = (k, v)
-        elif k in names:
-            matched[k] = (k, v)
-    if not matched:
-        if len(chain) < len(names):
-            raise FormatError(p, f"holds {len(chain)} camera(s) ({', '.join(k for k, _ in chain)}) but "
-                              f"the sequence {seq.path} has {len(names)} ({', '.join(names)}); give the "
-                              "camchain of this rig, or choose the cameras with --cameras")
-        matched = {n: chain[i] for i, n in enumerate(names)}
-    missing = [n for n in names if n not in matched]
-    if missing:
-        named = ", ".join(f"{k} ({v.get('rostopic', 'no rostopic')})" for k, v in chain)
-        raise FormatError(p, f"names cameras {named}; the sequence {seq.path} has "
-                          f"{', '.join(names)}: no entry for {', '.join(missing)}")
+    from ibiscape_eval.core.kalibr import check_camchain_matches
+
+    from .kalibr import read_camchain
+
+    chain = read_camchain(calib)
+    found = check_camchain_matches(chain, {c.name: c.sensor_size for c in seq.cameras},
+                                   source=str(calib))
     cams = []
     for c in seq.cameras:
-        k, v = matched[c.name]
-        try:
-            model = CameraModel.from_kalibr(v)
-        except IbiscapeError as e:
-            raise FormatError(p, f"{k}: {e}") from None
-        size = (model.width_px, model.height_px)
-        if c.sensor_size is not None and tuple(c.sensor_size) != size:
-            raise FormatError(p, f"{k} has resolution {size[0]}x{size[1]} but camera {c.name} of "
-                              f"{seq.path} is {c.sensor_size[0]}x{c.sensor_size[1]}; give the camchain "
-                              "of this recording (or rescale the intrinsics)")
-        T_bc = c.T_body_cam
-        if "T_cam_imu" in v:
-            T_bc = _inverse(_matrix4(p, v["T_cam_imu"], f"{k}.T_cam_imu"))
-        cams.append(replace(c, camera=model, sensor_size=size, T_body_cam=T_bc, entry=v,
-                            calibration_source=str(p), rostopic=v.get("rostopic", c.rostopic)))
+        cc = chain.cameras[found[c.name]]
+        T_bc = c.T_body_cam if cc.T_cam_imu is None else _inverse(np.asarray(cc.T_cam_imu, dtype=np.float64))
+        entry = {**cc.camera.to_kalibr(), **({"rostopic": cc.rostopic} if cc.rostopic else {})}
+        cams.append(replace(c, camera=cc.camera, sensor_size=cc.resolution, T_body_cam=T_bc, entry=entry,
+                            calibration_source=str(calib), rostopic=cc.rostopic or c.rostopic))
     return seq.with_cameras(cams)
 
 

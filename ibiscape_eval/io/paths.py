@@ -17,7 +17,7 @@ from typing import Literal
 
 from ibiscape_eval.core.errors import FormatError
 
-__all__ = ["check_input", "os_error_message", "read_text", "safe_yaml"]
+__all__ = ["check_input", "os_error_message", "read_text"]
 
 Kind = Literal["file", "folder", "any"]
 
@@ -92,21 +92,3 @@ def read_text(path: str | os.PathLike[str], *, what: str = "", max_bytes: int | 
     except UnicodeDecodeError as e:
         raise FormatError(p, f"not UTF-8 text (byte 0x{raw[e.start]:02x}); save the file as UTF-8",
                           line=raw[: e.start].count(b"\n") + 1) from None
-
-
-def safe_yaml(path: str | os.PathLike[str], *, what: str = "") -> object:
-    """``yaml.safe_load`` of a small YAML file, every failure (not UTF-8, bad YAML, nesting too
-    deep) as one :class:`FormatError` naming the file."""
-    import yaml
-
-    text = read_text(path, what=what, max_bytes=16 << 20)
-    try:
-        return yaml.safe_load(text)
-    except RecursionError:
-        raise FormatError(path, "YAML nested too deeply") from None
-    except ValueError as e:  # e.g. an integer of more than 4300 digits
-        raise FormatError(path, f"not valid YAML ({' '.join(str(e).split())[:200]})") from None
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        raise FormatError(path, f"not valid YAML ({' '.join(str(e).split())[:200]})",
-                          line=None if mark is None else mark.line + 1) from None

@@ -2,7 +2,7 @@ r"""Files of a (synthetic) IBISCape sequence besides ground truth and GNSS.
 
 - ``sequence.yaml``: everything a tool may check against (cameras, IMUs, target, GNSS reference,
   weather, seed, generator version, conventions); :func:`write_sequence_yaml` /
-  :func:`read_sequence_yaml` (``yaml.safe_load``).
+  :func:`read_sequence_yaml` (:func:`~ibiscape_eval.io.yaml_file.read_yaml`).
 - ``vehicle_gt/<Vehicle>_simulation.txt``: no header, ``t_ns, throttle, steer, brake`` per row
   (comma separated, rows ending in a space like the scripts); :func:`write_controls` /
   :func:`read_controls`.
@@ -190,17 +190,17 @@ def write_sequence_yaml(path: str | os.PathLike[str], doc: dict[str, Any],
 
 
 def read_sequence_yaml(path: str | os.PathLike[str]) -> dict[str, Any]:
-    """Read ``sequence.yaml`` with ``yaml.safe_load`` and check the top-level keys and the 4x4
-    ``T_body_cam`` / ``T_body_imu`` matrices.
+    """Read ``sequence.yaml`` (:func:`~ibiscape_eval.io.yaml_file.read_yaml`) and check the
+    top-level keys and the 4x4 ``T_body_cam`` / ``T_body_imu`` matrices.
 
     Raises
     ------
     FormatError
         Not YAML, missing keys (naming them), malformed transforms.
     """
-    from .paths import safe_yaml
+    from .yaml_file import read_yaml
 
-    doc = safe_yaml(path, what="sequence.yaml")
+    doc = read_yaml(path, what="sequence.yaml")
     if not isinstance(doc, dict):
         raise FormatError(path, "expected a mapping at the top level")
     missing = [k for k in SEQUENCE_KEYS if k not in doc]

@@ -5,18 +5,15 @@
 - IMU samples with their stamps (:func:`read_imu_samples`): the EuRoC/IBISCape csv, converted
   from CARLA's left-handed frame for ``fmt="ibiscape"``.
 - Images: :func:`read_gray_image` (8-bit grey, any format OpenCV reads; colour is converted).
-- Kalibr ``camchain-imucam.yaml`` (:func:`read_kalibr_camchain`): ``cam0``, ``cam1``, ... with
-  intrinsics, distortion, resolution, ``T_cam_imu`` and ``T_cn_cnm1``.
-- EuRoC ``sensor.yaml`` (:func:`read_euroc_sensor_yaml`): ``T_BS`` as ``{rows, cols, data}``,
-  camera intrinsics or IMU noise densities.
 
-Every reader uses ``yaml.safe_load`` and raises :class:`FormatError` naming the file (and line).
+Kalibr's camchain is read by :func:`ibiscape_eval.io.kalibr.read_camchain` and EuRoC's
+``sensor.yaml`` by :func:`ibiscape_eval.io.asl.read_asl_sensor_yaml`.  Every reader raises
+:class:`FormatError` naming the file (and line).
 """
 
 from __future__ import annotations
 
 import os
-from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -24,10 +21,9 @@ import numpy.typing as npt
 from ibiscape_eval.core.errors import FormatError
 
 from .framelists import ns_number, read_stamped_rows
-from .paths import check_input, safe_yaml
+from .paths import check_input
 
-__all__ = ["read_euroc_sensor_yaml", "read_frame_list", "read_gray_image", "read_imu_samples",
-           "read_kalibr_camchain", "rigid_transform_problem"]
+__all__ = ["read_frame_list", "read_gray_image", "read_imu_samples"]
 
 
 def read_frame_list(path: str | os.PathLike[str]) -> tuple[npt.NDArray[np.int64], list[str]]:
@@ -133,77 +129,3 @@ def read_gray_image(path: str | os.PathLike[str]) -> npt.NDArray[np.uint8]:
     if img.dtype != np.uint8:
         img = cv2.convertScaleAbs(img, alpha=255.0 / max(float(img.max()), 1.0))
     return np.asarray(img, dtype=np.uint8)
-
-
-def _yaml(path: str | os.PathLike[str]) -> dict[str, Any]:
-    doc = safe_yaml(path)
-    if not isinstance(doc, dict):
-        raise FormatError(path, "expected a mapping at the top level")
-    return doc
-
-
-def _matrix(path: str | os.PathLike[str], value: Any, key: str) -> npt.NDArray[np.float64]:
-    if isinstance(value, dict) and "data" in value:  # EuRoC / OpenCV {rows, cols, data}
-        value = np.asarray(value["data"], dtype=object).reshape(-1)
-    try:
-        T = np.asarray(value, dtype=np.float64).reshape(4, 4)
-    except (TypeError, ValueError):
-        raise FormatError(path, f"{key} must be a 4x4 matrix (16 numbers)") from None
-    if not np.isfinite(T).all() or not np.allclose(T[3], [0, 0, 0, 1]):
-        raise FormatError(path, f"{key} must be a finite homogeneous 4x4 matrix")
-    problem = rigid_transform_problem(T)
-    if problem:
-        raise FormatError(path, f"{key}: {problem}; fix the calibration file")
-    return T
-
-
-#: the largest lever arm [m] accepted between two sensors of one rig
-MAX_LEVER_ARM_M = 1000.0
-
-
-def rigid_transform_problem(T: npt.NDArray[np.float64]) -> str | None:
-    """What is wrong with a 4x4 rigid transform (None if it is one): finite, last row
-    ``0 0 0 1``, an orthonormal rotation with determinant +1 (to 1e-5) and a translation shorter
-    than :data:`MAX_LEVER_ARM_M`."""
-    T = np.asarray(T, dtype=np.float64)
-    if T.shape != (4, 4) or not np.isfinite(T).all() or not np.allclose(T[3], [0, 0, 0, 1]):
-        return "must be a finite homogeneous 4x4 matrix (last row 0 0 0 1)"
-    R, t = T[:3, :3], T[:3, 3]
-    if np.abs(R).max() > 1.0 + 1e-5:  # also keeps R @ R.T below from overflowing
-        return "the rotation part is not a rotation matrix (orthonormal, determinant +1)"
-    if not np.allclose(R @ R.T, np.eye(3), atol=1e-5) or np.linalg.det(R) < 0:
-        return "the rotation part is not a rotation matrix (orthonormal, determinant +1)"
-    if np.abs(t).max() > MAX_LEVER_ARM_M:  # the max norm: no overflow on huge entries
-        return (f"translation ({', '.join(f'{v:.3g}' for v in t)}) m reaches beyond "
-                f"{MAX_LEVER_ARM_M:g} m")
-    return None
-
-
-def read_kalibr_camchain(path: str | os.PathLike[str]) -> dict[str, dict[str, Any]]:
-    """Read a Kalibr ``camchain(-imucam).yaml``: ``{"cam0": {...}, "cam1": {...}}`` with the
-    4x4 transforms (``T_cam_imu``, ``T_cn_cnm1``) as arrays."""
-    doc = _yaml(path)
-    cams = {k: v for k, v in doc.items() if str(k).startswith("cam") and isinstance(v, dict)}
-    if not cams:
-        raise FormatError(path, "no cam0/cam1 entries (Kalibr camchain format expected)")
-    out: dict[str, dict[str, Any]] = {}
-    for name in sorted(cams):
-        entry = dict(cams[name])
-        for key in ("intrinsics", "resolution"):
-            if key not in entry:
-                raise FormatError(path, f"{name} lacks the key {key!r}")
-        for key in ("T_cam_imu", "T_cn_cnm1"):
-            if key in entry:
-                entry[key] = _matrix(path, entry[key], f"{name}.{key}")
-        out[str(name)] = entry
-    return out
-
-
-def read_euroc_sensor_yaml(path: str | os.PathLike[str]) -> dict[str, Any]:
-    """Read an EuRoC ``sensor.yaml`` (``T_BS`` becomes a 4x4 array)."""
-    doc = _yaml(path)
-    if "T_BS" not in doc:
-        raise FormatError(path, "missing the key T_BS (EuRoC sensor.yaml expected)")
-    doc = dict(doc)
-    doc["T_BS"] = _matrix(path, doc["T_BS"], "T_BS")
-    return doc

@@ -23,7 +23,6 @@ from ibiscape_eval.core.lazy import lazy_exports
 
 _EXPORTS: dict[str, str] = {
     "VioParams": "params",
-    "ImuNoiseDensities": "params",
     "StereoRig": "rig",
     "RectifiedStereo": "rig",
     "StereoSequence": "inputs",
@@ -51,7 +50,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .estimator import Estimator, FailureSpan  # noqa: F401
     from .frontend import StereoFrontEnd  # noqa: F401
     from .inputs import StereoSequence, load_sequence  # noqa: F401
-    from .params import ImuNoiseDensities, VioParams  # noqa: F401
+    from .params import VioParams  # noqa: F401
     from .pipeline import VioResult, VioStats, run_vio  # noqa: F401
     from .rig import RectifiedStereo, StereoRig  # noqa: F401
     from .synthetic import random_landmarks, synthetic_observations  # noqa: F401

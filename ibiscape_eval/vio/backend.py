@@ -26,7 +26,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .params import ImuNoiseDensities, VioParams
+from ibiscape_eval.core.kalibr import ImuNoise
+
+from .params import VioParams
 from .rig import RectifiedStereo
 
 __all__ = ["Backend", "KeyframeState", "StereoObservations", "integrate_imu"]
@@ -80,10 +82,13 @@ def _sym(c: str, i: int) -> int:
     return int(gtsam.symbol(c, i))
 
 
-def imu_params(noise: ImuNoiseDensities, scale: float, T_body_imu: FloatArray | None = None) -> Any:
-    """``PreintegrationCombinedParams`` (z up) with every covariance set explicitly."""
+def imu_params(noise: ImuNoise, scale: float, T_body_imu: FloatArray | None = None) -> Any:
+    """``PreintegrationCombinedParams`` (z up) with every covariance set explicitly; an ideal
+    (zero-noise) density is raised to :data:`ibiscape_eval.core.kalibr.IMU_NOISE_FLOOR` so that the
+    information stays finite."""
     import gtsam
 
+    noise = noise.floored()
     p = gtsam.PreintegrationCombinedParams.MakeSharedU(GRAVITY_M_S2)
     s2 = scale * scale
     eye = np.eye(3)
@@ -121,7 +126,7 @@ class Backend:
     :func:`integrate_imu` and passed to :meth:`add_keyframe` with the frame's observations.
     """
 
-    def __init__(self, rect: RectifiedStereo, noise: ImuNoiseDensities, params: VioParams,
+    def __init__(self, rect: RectifiedStereo, noise: ImuNoise, params: VioParams,
                  T_body_imu: FloatArray | None = None):
         import gtsam
 

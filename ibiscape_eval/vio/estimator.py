@@ -23,11 +23,12 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ibiscape_eval.core.kalibr import ImuNoise
 from ibiscape_eval.core.trajectory import Trajectory
 
 from .backend import GRAVITY_M_S2, Backend, StereoObservations, integrate_imu
 from .initialise import InitialState, initialise_moving, initialise_standstill
-from .params import ImuNoiseDensities, VioParams
+from .params import VioParams
 from .rig import RectifiedStereo
 
 __all__ = ["Estimator", "FailureSpan"]
@@ -79,14 +80,14 @@ class Estimator:
     rect : RectifiedStereo
     imu : (stamps_ns (N,), gyro_rad_s (N, 3), accel_m_s2 (N, 3))
         Body-frame IMU samples covering the frames.
-    noise : ImuNoiseDensities
+    noise : ImuNoise
     params : VioParams
     T_body_imu : (4, 4), optional
         Pose of the IMU in the body frame (identity for IMU0).
     """
 
     def __init__(self, rect: RectifiedStereo, imu: tuple[npt.NDArray[np.int64], FloatArray, FloatArray],
-                 noise: ImuNoiseDensities, params: VioParams, T_body_imu: FloatArray | None = None):
+                 noise: ImuNoise, params: VioParams, T_body_imu: FloatArray | None = None):
         self.rect = rect
         self.imu = imu
         self.params = params

@@ -31,10 +31,10 @@ import numpy.typing as npt
 
 from ibiscape_eval.core.camera import CameraModel
 from ibiscape_eval.core.errors import CalibrationError, FormatError, IbiscapeError
+from ibiscape_eval.core.kalibr import ImuNoise
 from ibiscape_eval.core.sequence import Sequence
 from ibiscape_eval.core.trajectory import Trajectory
 
-from .params import ImuNoiseDensities
 from .rig import StereoRig
 
 __all__ = ["StereoSequence", "load_sequence", "stereo_inputs"]
@@ -53,7 +53,7 @@ class StereoSequence:
     path, layout : str
         The folder and ``"ibiscape"`` or ``"euroc"``.
     rig : StereoRig
-    noise : ImuNoiseDensities
+    noise : ImuNoise
     imu_stamps_ns, gyro_rad_s, accel_m_s2 : ndarray
         IMU samples (N,), (N, 3), (N, 3) in the IMU frame (right-handed).
     T_body_imu : ndarray, shape (4, 4)
@@ -70,7 +70,7 @@ class StereoSequence:
     path: str
     layout: str
     rig: StereoRig
-    noise: ImuNoiseDensities
+    noise: ImuNoise
     imu_stamps_ns: npt.NDArray[np.int64]
     gyro_rad_s: FloatArray
     accel_m_s2: FloatArray
@@ -165,7 +165,7 @@ def stereo_inputs(seq: Sequence, *, calib: str | os.PathLike[str] | None = None,
 
 
 def _load_ibiscape(seq: Sequence, calib: Any, imu_yaml: Any, require_images: bool) -> StereoSequence:
-    from ibiscape_eval.io.imu import read_kalibr_imu_yaml
+    from ibiscape_eval.io.kalibr import read_imu_noise
 
     p = seq.path
     doc: dict[str, Any] = dict(seq.doc)
@@ -193,9 +193,9 @@ def _load_ibiscape(seq: Sequence, calib: Any, imu_yaml: Any, require_images: boo
     T_body_imu = (_T(imu_entry, "T_body_imu", p / "sequence.yaml", "imus")
                   if "T_body_imu" in imu_entry else np.eye(4))
     if imu_yaml is not None:
-        noise = ImuNoiseDensities.from_kalibr(read_kalibr_imu_yaml(imu_yaml), where=str(imu_yaml))
+        noise = read_imu_noise(imu_yaml)
     elif imu_entry:
-        noise = ImuNoiseDensities.from_kalibr(imu_entry, where=str(p / "sequence.yaml"))
+        noise = ImuNoise.from_kalibr(imu_entry, source=f"{p / 'sequence.yaml'}: imus")
     else:
         raise IbiscapeError(f"{p}: no IMU noise (sequence.yaml has no imus); give --imu imu.yaml")
     # frames
@@ -222,7 +222,7 @@ def _stereo_folders(p: Path, cams: dict[str, Any]) -> tuple[str, str]:
 
 
 def _T(entry: Any, key: str, where: Path, name: str) -> FloatArray:
-    from ibiscape_eval.io.stereo import rigid_transform_problem
+    from ibiscape_eval.core.kalibr import rigid_transform_problem
 
     if not isinstance(entry, dict) or key not in entry:
         raise CalibrationError(f"{where}: {name} lacks {key}; give --calib")
@@ -273,12 +273,15 @@ def _checked_rig(where: Path, left: CameraModel, right: CameraModel, T_body_left
 
 
 def _camera(entry: Any, where: Path, name: str) -> CameraModel:
-    if not isinstance(entry, dict):
+    if isinstance(entry, CameraModel):
+        cam = entry
+    elif not isinstance(entry, dict):
         raise CalibrationError(f"{where}: camera {name} is not a mapping")
-    try:
-        cam = CameraModel.from_kalibr(entry)
-    except (IbiscapeError, OverflowError) as e:
-        raise CalibrationError(f"{where}: camera {name}: {e}") from None
+    else:
+        try:
+            cam = CameraModel.from_kalibr(entry)
+        except (IbiscapeError, OverflowError) as e:
+            raise CalibrationError(f"{where}: camera {name}: {e}") from None
     problem = _camera_range_problem(cam)
     if problem:
         raise CalibrationError(f"{where}: camera {name}: {problem}; fix the intrinsics")
@@ -286,24 +289,23 @@ def _camera(entry: Any, where: Path, name: str) -> CameraModel:
 
 
 def _rig_from_camchain(calib: str | os.PathLike[str]) -> StereoRig:
-    from ibiscape_eval.io.stereo import read_kalibr_camchain
+    from ibiscape_eval.io.kalibr import read_camchain
 
-    chain = read_kalibr_camchain(calib)
-    if "cam0" not in chain or "cam1" not in chain:
+    chain = read_camchain(calib)
+    if len(chain) < 2:
         raise CalibrationError(f"{calib}: needs cam0 (left) and cam1 (right)")
-    c0, c1 = chain["cam0"], chain["cam1"]
-    if "T_cam_imu" not in c0:
+    c0, c1 = chain.cameras[0], chain.cameras[1]
+    if c0.T_cam_imu is None:
         raise CalibrationError(f"{calib}: cam0 lacks T_cam_imu (use camchain-imucam.yaml from "
                                "the camera-IMU calibration)")
-    T_b_c0 = np.linalg.inv(c0["T_cam_imu"])
-    if "T_cam_imu" in c1:
-        T_b_c1 = np.linalg.inv(c1["T_cam_imu"])
-    elif "T_cn_cnm1" in c1:
-        T_b_c1 = T_b_c0 @ np.linalg.inv(c1["T_cn_cnm1"])
+    T_b_c0: FloatArray = np.asarray(np.linalg.inv(c0.T_cam_imu), dtype=np.float64)
+    if c1.T_cam_imu is not None:
+        T_b_c1: FloatArray = np.asarray(np.linalg.inv(c1.T_cam_imu), dtype=np.float64)
     else:
-        raise CalibrationError(f"{calib}: cam1 lacks T_cam_imu and T_cn_cnm1")
-    left = _camera(c0, Path(calib), "cam0")
-    right = _camera(c1, Path(calib), "cam1")
+        assert c1.T_cn_cnm1 is not None  # a chain has it from cam1 on
+        T_b_c1 = T_b_c0 @ np.linalg.inv(c1.T_cn_cnm1)
+    left = _camera(c0.camera, Path(calib), "cam0")
+    right = _camera(c1.camera, Path(calib), "cam1")
     return _checked_rig(Path(calib), left, right, T_b_c0, T_b_c1)
 
 
@@ -313,7 +315,7 @@ def _rig_from_camchain(calib: str | os.PathLike[str]) -> StereoRig:
 
 def _load_asl(seq: Sequence, calib: Any, imu_yaml: Any, require_images: bool) -> StereoSequence:
     """EuRoC / TUM-VI / ROS bag: the first two cameras are the stereo pair (``cam0`` left)."""
-    from ibiscape_eval.io.imu import read_kalibr_imu_yaml
+    from ibiscape_eval.io.kalibr import read_imu_noise
 
     m = seq.path / "mav0" if (seq.path / "mav0").is_dir() else seq.path
     if len(seq.cameras) < 2:
@@ -338,9 +340,11 @@ def _load_asl(seq: Sequence, calib: Any, imu_yaml: Any, require_images: bool) ->
     stamps, gyro, acc = seq.imu.samples.get()
     T_body_imu = np.eye(4) if seq.imu.T_body_imu is None else np.asarray(seq.imu.T_body_imu, dtype=np.float64)
     if imu_yaml is not None:
-        noise = ImuNoiseDensities.from_kalibr(read_kalibr_imu_yaml(imu_yaml), where=str(imu_yaml))
+        noise = read_imu_noise(imu_yaml)
     elif seq.imu.noise is not None:
-        noise = ImuNoiseDensities.from_kalibr(dict(seq.imu.noise), where=seq.imu.noise_source)
+        noise = seq.imu.noise
+    elif seq.imu.noise_problem:
+        raise FormatError(seq.imu.noise_source, seq.imu.noise_problem)
     else:
         where = m / "imu0" / "sensor.yaml" if seq.layout != "rosbag" else seq.path
         raise IbiscapeError(f"{where}: {'missing' if seq.layout != 'rosbag' else 'no IMU noise'}; "
@@ -401,7 +405,7 @@ def _check_coverage(seq: StereoSequence) -> None:
         return
     t_img0, t_img1 = int(seq.frame_stamps_ns[0]), int(seq.frame_stamps_ns[-1])
     t_imu0, t_imu1 = int(seq.imu_stamps_ns[0]), int(seq.imu_stamps_ns[-1])
-    slack = int(2e9 / max(seq.noise.rate_hz, 1.0))
+    slack = int(2e9 / max(seq.noise.update_rate_hz, 1.0))
     if t_imu0 > t_img0 + slack or t_imu1 < t_img1 - slack:
         raise IbiscapeError(
             f"{seq.path}: the IMU stream ({t_imu0 * 1e-9:.3f}..{t_imu1 * 1e-9:.3f} s) does not "

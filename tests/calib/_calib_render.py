@@ -14,8 +14,8 @@ import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ibiscape_eval.calib.targets import CalibrationTarget, target_from_kalibr
 from ibiscape_eval.core.camera import CameraModel
+from ibiscape_eval.core.kalibr import CalibrationTarget, target_from_kalibr
 from ibiscape_eval.sim.targets import make_target
 
 PX_PER_M = 500.0

@@ -9,8 +9,8 @@ from scipy.ndimage import gaussian_filter
 
 from ibiscape_eval.calib.detect import Detection
 from ibiscape_eval.calib.events import EventFrameSource, refine_xcorners
-from ibiscape_eval.calib.targets import CalibrationTarget
 from ibiscape_eval.core.events import Events
+from ibiscape_eval.core.kalibr import CalibrationTarget
 from ibiscape_eval.sim.dvs import DvsConfig, DvsSimulator
 
 N = 48           # patch size [px]

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ibiscape_eval.calib.targets import CalibrationTarget, target_from_kalibr
 from ibiscape_eval.core.errors import IbiscapeError
-from ibiscape_eval.sim.targets import aprilgrid_corners, make_target
+from ibiscape_eval.core.kalibr import CalibrationTarget, target_from_kalibr
+from ibiscape_eval.sim.targets import make_target
 
 
 def test_object_points_match_the_simulator():
@@ -15,8 +15,8 @@ def test_object_points_match_the_simulator():
         sim = make_target(kind, T_world_target=np.eye(4))
         t = target_from_kalibr(sim.kalibr)
         np.testing.assert_allclose(t.object_points(), sim.corners_target_m, atol=1e-12)
-    np.testing.assert_allclose(CalibrationTarget("aprilgrid", 3, 4, tag_size_m=0.1, tag_spacing=0.25)
-                               .object_points(), aprilgrid_corners(3, 4, 0.1, 0.25), atol=1e-12)
+    # one geometry: the simulator's board is the core type itself
+    assert make_target("aprilgrid", T_world_target=np.eye(4)).board == t
 
 
 def test_tag_corner_ids_follow_kalibr():
@@ -54,7 +54,16 @@ def test_symmetries_are_rigid_motions(rows, cols, sx, sy, n):
     ({"target_type": "checkerboard", "targetRows": 7, "targetCols": 7, "rowSpacingMeters": "x",
       "colSpacingMeters": 0.1}, "numbers"),
     ({"target_type": "checkerboard", "targetRows": 7, "targetCols": 7, "rowSpacingMeters": -0.1,
-      "colSpacingMeters": 0.1}, "positive"),
+      "colSpacingMeters": 0.1}, r"in \(0, 10\] m"),
+    # physically absurd boards (the mutation campaign's huge numbers) are refused by the reader
+    ({"target_type": "checkerboard", "targetRows": 7, "targetCols": 7, "rowSpacingMeters": 1e9,
+      "colSpacingMeters": 0.5}, r"in \(0, 10\] m"),
+    ({"target_type": "checkerboard", "targetRows": 7, "targetCols": 7, "rowSpacingMeters": 5.0,
+      "colSpacingMeters": 0.01}, "times longer than wide"),
+    ({"target_type": "aprilgrid", "tagRows": 6, "tagCols": 100000, "tagSize": 0.1, "tagSpacing": 0.3},
+     r"counts in 1..1000"),
+    ({"target_type": "aprilgrid", "tagRows": 6, "tagCols": 6, "tagSize": 0.1, "tagSpacing": 1e9},
+     r"tagSpacing in \(0, 10\]"),
     ({"target_type": "checkerboard", "targetRows": 1, "targetCols": 7, "rowSpacingMeters": 0.1,
       "colSpacingMeters": 0.1}, "inner corners"),
     ([1, 2], "mapping"),

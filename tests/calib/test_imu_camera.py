@@ -10,12 +10,12 @@ import pytest
 from ibiscape_eval.calib.imu_camera import (
     CameraObservations,
     ImuData,
-    ImuNoiseDensities,
     calibrate_imu_camera,
 )
 from ibiscape_eval.calib.imu_camera.spline import exp_so3, log_so3, position, rotation
 from ibiscape_eval.calib.imu_camera.synthetic import CalibrationScene, calibration_scene
 from ibiscape_eval.core.errors import CalibrationError, FormatError
+from ibiscape_eval.core.kalibr import ImuNoise
 from ibiscape_eval.sim import preset
 from ibiscape_eval.sim.calib_scene import simulate_calibration
 from ibiscape_eval.sim.config import MotionSpec
@@ -148,15 +148,14 @@ def test_imu_yaml_with_missing_keys_or_wrong_rate():
     doc = {"accelerometer_noise_density": 2e-3, "accelerometer_random_walk": 3e-3,
            "gyroscope_noise_density": 1.7e-4, "update_rate": 200.0}
     with pytest.raises(FormatError, match=r"imu\.yaml: missing key.*gyroscope_random_walk"):
-        ImuNoiseDensities.from_kalibr(doc)
-    with pytest.raises(FormatError, match="must be a positive number"):
-        ImuNoiseDensities.from_kalibr({**doc, "gyroscope_random_walk": "x"})
+        ImuNoise.from_kalibr(doc)
+    with pytest.raises(FormatError, match="gyroscope_random_walk = 'x' is not a number"):
+        ImuNoise.from_kalibr({**doc, "gyroscope_random_walk": "x"})
 
 
 def test_rate_mismatch_with_imu_yaml(bumpy):
     n = bumpy.noise
-    wrong = ImuNoiseDensities(n.gyro_noise_density_rad_s_sqrt_hz, n.accel_noise_density_m_s2_sqrt_hz,
-                              n.gyro_random_walk_rad_s2_sqrt_hz, n.accel_random_walk_m_s3_sqrt_hz, 100.0)
+    wrong = replace(n, update_rate_hz=100.0)
     with pytest.raises(CalibrationError, match=r"update_rate 100 Hz but the IMU data run at 200\.00 Hz"):
         calibrate_imu_camera(bumpy.observations, bumpy.imu, wrong, bumpy.corners_target_m)
 
@@ -171,12 +170,13 @@ def test_camera_without_intrinsics_is_refused(bumpy):
 def test_camchain_imucam_yaml_round_trip(tmp_path, bumpy, bumpy_result):
     import yaml
 
-    from ibiscape_eval.calib.imu_camera import camchain_imucam_document, errors_against_truth
-    from ibiscape_eval.io.kalibr_imucam import write_camchain_imucam
+    from ibiscape_eval.calib.imu_camera import camchain_imucam, errors_against_truth
+    from ibiscape_eval.io.kalibr import read_camchain, write_camchain
 
-    doc = camchain_imucam_document(bumpy_result)
     path = tmp_path / "camchain-imucam.yaml"
-    write_camchain_imucam(path, doc)
+    write_camchain(path, camchain_imucam(bumpy_result))
+    chain = read_camchain(path)
+    assert chain.has_imu and chain.rostopics == ("/rgbL/image_raw", "/rgbR/image_raw")
     back = yaml.safe_load(path.read_text())
     assert list(back) == ["cam0", "cam1"]
     assert "T_cn_cnm1" in back["cam1"] and "T_cn_cnm1" not in back["cam0"]

@@ -13,8 +13,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ibiscape_eval.calib.imu_camera.synthetic import calibration_scene
-from ibiscape_eval.cli.calib_imu import load_imu_noise, run_imu_camera
+from ibiscape_eval.cli.calib_imu import run_imu_camera
 from ibiscape_eval.core.errors import FormatError
+from ibiscape_eval.io.kalibr import read_imu_noise
 from ibiscape_eval.sim import preset
 from ibiscape_eval.sim.calib_scene import simulate_calibration
 
@@ -38,10 +39,10 @@ def _imu_yaml(tmp_path, noise, **change):
 def test_imu_yaml_errors_name_the_file(tmp_path, small):
     p = _imu_yaml(tmp_path, small.noise, gyroscope_noise_density=None)
     with pytest.raises(FormatError, match=r"imu\.yaml: missing key\(s\) gyroscope_noise_density"):
-        load_imu_noise(str(p))
+        read_imu_noise(str(p))
     p.write_text("accelerometer_noise_density: [1, 2\n")
     with pytest.raises(FormatError, match="not valid YAML"):
-        load_imu_noise(str(p))
+        read_imu_noise(str(p))
 
 
 def test_run_writes_kalibr_yaml_json_and_figures(tmp_path, small, capsys):
@@ -69,15 +70,24 @@ def test_run_writes_kalibr_yaml_json_and_figures(tmp_path, small, capsys):
        st.floats(-0.05, 0.05, allow_nan=False),
        st.floats(1e-6, 1.0, allow_nan=False), st.floats(1e-7, 1.0, allow_nan=False))
 def test_camchain_imucam_writer_and_imu_yaml_round_trip(tmp_path_factory, m, shift, nd, rw):
-    from ibiscape_eval.calib.imu_camera import ImuNoiseDensities
-    from ibiscape_eval.io.kalibr_imucam import write_camchain_imucam
+    from scipy.spatial.transform import Rotation
 
-    T = [m[4 * i : 4 * i + 4] for i in range(4)]
-    doc = {"cam0": {"camera_model": "pinhole", "intrinsics": [500.0, 500.0, 319.5, 239.5],
-                    "T_cam_imu": T, "timeshift_cam_imu": shift},
-           "cam1": {"T_cn_cnm1": T, "T_cam_imu": T, "timeshift_cam_imu": -shift}}
+    from ibiscape_eval.core.camera import CameraModel
+    from ibiscape_eval.core.kalibr import CameraChain, ImuNoise
+    from ibiscape_eval.io.kalibr import read_camchain, write_camchain, write_imu_noise
+
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_rotvec(np.asarray(m[:3]) * 1e-3).as_matrix()
+    T[:3, 3] = np.asarray(m[3:6]) * 0.1  # lever arms within the 1000 m a rig may have
+    cam = CameraModel(640, 480, 500.0, 500.0, 319.5, 239.5)
+    chain = CameraChain.from_imu_extrinsics(["rgbL", "rgbR"], [cam, cam], [T, T @ T], [shift, -shift])
     path = tmp_path_factory.mktemp("y") / "camchain-imucam.yaml"
-    write_camchain_imucam(path, doc, comments=["x"])
-    assert yaml.safe_load(path.read_text()) == doc
-    n = ImuNoiseDensities(nd, 2 * nd, rw, 3 * rw, 200.0)
-    assert ImuNoiseDensities.from_kalibr(n.to_kalibr()) == n
+    write_camchain(path, chain, comments=["x"])
+    doc = yaml.safe_load(path.read_text())
+    assert doc["cam0"]["T_cam_imu"] == T.tolist() and doc["cam1"]["timeshift_cam_imu"] == -shift
+    np.testing.assert_allclose(read_camchain(path).cameras[1].T_cn_cnm1, T, atol=1e-9)
+    n = ImuNoise(gyro_noise_density_rad_s_sqrt_hz=nd, accel_noise_density_m_s2_sqrt_hz=2 * nd,
+                 gyro_random_walk_rad_s2_sqrt_hz=rw, accel_random_walk_m_s3_sqrt_hz=3 * rw,
+                 update_rate_hz=200.0)
+    write_imu_noise(path, n)
+    assert read_imu_noise(path) == replace(n, rostopic="/imu0")

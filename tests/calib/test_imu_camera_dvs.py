@@ -18,12 +18,11 @@ from typing import Any
 
 import numpy as np
 import pytest
-import yaml
 
 from ibiscape_eval.calib.imu_camera import calibrate_sequence
-from ibiscape_eval.calib.imu_camera.inputs import ImuNoiseDensities
 from ibiscape_eval.calib.imu_camera.sequence import event_frame_stamps_ns
 from ibiscape_eval.core.errors import IbiscapeWarning
+from ibiscape_eval.core.kalibr import ImuNoise
 from ibiscape_eval.sim import preset
 from ibiscape_eval.sim.calib_scene import write_board_frames
 from ibiscape_eval.sim.generator import generate
@@ -92,9 +91,10 @@ def write_esvi_calibration(out: Path, *, duration_s: float, rgb_px: int, dvs_px:
     return cfg
 
 
-def noise_of(seq: Path) -> ImuNoiseDensities:
-    doc = yaml.safe_load((seq / "sequence.yaml").read_text())["imus"]["imu0"]
-    return ImuNoiseDensities.from_kalibr(doc)
+def noise_of(seq: Path) -> ImuNoise:
+    from ibiscape_eval.io.kalibr import read_imu_noise
+
+    return read_imu_noise(seq / "sequence.yaml")
 
 
 @pytest.fixture(scope="module")

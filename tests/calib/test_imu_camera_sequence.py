@@ -18,9 +18,10 @@ import pytest
 import yaml
 from click.testing import CliRunner
 
-from ibiscape_eval.calib.imu_camera import calibrate_sequence, read_imu_noise
+from ibiscape_eval.calib.imu_camera import calibrate_sequence
 from ibiscape_eval.cli.main import cli
-from ibiscape_eval.core.errors import CalibrationError
+from ibiscape_eval.core.errors import CalibrationError, IbiscapeError
+from ibiscape_eval.io.kalibr import read_imu_noise
 from ibiscape_eval.sim import preset
 from ibiscape_eval.sim.calib_scene import write_board_frames
 from ibiscape_eval.sim.config import with_resolution
@@ -67,10 +68,10 @@ def _run(*args: str):
 
 
 def test_cli_recovers_planted_extrinsics_and_offsets(seq, tmp_path):
-    imu = _imu_yaml(seq, tmp_path)
     out = tmp_path / "camchain-imucam.yaml"
     chain = _truth_chain(seq, tmp_path)
-    r = _run(str(seq), "--imu", str(imu), "--cams", str(chain), "--yaml", str(out), "--json",
+    # the noise densities straight from the sequence's sequence.yaml (issue #21)
+    r = _run(str(seq), "--imu", str(seq / "sequence.yaml"), "--cams", str(chain), "--yaml", str(out), "--json",
              "--plot", str(tmp_path / "plots"))
     assert r.exit_code == 0, r.output
     doc = json.loads(r.stdout)
@@ -92,7 +93,8 @@ def test_cli_recovers_planted_extrinsics_and_offsets(seq, tmp_path):
 
 
 def test_library_call_with_intrinsics_from_the_camera_calibration(seq, tmp_path):
-    res = calibrate_sequence(seq, read_imu_noise(_imu_yaml(seq, tmp_path)), frame_step=3)
+    assert read_imu_noise(_imu_yaml(seq, tmp_path)) == read_imu_noise(seq / "sequence.yaml")
+    res = calibrate_sequence(seq, None, frame_step=3)  # None: the noise sequence.yaml states
     text = json.dumps(res.to_dict(), allow_nan=False)
     assert "NaN" not in text and res.detection["frame_step"] == 3
     assert res.intrinsics_source == {"rgbL": "camera calibration", "rgbR": "camera calibration"}
@@ -140,6 +142,31 @@ def test_camera_without_intrinsics(seq, tmp_path):
     _bad(_run(str(seq), "--imu", str(_imu_yaml(seq, tmp_path)), "--cams", str(chain), "--yaml", str(out)),
          "rgbR", "intrinsics are missing", str(chain))
     assert not out.exists()
+
+
+def test_camchain_of_another_resolution_and_imu_without_a_file(seq, tmp_path):
+    """``--imu`` alone takes the noise from SEQ/sequence.yaml; a camchain whose resolution differs
+    from the sequence's cameras is refused before any detection, naming it and both sizes."""
+    chain = _truth_chain(seq, tmp_path)
+    doc = yaml.safe_load(chain.read_text())
+    doc["cam1"]["resolution"] = [752, 480]
+    chain.write_text(yaml.safe_dump(doc))
+    out = tmp_path / "out.yaml"
+    _bad(_run(str(seq), "--imu", "--cams", str(chain), "--yaml", str(out)), str(chain),
+         "cam1 is 752x480 px but the sequence's camera rgbR is 384x384 px")
+    assert not out.exists()
+
+
+def test_ideal_sequence_noise_is_refused_by_the_calibration(seq, tmp_path):
+    doc = yaml.safe_load((seq / "sequence.yaml").read_text())
+    doc["imus"]["imu0"]["gyroscope_noise_density"] = 0.0
+    ideal = tmp_path / "ideal"
+    ideal.mkdir()
+    (ideal / "sequence.yaml").write_text(yaml.safe_dump(doc))
+    with pytest.raises(CalibrationError, match=r"sequence\.yaml: states zero IMU noise"):
+        calibrate_sequence(ideal)
+    with pytest.raises(IbiscapeError, match=r"no sequence\.yaml states it"):
+        calibrate_sequence(tmp_path)
 
 
 def test_options_that_need_imu(seq):

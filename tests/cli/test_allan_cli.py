@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 from _cli_data import assert_one_error_line
 
-from ibiscape_eval.io.imu import read_kalibr_imu_yaml, write_imu_csv
+from ibiscape_eval.io.imu import write_imu_csv
+from ibiscape_eval.io.kalibr import read_imu_noise
 from ibiscape_eval.sim.noise import imu_noise
 
 N_TRUE = [1e-3, 1e-3, 1e-3, 2e-2, 2e-2, 2e-2]
@@ -37,7 +38,7 @@ def test_all_outputs(run_cli, long_csv: Path, tmp_path: Path) -> None:
                   "--plot", out / "adev.png", "--rostopic", "/imu0")
     assert res.exit_code == 0, res.output
     assert "w_x" in res.stdout and "a_z" in res.stdout and "±" in res.stdout
-    doc = read_kalibr_imu_yaml(out / "imu.yaml")
+    doc = read_imu_noise(out / "imu.yaml").to_kalibr()
     assert doc["gyroscope_noise_density"] == pytest.approx(1e-3, rel=0.03)
     assert doc["accelerometer_random_walk"] == pytest.approx(4e-3, rel=0.3)
     assert doc["update_rate"] == pytest.approx(20.0) and doc["rostopic"] == "/imu0"

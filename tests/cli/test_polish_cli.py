@@ -154,13 +154,13 @@ def test_short_record_refusal_suggests_fallback(run_cli, tmp_path: Path) -> None
 
 
 def test_short_record_with_fallback_and_inflate_writes_yaml(run_cli, tmp_path: Path) -> None:
-    from ibiscape_eval.io.imu import read_kalibr_imu_yaml
+    from ibiscape_eval.io.kalibr import read_imu_noise
 
     out = tmp_path / "imu.yaml"
     res = run_cli("allan", _short_imu(tmp_path), "--yaml", out, "--random-walk-fallback",
                   "2e-5,3e-3", "--inflate", "2", "--json")
     assert res.exit_code == 0, res.output
-    doc = read_kalibr_imu_yaml(out)
+    doc = read_imu_noise(out).to_kalibr()
     assert doc["gyroscope_random_walk"] == pytest.approx(4e-5)
     assert doc["accelerometer_random_walk"] == pytest.approx(6e-3)
     n_gyro = json.loads(res.stdout)["kalibr"]["gyroscope_noise_density"]

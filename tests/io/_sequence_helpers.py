@@ -29,12 +29,12 @@ def opencv_yaml(doc: dict) -> str:
 def euroc_from(seq_dir: Path, out: Path, calib: Path, *, empty_gt: bool = True) -> Path:
     """Re-pack an IBISCape-layout stereo sequence (with its camchain-imucam.yaml) as an EuRoC ASL
     folder whose sensor.yaml files carry ``%YAML:1.0`` and whose ground-truth csv is empty."""
-    from ibiscape_eval.io.stereo import read_kalibr_camchain
+    from ibiscape_eval.io.kalibr import read_camchain
     from ibiscape_eval.vio.inputs import load_sequence
 
     src = load_sequence(seq_dir, calib=calib)
     m = out / "mav0"
-    chain = read_kalibr_camchain(calib)
+    chain = {c.name: c for c in read_camchain(calib).cameras}
     for cam, stamps, files in (("cam0", src.frame_stamps_ns, src.left_files),
                                ("cam1", src.frame_stamps_ns, src.right_files)):
         (m / cam / "data").mkdir(parents=True)
@@ -44,13 +44,15 @@ def euroc_from(seq_dir: Path, out: Path, calib: Path, *, empty_gt: bool = True) 
             rows.append(f"{t},{t}.png")
         (m / cam / "data.csv").write_text("#timestamp [ns],filename\n" + "\n".join(rows) + "\n")
         c = chain[cam]
-        T_BS = np.linalg.inv(c["T_cam_imu"])
+        assert c.T_cam_imu is not None
+        T_BS = np.linalg.inv(c.T_cam_imu)
+        k = c.camera.to_kalibr()
         (m / cam / "sensor.yaml").write_text(opencv_yaml({
             "sensor_type": "camera", "rate_hz": 20,
             "T_BS": {"cols": 4, "rows": 4, "data": T_BS.ravel().tolist()},
-            "resolution": c["resolution"], "camera_model": "pinhole",
-            "intrinsics": c["intrinsics"], "distortion_model": "radial-tangential",
-            "distortion_coefficients": c["distortion_coeffs"]}))
+            "resolution": k["resolution"], "camera_model": "pinhole",
+            "intrinsics": k["intrinsics"], "distortion_model": "radial-tangential",
+            "distortion_coefficients": k["distortion_coeffs"]}))
     (m / "imu0").mkdir()
     rows = [f"{t},{','.join(repr(float(x)) for x in (*g, *a))}"
             for t, g, a in zip(src.imu_stamps_ns, src.gyro_rad_s, src.accel_m_s2, strict=True)]

@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 
 from ibiscape_eval.core.errors import FormatError
-from ibiscape_eval.io import asl, images, stereo, tum_rgbd
+from ibiscape_eval.io import asl, images, kalibr, stereo, tum_rgbd
 from ibiscape_eval.io.dvs_folder import read_dvs_frame_list
 from ibiscape_eval.io.rosbag_export import read_bag_images, read_bag_imu
 
@@ -25,8 +25,9 @@ READERS: dict[str, Callable[[Path], Any]] = {
     "stereo_frame_list": stereo.read_frame_list,
     "stereo_imu": stereo.read_imu_samples,
     "gray_image": stereo.read_gray_image,
-    "camchain": stereo.read_kalibr_camchain,
-    "euroc_sensor_yaml": stereo.read_euroc_sensor_yaml,
+    "camchain": kalibr.read_camchain,
+    "kalibr_imu_yaml": kalibr.read_imu_noise,
+    "kalibr_target": kalibr.read_target,
     "dvs_frames": lambda p: read_dvs_frame_list(p.parent.parent),
 }
 

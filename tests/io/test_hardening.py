@@ -382,7 +382,7 @@ def test_constant_imu_axis_names_the_file(tmp_path: Path) -> None:
 
 def test_small_text_inputs_refuse_non_utf8_and_fifos(tmp_path: Path, fifo: Path) -> None:
     from ibiscape_eval.io.events import read_hot_pixels
-    from ibiscape_eval.io.imu import read_kalibr_imu_yaml
+    from ibiscape_eval.io.kalibr import read_imu_noise
 
     h = tmp_path / "hot.txt"
     h.write_bytes(b"1, 2\n3, \xff\n")
@@ -396,7 +396,7 @@ def test_small_text_inputs_refuse_non_utf8_and_fifos(tmp_path: Path, fifo: Path)
     k = tmp_path / "imu.yaml"
     k.write_bytes(b"a: " + b"[" * 10_000)
     with pytest.raises(FormatError, match=r"imu.yaml"):
-        read_kalibr_imu_yaml(k)
+        read_imu_noise(k)
 
 
 def test_hdf5_stamps_beyond_int64_ns_refused(tmp_path: Path) -> None:

@@ -13,10 +13,8 @@ from hypothesis import strategies as st
 from ibiscape_eval.core.errors import FormatError, IbiscapeError
 from ibiscape_eval.io.imu import (
     read_imu,
-    read_kalibr_imu_yaml,
     write_imu_csv,
     write_imu_npy,
-    write_kalibr_imu_yaml,
 )
 
 T0 = 1_403_636_579_758_555_392
@@ -61,28 +59,6 @@ def test_npy_round_trip_streamed(tmp_path: Path, rows: list[list[float]], chunk:
     assert rec.samples is None  # read in chunks, never loaded whole
     np.testing.assert_array_equal(np.concatenate(list(rec.iter_chunks(range(6), 7))), y)
     assert rec.rate_hz == pytest.approx(200.0)
-
-
-@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(vals=st.lists(st.floats(min_value=1e-9, max_value=10.0), min_size=5, max_size=5),
-       topic=st.from_regex(r"/[a-z][a-z0-9_]{0,10}", fullmatch=True))
-def test_kalibr_yaml_round_trip(tmp_path: Path, vals: list[float], topic: str) -> None:
-    path = tmp_path / "imu.yaml"
-    write_kalibr_imu_yaml(path, accelerometer_noise_density=vals[0], accelerometer_random_walk=vals[1],
-                          gyroscope_noise_density=vals[2], gyroscope_random_walk=vals[3],
-                          update_rate_hz=vals[4] * 100, rostopic=topic, comments=["sigma: 1"])
-    doc = read_kalibr_imu_yaml(path)
-    assert doc["accelerometer_noise_density"] == vals[0]
-    assert doc["gyroscope_random_walk"] == vals[3]
-    assert doc["update_rate"] == vals[4] * 100 and doc["rostopic"] == topic
-
-
-def test_kalibr_yaml_refuses_nan(tmp_path: Path) -> None:
-    with pytest.raises(IbiscapeError, match="gyroscope_random_walk not determined"):
-        write_kalibr_imu_yaml(tmp_path / "imu.yaml", accelerometer_noise_density=1.0,
-                              accelerometer_random_walk=1.0, gyroscope_noise_density=1.0,
-                              gyroscope_random_walk=float("nan"), update_rate_hz=200)
-    assert not (tmp_path / "imu.yaml").exists()
 
 
 def test_euroc_csv_with_trailing_spaces(tmp_path: Path) -> None:

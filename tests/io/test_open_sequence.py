@@ -48,7 +48,7 @@ def test_real_euroc_v1_01_opens_with_opencv_yaml_and_empty_ground_truth():
         assert cam.camera is not None
         np.testing.assert_array_equal([cam.camera.fx, cam.camera.fy, cam.camera.cx, cam.camera.cy], intr)
         np.testing.assert_array_equal(np.ravel(cam.T_body_cam), T)
-    assert seq.imu.noise is not None and seq.imu.noise["gyroscope_noise_density"] == 1.6968e-04
+    assert seq.imu.noise is not None and seq.imu.noise.gyro_noise_density_rad_s_sqrt_hz == 1.6968e-04
     st, _gyro, acc = seq.imu.samples.get()
     assert st.size == 231 and st[0] == 1403715273262142976 and abs(acc[0, 0] - 9.0874956666666655) < 1e-12
     img = c0.load(0)
@@ -94,8 +94,8 @@ def test_calib_opens_the_real_euroc_excerpt(tmp_path):
                    "view-diversity check (reported to the lead)")
 def test_calib_on_four_near_identical_real_views_refuses_or_covers_the_truth(tmp_path):
     from ibiscape_eval import calibrate_cameras
-    from ibiscape_eval.calib.targets import target_from_kalibr
     from ibiscape_eval.core.errors import CalibrationError
+    from ibiscape_eval.core.kalibr import target_from_kalibr
 
     seq = open_sequence(EUROC_REAL, cameras=["cam0"])
     target = target_from_kalibr(yaml.safe_load(_v1_board(tmp_path).read_text()))
@@ -189,31 +189,32 @@ def test_camchain_that_disagrees_with_the_sequence_says_so(tmp_path):
     seq = open_sequence(EUROC_REAL)
     entry = {"camera_model": "pinhole", "intrinsics": [450.0, 450.0, 320.0, 240.0],
              "distortion_model": "radtan", "distortion_coeffs": [0.0] * 4}
-    chain = tmp_path / "camchain.yaml"
-    chain.write_text(yaml.safe_dump({"cam0": {**entry, "resolution": [640, 480]},
-                                     "cam1": {**entry, "resolution": [752, 480]}}))
-    with pytest.raises(FormatError, match=r"cam0 has resolution 640x480 but camera cam0 .* is 752x480"):
+    T = np.eye(4)
+    T[0, 3] = -0.11
+
+    def write(doc: dict) -> Path:
+        for e in list(doc.values())[1:]:
+            e.setdefault("T_cn_cnm1", T.tolist())
+        chain = tmp_path / "camchain.yaml"
+        chain.write_text(yaml.safe_dump(doc))
+        return chain
+
+    chain = write({"cam0": {**entry, "resolution": [640, 480]}, "cam1": {**entry, "resolution": [752, 480]}})
+    with pytest.raises(FormatError, match=r"cam0 is 640x480 px but the sequence's camera cam0 is 752x480 px"):
         apply_camchain(seq, chain)
-    chain.write_text(yaml.safe_dump({"cam0": {**entry, "resolution": [752, 480]}}))
-    with pytest.raises(FormatError, match=r"names cameras cam0 \(no rostopic\); the sequence .* has cam0, "
-                                          r"cam1: no entry for cam1"):
-        apply_camchain(seq, chain)
-    chain.write_text(yaml.safe_dump({"left": {**entry, "resolution": [752, 480]}}))
-    with pytest.raises(FormatError, match=r"no cam0/cam1 entries"):
-        apply_camchain(seq, chain)
-    chain.write_text(yaml.safe_dump({"cam0": {**entry, "resolution": [752, 480], "rostopic": "/cam0/image_raw"},
-                                     "cam2": {**entry, "resolution": [752, 480], "rostopic": "/cam2/image_raw"}}))
-    with pytest.raises(FormatError, match=r"names cameras .*cam2 \(/cam2/image_raw\).*no entry for cam1"):
-        apply_camchain(seq, chain)
-    chain.write_text(yaml.safe_dump({c: {**entry, "resolution": [752, 480], "rostopic": f"/{c}/image_raw"}
-                                     for c in ("cam0", "cam1")}))
+    globs = open_sequence(images=[f"left={EUROC_REAL}/mav0/cam0/data/*.png",
+                                  f"right={EUROC_REAL}/mav0/cam1/data/*.png"])
+    chain = write({"cam0": {**entry, "resolution": [752, 480], "rostopic": "/left/image_raw"},
+                   "cam1": {**entry, "resolution": [752, 480], "rostopic": "/middle/image_raw"}})
+    with pytest.raises(FormatError, match=r"has no entry for the sequence's camera\(s\) right .*cam1 "
+                                          r"\(/middle/image_raw\); the sequence has left, right"):
+        apply_camchain(globs, chain)
+    chain = write({c: {**entry, "resolution": [752, 480], "rostopic": f"/{c}/image_raw"} for c in ("cam0", "cam1")})
     fixed = apply_camchain(seq, chain)
     assert fixed.cameras[1].camera is not None and fixed.cameras[1].camera.fx == 450.0
     # the VIO compares a camchain's image size with the images themselves
-    T1 = np.eye(4)
-    T1[0, 3] = -0.11
-    chain.write_text(yaml.safe_dump({c: {**entry, "resolution": [640, 480], "T_cam_imu": T.tolist()}
-                                     for c, T in (("cam0", np.eye(4)), ("cam1", T1))}))
+    chain.write_text(yaml.safe_dump({c: {**entry, "resolution": [640, 480], "T_cam_imu": M.tolist()}
+                                     for c, M in (("cam0", np.eye(4)), ("cam1", T))}))
     out = tmp_path / "est.txt"
     res = CliRunner().invoke(cli, ["vio", str(EUROC_REAL), "-o", str(out), "--calib", str(chain)])
     _one_line_exit_2(res, "752x480", "640x480")
@@ -231,7 +232,7 @@ def test_sequence_states_what_hotpix_and_events_need(tmp_path):
     seq = open_sequence(tmp_path / "ESVI", layout="ibiscape")
     doc = yaml.safe_load((tmp_path / "ESVI" / "sequence.yaml").read_text())
     assert seq.imu is not None and seq.imu.noise is not None
-    assert seq.imu.noise["gyroscope_noise_density"] == doc["imus"]["imu0"]["gyroscope_noise_density"]
+    assert seq.imu.noise.gyro_noise_density_rad_s_sqrt_hz == doc["imus"]["imu0"]["gyroscope_noise_density"]
     assert seq.target is None or isinstance(seq.target, dict)
     assert seq.groundtruth is not None and len(seq.ground_truth()) > 0
 

@@ -242,7 +242,8 @@ def _vio_sequence(folder: Path) -> Path:
         sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "vio"))
         from _walls import W, render_street
 
-        from ibiscape_eval.io.imu.kalibr import write_kalibr_imu_yaml
+        from ibiscape_eval.core.kalibr import ImuNoise
+        from ibiscape_eval.io.kalibr import write_imu_noise
         from ibiscape_eval.sim.config import preset
         from ibiscape_eval.sim.generator import generate
         from ibiscape_eval.vio.inputs import load_sequence
@@ -257,9 +258,10 @@ def _vio_sequence(folder: Path) -> Path:
         assert gt is not None
         render_street(d, gt, rig, gt.stamps_ns[: 10 * VIO_FRAMES : 10],
                       origin_xy=(gt.pos_m[0, 0], gt.pos_m[0, 1]), direction_xy=(1.0, 0.0))
-        write_kalibr_imu_yaml(d / "imu.yaml", accelerometer_noise_density=0.02,
-                              accelerometer_random_walk=4e-4, gyroscope_noise_density=2e-3,
-                              gyroscope_random_walk=2e-5, update_rate_hz=200.0)
+        write_imu_noise(d / "imu.yaml", ImuNoise(
+            accel_noise_density_m_s2_sqrt_hz=0.02, accel_random_walk_m_s3_sqrt_hz=4e-4,
+            gyro_noise_density_rad_s_sqrt_hz=2e-3, gyro_random_walk_rad_s2_sqrt_hz=2e-5,
+            update_rate_hz=200.0))
         _VIO_TEMPLATE[key] = d
     dst = folder / "SVI_1_town"
     shutil.copytree(_VIO_TEMPLATE[key], dst)
@@ -316,6 +318,46 @@ def _calib_sequence(folder: Path) -> Path:
     res = CliRunner().invoke(cli, ["calib", str(seq), "--yaml", str(seq / "camchain.yaml")])
     assert res.exit_code == 0, res.output
     return seq
+
+
+def _vio_camchain_opencv_seed(folder: Path) -> Path:
+    """The VIO seed's camchain-imucam as OpenVINS ships it: ``%YAML:1.0`` header, ``T_imu_cam``
+    (the inverse of Kalibr's ``T_cam_imu``), no ``T_cn_cnm1``."""
+    import yaml
+
+    seq = _vio_sequence(folder)
+    doc = yaml.safe_load((seq / "camchain-imucam.yaml").read_text())
+    for entry in doc.values():
+        entry["T_imu_cam"] = np.linalg.inv(np.array(entry.pop("T_cam_imu"))).tolist()
+        entry.pop("T_cn_cnm1", None)
+    p = seq / "kalibr_imucam_chain.yaml"
+    p.write_text("%YAML:1.0\n\n" + yaml.safe_dump(doc, sort_keys=False, default_flow_style=None))
+    return p
+
+
+def _vio_imu_chain_opencv_seed(folder: Path) -> Path:
+    """The VIO seed's imu.yaml as OpenVINS ships it: ``%YAML:1.0``, the keys under ``imu0:``."""
+    import yaml
+
+    seq = _vio_sequence(folder)
+    doc = yaml.safe_load((seq / "imu.yaml").read_text())
+    p = seq / "kalibr_imu_chain.yaml"
+    p.write_text("%YAML:1.0\n\n" + yaml.safe_dump({"imu0": {"T_i_b": np.eye(4).tolist(), **doc}},
+                                                      sort_keys=False, default_flow_style=None))
+    return p
+
+
+def _calib_target_seed(folder: Path) -> Path:
+    """The calibration seed's target as a Kalibr target yaml (given to --target)."""
+    from ibiscape_eval.core.kalibr import target_from_kalibr
+    from ibiscape_eval.io.kalibr import read_target, write_target
+    from ibiscape_eval.io.sequence import read_sequence_yaml
+
+    seq = _calib_sequence(folder)
+    p = seq / "target.yaml"
+    write_target(p, target_from_kalibr(read_sequence_yaml(seq / "sequence.yaml")["target"]))
+    read_target(p)
+    return p
 
 
 def _euroc_vio_seed(folder: Path) -> Path:
@@ -398,6 +440,14 @@ FAMILIES: dict[str, Family] = {
     "events_dvs_folder": Family(_dvs_folder_seed, lambda p, o: ["hotpix", str(p), "--sensor-size", "64x48",
                                                                 "--json", "--hot-out", str(o / "hot.txt")],
                                 mutable=_dvs_window, text=False),
+    # Kalibr's files as other projects ship them (one reader each, io.kalibr / io.yaml_file): an
+    # OpenCV %YAML:1.0 camchain with T_imu_cam and an imu chain for the VIO, a target yaml for calib
+    "vio_camchain_opencv": Family(_vio_camchain_opencv_seed,
+                                  lambda p, o: _vio_argv(p.parent, o, p)),
+    "vio_imu_chain_opencv": Family(_vio_imu_chain_opencv_seed,
+                                   lambda p, o: _vio_argv(p.parent, o, None, "--imu", str(p))),
+    "calib_target_yaml": Family(_calib_target_seed, lambda p, o: ["calib", str(p.parent), "--target",
+                                                                  str(p), "--json"]),
     # one door for a sequence (io/open_sequence.py): an EuRoC folder's OpenCV-YAML sensor file and
     # frame list, and a ROS 1 bag's image and IMU messages
     "euroc_sensor_yaml": Family(_euroc_vio_seed, _euroc_vio_argv,

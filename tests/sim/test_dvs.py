@@ -292,7 +292,7 @@ def test_sequence_yaml_records_the_dvs_settings_and_calib_uses_them(tmp_path: Pa
     """``sequence.yaml: cameras.<name>.dvs`` carries the thresholds the events were made with (with
     or without rendering), and the calibration's reconstruction takes its contrast from there."""
     from ibiscape_eval.calib.events import contrast_from_sequence, event_set_frames
-    from ibiscape_eval.calib.targets import target_from_kalibr
+    from ibiscape_eval.core.kalibr import target_from_kalibr
     from ibiscape_eval.io.sequence import read_sequence_yaml
 
     seq = tmp_path / "ESVI_gt"

@@ -106,7 +106,12 @@ def test_stamp_text_uses_microseconds_like_tum_when_exact() -> None:
 @settings(max_examples=15)
 @given(data=hs.data())
 def test_sensor_yaml_round_trip(data: hs.DataObject) -> None:
-    T = data.draw(hnp.arrays(np.float64, (4, 4), elements=_f))
+    from scipy.spatial.transform import Rotation
+
+    # the reader checks T_BS is rigid (one sensor.yaml reader for export and VIO)
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_rotvec(data.draw(hnp.arrays(np.float64, 3, elements=hs.floats(-3, 3)))).as_matrix()
+    T[:3, 3] = data.draw(hnp.arrays(np.float64, 3, elements=hs.floats(-100, 100)))
     with tempfile.TemporaryDirectory() as d:
         p = Path(d) / "sensor.yaml"
         write_asl_sensor_yaml(p, sensor_type="camera", comment="c", T_BS=T,

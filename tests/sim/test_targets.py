@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from ibiscape_eval.core.errors import IbiscapeError
-from ibiscape_eval.sim.targets import aprilgrid_corners, board_pose, make_target
+from ibiscape_eval.core.kalibr import CalibrationTarget
+from ibiscape_eval.sim.targets import board_pose, make_target
 
 
 def test_checkerboard_geometry_and_detection():
@@ -34,7 +35,7 @@ def test_checkerboard_geometry_and_detection():
 
 
 def test_aprilgrid_numbering_matches_kalibr():
-    c = aprilgrid_corners(6, 6, 0.4, 0.3)
+    c = CalibrationTarget.aprilgrid(6, 6, 0.4, 0.3).object_points()
     assert c.shape == (144, 3)
     # corner (r, c) = (1, 3): x = 1 * 1.3 * 0.4 + 0.4, y = 0.4
     assert np.allclose(c[1 * 12 + 3], [0.92, 0.4, 0.0])

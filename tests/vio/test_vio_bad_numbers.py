@@ -17,10 +17,11 @@ from click.testing import CliRunner
 
 from ibiscape_eval.cli.main import cli
 from ibiscape_eval.core.errors import CalibrationError, DegenerateInputError, FormatError
-from ibiscape_eval.io.stereo import read_euroc_sensor_yaml, read_kalibr_camchain
+from ibiscape_eval.core.kalibr import ImuNoise
+from ibiscape_eval.io.asl import read_asl_sensor_yaml
+from ibiscape_eval.io.kalibr import read_camchain
 from ibiscape_eval.vio import run_vio
 from ibiscape_eval.vio.inputs import load_sequence
-from ibiscape_eval.vio.params import ImuNoiseDensities
 
 IMU_YAML = {"accelerometer_noise_density": 0.02, "accelerometer_random_walk": 4e-4,
             "gyroscope_noise_density": 2e-3, "gyroscope_random_walk": 2e-5, "update_rate": 200.0,
@@ -156,8 +157,11 @@ def test_imu_yaml_numbers(street, tmp_path, key, value, words):
 
 
 def test_zero_noise_means_an_ideal_sensor_and_is_floored():
-    """Noise-free generated sequences write zeros: accepted, floored to a small positive value."""
-    n = ImuNoiseDensities.from_kalibr({**IMU_YAML, "gyroscope_noise_density": 0.0})
+    """Noise-free generated sequences write zeros: read as they are, floored (to a small positive
+    value) by the estimator."""
+    n = ImuNoise.from_kalibr({**IMU_YAML, "gyroscope_noise_density": 0.0})
+    assert n.is_ideal and n.gyro_noise_density_rad_s_sqrt_hz == 0.0
+    n = n.floored()
     assert 0.0 < n.gyro_noise_density_rad_s_sqrt_hz <= 1e-5
     assert n.accel_noise_density_m_s2_sqrt_hz == IMU_YAML["accelerometer_noise_density"]
 
@@ -206,10 +210,11 @@ def test_camchain_reader_refuses_a_non_rotation(tmp_path):
            "T_cam_imu": ROT_NOT_ORTHONORMAL}
     f.write_text(yaml.safe_dump({"cam0": cam}))
     with pytest.raises(FormatError, match=r"camchain\.yaml: cam0\.T_cam_imu: the rotation"):
-        read_kalibr_camchain(f)
+        read_camchain(f)
     cam["T_cam_imu"] = np.eye(4).tolist()
     f.write_text(yaml.safe_dump({"cam0": cam}))
-    assert np.array_equal(read_kalibr_camchain(f)["cam0"]["T_cam_imu"], np.eye(4))
+    T = read_camchain(f).cameras[0].T_cam_imu
+    assert T is not None and np.array_equal(T, np.eye(4))
 
 
 def test_euroc_sensor_yaml_refuses_a_reflection(tmp_path):
@@ -217,15 +222,15 @@ def test_euroc_sensor_yaml_refuses_a_reflection(tmp_path):
     f.write_text(yaml.safe_dump({"T_BS": {"rows": 4, "cols": 4,
                                           "data": np.ravel(REFLECTION).tolist()}}))
     with pytest.raises(FormatError, match=r"sensor\.yaml: T_BS: the rotation"):
-        read_euroc_sensor_yaml(f)
+        read_asl_sensor_yaml(f)
 
 
 # --------------------------------------------------------------------- GTSAM numerical failure
 def _unchecked(monkeypatch: pytest.MonkeyPatch) -> None:
     """Switch off the rigid-transform check so that a broken T_body_imu reaches GTSAM."""
-    import ibiscape_eval.io.stereo as stereo
+    import ibiscape_eval.core.kalibr as kalibr
 
-    monkeypatch.setattr(stereo, "rigid_transform_problem", lambda T: None)
+    monkeypatch.setattr(kalibr, "rigid_transform_problem", lambda T: None)
 
 
 @pytest.mark.filterwarnings("ignore:invalid value:RuntimeWarning")  # numpy on the inf pose

@@ -13,7 +13,8 @@ from hypothesis import strategies as st
 
 from ibiscape_eval.core.errors import CalibrationError, FormatError
 from ibiscape_eval.io import write_trajectory
-from ibiscape_eval.io.stereo import read_frame_list, read_imu_samples, read_kalibr_camchain
+from ibiscape_eval.io.kalibr import read_camchain
+from ibiscape_eval.io.stereo import read_frame_list, read_imu_samples
 from ibiscape_eval.vio.inputs import load_sequence
 from ibiscape_eval.vio.pipeline import run_vio
 
@@ -22,7 +23,7 @@ def _euroc_from(seq_dir: Path, out: Path, calib: Path) -> Path:
     """Re-pack an IBISCape-layout street sequence as an EuRoC ASL folder."""
     src = load_sequence(seq_dir, calib=calib)
     m = out / "mav0"
-    chain = read_kalibr_camchain(calib)
+    chain = read_camchain(calib)
     for cam, folder in (("cam0", "rgbL"), ("cam1", "rgbR")):
         (m / cam / "data").mkdir(parents=True)
         rows = []
@@ -30,14 +31,16 @@ def _euroc_from(seq_dir: Path, out: Path, calib: Path) -> Path:
             shutil.copy(f, m / cam / "data" / f.name)
             rows.append(f"{f.stem},{f.name}")
         (m / cam / "data.csv").write_text("#timestamp [ns],filename\n" + "\n".join(rows) + "\n")
-        c = chain[cam]
-        T_BS = np.linalg.inv(c["T_cam_imu"])
+        c = chain.cameras[chain.names.index(cam)]
+        assert c.T_cam_imu is not None
+        T_BS = np.linalg.inv(c.T_cam_imu)
+        k = c.camera.to_kalibr()
         (m / cam / "sensor.yaml").write_text(yaml.safe_dump({
             "sensor_type": "camera", "rate_hz": 20,
             "T_BS": {"cols": 4, "rows": 4, "data": T_BS.ravel().tolist()},
-            "resolution": c["resolution"], "camera_model": "pinhole",
-            "intrinsics": c["intrinsics"], "distortion_model": "radial-tangential",
-            "distortion_coefficients": c["distortion_coeffs"]}))
+            "resolution": k["resolution"], "camera_model": "pinhole",
+            "intrinsics": k["intrinsics"], "distortion_model": "radial-tangential",
+            "distortion_coefficients": k["distortion_coeffs"]}))
     (m / "imu0").mkdir()
     rows = [f"{t},{','.join(repr(float(x)) for x in (*g, *a))}"
             for t, g, a in zip(src.imu_stamps_ns, src.gyro_rad_s, src.accel_m_s2, strict=True)]
@@ -81,7 +84,7 @@ def test_camchain_needs_cam0_and_cam1(tmp_path):
         _rig_from_camchain(f)
     f.write_text("cam0: [unclosed")
     with pytest.raises(FormatError, match="YAML"):
-        read_kalibr_camchain(f)
+        read_camchain(f)
 
 
 @given(st.lists(st.integers(0, 2**62), min_size=1, max_size=30, unique=True))

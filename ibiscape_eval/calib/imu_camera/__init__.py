@@ -7,10 +7,10 @@ observations, IMU samples and the IMU's noise densities; see :func:`calibrate_im
 from __future__ import annotations
 
 from .calibrate import calibrate_imu_camera
-from .inputs import CameraObservations, ImuData, ImuNoiseDensities
-from .kalibr import camchain_imucam_document, errors_against_truth
+from .inputs import CameraObservations, ImuData
+from .kalibr import camchain_imucam, errors_against_truth
 from .result import CameraImuCalibration, Excitation, ImuCameraResult, ResidualSeries
-from .sequence import SequenceCalibration, calibrate_sequence, read_imu_noise
+from .sequence import SequenceCalibration, calibrate_sequence
 from .synthetic import observe_target
 
 __all__ = [
@@ -19,13 +19,11 @@ __all__ = [
     "Excitation",
     "ImuCameraResult",
     "ImuData",
-    "ImuNoiseDensities",
     "ResidualSeries",
     "SequenceCalibration",
     "calibrate_imu_camera",
     "calibrate_sequence",
-    "camchain_imucam_document",
+    "camchain_imucam",
     "errors_against_truth",
     "observe_target",
-    "read_imu_noise",
 ]

@@ -30,9 +30,10 @@ import numpy as np
 import numpy.typing as npt
 
 from ibiscape_eval.core.errors import CalibrationError, IbiscapeError, IbiscapeWarning
+from ibiscape_eval.core.kalibr import ImuNoise
 
 from .initial import FramePoses, align_rotations, frame_poses, integrate_gyro
-from .inputs import CameraObservations, ImuData, ImuNoiseDensities
+from .inputs import CameraObservations, ImuData
 from .problem import CameraBlock, Problem, State, camera_block, cost, imu_block, normal_equations
 from .result import CameraImuCalibration, Excitation, ImuCameraResult, ResidualSeries
 from .spline import basis, exp_so3, position, rotation
@@ -57,7 +58,7 @@ MIN_SIGMA_PX = 0.02
 
 
 def _check_inputs(observations: Sequence[CameraObservations], imu: ImuData,
-                  noise: ImuNoiseDensities, corners: FloatArray, rate_tolerance: float) -> None:
+                  noise: ImuNoise, corners: FloatArray, rate_tolerance: float) -> None:
     if not observations:
         raise IbiscapeError("no camera observations given")
     names = [o.name for o in observations]
@@ -249,7 +250,7 @@ def _excitation(gyro: FloatArray, accel: FloatArray, duration_s: float,
 def calibrate_imu_camera(
     observations: Sequence[CameraObservations],
     imu: ImuData,
-    noise: ImuNoiseDensities,
+    noise: ImuNoise,
     corners_target_m: npt.ArrayLike,
     *,
     sigma_px: float = 0.3,
@@ -277,7 +278,7 @@ def calibrate_imu_camera(
         Target corners per camera (stamps on each camera's clock) with the camera models.
     imu : ImuData
         Gyroscope and accelerometer in the IMU frame; its clock is the reference.
-    noise : ImuNoiseDensities
+    noise : ImuNoise
         Continuous-time densities (``imu.yaml``); the residual weights.
     corners_target_m : array_like, shape (M, 3)
         The target's corners in its frame, indexed by corner id.

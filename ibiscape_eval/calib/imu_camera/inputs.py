@@ -1,4 +1,5 @@
-"""Inputs of the camera-IMU calibration: target corner observations, IMU samples, IMU noise.
+"""Inputs of the camera-IMU calibration: target corner observations and IMU samples (the IMU noise
+is :class:`ibiscape_eval.core.kalibr.ImuNoise`).
 
 The estimator depends on nothing but these types, so detections from images, from event frames or
 from the simulator's exact projection (:mod:`.synthetic`) all enter the same way.
@@ -6,18 +7,16 @@ from the simulator's exact projection (:mod:`.synthetic`) all enter the same way
 
 from __future__ import annotations
 
-import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
 from ibiscape_eval.core.camera import CameraModel
-from ibiscape_eval.core.errors import FormatError, IbiscapeError
+from ibiscape_eval.core.errors import IbiscapeError
 
-__all__ = ["CameraObservations", "ImuData", "ImuNoiseDensities"]
+__all__ = ["CameraObservations", "ImuData"]
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -141,63 +140,3 @@ class ImuData:
 
     def __repr__(self) -> str:
         return f"ImuData({len(self)} samples, {self.rate_hz:.1f} Hz)"
-
-
-_KALIBR_IMU_KEYS = ("accelerometer_noise_density", "accelerometer_random_walk",
-                    "gyroscope_noise_density", "gyroscope_random_walk", "update_rate")
-
-
-@dataclass(frozen=True)
-class ImuNoiseDensities:
-    """Continuous-time IMU noise (Kalibr's ``imu.yaml``, the ``allan`` command's output).
-
-    Attributes
-    ----------
-    gyro_noise_density_rad_s_sqrt_hz, accel_noise_density_m_s2_sqrt_hz : float
-        White-noise densities.
-    gyro_random_walk_rad_s2_sqrt_hz, accel_random_walk_m_s3_sqrt_hz : float
-        Bias random-walk densities.
-    update_rate_hz : float
-        The rate the file states.
-    """
-
-    gyro_noise_density_rad_s_sqrt_hz: float
-    accel_noise_density_m_s2_sqrt_hz: float
-    gyro_random_walk_rad_s2_sqrt_hz: float
-    accel_random_walk_m_s3_sqrt_hz: float
-    update_rate_hz: float
-
-    def __post_init__(self) -> None:
-        for k in ("gyro_noise_density_rad_s_sqrt_hz", "accel_noise_density_m_s2_sqrt_hz",
-                  "gyro_random_walk_rad_s2_sqrt_hz", "accel_random_walk_m_s3_sqrt_hz",
-                  "update_rate_hz"):
-            v = getattr(self, k)
-            if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
-                raise IbiscapeError(f"IMU noise: {k} must be a positive number, got {v!r}")
-
-    @classmethod
-    def from_kalibr(cls, doc: Mapping[str, Any], *, source: str = "imu.yaml") -> ImuNoiseDensities:
-        """From a Kalibr ``imu.yaml`` mapping; names the file and the missing or bad key."""
-        if not isinstance(doc, Mapping):
-            raise FormatError(source, "expected a mapping with the Kalibr IMU keys "
-                              f"{', '.join(_KALIBR_IMU_KEYS)}")
-        missing = [k for k in _KALIBR_IMU_KEYS if k not in doc]
-        if missing:
-            raise FormatError(source, f"missing key(s) {', '.join(missing)}; write the file with "
-                              "`ibiscape-eval allan IMU --yaml imu.yaml`")
-        vals = {}
-        for k in _KALIBR_IMU_KEYS:
-            v = doc[k]
-            if isinstance(v, bool) or not isinstance(v, int | float) or not (math.isfinite(v) and v > 0):
-                raise FormatError(source, f"{k} must be a positive number, got {v!r}")
-            vals[k] = float(v)
-        return cls(vals["gyroscope_noise_density"], vals["accelerometer_noise_density"],
-                   vals["gyroscope_random_walk"], vals["accelerometer_random_walk"],
-                   vals["update_rate"])
-
-    def to_kalibr(self) -> dict[str, float]:
-        return {"accelerometer_noise_density": self.accel_noise_density_m_s2_sqrt_hz,
-                "accelerometer_random_walk": self.accel_random_walk_m_s3_sqrt_hz,
-                "gyroscope_noise_density": self.gyro_noise_density_rad_s_sqrt_hz,
-                "gyroscope_random_walk": self.gyro_random_walk_rad_s2_sqrt_hz,
-                "update_rate": self.update_rate_hz}

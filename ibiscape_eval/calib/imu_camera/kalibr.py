@@ -1,4 +1,5 @@
-"""Kalibr's ``camchain-imucam.yaml`` document and the comparison with a sequence's truth."""
+"""The result as Kalibr's ``camchain-imucam`` (:class:`~ibiscape_eval.core.kalibr.CameraChain`) and
+the comparison with a sequence's truth."""
 
 from __future__ import annotations
 
@@ -7,29 +8,25 @@ from typing import Any
 
 import numpy as np
 
+from ibiscape_eval.core.kalibr import CameraChain
+
 from .result import ImuCameraResult
 from .spline import log_so3
 
-__all__ = ["camchain_imucam_document", "errors_against_truth"]
+__all__ = ["camchain_imucam", "errors_against_truth"]
 
 
-def camchain_imucam_document(result: ImuCameraResult, *,
-                             rostopics: Mapping[str, str] | None = None) -> dict[str, Any]:
-    """``cam0``, ``cam1``, ... with intrinsics, distortion, ``T_cam_imu``, ``timeshift_cam_imu`` and,
-    from the second camera on, ``T_cn_cnm1`` (camera n-1 to camera n), in the result's camera order."""
-    doc: dict[str, Any] = {}
-    prev = None
-    for k, cal in enumerate(result.cameras):
-        entry = cal.camera.to_kalibr()
-        entry["T_cam_imu"] = [[float(v) for v in row] for row in cal.T_cam_imu]
-        entry["timeshift_cam_imu"] = float(cal.timeshift_cam_imu_s)
-        if prev is not None:
-            T = cal.T_cam_imu @ np.linalg.inv(prev)
-            entry["T_cn_cnm1"] = [[float(v) for v in row] for row in T]
-        entry["rostopic"] = (rostopics or {}).get(cal.name, f"/{cal.name}/image_raw")
-        prev = cal.T_cam_imu
-        doc[f"cam{k}"] = entry
-    return doc
+def camchain_imucam(result: ImuCameraResult, *,
+                    rostopics: Mapping[str, str] | None = None) -> CameraChain:
+    """The result as Kalibr's camchain-imucam (write it with
+    :func:`ibiscape_eval.io.kalibr.write_camchain`): per camera the intrinsics, distortion,
+    ``T_cam_imu``, ``timeshift_cam_imu`` and, from the second camera on, ``T_cn_cnm1`` (camera n-1 to
+    camera n), in the result's camera order; topics ``/<name>/image_raw`` unless given."""
+    cams = result.cameras
+    return CameraChain.from_imu_extrinsics(
+        [c.name for c in cams], [c.camera for c in cams], [c.T_cam_imu for c in cams],
+        [c.timeshift_cam_imu_s for c in cams],
+        rostopics=[(rostopics or {}).get(c.name, f"/{c.name}/image_raw") for c in cams])
 
 
 def errors_against_truth(result: ImuCameraResult, truth: Mapping[str, Mapping[str, Any]]

@@ -28,29 +28,20 @@ import numpy.typing as npt
 
 from ibiscape_eval.core.camera import CameraModel
 from ibiscape_eval.core.errors import CalibrationError, FormatError, IbiscapeError, IbiscapeWarning
+from ibiscape_eval.core.kalibr import ImuNoise
 
-from .inputs import CameraObservations, ImuData, ImuNoiseDensities
+from .inputs import CameraObservations, ImuData
 from .kalibr import errors_against_truth
 from .result import ImuCameraResult
 
 if TYPE_CHECKING:
     from ibiscape_eval.core.sequence import Sequence as Recording
 
-__all__ = ["SequenceCalibration", "calibrate_imu_camera", "calibrate_sequence", "event_frame_stamps_ns",
-           "read_imu_noise"]
+__all__ = ["SequenceCalibration", "calibrate_imu_camera", "calibrate_sequence", "event_frame_stamps_ns"]
 
 Progress = Callable[[float, str], None]
 #: the camera clocks may be this far off the IMU's (the solve's search range of the offset)
 MAX_SHIFT_NS = 100_000_000
-
-
-def read_imu_noise(path: str | os.PathLike[str]) -> ImuNoiseDensities:
-    """A Kalibr ``imu.yaml`` (the ``allan`` command's output; ``yaml.safe_load``); a missing or bad
-    key is a :class:`FormatError` naming the file and the key."""
-    from ibiscape_eval.io.paths import safe_yaml
-
-    doc: Any = safe_yaml(path, what="Kalibr imu.yaml")
-    return ImuNoiseDensities.from_kalibr(doc, source=str(path))
 
 
 @dataclass(frozen=True, eq=False)
@@ -137,21 +128,25 @@ def canonical_checkerboard(ids: npt.ArrayLike, pixels_px: npt.ArrayLike, target:
     return best[order], px[order]
 
 
-def _camchain_cameras(path: str | os.PathLike[str], names: Sequence[str]) -> dict[str, CameraModel]:
-    """Intrinsics of ``names`` from a Kalibr camchain: by the rostopic ``/<name>/...`` or the
-    ``cam<i>`` key, else by chain order."""
+def _camchain_cameras(path: str | os.PathLike[str], names: Sequence[str],
+                      seq_cams: dict[str, Any]) -> dict[str, CameraModel]:
+    """Intrinsics of ``names`` from a Kalibr camchain (:meth:`CameraChain.match`: by the rostopic
+    ``/<name>/...`` or the ``cam<i>`` key, else by chain order); a camchain whose resolution differs
+    from the one ``sequence.yaml`` states is refused."""
+    from ibiscape_eval.core.kalibr import check_camchain_matches
     from ibiscape_eval.io.kalibr import read_camchain
 
+    def size(n: str) -> tuple[int, int] | None:
+        res = (seq_cams.get(n) or {}).get("resolution") if isinstance(seq_cams.get(n), dict) else None
+        try:
+            return (int(res[0]), int(res[1])) if res is not None and len(res) == 2 else None
+        except (TypeError, ValueError):
+            return None
+
     chain = read_camchain(path)
-    out: dict[str, CameraModel] = {}
-    for i, name in enumerate(names):
-        hit = [k for k, t in enumerate(chain.rostopics) if f"/{name}/" in f"{t}/"]
-        hit = hit or [k for k, n in enumerate(chain.names) if n == name]
-        if hit:
-            out[name] = chain.cameras[hit[0]]
-        elif not any(f"/{n}/" in f"{t}/" for t in chain.rostopics for n in names) and i < len(chain.cameras):
-            out[name] = chain.cameras[i]  # a camchain of other names: chain order
-    return out
+    found = check_camchain_matches(chain, {n: size(n) for n in names}, source=str(path),
+                                   require_all=False)
+    return {name: chain.cameras[i].camera for name, i in found.items()}
 
 
 def _require_intrinsics(names: Sequence[str], models: dict[str, CameraModel],
@@ -164,30 +159,29 @@ def _require_intrinsics(names: Sequence[str], models: dict[str, CameraModel],
                                    f"/{n}/image_raw or chain order)")
 
 
-def _sequence_noise(seq: Recording, noise: Any) -> tuple[ImuNoiseDensities, str]:
-    """The IMU noise: given, read from an ``imu.yaml``, or (None, or the sequence's own
-    ``sequence.yaml``) the densities the sequence states."""
-    if isinstance(noise, ImuNoiseDensities):
-        return noise, "imu.yaml"
+def _sequence_noise(seq: Recording, noise: Any) -> tuple[ImuNoise, str]:
+    """The IMU noise: given, read from an ``imu.yaml`` (:func:`ibiscape_eval.io.kalibr.
+    read_imu_noise`), or (None, or the sequence's own ``sequence.yaml``) the densities the
+    sequence states; zero densities (an ideal sensor) are refused."""
+    from ibiscape_eval.io.kalibr import read_imu_noise
+
     own = seq.path / "sequence.yaml"
-    if noise is not None and not (own.is_file() and Path(noise).resolve() == own.resolve()):
-        return read_imu_noise(noise), str(noise)
-    if seq.imu is None or seq.imu.noise is None:
-        raise IbiscapeError(f"{seq.path}: the recording states no IMU noise densities; give --imu "
+    if isinstance(noise, ImuNoise):
+        out, src = noise, "imu.yaml"
+    elif noise is not None and not (own.is_file() and Path(noise).resolve() == own.resolve()):
+        out, src = read_imu_noise(noise), str(noise)
+    elif seq.imu is not None and seq.imu.noise is not None:
+        out, src = seq.imu.noise, seq.imu.noise_source
+    elif seq.imu is not None and seq.imu.noise_problem:
+        raise FormatError(seq.imu.noise_source, seq.imu.noise_problem)
+    else:
+        raise IbiscapeError(f"{seq.path}: no IMU noise (the recording states none); give --imu "
                             "imu.yaml (Kalibr's format, e.g. from `ibiscape-eval allan`)")
-    return ImuNoiseDensities.from_kalibr(dict(seq.imu.noise), source=seq.imu.noise_source), seq.imu.noise_source
-
-
-def _check_sizes(seq: Recording, models: dict[str, CameraModel], camchain: str | os.PathLike[str]) -> None:
-    """A camchain whose resolution differs from what the recording states is refused."""
-    for c in seq.cameras:
-        m = models.get(c.name)
-        if m is None or c.sensor_size is None:
-            continue
-        if (m.width_px, m.height_px) != tuple(c.sensor_size):
-            raise FormatError(camchain, f"the entry for {c.name} has resolution {m.width_px}x{m.height_px} "
-                              f"but {c.name} of {seq.path} is {c.sensor_size[0]}x{c.sensor_size[1]}; give "
-                              "the camchain of this recording (or rescale the intrinsics)")
+    if out.is_ideal:
+        raise CalibrationError(f"{src}: states zero IMU noise (an ideal sensor); the "
+                               "camera-IMU calibration weighs the IMU by its noise: give the IMU's "
+                               "densities (e.g. `ibiscape-eval allan IMU --yaml imu.yaml`)")
+    return out, src
 
 
 def _truth(doc: dict[str, Any], names: Sequence[str]) -> dict[str, dict[str, Any]]:
@@ -210,7 +204,7 @@ def _truth(doc: dict[str, Any], names: Sequence[str]) -> dict[str, dict[str, Any
 
 # ------------------------------------------------------------------------------------------ the call
 def calibrate_sequence(sequence: Recording | str | os.PathLike[str],
-                       noise: ImuNoiseDensities | str | os.PathLike[str] | None = None, *,
+                       noise: ImuNoise | str | os.PathLike[str] | None = None, *,
                        camchain: str | os.PathLike[str] | None = None,
                        cameras: Sequence[str] | None = None, force: bool = False,
                        progress: Progress | None = None,
@@ -227,7 +221,7 @@ def calibrate_sequence(sequence: Recording | str | os.PathLike[str],
         A sequence from :func:`ibiscape_eval.open_sequence` (a path is opened by it): IBISCape
         (camera folders with ``timestamps.csv``, ``other_sensors/imu0.csv``, ``sequence.yaml`` with
         the target), EuRoC/TUM-VI, a ROS bag with image and IMU topics.
-    noise : ImuNoiseDensities or path, optional
+    noise : ImuNoise or path, optional
         The IMU's continuous-time noise (Kalibr ``imu.yaml``, the ``allan`` command's output);
         default (or the sequence's own ``sequence.yaml``): the noise the sequence states.
     camchain : path, optional
@@ -340,9 +334,9 @@ def calibrate_sequence(sequence: Recording | str | os.PathLike[str],
                 f"the images of camera {n} ({stc[0]}..{stc[-1]} ns); give the IMU recording of the same run")
     models: dict[str, CameraModel] = {}
     if camchain is not None:
-        models = _camchain_cameras(camchain, names)
+        models = _camchain_cameras(camchain, names, {c.name: {"resolution": list(c.sensor_size)}
+                                                     for c in opened.cameras if c.sensor_size})
         _require_intrinsics(names, models, camchain)
-        _check_sizes(opened, models, camchain)
     # the view table pairs simultaneous frames (the camera calibration's stereo views); every
     # frame_step-th instant is detected
     views = pair_views(opened.cameras)[::frame_step]

@@ -21,9 +21,10 @@ import numpy as np
 import numpy.typing as npt
 
 from ibiscape_eval.core.camera import CameraModel
+from ibiscape_eval.core.kalibr import ImuNoise
 from ibiscape_eval.core.rotations import matrix_from_quat
 
-from .inputs import CameraObservations, ImuData, ImuNoiseDensities
+from .inputs import CameraObservations, ImuData
 
 __all__ = ["CalibrationScene", "calibration_scene", "observe_target"]
 
@@ -159,7 +160,7 @@ class CalibrationScene:
 
     observations: tuple[CameraObservations, ...]
     imu: ImuData
-    noise: ImuNoiseDensities
+    noise: ImuNoise
     #: the simulated drive the observations come from: the truth is read from it, not copied
     sim: SimulatedCalibrationLike
 
@@ -199,9 +200,10 @@ def calibration_scene(sim: SimulatedCalibrationLike, *, noise_px: float = 0.2,
                        min_spacing_px=min_spacing_px,
                        all_or_none=sim.target_type == "checkerboard")
         for c in sim.cameras)
-    noise = ImuNoiseDensities(max(sim.gyro_noise_density_rad_s_sqrt_hz, 1e-6),
-                              max(sim.accel_noise_density_m_s2_sqrt_hz, 1e-5),
-                              max(sim.gyro_random_walk_rad_s2_sqrt_hz, 1e-7),
-                              max(sim.accel_random_walk_m_s3_sqrt_hz, 1e-6), sim.imu_rate_hz)
+    noise = ImuNoise(gyro_noise_density_rad_s_sqrt_hz=max(sim.gyro_noise_density_rad_s_sqrt_hz, 1e-6),
+                     accel_noise_density_m_s2_sqrt_hz=max(sim.accel_noise_density_m_s2_sqrt_hz, 1e-5),
+                     gyro_random_walk_rad_s2_sqrt_hz=max(sim.gyro_random_walk_rad_s2_sqrt_hz, 1e-7),
+                     accel_random_walk_m_s3_sqrt_hz=max(sim.accel_random_walk_m_s3_sqrt_hz, 1e-6),
+                     update_rate_hz=sim.imu_rate_hz)
     imu = ImuData(sim.imu_stamps_ns, sim.gyro_rad_s, sim.accel_m_s2)
     return CalibrationScene(obs, imu, noise, sim)

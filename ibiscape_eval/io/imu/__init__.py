@@ -9,8 +9,9 @@ process' resident memory stays bounded).
 
 Modules, one per concern: :mod:`.options` (``--columns``/``--units`` parsers), :mod:`.frames`
 (CARLA's left-handed IMU frame), :mod:`.timing` (gap and jitter statistics), :mod:`.csv`,
-:mod:`.npy` (``.npy``/``.npz``), :mod:`.parquet`, :mod:`.kalibr` (``imu.yaml``); ROS bags are read
-by :func:`ibiscape_eval.io.bag.read_imu_bag`.  Everything public is importable from here.
+:mod:`.npy` (``.npy``/``.npz``), :mod:`.parquet`; ROS bags are read by
+:func:`ibiscape_eval.io.bag.read_imu_bag`, Kalibr's ``imu.yaml`` by
+:func:`ibiscape_eval.io.kalibr.read_imu_noise`.  Everything public is importable from here.
 
 The EuRoC/IBISCape layout (gyro first, trailing spaces allowed)::
 
@@ -59,7 +60,6 @@ from ibiscape_eval.core.imu import AXES, ImuRecord, ImuTiming
 from ..bag import read_imu_bag
 from .csv import IMU_CSV_HEADER, read_imu_csv, write_imu_csv, write_imu_csv_chunks
 from .frames import IBISCAPE_IMU_SIGNS, IMU_FRAMES, check_imu_frame, mirror_ibiscape_imu
-from .kalibr import read_kalibr_imu_yaml, write_kalibr_imu_yaml
 from .npy import read_imu_npy, read_imu_npz, write_imu_npy
 from .options import STANDARD_GRAVITY_M_S2, parse_columns, parse_units
 from .parquet import read_imu_parquet
@@ -80,11 +80,9 @@ __all__ = [
     "parse_columns",
     "parse_units",
     "read_imu",
-    "read_kalibr_imu_yaml",
     "write_imu_csv",
     "write_imu_csv_chunks",
     "write_imu_npy",
-    "write_kalibr_imu_yaml",
 ]
 
 #: CSV files larger than this are parsed into a temporary .npy instead of memory.
