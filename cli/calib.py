@@ -102,6 +102,7 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
       ibiscape-eval calib --target april_6x6.yaml --images cam0='left/*.png' --images cam1='right/*.png'
       ibiscape-eval calib SVI_calib_checkerboard --check camchain.yaml
       ibiscape-eval calib SVI_1_calib --imu imu.yaml --yaml camchain-imucam.yaml --plot imu_plots/
+      ibiscape-eval calib SVI_1_calib --imu --yaml camchain-imucam.yaml   (noise from sequence.yaml)
       ibiscape-eval calib calib.bag --target april_6x6.yaml --topic /cam0/image_raw --topic /cam1/image_raw
     """
     from ibiscape_eval.calib.pipeline import calibrate_cameras

@@ -18,6 +18,10 @@ from .errors import (
 from .lazy import lazy_exports
 
 _EXPORTS: dict[str, str] = {
+    "CalibrationTarget": "kalibr",
+    "CameraChain": "kalibr",
+    "ChainCamera": "kalibr",
+    "ImuNoise": "kalibr",
     "GnssFixes": "gnss",
     "ImuRecord": "imu",
     "ImuTiming": "imu",
@@ -30,11 +34,15 @@ _EXPORTS: dict[str, str] = {
 __all__ = [
     "NS_PER_S",
     "CalibrationError",
+    "CalibrationTarget",
+    "CameraChain",
+    "ChainCamera",
     "DegenerateInputError",
     "FormatError",
     "GnssFixes",
     "IbiscapeError",
     "IbiscapeWarning",
+    "ImuNoise",
     "ImuRecord",
     "ImuTiming",
     "Trajectory",
@@ -47,5 +55,6 @@ __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)
 if TYPE_CHECKING:  # pragma: no cover
     from .gnss import GnssFixes
     from .imu import ImuRecord, ImuTiming
+    from .kalibr import CalibrationTarget, CameraChain, ChainCamera, ImuNoise
     from .time import NS_PER_S, ns_from_s, s_from_ns
     from .trajectory import Trajectory

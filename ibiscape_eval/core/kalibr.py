@@ -40,6 +40,7 @@ from .camera import CameraModel
 from .errors import FormatError, IbiscapeError
 
 __all__ = [
+    "IMU_NOISE_FLOOR",
     "MAX_LEVER_ARM_M",
     "TARGET_TYPES",
     "CalibrationTarget",
@@ -304,10 +305,6 @@ class ImuNoise:
         """The densities raised to at least :data:`IMU_NOISE_FLOOR` (what an estimator weighs
         with when the file describes an ideal sensor)."""
         return replace(self, **{k: max(getattr(self, k), v) for k, v in IMU_NOISE_FLOOR.items()})
-
-    def scaled(self, factor: float) -> ImuNoise:
-        """Every density times ``factor`` (model-mismatch inflation)."""
-        return replace(self, **{name: getattr(self, name) * factor for _, name, _, _ in _IMU_KEYS})
 
     @classmethod
     def from_kalibr(cls, doc: Any, *, source: str = "imu.yaml") -> ImuNoise:

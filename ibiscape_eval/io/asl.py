@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ibiscape_eval.core.camera import CameraModel
 from ibiscape_eval.core.errors import FormatError, IbiscapeError
 from ibiscape_eval.core.trajectory import Trajectory
 
@@ -35,9 +36,11 @@ from .framelists import ns_digits, read_stamped_rows, write_stamped_list
 from .yaml_file import read_yaml_mapping
 
 __all__ = [
+    "ASL_DISTORTION_MODELS",
     "ASL_GROUNDTRUTH_HEADER",
     "ASL_IMU_HEADER",
     "AslGroundTruth",
+    "read_asl_camera",
     "read_asl_groundtruth",
     "read_asl_image_list",
     "read_asl_sensor_yaml",
@@ -218,3 +221,40 @@ def read_asl_sensor_yaml(path: str | os.PathLike[str]) -> dict[str, Any]:
     doc = dict(doc)
     doc["T_BS"] = M
     return doc
+
+
+#: EuRoC / TUM-VI ``distortion_model`` names -> Kalibr's
+ASL_DISTORTION_MODELS = {"radial-tangential": "radtan", "radtan": "radtan", "equidistant": "equidistant"}
+
+
+def read_asl_camera(path: str | os.PathLike[str]) -> tuple[CameraModel, npt.NDArray[np.float64]]:
+    """A camera's ``sensor.yaml`` (EuRoC, TUM-VI) as a :class:`CameraModel` and ``T_BS``
+    (``T_body_cam``, 4x4).
+
+    Raises
+    ------
+    FormatError
+        Not a camera ``sensor.yaml`` (no ``intrinsics`` / ``resolution``), an unknown
+        ``distortion_model`` (EuRoC's ``radial-tangential`` and ``equidistant`` are read) or bad
+        numbers, naming the file and the key.
+    """
+    doc = read_asl_sensor_yaml(path)
+    for key in ("intrinsics", "resolution"):
+        if key not in doc:
+            raise FormatError(path, f"lacks the key {key!r} (a camera sensor.yaml expected)")
+    model = str(doc.get("distortion_model", "radial-tangential"))
+    if model not in ASL_DISTORTION_MODELS:
+        raise FormatError(path, f"distortion_model {model!r}: use radial-tangential or equidistant")
+    coeffs = doc.get("distortion_coefficients", [0.0] * 4)
+    if isinstance(coeffs, list) and len(coeffs) == 5 and coeffs[4] == 0:
+        coeffs = coeffs[:4]  # OpenCV's k3 = 0
+    entry = {"camera_model": doc.get("camera_model", "pinhole"), "intrinsics": doc["intrinsics"],
+             "resolution": doc["resolution"], "distortion_model": ASL_DISTORTION_MODELS[model],
+             "distortion_coeffs": coeffs}
+    try:
+        cam = CameraModel.from_kalibr(entry)
+    except IbiscapeError as e:
+        raise FormatError(path, str(e)) from None
+    except OverflowError:
+        raise FormatError(path, "intrinsics and resolution must be finite numbers") from None
+    return cam, doc["T_BS"]

@@ -284,16 +284,12 @@ def _asl(root: Path, tumvi: bool) -> Sequence | str:
             if cc.T_cam_imu is not None:
                 T_bc = _inverse(np.asarray(cc.T_cam_imu, dtype=np.float64))
         elif (c / "sensor.yaml").is_file():
-            d = read_sensor_yaml(c / "sensor.yaml")
-            dist = {"radial-tangential": "radtan", "radtan": "radtan", "equidistant": "equidistant"}.get(
-                str(d.get("distortion_model", "radial-tangential")), str(d.get("distortion_model")))
-            entry = {"camera_model": d.get("camera_model", "pinhole"), "intrinsics": d.get("intrinsics"),
-                     "resolution": d.get("resolution"), "distortion_model": dist,
-                     "distortion_coeffs": d.get("distortion_coefficients", [0.0] * 4)}
-            entry = {k: v for k, v in entry.items() if v is not None}
-            T_bc = d["T_BS"]
+            from .asl import read_asl_camera
+
+            model, T_bc = read_asl_camera(c / "sensor.yaml")  # the one EuRoC camera mapping
+            entry = model.to_kalibr()
             src = str(c / "sensor.yaml")
-            rate = _rate(d.get("rate_hz"))
+            rate = _rate(read_sensor_yaml(c / "sensor.yaml").get("rate_hz"))
         cameras.append(CameraStream(
             c.name, "frames", stamps, c, _size(entry.get("resolution")), rate,
             model or (_model_or_none(entry) if "intrinsics" in entry else None), T_bc,

@@ -169,6 +169,13 @@ def test_real_openvins_imucam_chain_matches_euroc_sensor_yaml():
     np.testing.assert_allclose(T10, np.linalg.inv(s1["T_BS"]) @ s0["T_BS"], atol=1e-12)
     assert np.linalg.norm(T10[:3, 3]) == pytest.approx(0.1101, abs=2e-4)
     assert list(chain.models[1].intrinsics) == s1["intrinsics"]
+    # EuRoC's camera sensor.yaml read as a camera: the same model as the Kalibr chain's entry
+    from ibiscape_eval.io.asl import read_asl_camera
+
+    for i, name in enumerate(("euroc_cam0_sensor.yaml", "euroc_cam1_sensor.yaml")):
+        cam, T_BS = read_asl_camera(REAL / name)
+        assert cam == chain.models[i]
+        np.testing.assert_array_equal(T_BS, (s0, s1)[i]["T_BS"])
 
 
 def test_check_camchain_matches_names_and_resolution():
@@ -277,3 +284,21 @@ def test_writers_are_atomic(tmp_path):
     write_json(tmp_path / "r.json", {"a": float("nan"), "b": np.float64(2.0), "c": np.arange(2)})
     assert (tmp_path / "r.json").read_text().split() == ['{', '"a":', 'null,', '"b":', '2.0,', '"c":',
                                                          '[', '0,', '1', ']', '}']
+
+
+@pytest.mark.parametrize("change,match", [
+    (("distortion_model: radial-tangential", "distortion_model: fov"), "distortion_model 'fov'"),
+    (("intrinsics: [458.654", "intrinsics_x: [458.654"), "lacks the key 'intrinsics'"),
+    (("resolution: [752, 480]", "resolution: [.inf, 480]"), "finite numbers"),
+    (("data: [0.0148655429818", "data: [2.0148655429818"), "T_BS: the rotation part"),
+])
+def test_bad_euroc_camera_sensor_yaml(tmp_path, change, match):
+    from ibiscape_eval.io.asl import read_asl_camera
+
+    f = tmp_path / "sensor.yaml"
+    text = (REAL / "euroc_cam0_sensor.yaml").read_text()
+    assert change[0] in text
+    f.write_text("%YAML:1.0\n" + text.replace(*change))
+    with pytest.raises(FormatError, match=match) as e:
+        read_asl_camera(f)
+    assert str(f) in str(e.value)
