@@ -230,19 +230,29 @@ def _ibiscape_imu(root: Path, doc: Mapping[str, Any]) -> ImuStream | None:
     f = root / str(entry["file"]) if entry.get("file") else None
     if f is None or not f.is_file():
         cands = sorted((root / "other_sensors").glob("imu*.csv"))
-        if not cands:
-            return None
-        f = cands[0]
-    fmt = "ibiscape" if (root / "vehicle_gt").is_dir() else "euroc"
+        f = cands[0] if cands else None
+    src = f"{root / 'sequence.yaml'}: imus"
+    noise, problem = _noise(entry, src)
+    if f is None and noise is None and problem is None:
+        return None
     T = None
     if "T_body_imu" in entry:
         try:
             T = np.asarray(entry["T_body_imu"], dtype=np.float64).reshape(4, 4)
         except (TypeError, ValueError):
             T = None
-    src = f"{root / 'sequence.yaml'}: imus"
-    noise, problem = _noise(entry, src)
-    return ImuStream(name, f, _imu_lazy(f, fmt), noise, src if noise or problem else "",
+    fmt = "ibiscape" if (root / "vehicle_gt").is_dir() else "euroc"
+    if f is None:  # sequence.yaml states the IMU, but its samples are not here
+        def missing() -> Any:
+            raise FormatError(root / "other_sensors", "no IMU file (other_sensors/imu0.csv), although "
+                              "sequence.yaml states the IMU; give the IMU samples of this run (calib "
+                              "--imu: --imu-data PATH)")
+
+        samples: Lazy[Any] = Lazy(missing)
+        f = root / "other_sensors" / "imu0.csv"
+    else:
+        samples = _imu_lazy(f, fmt)
+    return ImuStream(name, f, samples, noise, str(root / "sequence.yaml") if noise or problem else "",
                      _rate(entry.get("update_rate")), T, entry.get("rostopic"), fmt, problem)
 
 
