@@ -87,12 +87,12 @@ def measure_dvs(seq: Path, frames: int) -> None:
     from ibiscape_eval.calib import detect_corners
     from ibiscape_eval.calib.events import event_set_frames
     from ibiscape_eval.core.kalibr import target_from_kalibr
-    from ibiscape_eval.io.image_sets import find_image_sets
+    from ibiscape_eval.io.open_sequence import open_sequence
 
     cv2.setNumThreads(1)
     doc = yaml.safe_load((seq / "sequence.yaml").read_text())
     target = target_from_kalibr(doc["target"])
-    s = next(x for x in find_image_sets(seq) if doc["cameras"][x.name].get("kind") == "dvs")
+    s = next(x for x in open_sequence(seq).cameras if doc["cameras"][x.name].get("kind") == "dvs")
     cam = doc["cameras"][s.name]
     size = (int(cam["resolution"][0]), int(cam["resolution"][1]))
     src, _ = event_set_frames(s.paths, s.windows_ns, size, target, reconstruction="log-intensity", camera_doc=cam)

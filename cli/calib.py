@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -20,14 +19,6 @@ def _bar(desc: str) -> Any:
     return progress_bar(0, desc, unit="img", unit_scale=False, delay_s=1.0)
 
 
-def _reader(paths: Sequence[Path], read: Callable[[Path], Any]) -> Callable[[int], Any]:
-    return lambda i: read(paths[i])
-
-
-def _labeler(paths: Sequence[Path]) -> Callable[[int], str]:
-    return lambda i: str(paths[i])
-
-
 @click.command(context_settings={"help_option_names": ["-h", "--help"]})
 @click.argument("seq", required=False, type=click.Path(path_type=Path))
 @click.option("--target", "target_path", type=click.Path(path_type=Path), default=None,
@@ -39,7 +30,12 @@ def _labeler(paths: Sequence[Path]) -> Callable[[int], str]:
               "by a number in the names, else by order.")
 @click.option("--cameras", default=None, metavar="A,B",
               help="Camera folders of SEQ to use, in chain order (default: all of rgbL, rgbR, rgb, "
-              "davisL, davisR / mav0/camN found).")
+              "davisL, davisR / mav0/camN / the bag's image topics found).")
+@click.option("--topic", "topics", multiple=True, metavar="TOPIC",
+              help="SEQ is a ROS bag: an image topic per camera, in chain order (repeat), e.g. "
+              "--topic /cam0/image_raw --topic /cam1/image_raw.")
+@click.option("--imu-topic", default=None, metavar="TOPIC",
+              help="SEQ is a ROS bag with several sensor_msgs/Imu topics: the one to use (--imu).")
 @click.option("--yaml", "yaml_out", type=click.Path(path_type=Path), default=None,
               help="Write the result as a Kalibr camchain.yaml.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON document on stdout.")
@@ -83,15 +79,18 @@ def _labeler(paths: Sequence[Path]) -> Callable[[int], str]:
               help="With --imu: use every n-th frame.")
 @user_errors
 def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: tuple[str, ...],
-          cameras: str | None, yaml_out: Path | None, as_json: bool, plot_dir: Path | None,
+          cameras: str | None, topics: tuple[str, ...], imu_topic: str | None,
+          yaml_out: Path | None, as_json: bool, plot_dir: Path | None,
           check_path: Path | None, max_views: int, max_frames: int, reconstruction: str,
           event_corners: str, sensor_size: str | None, outlier_sigma: float, workers: int | None,
           imu_yaml: str | None = None, cams_path: Path | None = None, imu_data: Path | None = None,
           force: bool = False, frame_step: int = 1) -> None:
     """Calibrate cameras from checkerboard or AprilGrid images (mono, stereo, chains; RGB and DVS).
 
-    SEQ is an IBISCape-layout sequence (camera folders rgbL, rgbR, rgb, davisL, davisR with
-    timestamps.csv) or an EuRoC ASL folder (mav0/camN).  Without SEQ give --images per camera.
+    SEQ is any recording ibiscape-eval opens (README "Sequence layouts"): an IBISCape sequence
+    (camera folders rgbL, rgbR, rgb, davisL, davisR with timestamps.csv), an EuRoC/ASL or TUM-VI
+    folder (mav0/camN), a ROS 1/2 bag (image topics, --topic).  Without SEQ give --images per
+    camera.
     Prints intrinsics with standard deviations, Kalibr's reprojection error
     [mean_x, mean_y] +- [std_x, std_y] px, the RMS and the baselines; when SEQ/sequence.yaml holds
     the true cameras, every estimate beside its truth and error.
@@ -104,93 +103,55 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
       ibiscape-eval calib SVI_calib_checkerboard --check camchain.yaml
       ibiscape-eval calib SVI_1_calib --imu imu.yaml --yaml camchain-imucam.yaml --plot imu_plots/
       ibiscape-eval calib SVI_1_calib --imu --yaml camchain-imucam.yaml   (noise from sequence.yaml)
+      ibiscape-eval calib calib.bag --target april_6x6.yaml --topic /cam0/image_raw --topic /cam1/image_raw
     """
-    from ibiscape_eval.calib.events import event_set_frames
-    from ibiscape_eval.calib.pipeline import (
-        CameraFrames,
-        calibrate_frames,
-        check_frames,
-        detect_frames,
-    )
-    from ibiscape_eval.calib.report import compare_with_truth, format_report, truth_from_sequence
+    from ibiscape_eval.calib.pipeline import calibrate_cameras
+    from ibiscape_eval.calib.report import format_report
     from ibiscape_eval.core.errors import IbiscapeError
-    from ibiscape_eval.core.kalibr import CameraChain, target_from_kalibr
-    from ibiscape_eval.io.image_sets import (
-        find_image_sets,
-        image_sets_from_globs,
-        pair_views,
-        read_image,
-    )
+    from ibiscape_eval.core.kalibr import CameraChain
     from ibiscape_eval.io.kalibr import read_camchain, read_target, write_camchain
-    from ibiscape_eval.io.sequence import read_sequence_yaml
+    from ibiscape_eval.io.open_sequence import open_sequence
+
+    from .hotpix import parse_sensor_size
 
     if imu_yaml is None and (cams_path or imu_data or force or frame_step != 1):
         raise IbiscapeError("--cams, --imu-data, --force and --frame-step belong to the camera-IMU "
                             "calibration: add --imu imu.yaml")
+    names = [c.strip() for c in cameras.split(",") if c.strip()] if cameras else None
+    target = read_target(target_path) if target_path is not None else None
     if imu_yaml is not None:
         if seq is None or image_specs or check_path is not None:
             raise IbiscapeError("--imu calibrates a sequence folder: give SEQ (not --images or --check)")
         from .calib_imu import run_sequence
 
-        names_imu = [c.strip() for c in cameras.split(",") if c.strip()] if cameras else None
-        run_sequence(seq, Path(imu_yaml) if imu_yaml else None, camchain=cams_path, imu_data=imu_data,
-                     cameras=names_imu,
-                     target_path=target_path, force=force, frame_step=frame_step, yaml_path=yaml_out,
-                     json_out=as_json, plot_dir=plot_dir, workers=workers)
+        opened = open_sequence(seq, cameras=names, image_topics=topics or None, imu_topic=imu_topic)
+        run_sequence(opened, Path(imu_yaml) if imu_yaml else None, camchain=cams_path,
+                     imu_data=imu_data, target=target, force=force, frame_step=frame_step, yaml_path=yaml_out, json_out=as_json,
+                     plot_dir=plot_dir, workers=workers)
         return
     if seq is None and not image_specs:
         raise IbiscapeError("give a sequence folder SEQ or --images NAME=GLOB per camera")
     if seq is not None and image_specs:
         raise IbiscapeError("give either SEQ or --images, not both")
-    seq_doc: dict[str, Any] | None = None
-    if seq is not None and (seq / "sequence.yaml").is_file():
-        seq_doc = read_sequence_yaml(seq / "sequence.yaml")
-    if target_path is not None:
-        target = read_target(target_path)
-    elif seq_doc is not None and isinstance(seq_doc.get("target"), dict):
-        target = target_from_kalibr(seq_doc["target"], source=f"{seq}/sequence.yaml: target")
-    else:
-        raise IbiscapeError("no target description: give --target target.yaml (Kalibr's format)"
-                            + ("" if seq is None else f"; {seq}/sequence.yaml has no 'target'"))
-    names = [c.strip() for c in cameras.split(",") if c.strip()] if cameras else None
-    sets = image_sets_from_globs(image_specs) if image_specs else find_image_sets(seq or Path("."), cameras=names)
-    views = pair_views(sets)
-    seq_cams = (seq_doc or {}).get("cameras") or {}
-
-    from .hotpix import parse_sensor_size
-
-    frames = []
-    recon_used: dict[str, Any] = {}
-    for s in sets:
-        if s.kind == "frames":
-            frames.append(CameraFrames(s.name, len(s), _reader(s.paths, read_image), _labeler(s.paths)))
-            continue
-        size = parse_sensor_size(sensor_size)
-        if size is None and isinstance(seq_cams.get(s.name), dict):
-            w, h = seq_cams[s.name].get("resolution", (0, 0))
-            size = (int(w), int(h))
-        if size is None:
-            raise IbiscapeError(f"{s.root}: sensor size unknown; pass --sensor-size WxH")
-        assert s.windows_ns is not None
-        source, recon_used[s.name] = event_set_frames(s.paths, s.windows_ns, size, target,
-                                                      reconstruction=reconstruction,
-                                                      refine=event_corners == "events",
-                                                      camera_doc=seq_cams.get(s.name))
-        method = recon_used[s.name]["method"]
-        info(f"{s.name}: frames reconstructed from events by {method}")
-        frames.append(CameraFrames(s.name, len(s), source, _labeler(s.paths), reconstruction=method))
-
+    opened = open_sequence(seq, images=image_specs or None, cameras=names,
+                           image_topics=topics or None, imu_topic=imu_topic)
+    check_chain = read_camchain(check_path) if check_path is not None else None
     with _bar("detecting") as bar:
-        summary = detect_frames(target, frames, views, max_detect=max_frames, workers=workers,
-                                progress=bar.update, total=lambda n: bar.reset(total=n))
+        run = calibrate_cameras(
+            opened, target=target, model=model, max_views=max_views, max_frames=max_frames,
+            reconstruction=reconstruction, event_corners=event_corners,
+            sensor_size=parse_sensor_size(sensor_size), outlier_sigma=outlier_sigma, workers=workers,
+            check=check_chain, progress=bar.update, total=lambda n: bar.reset(total=n),
+            solve_progress=lambda s: bar.set_description(s))
+    for name, r in run.reconstruction.items():
+        info(f"{name}: frames reconstructed from events by {r['method']}")
+    summary, recon_used = run.detection, run.reconstruction
     base: dict[str, Any] = {"input": str(seq) if seq is not None else list(image_specs),
-                            "target": target.to_kalibr(), "detection": summary.to_dict(),
+                            "target": run.target.to_kalibr(), "detection": summary.to_dict(),
                             "reconstruction": recon_used}
 
-    if check_path is not None:
-        chain = read_camchain(check_path)
-        doc = {**base, "check": str(check_path),
-               **check_frames(target, summary, chain.models, chain.relative_transforms)}
+    if run.check is not None:
+        doc = {**base, "check": str(check_path), **run.check}
         if as_json:
             echo_json(doc)
             return
@@ -205,17 +166,13 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
             click.echo(f"  {o['camera']} view {o['view']}: rms {o['rms_px']:.3f} px")
         return
 
-    with _bar("calibrating") as bar:
-        result = calibrate_frames(target, summary, model=model, max_views=max_views,
-                                  outlier_sigma=outlier_sigma, progress=lambda s: bar.set_description(s))
-    truth = compare_with_truth(result, {k: v for k, v in truth_from_sequence(seq_doc or {}).items()})
-    topics = tuple(str(seq_cams.get(c.name, {}).get("rostopic", f"/{c.name}/image_raw"))
-                   if isinstance(seq_cams.get(c.name), dict) else f"/{c.name}/image_raw"
-                   for c in result.cameras)
+    result, truth = run.result, run.truth
+    assert result is not None
+    topics_out = run.rostopics()
     if yaml_out is not None:
         write_camchain(yaml_out, CameraChain.from_relative(tuple(c.name for c in result.cameras),
                                                            tuple(c.camera for c in result.cameras),
-                                                           result.T_cn_cnm1, topics))
+                                                           result.T_cn_cnm1, topics_out))
     plots: list[str] = []
     if plot_dir is not None:
         from ibiscape_eval.calib.plots import calibration_figures

@@ -18,27 +18,22 @@ from ._common import echo_json, info
 __all__ = ["print_result", "run_imu_camera", "run_sequence"]
 
 
-def run_sequence(seq: Path, imu_yaml: Path | None, *, camchain: Path | None, imu_data: Path | None,
-                 cameras: Sequence[str] | None, target_path: Path | None, force: bool,
-                 frame_step: int, yaml_path: Path | None, json_out: bool, plot_dir: Path | None,
-                 workers: int | None) -> Any:
-    """``calib SEQ --imu imu.yaml``: calibrate, write ``--yaml`` (camchain-imucam) and ``--plot``
-    figures, print the table (or ``--json``).  ``imu_yaml`` None: the noise ``SEQ/sequence.yaml``
-    states."""
+def run_sequence(seq: Any, imu_yaml: Path | None, *, camchain: Path | None, imu_data: Path | None,
+                 target: Any, force: bool, frame_step: int, yaml_path: Path | None, json_out: bool,
+                 plot_dir: Path | None, workers: int | None) -> Any:
+    """``calib SEQ --imu imu.yaml`` on an opened sequence (:func:`ibiscape_eval.io.open_sequence`):
+    calibrate, write ``--yaml`` (camchain-imucam) and ``--plot`` figures, print the table (or
+    ``--json``).  ``imu_yaml`` None (or ``SEQ/sequence.yaml``): the noise the sequence states."""
     from ibiscape_eval.calib.imu_camera import calibrate_sequence, camchain_imucam
     from ibiscape_eval.io.kalibr import read_imu_noise, write_camchain
 
     from .progress import fraction_callback, progress_bar
 
-    if imu_yaml is not None:
+    own = Path(seq.path) / "sequence.yaml"
+    if imu_yaml is not None and not (own.is_file() and Path(imu_yaml).resolve() == own.resolve()):
         read_imu_noise(imu_yaml)  # a bad imu.yaml fails before anything else is read
-    target = None
-    if target_path is not None:
-        from ibiscape_eval.io.kalibr import read_target
-
-        target = read_target(target_path)
     with progress_bar(1000, "calib --imu", unit="‰", unit_scale=False) as bar:
-        res = calibrate_sequence(seq, imu_yaml, camchain=camchain, cameras=cameras, force=force,
+        res = calibrate_sequence(seq, imu_yaml, camchain=camchain, force=force,
                                  progress=fraction_callback(bar, "calib --imu"), imu_data=imu_data,
                                  target=target, frame_step=frame_step, workers=workers)
     if yaml_path is not None:

@@ -1,4 +1,4 @@
-"""``ibiscape-eval vio``: the GTSAM stereo-VIO baseline on an IBISCape or EuRoC sequence."""
+"""``ibiscape-eval vio``: the GTSAM stereo-VIO baseline on any sequence ``open_sequence`` opens."""
 
 from __future__ import annotations
 
@@ -40,6 +40,8 @@ Examples:
   ibiscape-eval vio SVI_1_town -o est.txt
   ibiscape-eval vio SVI_1_town -o est.txt --json --plot top.png
   ibiscape-eval vio MH_01_easy -o est.txt --calib camchain-imucam.yaml --imu imu.yaml
+  ibiscape-eval vio run.bag -o est.txt --topic /cam0/image_raw --topic /cam1/image_raw \
+      --imu-topic /imu0 --calib camchain-imucam.yaml --imu imu.yaml
   ibiscape-eval ate est.txt SVI_1_town/vehicle_gt/groundtruth_sync.csv --align se3
 """,
 )
@@ -51,6 +53,10 @@ Examples:
               "sequence's own sequence.yaml (EuRoC: cam0/cam1 sensor.yaml).")
 @click.option("--imu", "imu_yaml", type=click.Path(path_type=Path), default=None,
               help="Kalibr imu.yaml with the noise densities (e.g. from `ibiscape-eval allan`).")
+@click.option("--topic", "topics", multiple=True, metavar="TOPIC",
+              help="SEQUENCE is a ROS bag: the left then the right image topic (give both).")
+@click.option("--imu-topic", default=None, metavar="TOPIC",
+              help="SEQUENCE is a ROS bag with several sensor_msgs/Imu topics: the one to use.")
 @click.option("--max-frames", type=click.IntRange(min=2), default=None,
               help="Process only the first N stereo frames.")
 @click.option("--lag-s", type=click.FloatRange(min=0.5), default=None,
@@ -64,20 +70,23 @@ Examples:
               help="Top view of the estimate with the ground truth (PNG/PDF/SVG).")
 @user_errors
 def vio(sequence: Path, out: Path, calib: Path | None, imu_yaml: Path | None,
-        max_frames: int | None, lag_s: float | None, max_features: int | None, as_json: bool,
+        topics: tuple[str, ...], imu_topic: str | None, max_frames: int | None, lag_s: float | None, max_features: int | None, as_json: bool,
         plot: Path | None) -> None:
     """Stereo visual-inertial odometry (OpenCV front end, GTSAM fixed-lag smoother).
 
     SEQUENCE is an IBISCape-layout folder (rgbL/rgbR frames, other_sensors/imu.csv,
-    sequence.yaml) or an EuRoC ASL folder (mav0/cam0, cam1, imu0).  Tracking failures (fog,
+    sequence.yaml), an EuRoC ASL or TUM-VI folder (mav0/cam0, cam1, imu0; ground truth
+    optional), or a ROS 1/2 bag (two image topics and an Imu topic).  Tracking failures (fog,
     night, a blank wall) are bridged on the IMU for a bounded time and reported with their spans.
     """
     from ibiscape_eval.io import write_trajectory
-    from ibiscape_eval.vio.inputs import load_sequence
+    from ibiscape_eval.io.open_sequence import open_sequence
+    from ibiscape_eval.vio.inputs import stereo_inputs
     from ibiscape_eval.vio.params import VioParams
     from ibiscape_eval.vio.pipeline import run_vio
 
-    seq = load_sequence(sequence, calib=calib, imu_yaml=imu_yaml)
+    seq = stereo_inputs(open_sequence(sequence, image_topics=topics or None, imu_topic=imu_topic),
+                        calib=calib, imu_yaml=imu_yaml)
     kw: dict[str, Any] = {}
     if lag_s is not None:
         kw["lag_s"] = lag_s

@@ -9,7 +9,10 @@
    calibration drive (``ibiscape-eval sim --kind calibration``) approaches the board head-on as in
    the paper; those nearly fronto-parallel views leave the focal length weakly determined.
 2. Calibrate with the library: detect corners, calibrate the chain, compare with the truth.
-3. The same in one command: ``ibiscape-eval calib <seq> --yaml camchain.yaml --plot plots/``.
+3. The whole job in one library call, the pipeline ``calib`` and the benchmark run:
+   ``calibrate_cameras(open_sequence(seq))`` (any layout ``open_sequence`` reads: IBISCape,
+   EuRoC/TUM-VI, ROS bags, ``images=["cam0=left/*.png", ...]``).
+4. The same in one command: ``ibiscape-eval calib <seq> --yaml camchain.yaml --plot plots/``.
 """
 
 from __future__ import annotations
@@ -80,7 +83,17 @@ def main() -> None:
     truth = compare_with_truth(result, truth_from_sequence(doc))
     print("\n".join(format_report(result, truth)))
 
-    # 3. the same in one command (plus camchain.yaml and plots):
+    # 3. the whole job on the opened sequence: the pipeline the calib command and the benchmark run
+    from ibiscape_eval import calibrate_cameras, open_sequence
+
+    opened = open_sequence(seq)
+    print(opened)
+    run = calibrate_cameras(opened, max_views=20)
+    assert run.result is not None
+    print(f"calibrate_cameras: rms {run.result.to_dict()['rms_px']:.3f} px, max focal error "
+          f"{run.truth.to_dict()['max_focal_error_px'] if run.truth else float('nan'):.2f} px")
+
+    # 4. the same in one command (plus camchain.yaml and plots):
     print(f"\nibiscape-eval calib {seq} --yaml {a.out}/camchain.yaml --plot {a.out}/plots")
 
 

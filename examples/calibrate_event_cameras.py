@@ -57,13 +57,13 @@ def main() -> None:
     from ibiscape_eval.calib import target_from_kalibr
     from ibiscape_eval.calib.detect import detect_corners
     from ibiscape_eval.calib.events import EventFrameSource, estimate_contrast, read_event_window
-    from ibiscape_eval.io.image_sets import find_image_sets
+    from ibiscape_eval.io.open_sequence import open_sequence
 
     doc = yaml.safe_load((seq / "sequence.yaml").read_text())
     target = target_from_kalibr(doc["target"])
-    davis = find_image_sets(seq, cameras=["davisL"])[0]
-    assert davis.windows_ns is not None
-    size = tuple(doc["cameras"]["davisL"]["resolution"])
+    davis = open_sequence(seq).camera("davisL")  # the sensor size sequence.yaml states
+    assert davis.windows_ns is not None and davis.sensor_size is not None
+    size = davis.sensor_size
 
     def read(i: int):
         return read_event_window(davis.paths[i])

@@ -27,7 +27,14 @@ from ibiscape_eval.vio import (
 
 # %% A sequence: the one given, or a 30 s SVI drive generated without images
 if len(sys.argv) > 1:
-    seq = load_sequence(sys.argv[1])
+    # any recording open_sequence reads: IBISCape, EuRoC/TUM-VI (%YAML:1.0 sensor files, ground
+    # truth optional), a ROS bag (give the topics: open_sequence(bag, image_topics=[...]))
+    from ibiscape_eval import open_sequence
+    from ibiscape_eval.vio.inputs import stereo_inputs
+
+    opened = open_sequence(sys.argv[1])
+    print(opened)
+    seq = stereo_inputs(opened)
 else:
     root = Path(tempfile.mkdtemp(prefix="vio_example_"))
     generate(preset("svi", "slam", "clear", duration_s=30, seed=1), root / "SVI_1_town")

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -85,48 +85,19 @@ def camera_calibration(seq: str, cameras: Sequence[str], model: str = "pinhole-r
         return _camera_calibration(seq, cameras, model, max_views, max_frames)
 
 
-def _reader(paths: Sequence[Path], read: Callable[[Path], Any]) -> Callable[[int], Any]:
-    return lambda i: read(paths[i])
-
-
-def _labeler(paths: Sequence[Path]) -> Callable[[int], str]:
-    return lambda i: str(paths[i])
-
-
 def _camera_calibration(seq: str, cameras: Sequence[str], model: str, max_views: int,
                         max_frames: int) -> dict[str, Any]:
-    from ibiscape_eval.calib.events import event_set_frames
-    from ibiscape_eval.calib.pipeline import CameraFrames, calibrate_frames, detect_frames
-    from ibiscape_eval.calib.report import compare_with_truth, truth_from_sequence
-    from ibiscape_eval.core.kalibr import target_from_kalibr
-    from ibiscape_eval.io.image_sets import find_image_sets, pair_views, read_image
+    from ibiscape_eval.calib.pipeline import calibrate_cameras
+    from ibiscape_eval.io.open_sequence import open_sequence
 
-    doc = _sequence_doc(seq)
-    if not isinstance(doc.get("target"), dict):
+    _sequence_doc(seq)
+    opened = open_sequence(seq).select(list(cameras))
+    if opened.target is None:
         raise IbiscapeError(f"{seq}/sequence.yaml has no 'target': not a calibration sequence")
-    target = target_from_kalibr(doc["target"], source=f"{seq}/sequence.yaml: target")
-    sets = find_image_sets(Path(seq), cameras=list(cameras))
-    views = pair_views(sets)
-    seq_cams = doc.get("cameras") or {}
-    frames = []
-    recon: dict[str, str] = {}
-    for s in sets:
-        if s.kind == "frames":
-            paths = s.paths
-            frames.append(CameraFrames(s.name, len(s), _reader(paths, read_image),
-                                       _labeler(paths)))
-            continue
-        w, h = seq_cams.get(s.name, {}).get("resolution", (0, 0))
-        size = (int(w), int(h))
-        assert s.windows_ns is not None
-        source, used = event_set_frames(s.paths, s.windows_ns, size, target,
-                                        camera_doc=seq_cams.get(s.name))
-        recon[s.name] = used["method"]
-        frames.append(CameraFrames(s.name, len(s), source, _labeler(s.paths),
-                                   reconstruction=used["method"]))
-    summary = detect_frames(target, frames, views, max_detect=max_frames, workers=1)
-    result = calibrate_frames(target, summary, model=model, max_views=max_views)
-    truth = compare_with_truth(result, truth_from_sequence(doc))
+    run = calibrate_cameras(opened, model=model, max_views=max_views, max_frames=max_frames, workers=1)
+    result, truth, target = run.result, run.truth, run.target
+    assert result is not None
+    recon = {k: v["method"] for k, v in run.reconstruction.items()}
     rd = result.to_dict()
     cams = []
     for c in (truth.cameras if truth is not None else []):
@@ -155,11 +126,14 @@ def imu_camera_calibration(seq: str, cameras: Sequence[str]) -> dict[str, Any]:
     """
     from ibiscape_eval.calib.imu_camera import calibrate_sequence
     from ibiscape_eval.core.errors import IbiscapeWarning
+    from ibiscape_eval.io.open_sequence import open_sequence
 
+    _sequence_doc(seq)
+    opened = open_sequence(seq).select(list(cameras))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", IbiscapeWarning)
         # noise=None: the densities sequence.yaml states for its IMU (imus.imu0)
-        res = calibrate_sequence(seq, None, cameras=list(cameras))
+        res = calibrate_sequence(opened, None)
     rows = []
     for c in res.result.cameras:
         er = res.errors_vs_truth.get(c.name, {})
@@ -222,15 +196,20 @@ def hot_pixels(seq: str, camera: str, n_sigma: float = 5.0) -> dict[str, Any]:
     import numpy as np
 
     from ibiscape_eval.events.hotpix import PixelCounter
-    from ibiscape_eval.io.events import iter_event_chunks, open_events
+    from ibiscape_eval.io.events import iter_event_chunks
+    from ibiscape_eval.io.open_sequence import open_sequence
 
     doc = _sequence_doc(seq)
     cam = (doc.get("cameras") or {}).get(camera)
     if not isinstance(cam, dict):
         raise IbiscapeError(f"{seq}/sequence.yaml: no camera {camera!r}")
-    w, h = (int(v) for v in cam.get("resolution", (0, 0)))
-    src = open_events(Path(seq) / camera, fmt="ibiscape")
-    counter = PixelCounter(sensor_size=(w, h))
+    stream = open_sequence(seq).camera(camera)
+    if stream.kind != "events" or stream.events is None:
+        raise IbiscapeError(f"{seq}/{camera}: not an event camera")
+    if stream.sensor_size is None:
+        raise IbiscapeError(f"{seq}/sequence.yaml: camera {camera!r} has no resolution (the sensor size)")
+    src = stream.events.get()
+    counter = PixelCounter(sensor_size=stream.sensor_size)
     for chunk in iter_event_chunks(src):
         counter.add(chunk.events, chunk)
     res = counter.result(n_sigma=n_sigma)
@@ -255,14 +234,14 @@ def vio(seq: str, max_frames: int | None = None) -> dict[str, Any]:
     import tempfile
 
     from ibiscape_eval.io import write_trajectory
-    from ibiscape_eval.vio.inputs import load_sequence
+    from ibiscape_eval.io.open_sequence import open_sequence
     from ibiscape_eval.vio.pipeline import run_vio
 
-    gt = Path(seq) / "vehicle_gt" / "groundtruth_sync.csv"
-    if not gt.is_file():
+    opened = open_sequence(seq)
+    if opened.groundtruth is None:
+        gt = Path(seq) / "vehicle_gt" / "groundtruth_sync.csv"
         raise IbiscapeError(f"{gt}: no ground truth; the VIO estimate cannot be scored")
-    s = load_sequence(Path(seq))
-    res = run_vio(s, max_frames=max_frames)
+    res = run_vio(opened, max_frames=max_frames)
     with tempfile.TemporaryDirectory() as d:
         p = Path(d) / "est.txt"
         write_trajectory(p, res.trajectory, "tum")

@@ -1,8 +1,12 @@
-"""From frames to a calibration: frame preselection, parallel detection, view selection, solve.
+"""From a sequence to a calibration: frames, preselection, parallel detection, view selection, solve.
 
-The caller (the command line) opens the image sets through :mod:`ibiscape_eval.io.image_sets` and hands
-one :class:`CameraFrames` per camera (a loader per frame) plus the view table
-(:func:`ibiscape_eval.io.image_sets.pair_views`); nothing here touches files.
+:func:`calibrate_cameras` is the whole job on a sequence opened by
+:func:`ibiscape_eval.io.open_sequence` (the ``calib`` command, the benchmark and notebooks call it):
+:func:`camera_frames` turns the sequence's cameras into one :class:`CameraFrames` each (images
+loaded on demand; event cameras' frames reconstructed from their windows by
+:func:`ibiscape_eval.calib.events.event_set_frames`), :func:`detect_frames` finds the target in the
+view table (:func:`ibiscape_eval.io.image_sets.pair_views`) and :func:`calibrate_frames` solves.
+Nothing here parses a path.
 """
 
 from __future__ import annotations
@@ -10,7 +14,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -22,7 +26,11 @@ from .calibrate import CalibrationResult, Observations, calibrate, evaluate
 from .detect import Detection, detect_corners, sharpness
 from .select import preselect_frames, select_views
 
-__all__ = ["CameraFrames", "DetectionSummary", "calibrate_frames", "check_frames", "detect_frames"]
+if TYPE_CHECKING:
+    from ibiscape_eval.core.sequence import Sequence as Recording
+
+__all__ = ["CameraCalibrationRun", "CameraFrames", "DetectionSummary", "calibrate_cameras",
+           "calibrate_frames", "camera_frames", "check_frames", "detect_frames", "sequence_target"]
 
 #: views at most this far apart in the view table are neighbours (searched around each other's board)
 _NEIGHBOUR_GAP = 2
@@ -247,3 +255,162 @@ def check_frames(target: CalibrationTarget, summary: DetectionSummary, cameras: 
     for o in doc["outlier_views"]:
         o["view"] = int(summary.views[o["view"]])
     return doc
+
+
+# ----------------------------------------------------------------------------------- sequences
+def sequence_target(seq: Recording, target: CalibrationTarget | None = None) -> CalibrationTarget:
+    """``target``, else the one the sequence names (``sequence.yaml``'s ``target``).
+
+    Raises :class:`IbiscapeError` saying to give ``--target`` when neither is there."""
+    from ibiscape_eval.core.kalibr import target_from_kalibr
+
+    if target is not None:
+        return target
+    if seq.target is not None:
+        return target_from_kalibr(dict(seq.target), source=seq.target_source or f"{seq.path}: target")
+    where = "" if seq.layout == "images" else (
+        f"; {seq.path}/sequence.yaml has no 'target'" if seq.layout == "ibiscape"
+        else f"; a {seq.layout} recording names none")
+    raise IbiscapeError(f"no target description: give --target target.yaml (Kalibr's format){where}")
+
+
+def camera_frames(seq: Recording, target: CalibrationTarget, *, reconstruction: str = "auto",
+                  refine: bool = True, bidirectional: bool = True,
+                  sensor_size: tuple[int, int] | None = None
+                  ) -> tuple[list[CameraFrames], dict[str, dict[str, Any]]]:
+    """One :class:`CameraFrames` per camera of ``seq`` and, per event camera, how its frames were
+    reconstructed (:func:`ibiscape_eval.calib.events.event_set_frames`).
+
+    Event cameras need their sensor size: ``sensor_size`` (an override), else the size the
+    sequence states; :class:`IbiscapeError` asks for ``--sensor-size`` when neither is known.
+    """
+    from .events import event_set_frames
+
+    frames: list[CameraFrames] = []
+    recon: dict[str, dict[str, Any]] = {}
+    for cam in seq.cameras:
+        if cam.kind == "frames":
+            frames.append(CameraFrames(cam.name, len(cam), cam.load, cam.label))
+            continue
+        size = sensor_size or cam.sensor_size
+        if size is None:
+            raise IbiscapeError(f"{cam.root}: sensor size unknown (the recording does not state it); "
+                                "pass --sensor-size WxH")
+        if cam.windows_ns is None:
+            raise IbiscapeError(f"{cam.root}: camera {cam.name}: event windows are needed to build "
+                                "frames (an IBISCape DVS folder with timestamps.csv)")
+        source, recon[cam.name] = event_set_frames(
+            cam.paths, cam.windows_ns, (int(size[0]), int(size[1])), target,
+            reconstruction=reconstruction, refine=refine, bidirectional=bidirectional,
+            camera_doc=dict(cam.entry) if cam.entry else None)
+        frames.append(CameraFrames(cam.name, len(cam), source, cam.label,
+                                   reconstruction=recon[cam.name]["method"]))
+    return frames, recon
+
+
+@dataclass(frozen=True, eq=False)
+class CameraCalibrationRun:
+    """What :func:`calibrate_cameras` did: the detection, the calibration (or the check of a
+    given one), the reconstruction of event cameras, the comparison with a known truth.
+
+    Attributes
+    ----------
+    sequence : Sequence
+    target : CalibrationTarget
+    detection : DetectionSummary
+    reconstruction : dict
+        Event camera name -> how its frames were reconstructed.
+    result : CalibrationResult or None
+        None when a given calibration was checked (``check``).
+    truth : TruthComparison or None
+        Errors against the true cameras when the sequence holds them.
+    check : dict or None
+        The evaluation of a given calibration (:func:`check_frames`).
+    """
+
+    sequence: Recording
+    target: CalibrationTarget
+    detection: DetectionSummary
+    reconstruction: dict[str, dict[str, Any]]
+    result: CalibrationResult | None = None
+    truth: Any = None
+    check: dict[str, Any] | None = None
+
+    def rostopics(self) -> tuple[str, ...]:
+        """The rostopic of every calibrated camera (the sequence's, else ``/<name>/image_raw``)."""
+        assert self.result is not None
+        out = []
+        for c in self.result.cameras:
+            topic = next((s.rostopic for s in self.sequence.cameras if s.name == c.name and s.rostopic), None)
+            out.append(str(topic) if topic else f"/{c.name}/image_raw")
+        return tuple(out)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Strict JSON: target, detection, reconstruction, then the check or the result with
+        ``ground_truth``."""
+        doc: dict[str, Any] = {"target": self.target.to_kalibr(), "detection": self.detection.to_dict(),
+                               "reconstruction": self.reconstruction}
+        if self.check is not None:
+            return {**doc, **self.check}
+        assert self.result is not None
+        return {**doc, **self.result.to_dict(),
+                "ground_truth": None if self.truth is None else self.truth.to_dict()}
+
+    def __repr__(self) -> str:
+        what = "check" if self.check is not None else repr(self.result)
+        return f"CameraCalibrationRun({self.sequence.path}: {what})"
+
+
+def calibrate_cameras(seq: Recording, *, target: CalibrationTarget | None = None,
+                      model: str = "pinhole-radtan", max_views: int = 60, max_frames: int = 300,
+                      reconstruction: str = "auto", event_corners: str = "events",
+                      sensor_size: tuple[int, int] | None = None, outlier_sigma: float = 5.0,
+                      workers: int | None = None, check: Any = None,
+                      progress: Callable[[int], Any] | None = None,
+                      total: Callable[[int], Any] | None = None,
+                      solve_progress: Callable[[str], Any] | None = None) -> CameraCalibrationRun:
+    """Calibrate every camera of a sequence (mono, stereo, chains; frames and event cameras).
+
+    Parameters
+    ----------
+    seq : Sequence
+        From :func:`ibiscape_eval.open_sequence` (``seq.select([...])`` picks cameras).
+    target : CalibrationTarget, optional
+        Default: the target the sequence names (``sequence.yaml``).
+    model : ``"pinhole-radtan"`` or ``"pinhole-equi"``
+    max_views, max_frames : int
+        Views kept for the solve; frames searched for the target.
+    reconstruction : str
+        Event cameras: how frames are built from the events (``auto`` tries them).
+    event_corners : ``"events"`` or ``"frames"``
+        Event cameras: refine corners from the events' timestamps, or keep the frames' corners.
+    sensor_size : (w, h), optional
+        Event cameras' sensor size, overriding what the sequence states.
+    check : CameraChain, optional
+        Evaluate this calibration on the detections instead of calibrating.
+    progress, total : callable, optional
+        Detection progress (frames done) and the number of frames to detect.
+    solve_progress : callable(str), optional
+
+    Raises
+    ------
+    IbiscapeError, CalibrationError
+        No target, unknown sensor size of an event camera, no target found, too few views.
+    """
+    from ibiscape_eval.io.image_sets import pair_views
+
+    from .report import compare_with_truth, truth_from_sequence
+
+    tgt = sequence_target(seq, target)
+    frames, recon = camera_frames(seq, tgt, reconstruction=reconstruction,
+                                  refine=event_corners == "events", sensor_size=sensor_size)
+    views = pair_views(seq.cameras)
+    summary = detect_frames(tgt, frames, views, max_detect=max_frames, workers=workers,
+                            progress=progress, total=total)
+    if check is not None:
+        doc = check_frames(tgt, summary, check.models, check.relative_transforms)
+        return CameraCalibrationRun(seq, tgt, summary, recon, check=doc)
+    result = calibrate_frames(tgt, summary, model=model, max_views=max_views,
+                              outlier_sigma=outlier_sigma, progress=solve_progress)
+    truth = compare_with_truth(result, truth_from_sequence(dict(seq.doc)))
+    return CameraCalibrationRun(seq, tgt, summary, recon, result, truth)

@@ -26,7 +26,8 @@ from ibiscape_eval.core.trajectory import Trajectory
 
 from ._poses import finish_trajectory
 
-__all__ = ["BAG_SUFFIXES", "IMU_MSGTYPE", "POSE_MSGTYPES", "list_pose_topics", "read_bag",
+__all__ = ["BAG_SUFFIXES", "EVENT_MSGTYPE", "IMAGE_MSGTYPES", "IMU_MSGTYPE", "POSE_MSGTYPES", "BagImageTopic",
+           "bag_topics", "list_pose_topics", "read_bag",
            "read_imu_bag"]
 
 BAG_SUFFIXES = (".bag", ".db3", ".mcap")
@@ -260,3 +261,105 @@ def read_imu_bag(path: str | os.PathLike[str],
             data[i] = (w.x, w.y, w.z, a.x, a.y, a.z)
             i += 1
     return stamps[:i], data[:i], rostopic
+
+
+# ------------------------------------------------------------------------------ images and topics
+IMAGE_MSGTYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage")
+EVENT_MSGTYPE = "dvs_msgs/msg/EventArray"
+
+
+def bag_topics(path: str | os.PathLike[str]) -> list[tuple[str, str, int]]:
+    """Every topic of a bag: ``(topic, message type, message count)``, sorted by topic."""
+    with _reading(path) as (reader, _p):
+        out: dict[str, tuple[str, int]] = {}
+        for c in reader.connections:
+            ty, n = out.get(c.topic, (c.msgtype, 0))
+            out[c.topic] = (ty, n + int(c.msgcount))
+    return [(t, ty, n) for t, (ty, n) in sorted(out.items())]
+
+
+def _decode_image(msg: Any, msgtype: str) -> np.ndarray | None:
+    """A ``sensor_msgs/Image`` (mono8/16, rgb8, bgr8, rgba8, bgra8, 8UC1, 16UC1) or
+    ``CompressedImage`` as an array (colour in OpenCV's BGR order); None when undecodable."""
+    import cv2
+
+    if msgtype.endswith("CompressedImage"):
+        return cv2.imdecode(np.asarray(msg.data, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
+    enc = str(msg.encoding).lower()
+    h, w, step = int(msg.height), int(msg.width), int(msg.step)
+    chans = {"mono8": 1, "8uc1": 1, "mono16": 1, "16uc1": 1, "rgb8": 3, "bgr8": 3, "8uc3": 3,
+             "rgba8": 4, "bgra8": 4}.get(enc)
+    if chans is None or h < 1 or w < 1:
+        return None
+    depth = np.uint16 if enc in ("mono16", "16uc1") else np.uint8
+    raw = np.asarray(msg.data, dtype=np.uint8)
+    if raw.size < h * step:
+        return None
+    rows = raw[: h * step].reshape(h, step)[:, : w * chans * np.dtype(depth).itemsize]
+    img = np.ascontiguousarray(rows).view(depth)
+    if depth == np.uint16 and bool(msg.is_bigendian) != (np.little_endian is False):
+        img = img.byteswap()
+    img = img.reshape(h, w) if chans == 1 else img.reshape(h, w, chans)
+    if enc == "rgb8":
+        img = img[..., ::-1]
+    elif enc == "rgba8":
+        img = img[..., [2, 1, 0, 3]]
+    return np.ascontiguousarray(img)
+
+
+class BagImageTopic:
+    """The frames of one image topic, indexed once (header stamps, bag times), decoded on demand.
+
+    :meth:`load` reads message ``i`` through the bag's time index (``messages(start, stop)``), so
+    a calibration touches only the frames it detects on.
+    """
+
+    def __init__(self, path: Path, topic: str, msgtype: str, stamps_ns: np.ndarray,
+                 bag_ns: np.ndarray, sensor_size: tuple[int, int] | None):
+        import threading
+
+        self.path, self.topic, self.msgtype = path, topic, msgtype
+        self.stamps_ns, self.bag_ns, self.sensor_size = stamps_ns, bag_ns, sensor_size
+        self._lock = threading.Lock()
+
+    @classmethod
+    def index(cls, path: str | os.PathLike[str], topic: str) -> BagImageTopic:
+        """Read the header stamps of every message of ``topic`` (sorted by header stamp)."""
+        with _reading(path) as (reader, p):
+            conns = [c for c in reader.connections if c.topic == topic]
+            if not conns or conns[0].msgtype not in IMAGE_MSGTYPES:
+                raise FormatError(p, f"no image topic {topic!r} in the bag")
+            msgtype = conns[0].msgtype
+            st, bt, size = [], [], None
+            for c, t, raw in reader.messages(connections=conns):
+                msg = reader.deserialize(raw, c.msgtype)
+                st.append(_stamp_ns(msg.header.stamp))
+                bt.append(int(t))
+                if size is None:
+                    if msgtype.endswith("CompressedImage"):
+                        img = _decode_image(msg, msgtype)
+                        size = None if img is None else (int(img.shape[1]), int(img.shape[0]))
+                    else:
+                        size = (int(msg.width), int(msg.height))
+        if not st:
+            raise FormatError(p, f"no messages on topic {topic!r}")
+        stamps, bag_ns = np.asarray(st, np.int64), np.asarray(bt, np.int64)
+        order = np.argsort(stamps, kind="stable")
+        return cls(p, topic, msgtype, stamps[order], bag_ns[order], size)
+
+    def load(self, i: int) -> np.ndarray | None:
+        """Frame ``i`` (None with a warning when it cannot be decoded)."""
+        want = int(self.stamps_ns[i])
+        t = int(self.bag_ns[i])
+        with self._lock, _reading(self.path) as (reader, p):
+            conns = [c for c in reader.connections if c.topic == self.topic]
+            for c, _t, raw in reader.messages(connections=conns, start=t, stop=t + 1):
+                msg = reader.deserialize(raw, c.msgtype)
+                if _stamp_ns(msg.header.stamp) == want:
+                    img = _decode_image(msg, c.msgtype)
+                    if img is None:
+                        break
+                    return img
+        warnings.warn(f"{p}: {self.topic} message {i}: not a decodable image; skipped",
+                      IbiscapeWarning, stacklevel=2)
+        return None

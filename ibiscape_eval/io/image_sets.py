@@ -1,14 +1,11 @@
-"""Camera image sets for calibration: IBISCape camera folders, EuRoC ASL cameras, file globs.
+"""Plain image files for calibration, and the view table of several cameras.
 
-- IBISCape layout: ``<seq>/<camera>/timestamps.csv`` (``#timestamp [ns], filename``) and
-  ``frames/<ns>.png`` for ``rgbL``, ``rgbR``, ``rgb`` (and any other folder of that shape); DVS
-  folders (``davisL``, ``davisR``) with ``events/`` and a three-column ``timestamps.csv`` are event
-  sets (frames are reconstructed from their event windows).
-- EuRoC ASL: ``<seq>/mav0/camN/data.csv`` (``#timestamp [ns],filename``) and ``data/``.
 - Globs: ``NAME=PATTERN`` (``cam0='left*.jpg'``), paired across cameras by a timestamp (the last
-  run of digits) in the file names when every name has one, else by sorted order.
-
-:func:`pair_views` turns several sets into one view table (one row per instant).
+  run of digits) in the file names when every name has one, else by sorted order
+  (:func:`image_sets_from_globs`; :func:`ibiscape_eval.io.open_sequence` opens them with
+  ``images=``, as it opens every sequence layout).
+- :func:`pair_views` turns several cameras (:class:`ImageSet` or the cameras of an opened
+  sequence) into one view table (one row per instant).
 """
 
 from __future__ import annotations
@@ -20,24 +17,20 @@ import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 import numpy.typing as npt
 
-from ibiscape_eval.core.errors import FormatError, IbiscapeError, IbiscapeWarning
+from ibiscape_eval.core.errors import IbiscapeError, IbiscapeWarning
 
 __all__ = [
-    "CAMERA_FOLDERS",
     "ImageSet",
-    "find_image_sets",
     "image_sets_from_globs",
     "pair_views",
     "read_image",
 ]
 
-#: IBISCape camera folder names, in chain order
-CAMERA_FOLDERS = ("rgbL", "rgbR", "rgb", "davisL", "davisR")
 _IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm"}
 
 
@@ -77,70 +70,6 @@ class ImageSet:
         return f"ImageSet({self.name}: {len(self)} {self.kind} from {self.root})"
 
 
-def _read_frame_csv(csv: Path, folder: Path) -> tuple[list[Path], npt.NDArray[np.int64]]:
-    """A camera's ``timestamps.csv`` (the one reader of :mod:`ibiscape_eval.io.images`), names resolved
-    in ``folder`` first, then beside the csv."""
-    from .images import read_frame_timestamps
-
-    stamps, names = read_frame_timestamps(csv)
-    if not names:
-        raise FormatError(csv, "lists no frames")
-    paths = []
-    for name in names:
-        cand = [folder / name, csv.parent / name]
-        paths.append(next((c for c in cand if c.is_file()), cand[0]))
-    return paths, stamps
-
-
-def _ibiscape_set(name: str, folder: Path) -> ImageSet | None:
-    csv = folder / "timestamps.csv"
-    if not csv.is_file():
-        return None
-    if (folder / "events").is_dir():
-        from .events import open_events
-
-        src = open_events(folder)
-        win = np.array([[a, b] for a, b, _ in src.windows], np.int64)
-        return ImageSet(name, tuple(p for _, _, p in src.windows), win[:, 1].copy(), "events", folder, win)
-    paths, stamps = _read_frame_csv(csv, folder / "frames")
-    return ImageSet(name, tuple(paths), stamps, "frames", folder)
-
-
-def find_image_sets(seq: str | os.PathLike[str], *, cameras: Sequence[str] | None = None) -> list[ImageSet]:
-    """Camera sets of an IBISCape sequence (``rgbL``, ``rgbR``, ``rgb``, ``davisL``, ``davisR`` with a
-    ``timestamps.csv``) or an EuRoC ASL folder (``mav0/camN``); ``cameras`` picks and orders them."""
-    root = Path(seq)
-    if not root.is_dir():
-        raise IbiscapeError(f"{root}: no such folder; give a sequence folder (IBISCape or EuRoC) or "
-                            "use --images NAME=GLOB")
-    found: dict[str, ImageSet] = {}
-    if root.name in CAMERA_FOLDERS and (root / "timestamps.csv").is_file():
-        s = _ibiscape_set(root.name, root)
-        assert s is not None
-        found[root.name] = s
-    for name in CAMERA_FOLDERS:
-        s = _ibiscape_set(name, root / name)
-        if s is not None:
-            found[name] = s
-    mav = root / "mav0" if (root / "mav0").is_dir() else root
-    for cam in sorted(mav.glob("cam[0-9]*"), key=lambda p: int(p.name[3:]) if p.name[3:].isdigit() else 99):
-        csv = cam / "data.csv"
-        if csv.is_file() and cam.name[3:].isdigit():
-            paths, stamps = _read_frame_csv(csv, cam / "data")
-            found[cam.name] = ImageSet(cam.name, tuple(paths), stamps, "frames", cam)
-    if not found:
-        raise IbiscapeError(
-            f"{root}: no camera folders found (looked for {', '.join(CAMERA_FOLDERS)} with "
-            "timestamps.csv, and mav0/camN/data.csv); use --images NAME=GLOB for plain image files")
-    if cameras:
-        missing = [c for c in cameras if c not in found]
-        if missing:
-            raise IbiscapeError(f"{root}: camera(s) {', '.join(missing)} not found; available: "
-                                f"{', '.join(found)}")
-        return [found[c] for c in cameras]
-    return list(found.values())
-
-
 def _digits_stamp(name: str) -> int | None:
     runs = re.findall(r"\d+", Path(name).stem)
     return int(runs[-1]) if runs else None
@@ -176,7 +105,19 @@ def image_sets_from_globs(specs: Sequence[str]) -> list[ImageSet]:
     return out
 
 
-def pair_views(sets: Sequence[ImageSet], *, tolerance_ns: int = 1_000_000) -> list[list[int | None]]:
+class _Stamped(Protocol):
+    """A camera's frames with their stamps (an :class:`ImageSet` or a ``CameraStream``)."""
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def stamps_ns(self) -> npt.NDArray[np.int64] | None: ...
+    @property
+    def exact_stamps(self) -> bool: ...
+    def __len__(self) -> int: ...
+
+
+def pair_views(sets: Sequence[_Stamped], *, tolerance_ns: int = 1_000_000) -> list[list[int | None]]:
     """The view table: one row per instant, one column per set (frame index or None).
 
     Sets with timestamps are matched within ``tolerance_ns`` (exactly for numbers taken from file

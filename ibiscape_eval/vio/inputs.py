@@ -1,6 +1,7 @@
 """What the VIO reads: a stereo rig, IMU samples and noise, frame lists, optional ground truth.
 
-Two layouts:
+Taken from a sequence opened by :func:`ibiscape_eval.io.open_sequence` (:func:`stereo_inputs`;
+:func:`load_sequence` opens and takes in one call):
 
 - **IBISCape** (``sequence.yaml`` + ``other_sensors/imu*.csv`` + ``rgbL``/``rgbR`` folders with
   ``timestamps.csv`` and ``frames/``): calibration and IMU noise come from ``sequence.yaml``
@@ -8,7 +9,9 @@ Two layouts:
   ``imu.yaml``) are given.  Ground truth: ``vehicle_gt/groundtruth_sync.csv``.
 - **EuRoC ASL** (``mav0/cam0``, ``mav0/cam1``, ``mav0/imu0`` with ``sensor.yaml`` and
   ``data.csv``): the body frame is EuRoC's (the IMU's).  Ground truth:
-  ``state_groundtruth_estimate0/data.csv``.
+  ``state_groundtruth_estimate0/data.csv`` (optional; an empty file counts as none).
+- **TUM-VI** (the ASL layout with ``dso/camchain.yaml``, equidistant cameras) and **ROS bags**
+  (the first two image topics, the ``Imu`` topic; give ``--calib`` and ``--imu``): like EuRoC.
 
 Everything the issue calls bad input is refused here with a message naming the file: a missing or
 inconsistent calibration (image size different from the calibration's), an IMU stream that does
@@ -18,6 +21,7 @@ not cover the images, non-monotonic stamps, left and right frame lists that do n
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -28,13 +32,16 @@ import numpy.typing as npt
 from ibiscape_eval.core.camera import CameraModel
 from ibiscape_eval.core.errors import CalibrationError, FormatError, IbiscapeError
 from ibiscape_eval.core.kalibr import ImuNoise
+from ibiscape_eval.core.sequence import Sequence
 from ibiscape_eval.core.trajectory import Trajectory
 
 from .rig import StereoRig
 
-__all__ = ["StereoSequence", "load_sequence"]
+__all__ = ["StereoSequence", "load_sequence", "stereo_inputs"]
 
 FloatArray = npt.NDArray[np.float64]
+#: reader(i) -> (left, right) grey images of stereo pair i
+FrameReader = Callable[[int], tuple[npt.NDArray[np.uint8], npt.NDArray[np.uint8]]]
 
 
 @dataclass(frozen=True, eq=False)
@@ -53,8 +60,11 @@ class StereoSequence:
     frame_stamps_ns : ndarray, shape (M,), int64
         Stamps of the stereo pairs (empty when the sequence has no images).
     left_files, right_files : list of Path
+        Empty for frames inside a bag (``frame_reader`` reads them).
     groundtruth : Trajectory or None
     weather : str or None
+    frame_reader : callable, optional
+        ``frame_reader(i)`` -> (left, right) grey images, for frames that are not files.
     """
 
     path: str
@@ -70,10 +80,25 @@ class StereoSequence:
     right_files: list[Path]
     groundtruth: Trajectory | None
     weather: str | None = None
+    frame_reader: FrameReader | None = None
 
     @property
     def n_frames(self) -> int:
         return int(self.frame_stamps_ns.shape[0])
+
+    def read_pair(self, i: int) -> tuple[npt.NDArray[np.uint8], npt.NDArray[np.uint8]]:
+        """Stereo pair ``i`` as 8-bit grey images (files, or frames decoded from a bag)."""
+        if self.frame_reader is not None:
+            return self.frame_reader(i)
+        from ibiscape_eval.io.stereo import read_gray_image
+
+        return read_gray_image(self.left_files[i]), read_gray_image(self.right_files[i])
+
+    def frame_labels(self, i: int) -> tuple[str, str]:
+        """Names of pair ``i``'s images for messages."""
+        if self.frame_reader is not None or not self.left_files:
+            return f"{self.path} left frame {i}", f"{self.path} right frame {i}"
+        return str(self.left_files[i]), str(self.right_files[i])
 
     @property
     def imu(self) -> tuple[npt.NDArray[np.int64], FloatArray, FloatArray]:
@@ -87,11 +112,35 @@ class StereoSequence:
 def load_sequence(path: str | os.PathLike[str], *, calib: str | os.PathLike[str] | None = None,
                   imu_yaml: str | os.PathLike[str] | None = None,
                   require_images: bool = True) -> StereoSequence:
-    """Read an IBISCape-layout sequence or an EuRoC ASL folder (module docstring).
+    """Open a recording (:func:`ibiscape_eval.io.open_sequence`) and take the VIO's inputs from it
+    (:func:`stereo_inputs`).
+
+    Raises
+    ------
+    FormatError, CalibrationError, IbiscapeError
+        Naming the file and what to do.
+    """
+    from ibiscape_eval.io.open_sequence import open_sequence
+
+    p = Path(path)
+    if not p.exists():
+        raise IbiscapeError(f"{p}: not a folder; give an IBISCape sequence folder or an EuRoC "
+                            "ASL folder (with mav0/)")
+    return stereo_inputs(open_sequence(p), calib=calib, imu_yaml=imu_yaml,
+                         require_images=require_images)
+
+
+def stereo_inputs(seq: Sequence, *, calib: str | os.PathLike[str] | None = None,
+                  imu_yaml: str | os.PathLike[str] | None = None,
+                  require_images: bool = True) -> StereoSequence:
+    """The VIO's inputs from an opened sequence (module docstring): the stereo rig (the first two
+    cameras: ``rgbL``/``rgbR`` of ``sequence.yaml``, ``cam0``/``cam1`` otherwise), the IMU
+    samples and noise, the stereo frames and the ground truth when there is one.
 
     Parameters
     ----------
-    path : folder
+    seq : Sequence
+        From :func:`ibiscape_eval.io.open_sequence` (IBISCape, EuRoC, TUM-VI, ROS bag).
     calib : Kalibr ``camchain-imucam.yaml``, optional
         Overrides the sequence's own calibration (``cam0`` left, ``cam1`` right).
     imu_yaml : Kalibr ``imu.yaml``, optional
@@ -99,41 +148,27 @@ def load_sequence(path: str | os.PathLike[str], *, calib: str | os.PathLike[str]
     require_images : bool
         Refuse a sequence without camera frames (False for IMU/ground-truth-only use such as
         synthetic measurements).
-
-    Raises
-    ------
-    FormatError, CalibrationError, IbiscapeError
-        Naming the file and what to do.
     """
-    p = Path(path)
-    if not p.is_dir():
-        raise IbiscapeError(f"{p}: not a folder; give an IBISCape sequence folder or an EuRoC "
-                            "ASL folder (with mav0/)")
-    if (p / "mav0").is_dir() or (p / "cam0").is_dir():
-        seq = _load_euroc(p / "mav0" if (p / "mav0").is_dir() else p, calib, imu_yaml,
-                          require_images)
-    elif (p / "sequence.yaml").is_file() or (p / "other_sensors").is_dir():
-        seq = _load_ibiscape(p, calib, imu_yaml, require_images)
+    if seq.layout == "ibiscape":
+        out = _load_ibiscape(seq, calib, imu_yaml, require_images)
+    elif seq.layout in ("euroc", "tumvi", "rosbag"):
+        out = _load_asl(seq, calib, imu_yaml, require_images)
     else:
-        raise IbiscapeError(f"{p}: neither an IBISCape sequence (sequence.yaml, other_sensors/) "
-                            "nor an EuRoC ASL folder (mav0/cam0, mav0/imu0)")
-    _check_coverage(seq)
-    return seq
+        raise IbiscapeError(f"{seq.path}: the VIO needs a stereo sequence with an IMU (IBISCape, "
+                            f"EuRoC, TUM-VI or a ROS bag), not {seq.layout}")
+    _check_coverage(out)
+    return out
 
 
 # ---------------------------------------------------------------------------------------------
 # IBISCape
 
 
-def _load_ibiscape(p: Path, calib: Any, imu_yaml: Any, require_images: bool) -> StereoSequence:
-    from ibiscape_eval.io import read_trajectory
+def _load_ibiscape(seq: Sequence, calib: Any, imu_yaml: Any, require_images: bool) -> StereoSequence:
     from ibiscape_eval.io.kalibr import read_imu_noise
-    from ibiscape_eval.io.sequence import read_sequence_yaml
-    from ibiscape_eval.io.stereo import read_imu_samples
 
-    doc: dict[str, Any] = {}
-    if (p / "sequence.yaml").is_file():
-        doc = read_sequence_yaml(p / "sequence.yaml")
+    p = seq.path
+    doc: dict[str, Any] = dict(seq.doc)
     cams = doc.get("cameras") or {}
     imus = doc.get("imus") or {}
     imu_entry = imus.get("imu0") or (next(iter(imus.values())) if imus else {})
@@ -152,14 +187,9 @@ def _load_ibiscape(p: Path, calib: Any, imu_yaml: Any, require_images: bool) -> 
                            _T(cams[left_name], "T_body_cam", p / "sequence.yaml", left_name),
                            _T(cams[right_name], "T_body_cam", p / "sequence.yaml", right_name))
     # IMU
-    imu_file = p / str(imu_entry.get("file", "")) if imu_entry.get("file") else None
-    if imu_file is None or not imu_file.is_file():
-        cands = sorted((p / "other_sensors").glob("imu*.csv"))
-        if not cands:
-            raise FormatError(p / "other_sensors", "no IMU file (other_sensors/imu.csv)")
-        imu_file = cands[0]
-    stamps, gyro, acc = read_imu_samples(
-        imu_file, fmt="ibiscape" if (p / "vehicle_gt").is_dir() else "euroc")
+    if seq.imu is None:
+        raise FormatError(p / "other_sensors", "no IMU file (other_sensors/imu.csv)")
+    stamps, gyro, acc = seq.imu.samples.get()
     T_body_imu = (_T(imu_entry, "T_body_imu", p / "sequence.yaml", "imus")
                   if "T_body_imu" in imu_entry else np.eye(4))
     if imu_yaml is not None:
@@ -169,13 +199,10 @@ def _load_ibiscape(p: Path, calib: Any, imu_yaml: Any, require_images: bool) -> 
     else:
         raise IbiscapeError(f"{p}: no IMU noise (sequence.yaml has no imus); give --imu imu.yaml")
     # frames
-    frames, lf, rf = _frames(p / left_name, p / right_name, "timestamps.csv", "frames",
-                             require_images)
-    gt_file = p / "vehicle_gt" / "groundtruth_sync.csv"
-    gt = read_trajectory(gt_file, "ibiscape", name="groundtruth") if gt_file.is_file() else None
+    frames, lf, rf, reader = _frames(seq, left_name, right_name, "timestamps.csv", require_images)
     weather = (doc.get("weather") or {}).get("preset") if doc else None
     return StereoSequence(str(p), "ibiscape", rig, noise, stamps, gyro, acc, T_body_imu, frames,
-                          lf, rf, gt, weather)
+                          lf, rf, seq.ground_truth(), weather, reader)
 
 
 def _stereo_names(p: Path, cams: dict[str, Any]) -> tuple[str, str]:
@@ -286,74 +313,91 @@ def _rig_from_camchain(calib: str | os.PathLike[str]) -> StereoRig:
 # EuRoC
 
 
-def _load_euroc(m: Path, calib: Any, imu_yaml: Any, require_images: bool) -> StereoSequence:
-    from ibiscape_eval.io import read_trajectory
-    from ibiscape_eval.io.asl import read_asl_sensor_yaml
+def _load_asl(seq: Sequence, calib: Any, imu_yaml: Any, require_images: bool) -> StereoSequence:
+    """EuRoC / TUM-VI / ROS bag: the first two cameras are the stereo pair (``cam0`` left)."""
     from ibiscape_eval.io.kalibr import read_imu_noise
-    from ibiscape_eval.io.stereo import read_imu_samples
 
+    m = seq.path / "mav0" if (seq.path / "mav0").is_dir() else seq.path
+    if len(seq.cameras) < 2:
+        raise CalibrationError(f"{seq.path}: the stereo VIO needs two cameras, the sequence has "
+                               f"{', '.join(seq.camera_names) or 'none'}")
+    left, right = seq.cameras[0], seq.cameras[1]
     if calib is not None:
         rig = _rig_from_camchain(calib)
     else:
         cams = []
-        for c in ("cam0", "cam1"):
-            f = m / c / "sensor.yaml"
-            if not f.is_file():
-                raise CalibrationError(f"{f}: missing; give --calib camchain-imucam.yaml")
-            d = read_asl_sensor_yaml(f)
-            model = {"radial-tangential": "radtan", "equidistant": "equidistant"}.get(
-                str(d.get("distortion_model", "radial-tangential")), "radtan")
-            entry = {"intrinsics": d.get("intrinsics"), "resolution": d.get("resolution"),
-                     "distortion_model": model,
-                     "distortion_coeffs": d.get("distortion_coefficients", [0.0] * 4)}
-            cams.append((_camera(entry, f, c), d["T_BS"]))
-        rig = _checked_rig(m / "cam1" / "sensor.yaml", cams[0][0], cams[1][0], cams[0][1],
-                           cams[1][1])
-    imu_file = m / "imu0" / "data.csv"
-    stamps, gyro, acc = read_imu_samples(imu_file, fmt="euroc")
-    T_body_imu = np.eye(4)
-    sensor = m / "imu0" / "sensor.yaml"
+        for c in (left, right):
+            f = (Path(c.calibration_source) if c.calibration_source
+                 else c.root if seq.layout == "rosbag" else c.root / "sensor.yaml")
+            if not c.entry or c.T_body_cam is None:
+                what = "missing" if seq.layout != "rosbag" else "the bag holds no calibration"
+                raise CalibrationError(f"{f}: {what}; give --calib camchain-imucam.yaml")
+            cams.append((_camera(c.entry, f, c.name), np.asarray(c.T_body_cam, dtype=np.float64)))
+        where = Path(right.calibration_source) if right.calibration_source else right.root
+        rig = _checked_rig(where, cams[0][0], cams[1][0], cams[0][1], cams[1][1])
+    if seq.imu is None:
+        raise FormatError(m / "imu0" / "data.csv", "no IMU samples (imu0/data.csv); the VIO needs the IMU")
+    stamps, gyro, acc = seq.imu.samples.get()
+    T_body_imu = np.eye(4) if seq.imu.T_body_imu is None else np.asarray(seq.imu.T_body_imu, dtype=np.float64)
     if imu_yaml is not None:
         noise = read_imu_noise(imu_yaml)
-    elif sensor.is_file():
-        d = read_asl_sensor_yaml(sensor)
-        T_body_imu = d["T_BS"]
-        noise = ImuNoise.from_kalibr(d, source=str(sensor))
+    elif seq.imu.noise is not None:
+        noise = seq.imu.noise
+    elif seq.imu.noise_problem:
+        raise FormatError(seq.imu.noise_source, seq.imu.noise_problem)
     else:
-        raise IbiscapeError(f"{sensor}: missing; give --imu imu.yaml")
-    frames, lf, rf = _frames(m / "cam0", m / "cam1", "data.csv", "data", require_images)
-    gt_file = m / "state_groundtruth_estimate0" / "data.csv"
-    gt = read_trajectory(gt_file, "euroc", name="groundtruth") if gt_file.is_file() else None
-    return StereoSequence(str(m), "euroc", rig, noise, stamps, gyro, acc, T_body_imu, frames, lf,
-                          rf, gt, None)
+        where = m / "imu0" / "sensor.yaml" if seq.layout != "rosbag" else seq.path
+        raise IbiscapeError(f"{where}: {'missing' if seq.layout != 'rosbag' else 'no IMU noise'}; "
+                            "give --imu imu.yaml")
+    frames, lf, rf, reader = _frames(seq, left.name, right.name, "data.csv", require_images)
+    return StereoSequence(str(m), seq.layout, rig, noise, stamps, gyro, acc, T_body_imu, frames, lf,
+                          rf, seq.ground_truth(), None, reader)
 
 
 # ---------------------------------------------------------------------------------------------
 # shared checks
 
 
-def _frames(left: Path, right: Path, listname: str, sub: str,
-            require_images: bool) -> tuple[npt.NDArray[np.int64], list[Path], list[Path]]:
-    from ibiscape_eval.io.stereo import read_frame_list
-
-    if not (left / listname).is_file() or not (right / listname).is_file():
+def _frames(seq: Sequence, left_name: str, right_name: str, listname: str, require_images: bool
+            ) -> tuple[npt.NDArray[np.int64], list[Path], list[Path], FrameReader | None]:
+    """The stereo pairs: stamps both cameras share, their files (or a reader of bag frames)."""
+    names = seq.camera_names
+    if left_name not in names or right_name not in names:
         if require_images:
-            raise IbiscapeError(f"{left.parent}: no stereo images ({left.name}/{listname} and "
-                                f"{right.name}/{listname}); render the sequence first")
-        return np.zeros(0, dtype=np.int64), [], []
-    tl, nl = read_frame_list(left / listname)
-    tr, nr = read_frame_list(right / listname)
+            raise IbiscapeError(f"{seq.path}: no stereo images ({left_name}/{listname} and "
+                                f"{right_name}/{listname}); render the sequence first")
+        return np.zeros(0, dtype=np.int64), [], [], None
+    left, right = seq.camera(left_name), seq.camera(right_name)
+    tl, tr = left.stamps_ns, right.stamps_ns
+    assert tl is not None and tr is not None
+    il = ir = np.arange(tl.size)
     if len(tl) != len(tr) or not np.array_equal(tl, tr):
         common = np.intersect1d(tl, tr)
         if len(common) < 2:
-            raise FormatError(right / listname, f"left ({len(tl)}) and right ({len(tr)}) frames "
+            raise FormatError(right.root / listname, f"left ({len(tl)}) and right ({len(tr)}) frames "
                               "share no timestamps; the stereo pair must be synchronised")
-        il = np.searchsorted(tl, common)
-        ir = np.searchsorted(tr, common)
-        nl = [nl[i] for i in il]
-        nr = [nr[i] for i in ir]
+        il, ir = np.searchsorted(tl, common), np.searchsorted(tr, common)
         tl = common
-    return tl, [left / sub / n for n in nl], [right / sub / n for n in nr]
+    if left.files is None or right.files is None:  # frames inside a bag: decoded on demand
+        def read(i: int) -> tuple[Any, Any]:
+            return _gray(left.load(int(il[i])), left.label(int(il[i]))), \
+                _gray(right.load(int(ir[i])), right.label(int(ir[i])))
+
+        return np.asarray(tl, dtype=np.int64), [], [], read
+    lp, rp = left.paths, right.paths
+    return (np.asarray(tl, dtype=np.int64), [lp[i] for i in il], [rp[i] for i in ir], None)
+
+
+def _gray(img: Any, label: str) -> npt.NDArray[np.uint8]:
+    import cv2
+
+    if img is None:
+        raise FormatError(label, "not an image OpenCV can read")
+    if img.ndim == 3:
+        img = cv2.cvtColor(img, cv2.COLOR_BGRA2GRAY if img.shape[2] == 4 else cv2.COLOR_BGR2GRAY)
+    if img.dtype != np.uint8:
+        img = cv2.convertScaleAbs(img, alpha=255.0 / max(float(img.max()), 1.0))
+    return np.asarray(img, dtype=np.uint8)
 
 
 def _check_coverage(seq: StereoSequence) -> None:
@@ -367,13 +411,11 @@ def _check_coverage(seq: StereoSequence) -> None:
             f"{seq.path}: the IMU stream ({t_imu0 * 1e-9:.3f}..{t_imu1 * 1e-9:.3f} s) does not "
             f"cover the images ({t_img0 * 1e-9:.3f}..{t_img1 * 1e-9:.3f} s); give the matching "
             "IMU file or trim the frame lists")
-    if seq.n_frames and seq.left_files:
-        from ibiscape_eval.io.stereo import read_gray_image
-
+    if seq.n_frames:
         w, h = seq.rig.size
-        for files in (seq.left_files, seq.right_files):
-            img = read_gray_image(files[0])
+        first = seq.read_pair(0)
+        for img, label in zip(first, seq.frame_labels(0), strict=True):
             if img.shape != (h, w):
                 raise CalibrationError(
-                    f"{files[0]}: image is {img.shape[1]}x{img.shape[0]} px but the calibration "
+                    f"{label}: image is {img.shape[1]}x{img.shape[0]} px but the calibration "
                     f"says {w}x{h}; give the matching --calib (or rescale the intrinsics)")

@@ -1,7 +1,7 @@
 """Images + IMU -> trajectory: the front end feeds the estimator frame by frame.
 
-    from ibiscape_eval.vio import load_sequence, run_vio
-    result = run_vio(load_sequence("SVI_1_town"))
+    from ibiscape_eval import open_sequence, run_vio
+    result = run_vio(open_sequence("SVI_1_town"))
     result.trajectory, result.stats.failures, result.stats.realtime_factor
 """
 
@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -17,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from ibiscape_eval.core.errors import DegenerateInputError
+from ibiscape_eval.core.sequence import Sequence
 from ibiscape_eval.core.trajectory import Trajectory
 
 from .estimator import Estimator, FailureSpan
@@ -95,18 +97,25 @@ class VioResult:
                 f"{len(s.failures)} failures, x{s.realtime_factor:.2f} real time)")
 
 
-def run_vio(seq: StereoSequence, params: VioParams | None = None, *,
-            max_frames: int | None = None, progress: Progress | None = None) -> VioResult:
+def run_vio(seq: StereoSequence | Sequence, params: VioParams | None = None, *,
+            max_frames: int | None = None, progress: Progress | None = None,
+            calib: str | os.PathLike[str] | None = None,
+            imu_yaml: str | os.PathLike[str] | None = None) -> VioResult:
     """Run the stereo VIO over a sequence with images.
 
     Parameters
     ----------
-    seq : StereoSequence
-        From :func:`ibiscape_eval.vio.load_sequence`.
+    seq : Sequence or StereoSequence
+        A sequence from :func:`ibiscape_eval.open_sequence` (its inputs are taken by
+        :func:`ibiscape_eval.vio.inputs.stereo_inputs`, with ``calib`` and ``imu_yaml``), or
+        inputs already taken.
     params : VioParams, optional
     max_frames : int, optional
         Stop after this many frames.
     progress : callable(done, total, speed_up), optional
+    calib, imu_yaml : path, optional
+        Kalibr ``camchain-imucam.yaml`` / ``imu.yaml`` replacing the sequence's own (a
+        :class:`Sequence` only).
 
     Raises
     ------
@@ -115,14 +124,24 @@ def run_vio(seq: StereoSequence, params: VioParams | None = None, *,
     FormatError
         An image that cannot be read or has another size than the calibration.
     """
-    from ibiscape_eval.io.stereo import read_gray_image
-
     from .frontend import StereoFrontEnd
 
+    if not isinstance(seq, StereoSequence):
+        from .inputs import stereo_inputs
+
+        seq = stereo_inputs(seq, calib=calib, imu_yaml=imu_yaml)
     p = params or VioParams()
     if seq.n_frames == 0:
         raise DegenerateInputError(f"{seq.path}: no stereo frames to process")
     n = seq.n_frames if max_frames is None else min(max_frames, seq.n_frames)
+    span_s = (int(seq.frame_stamps_ns[n - 1]) - int(seq.frame_stamps_ns[0])) * 1e-9
+    if n < p.init_frames and span_s < p.still_window_s:
+        # neither initialisation can start: the standstill needs still_window_s of frames, the
+        # moving one init_frames frames
+        raise DegenerateInputError(
+            f"{seq.path}: only {n} stereo frames ({span_s:.2f} s); the VIO needs {p.init_frames} "
+            f"frames (moving start) or {p.still_window_s:g} s (standstill start) to initialise: "
+            "give a longer recording")
     fe = StereoFrontEnd(seq.rig, p)
     est = Estimator(seq.rig.rectified(), seq.imu, seq.noise, p, seq.T_body_imu)
     times = np.zeros(n)
@@ -134,7 +153,7 @@ def run_vio(seq: StereoSequence, params: VioParams | None = None, *,
     from concurrent.futures import ThreadPoolExecutor
 
     def read(i: int) -> tuple[Any, Any]:
-        return read_gray_image(seq.left_files[i]), read_gray_image(seq.right_files[i])
+        return seq.read_pair(i)
 
     pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="vio-read")
     ahead = {i: pool.submit(read, i) for i in range(min(4, n))}
@@ -188,7 +207,7 @@ def _loop(seq: StereoSequence, p: VioParams, n: int, fe: Any, est: Estimator, ah
         left, right = ahead.pop(i).result()
         if i + 4 < n:
             ahead[i + 4] = pool.submit(read, i + 4)
-        for img, f in ((left, seq.left_files[i]), (right, seq.right_files[i])):
+        for img, f in zip((left, right), seq.frame_labels(i), strict=True):
             if img.shape != (h, w):
                 raise FormatError(f, f"image is {img.shape[1]}x{img.shape[0]} px, the calibration "
                                   f"says {w}x{h}")

@@ -136,7 +136,8 @@ def test_needs_input():
 
 
 def test_euroc_folder_and_pairing_by_order(tmp_path):
-    from ibiscape_eval.io.image_sets import find_image_sets, image_sets_from_globs, pair_views
+    from ibiscape_eval.io.image_sets import image_sets_from_globs, pair_views
+    from ibiscape_eval.io.open_sequence import open_sequence
 
     _, _, _, _, (imgs_l, imgs_r), _ = stereo_scene("checkerboard")
     stamps = [1_403_636_579_763_555_584 + i * 50_000_000 for i in range(len(imgs_l))]
@@ -148,7 +149,7 @@ def test_euroc_folder_and_pairing_by_order(tmp_path):
             cv2.imwrite(str(d / f"{t}.png"), im)
             rows.append(f"{t},{t}.png")
         (d.parent / "data.csv").write_text("\n".join(rows) + "\n")
-    sets = find_image_sets(tmp_path)
+    sets = open_sequence(tmp_path).cameras
     assert [s.name for s in sets] == ["cam0", "cam1"]
     assert pair_views(sets)[3] == [3, 3]
     (tmp_path / "t.yaml").write_text(yaml.safe_dump({

@@ -165,7 +165,7 @@ def test_ideal_sequence_noise_is_refused_by_the_calibration(seq, tmp_path):
     (ideal / "sequence.yaml").write_text(yaml.safe_dump(doc))
     with pytest.raises(CalibrationError, match=r"sequence\.yaml: states zero IMU noise"):
         calibrate_sequence(ideal)
-    with pytest.raises(IbiscapeError, match=r"no sequence\.yaml states it"):
+    with pytest.raises(IbiscapeError, match=r"IBISCape: no sequence\.yaml"):  # in no layout
         calibrate_sequence(tmp_path)
 
 

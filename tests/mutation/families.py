@@ -385,6 +385,27 @@ def _calib_target_seed(folder: Path) -> Path:
     return p
 
 
+def _euroc_vio_seed(folder: Path) -> Path:
+    """The VIO seed re-packed as an EuRoC/ASL folder the way real ones come: sensor.yaml files with
+    OpenCV's ``%YAML:1.0`` header and an EMPTY ground-truth csv (open_sequence's EuRoC reader)."""
+    from _sequence_helpers import euroc_from
+
+    seq = _vio_sequence(folder)
+    return euroc_from(seq, folder / "MH_street", seq / "camchain-imucam.yaml")
+
+
+def _image_bag_seed(folder: Path) -> Path:
+    """The EuRoC re-pack as a ROS 1 bag: Image + CompressedImage + Imu topics (the bag's image
+    reader of open_sequence); the calibration and noise come from the VIO seed's Kalibr files."""
+    from _sequence_helpers import bag_from_euroc
+
+    return bag_from_euroc(_euroc_vio_seed(folder), folder / "street.bag")
+
+
+def _euroc_vio_argv(p: Path, out: Path) -> list[str]:
+    return ["vio", str(p), "-o", str(out / "est.txt"), "--max-frames", str(VIO_FRAMES), "--json"]
+
+
 FAMILIES: dict[str, Family] = {
     "tum": Family(_tum_seed, lambda p, o: ["ate", str(p), str(p.parent / "ref.txt"), "--json",
                                            "--save-aligned", str(o / "aligned.txt")]),
@@ -456,6 +477,16 @@ FAMILIES: dict[str, Family] = {
     "imu_named_csv": Family(_imu_named_csv_seed, lambda p, o: ["allan", str(p), "--json", "--csv",
                                                                str(o / "curves.csv")]),
     "imu_rostopic_csv": Family(_imu_rostopic_seed, lambda p, o: ["allan", str(p), "--json"]),
+    # one door for a sequence (io/open_sequence.py): an EuRoC folder's OpenCV-YAML sensor file and
+    # frame list, and a ROS 1 bag's image and IMU messages
+    "euroc_sensor_yaml": Family(_euroc_vio_seed, _euroc_vio_argv,
+                                mutable=lambda p: p / "mav0" / "cam1" / "sensor.yaml"),
+    "euroc_frame_list": Family(_euroc_vio_seed, _euroc_vio_argv,
+                               mutable=lambda p: p / "mav0" / "cam0" / "data.csv"),
+    "ros1_image_bag": Family(_image_bag_seed, lambda p, o: [
+        "vio", str(p), "-o", str(o / "est.txt"), "--calib", str(p.parent / "SVI_1_town" / "camchain-imucam.yaml"),
+        "--imu", str(p.parent / "SVI_1_town" / "imu.yaml"), "--max-frames", str(VIO_FRAMES), "--json"],
+        text=False),
 }
 
 

@@ -114,7 +114,7 @@ def test_non_monotonic_stamps(street, tmp_path, which):
 
 
 def test_not_a_sequence(tmp_path):
-    _user_error(run("vio", tmp_path, "-o", tmp_path / "e.txt"), "neither an IBISCape")
+    _user_error(run("vio", tmp_path, "-o", tmp_path / "e.txt"), "in none of the sequence layouts", "EuRoC/ASL: no mav0/camN/data.csv")
 
 
 def test_vio_on_a_sequence_rendered_by_the_generator(tmp_path):

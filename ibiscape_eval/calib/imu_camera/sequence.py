@@ -21,7 +21,7 @@ import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -34,7 +34,10 @@ from .inputs import CameraObservations, ImuData
 from .kalibr import errors_against_truth
 from .result import ImuCameraResult
 
-__all__ = ["SequenceCalibration", "calibrate_sequence", "event_frame_stamps_ns"]
+if TYPE_CHECKING:
+    from ibiscape_eval.core.sequence import Sequence as Recording
+
+__all__ = ["SequenceCalibration", "calibrate_imu_camera", "calibrate_sequence", "event_frame_stamps_ns"]
 
 Progress = Callable[[float, str], None]
 #: the camera clocks may be this far off the IMU's (the solve's search range of the offset)
@@ -99,16 +102,6 @@ class SequenceCalibration:
 
 
 # ------------------------------------------------------------------------------------------ helpers
-class _Reader:
-    """``reader(i) = fn(paths[i])``, for the frame loaders and labels."""
-
-    def __init__(self, paths: Sequence[Path], fn: Callable[[Path], Any]):
-        self.paths, self.fn = list(paths), fn
-
-    def __call__(self, i: int) -> Any:
-        return self.fn(self.paths[i])
-
-
 def canonical_checkerboard(ids: npt.ArrayLike, pixels_px: npt.ArrayLike, target: Any
                            ) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.float64]]:
     """Renumber a full checkerboard detection so that ids grow to the right along the corner columns
@@ -166,19 +159,29 @@ def _require_intrinsics(names: Sequence[str], models: dict[str, CameraModel],
                                    f"/{n}/image_raw or chain order)")
 
 
-def _imu_file(seq: Path, doc: dict[str, Any]) -> tuple[Path, str]:
-    imus = doc.get("imus") if isinstance(doc.get("imus"), dict) else {}
-    assert isinstance(imus, dict)
-    entry = imus.get("imu0") or (next(iter(imus.values())) if imus else {})
-    if isinstance(entry, dict) and entry.get("file"):
-        f = seq / str(entry["file"])
-        if f.is_file():
-            return f, "ibiscape" if (seq / "vehicle_gt").is_dir() else "euroc"
-    cands = sorted((seq / "other_sensors").glob("imu*.csv"))
-    if not cands:
-        raise FormatError(seq / "other_sensors", "no IMU file (other_sensors/imu0.csv); give --imu-data "
-                          "PATH with the IMU samples of this run")
-    return cands[0], "ibiscape" if (seq / "vehicle_gt").is_dir() else "euroc"
+def _sequence_noise(seq: Recording, noise: Any) -> tuple[ImuNoise, str]:
+    """The IMU noise: given, read from an ``imu.yaml`` (:func:`ibiscape_eval.io.kalibr.
+    read_imu_noise`), or (None, or the sequence's own ``sequence.yaml``) the densities the
+    sequence states; zero densities (an ideal sensor) are refused."""
+    from ibiscape_eval.io.kalibr import read_imu_noise
+
+    own = seq.path / "sequence.yaml"
+    if isinstance(noise, ImuNoise):
+        out, src = noise, "imu.yaml"
+    elif noise is not None and not (own.is_file() and Path(noise).resolve() == own.resolve()):
+        out, src = read_imu_noise(noise), str(noise)
+    elif seq.imu is not None and seq.imu.noise is not None:
+        out, src = seq.imu.noise, seq.imu.noise_source
+    elif seq.imu is not None and seq.imu.noise_problem:
+        raise FormatError(seq.imu.noise_source, seq.imu.noise_problem)
+    else:
+        raise IbiscapeError(f"{seq.path}: no IMU noise (the recording states none); give --imu "
+                            "imu.yaml (Kalibr's format, e.g. from `ibiscape-eval allan`)")
+    if out.is_ideal:
+        raise CalibrationError(f"{src}: states zero IMU noise (an ideal sensor); the "
+                               "camera-IMU calibration weighs the IMU by its noise: give the IMU's "
+                               "densities (e.g. `ibiscape-eval allan IMU --yaml imu.yaml`)")
+    return out, src
 
 
 def _truth(doc: dict[str, Any], names: Sequence[str]) -> dict[str, dict[str, Any]]:
@@ -200,7 +203,7 @@ def _truth(doc: dict[str, Any], names: Sequence[str]) -> dict[str, dict[str, Any
 
 
 # ------------------------------------------------------------------------------------------ the call
-def calibrate_sequence(sequence: str | os.PathLike[str],
+def calibrate_sequence(sequence: Recording | str | os.PathLike[str],
                        noise: ImuNoise | str | os.PathLike[str] | None = None, *,
                        camchain: str | os.PathLike[str] | None = None,
                        cameras: Sequence[str] | None = None, force: bool = False,
@@ -214,17 +217,18 @@ def calibrate_sequence(sequence: str | os.PathLike[str],
 
     Parameters
     ----------
-    sequence : path
-        IBISCape-layout folder (camera folders with ``timestamps.csv``, ``other_sensors/imu0.csv``,
-        ``sequence.yaml`` with the target) or EuRoC ASL folder (with ``imu_data``).
+    sequence : Sequence or path
+        A sequence from :func:`ibiscape_eval.open_sequence` (a path is opened by it): IBISCape
+        (camera folders with ``timestamps.csv``, ``other_sensors/imu0.csv``, ``sequence.yaml`` with
+        the target), EuRoC/TUM-VI, a ROS bag with image and IMU topics.
     noise : ImuNoise or path, optional
-        The IMU's continuous-time noise (Kalibr ``imu.yaml``, the ``allan`` command's output, or a
-        ``sequence.yaml``); default: the noise the sequence's ``sequence.yaml`` states for its IMU.
+        The IMU's continuous-time noise (Kalibr ``imu.yaml``, the ``allan`` command's output);
+        default (or the sequence's own ``sequence.yaml``): the noise the sequence states.
     camchain : path, optional
         Kalibr ``camchain.yaml`` with the intrinsics (default: calibrate the cameras on the same
         frames first).
     cameras : sequence of str, optional
-        Camera folders to use, in order (default: every camera folder found).
+        Cameras to use, in order (default: every camera of the sequence).
     force : bool
         Estimate even without the rotational excitation the translation needs (marked).
     progress : callable(fraction, label), optional
@@ -253,18 +257,18 @@ def calibrate_sequence(sequence: str | os.PathLike[str],
         disagrees with the data, too few views, too little excitation (without ``force``).
     """
     from ibiscape_eval.calib.pipeline import (
-        CameraFrames,
         DetectionSummary,
         calibrate_frames,
+        camera_frames,
         detect_frames,
+        sequence_target,
     )
-    from ibiscape_eval.core.kalibr import target_from_kalibr
-    from ibiscape_eval.io.image_sets import find_image_sets, pair_views, read_image
-    from ibiscape_eval.io.kalibr import read_imu_noise
-    from ibiscape_eval.io.sequence import read_sequence_yaml
+    from ibiscape_eval.core.sequence import Sequence as Opened
+    from ibiscape_eval.io.image_sets import pair_views
+    from ibiscape_eval.io.open_sequence import open_sequence
     from ibiscape_eval.io.stereo import read_imu_samples
 
-    from .calibrate import calibrate_imu_camera
+    from .calibrate import calibrate_imu_camera as solve
 
     t0, cpu0 = time.perf_counter(), time.process_time()
 
@@ -272,63 +276,50 @@ def calibrate_sequence(sequence: str | os.PathLike[str],
         if progress is not None:
             progress(min(1.0, max(0.0, frac)), label)
 
-    seq = Path(sequence)
-    if not seq.is_dir():
-        raise IbiscapeError(f"{seq}: not a sequence folder")
     if isinstance(frame_step, bool) or not isinstance(frame_step, int) or frame_step < 1:
         raise IbiscapeError(f"frame_step must be an integer >= 1, got {frame_step!r}")
-    noise_src = "imu.yaml"
-    if noise is None:
-        if not (seq / "sequence.yaml").is_file():
-            raise IbiscapeError(f"{seq}: no IMU noise (no sequence.yaml states it); give --imu "
-                                "imu.yaml (Kalibr's format, e.g. from `ibiscape-eval allan`)")
-        noise = seq / "sequence.yaml"
-    if not isinstance(noise, ImuNoise):
-        noise_src = str(noise)
-        noise = read_imu_noise(noise)
-    if noise.is_ideal:
-        raise CalibrationError(f"{noise_src}: states zero IMU noise (an ideal sensor); the "
-                               "camera-IMU calibration weighs the IMU by its noise: give the IMU's "
-                               "densities (e.g. `ibiscape-eval allan IMU --yaml imu.yaml`)")
-    doc: dict[str, Any] = {}
-    if (seq / "sequence.yaml").is_file():
-        doc = read_sequence_yaml(seq / "sequence.yaml")
-    if target is None:
-        if not isinstance(doc.get("target"), dict):
-            raise IbiscapeError(f"{seq}: no target description (sequence.yaml has no 'target'); "
-                                "give the Kalibr target yaml with --target")
-        target = target_from_kalibr(doc["target"], source=f"{seq}/sequence.yaml: target")
+    if isinstance(sequence, Opened):
+        opened = sequence
+    else:
+        if not Path(sequence).is_dir() and not Path(sequence).is_file():
+            raise IbiscapeError(f"{sequence}: not a sequence folder")
+        opened = open_sequence(sequence)
+    opened = opened.select(list(cameras) if cameras else None)
+    seq = opened.path
+    noise, noise_src = _sequence_noise(opened, noise)
+    doc: dict[str, Any] = dict(opened.doc)
+    target = sequence_target(opened, target)
     # the IMU first: a bad IMU file should not cost a detection pass
     if imu_data is not None:
-        imu_path, fmt = Path(imu_data), ("ibiscape" if (seq / "vehicle_gt").is_dir() else "euroc")
+        imu_path = Path(imu_data)
+        st, gyro, acc = read_imu_samples(imu_path, fmt="ibiscape" if (seq / "vehicle_gt").is_dir() else "euroc")
+    elif opened.imu is not None:
+        imu_path = opened.imu.source
+        st, gyro, acc = opened.imu.samples.get()
     else:
-        imu_path, fmt = _imu_file(seq, doc)
-    st, gyro, acc = read_imu_samples(imu_path, fmt=fmt)
+        raise FormatError(seq / "other_sensors", "no IMU file (other_sensors/imu0.csv); give --imu-data "
+                          "PATH with the IMU samples of this run")
     try:
         imu = ImuData(st, gyro, acc)
     except IbiscapeError as e:
         raise FormatError(imu_path, str(e)) from None
 
-    sets = find_image_sets(seq, cameras=list(cameras) if cameras else None)
-    seq_cams = doc.get("cameras") if isinstance(doc.get("cameras"), dict) else {}
-    assert isinstance(seq_cams, dict)
-    frames: list[Any] = []
-    stamps: list[npt.NDArray[np.int64]] = []
-    recon: dict[str, Any] = {}
-    for s in sets:
-        if s.stamps_ns is None:
-            raise FormatError(s.root, "frames without time stamps; the camera-IMU calibration needs "
+    for c in opened.cameras:
+        if c.stamps_ns is None:
+            raise FormatError(c.root, "frames without time stamps; the camera-IMU calibration needs "
                               "timestamps.csv")
-        rows = np.arange(len(s))
-        if s.kind == "frames":
-            paths = list(s.paths)
-            frames.append(CameraFrames(s.name, len(rows), _Reader(paths, read_image),
-                                       _Reader(paths, str)))
-            stamps.append(np.asarray(s.stamps_ns, dtype=np.int64))
-            continue
-        frames.append(_event_frames(s, seq_cams, target, recon))
-        assert s.windows_ns is not None
-        stamps.append(event_frame_stamps_ns(s.windows_ns, recon[s.name]["method"]))
+    # causal frames for event cameras: the bidirectional log-intensity frame also shows the future
+    # (sharper corners for the camera calibration), which moved the event cameras' estimated
+    # offset by 92 ms and their rotation by 112 deg on the test drive (tests/calib/test_imu_camera_dvs.py)
+    frames, recon = camera_frames(opened, target, bidirectional=False)
+    stamps: list[npt.NDArray[np.int64]] = []
+    for c in opened.cameras:
+        if c.kind == "frames":
+            assert c.stamps_ns is not None
+            stamps.append(np.asarray(c.stamps_ns, dtype=np.int64))
+        else:
+            assert c.windows_ns is not None
+            stamps.append(event_frame_stamps_ns(c.windows_ns, recon[c.name]["method"]))
     names = [f.name for f in frames]
     # refuse what the solve would refuse before the (long) detection: rate, coverage, intrinsics
     if abs(imu.rate_hz - noise.update_rate_hz) > 0.05 * noise.update_rate_hz:
@@ -343,11 +334,12 @@ def calibrate_sequence(sequence: str | os.PathLike[str],
                 f"the images of camera {n} ({stc[0]}..{stc[-1]} ns); give the IMU recording of the same run")
     models: dict[str, CameraModel] = {}
     if camchain is not None:
-        models = _camchain_cameras(camchain, names, seq_cams)
+        models = _camchain_cameras(camchain, names, {c.name: {"resolution": list(c.sensor_size)}
+                                                     for c in opened.cameras if c.sensor_size})
         _require_intrinsics(names, models, camchain)
     # the view table pairs simultaneous frames (the camera calibration's stereo views); every
     # frame_step-th instant is detected
-    views = pair_views(sets)[::frame_step]
+    views = pair_views(opened.cameras)[::frame_step]
     step(0.0, "detecting")
     total = [max(1, len(views))]
     done = [0]
@@ -385,8 +377,8 @@ def calibrate_sequence(sequence: str | os.PathLike[str],
         # the frame cameras and the event cameras are calibrated apart: frames reconstructed from
         # events are poorer, and one chain would let them bend the frame cameras' intrinsics
         groups: dict[str, list[int]] = {}
-        for k, sset in enumerate(sets):
-            groups.setdefault(sset.kind, []).append(k)
+        for k, cam in enumerate(opened.cameras):
+            groups.setdefault(cam.kind, []).append(k)
         cam_calib = {"views": 0, "cameras": [], "ground_truth": None}
         gts = []
         for kind, idx in groups.items():
@@ -427,7 +419,7 @@ def calibrate_sequence(sequence: str | os.PathLike[str],
     # extrinsics; those of --cams are taken as they are (Kalibr's way)
     refine = camchain is None if refine_intrinsics is None else bool(refine_intrinsics)
     try:
-        result = calibrate_imu_camera(obs, imu, noise, corners, sigma_px=sigma_px, force=force,
+        result = solve(obs, imu, noise, corners, sigma_px=sigma_px, force=force,
                                       refine_intrinsics=refine, progress=solve_progress,
                                       estimate_corner_noise=estimate_corner_noise,
                                       intrinsics_covariance=icov or None)
@@ -489,24 +481,6 @@ def event_frame_stamps_ns(windows_ns: npt.ArrayLike, method: str) -> npt.NDArray
     return w[:, 0] + half
 
 
-def _event_frames(s: Any, seq_cams: dict[str, Any], target: Any, recon: dict[str, Any]) -> Any:
-    """Frames reconstructed from an event camera's windows by the camera calibration's builder
-    (:func:`ibiscape_eval.calib.events.event_set_frames`: corrupt windows skipped, contrast from
-    ``sequence.yaml`` or the polarity balance, the reconstruction that finds the target)."""
-    from ibiscape_eval.calib.events import event_set_frames
-    from ibiscape_eval.calib.pipeline import CameraFrames
-
-    entry = seq_cams.get(s.name)
-    size = entry.get("resolution") if isinstance(entry, dict) else None
-    if not (isinstance(size, list | tuple) and len(size) == 2):
-        raise IbiscapeError(f"{s.root}: sensor size unknown (sequence.yaml has no resolution for "
-                            f"{s.name})")
-    paths = list(s.paths)
-    # causal frames: the bidirectional log-intensity frame also shows the future (sharper corners
-    # for the camera calibration), which moved the event cameras' estimated offset by 92 ms and
-    # their rotation by 112 deg on the test drive (tests/calib/test_imu_camera_dvs.py)
-    source, used = event_set_frames(paths, s.windows_ns, (int(size[0]), int(size[1])), target,
-                                    camera_doc=entry if isinstance(entry, dict) else None,
-                                    bidirectional=False)
-    recon[s.name] = used
-    return CameraFrames(s.name, len(paths), source, _Reader(paths, str), reconstruction=used["method"])
+#: ``ibiscape_eval.calibrate_imu_camera(seq, ...)``: the whole camera-IMU job on a sequence (the
+#: solver on observations is :func:`ibiscape_eval.calib.imu_camera.calibrate_imu_camera`)
+calibrate_imu_camera = calibrate_sequence
