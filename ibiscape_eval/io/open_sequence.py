@@ -46,7 +46,7 @@ from ibiscape_eval.core.camera import CameraModel
 from ibiscape_eval.core.errors import FormatError, IbiscapeError
 from ibiscape_eval.core.sequence import CameraStream, ImuStream, Lazy, Sequence
 
-__all__ = ["NoLayoutError", "apply_camchain", "open_sequence", "read_sensor_yaml", "stated_sensor_size"]
+__all__ = ["NoLayoutError", "apply_camchain", "open_sequence", "read_sensor_yaml"]
 
 #: IBISCape camera folder names, in chain order
 CAMERA_FOLDERS = ("rgbL", "rgbR", "rgb", "davisL", "davisR")
@@ -550,24 +550,3 @@ def apply_camchain(seq: Sequence, calib: str | os.PathLike[str]) -> Sequence:
         cams.append(replace(c, camera=cc.camera, sensor_size=cc.resolution, T_body_cam=T_bc, entry=entry,
                             calibration_source=str(calib), rostopic=cc.rostopic or c.rostopic))
     return seq.with_cameras(cams)
-
-
-def stated_sensor_size(path: str | os.PathLike[str], camera: str | None = None) -> tuple[int, int] | None:
-    """The sensor size ``(width, height)`` a recording states for an event camera, or None.
-
-    ``path`` is a sequence folder (``camera`` names the DVS camera; default: its only event camera),
-    a DVS camera folder of a sequence (``SEQ/davisL``: the size from ``SEQ/sequence.yaml``) or a
-    ROS bag; None for anything that states no size (a bare event file, a folder in no layout), so
-    the caller can fall back to ``--sensor-size`` or to inferring it.
-    """
-    p = Path(path)
-    if not (p.is_dir() or _is_bag(p)):
-        return None
-    try:
-        seq = open_sequence(p)
-    except IbiscapeError:
-        return None
-    cams = [c for c in seq.cameras if c.kind == "events"] or list(seq.cameras)
-    if camera is not None:
-        cams = [c for c in seq.cameras if c.name == camera]
-    return cams[0].sensor_size if len(cams) == 1 else None

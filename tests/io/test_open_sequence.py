@@ -278,9 +278,11 @@ def test_vio_on_a_ros2_bag_with_calib_and_imu_yaml(street_euroc, tmp_path):
 
 
 def test_stated_sensor_size_for_hotpix_and_events_frames(tmp_path):
-    """What ``hotpix``/``events frames`` ask instead of inferring 256x256: the size sequence.yaml
-    states, for the sequence folder and for its DVS camera folder."""
-    from ibiscape_eval.io.open_sequence import stated_sensor_size
+    """What ``hotpix``/``events frames`` read instead of inferring 256x256: the size sequence.yaml
+    states, for the sequence folder (a camera named) and for its DVS camera folder, the same in
+    open_sequence and in the events reader."""
+    from ibiscape_eval.core.errors import FormatError
+    from ibiscape_eval.io.events import open_events
     from ibiscape_eval.sim import generate, preset
     from ibiscape_eval.sim.config import with_resolution
 
@@ -290,8 +292,8 @@ def test_stated_sensor_size_for_hotpix_and_events_frames(tmp_path):
     davis = [c for c in seq.cameras if c.kind == "events"]
     assert [c.name for c in davis] == ["davisL", "davisR"]
     assert all(c.sensor_size == (64, 48) and len(c) > 0 for c in davis)
-    assert stated_sensor_size(tmp_path / "ESVI", "davisR") == (64, 48)
-    assert stated_sensor_size(tmp_path / "ESVI" / "davisL") == (64, 48)
+    assert open_events(tmp_path / "ESVI" / "davisR").sensor_size == (64, 48)
+    assert open_events(tmp_path / "ESVI" / "davisL").sensor_size == (64, 48)
     assert open_sequence(tmp_path / "ESVI" / "davisL").cameras[0].events.get() is not None
-    assert stated_sensor_size(tmp_path / "ESVI") is None  # two event cameras: name one
-    assert stated_sensor_size(tmp_path / "nothing.npz") is None
+    with pytest.raises(FormatError, match="several DVS cameras"):  # two event cameras: name one
+        open_events(tmp_path / "ESVI")
