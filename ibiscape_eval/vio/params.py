@@ -34,7 +34,10 @@ class VioParams:
         ``min_disparity_px``; ``imu_noise_scale`` inflates the IMU densities (model mismatch).
     Initialisation
         standstill when the first ``still_window_s`` of IMU data are quiet
-        (``still_gyro_rad_s``, ``still_accel_std_m_s2``); otherwise stereo odometry over
+        (:func:`ibiscape_eval.vio.initialise.detect_standstill`: ``still_gyro_rad_s`` bounds the
+        spread of the smoothed rotation rate, not its mean, so a gyroscope bias of up to 0.2 rad/s
+        still starts still; ``still_accel_std_m_s2`` bounds the spread of the smoothed
+        accelerometer axes and norm, so rotor vibration passes); otherwise stereo odometry over
         ``init_frames`` frames aligned with the preintegrated IMU.
     Robustness
         a keyframe with fewer than ``min_tracked`` landmark observations is a tracking failure;
