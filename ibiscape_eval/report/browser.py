@@ -58,6 +58,15 @@ class BrowserCheck:
         return f"BrowserCheck({len(self.console)} console messages, {len(self.dom)} chars of DOM)"
 
 
+
+def _chromium_or_refuse(chromium: str | None) -> str:
+    """``chromium`` or the one on PATH; refused (IbiscapeError) when there is none."""
+    exe = chromium or find_chromium()
+    if exe is None:
+        raise IbiscapeError("no chromium executable on PATH; install Debian's chromium package "
+                            "(make test / make demo do it)")
+    return exe
+
 def _run(exe: str, args: list[str], timeout_s: float) -> subprocess.CompletedProcess[str]:
     with tempfile.TemporaryDirectory(prefix="ibiscape-chromium-") as profile:
         argv = [exe, "--headless", "--disable-gpu", "--no-first-run", "--hide-scrollbars",
@@ -87,10 +96,7 @@ def check_page(
     IbiscapeError
         No Chromium found, or it failed to load the page.
     """
-    exe = chromium or find_chromium()
-    if exe is None:
-        raise IbiscapeError("no chromium executable on PATH; install Debian's chromium package "
-                            "(make test / make demo do it)")
+    exe = _chromium_or_refuse(chromium)
     url = Path(page).resolve().as_uri()
     size = f"--window-size={window[0]},{window[1]}"
     shot: str | None = None
@@ -186,10 +192,7 @@ def page_overflow(
     IbiscapeError
         No Chromium found, or it failed to load the page.
     """
-    exe = chromium or find_chromium()
-    if exe is None:
-        raise IbiscapeError("no chromium executable on PATH; install Debian's chromium package "
-                            "(make test / make demo do it)")
+    exe = _chromium_or_refuse(chromium)
     text = Path(page).read_text(encoding="utf-8")
     cut = text.rfind("</body>")
     text = (text[:cut] + _MEASURE + text[cut:]) if cut >= 0 else text + _MEASURE
