@@ -58,7 +58,6 @@ class BrowserCheck:
         return f"BrowserCheck({len(self.console)} console messages, {len(self.dom)} chars of DOM)"
 
 
-
 def _chromium_or_refuse(chromium: str | None) -> str:
     """``chromium`` or the one on PATH; refused (IbiscapeError) when there is none."""
     exe = chromium or find_chromium()
@@ -66,6 +65,7 @@ def _chromium_or_refuse(chromium: str | None) -> str:
         raise IbiscapeError("no chromium executable on PATH; install Debian's chromium package "
                             "(make test / make demo do it)")
     return exe
+
 
 def _run(exe: str, args: list[str], timeout_s: float) -> subprocess.CompletedProcess[str]:
     with tempfile.TemporaryDirectory(prefix="ibiscape-chromium-") as profile:
