@@ -182,17 +182,18 @@ def evaluate_run(
 
     o = EvaluationOptions(**{**options, "drift_lengths_pct": tuple(options["drift_lengths_pct"])})
     fmt_est = detect_trajectory_format(est)
-    # Reader warnings (rows skipped, duplicate stamps) travel with the result, so they reach the
-    # user from a pool or cluster worker too.
+    # Reader and alignment warnings (rows skipped, duplicate stamps, an alignment that dominates
+    # the rotation error) travel with the result, so they reach the user from a pool or cluster
+    # worker too, instead of being printed raw by the worker.
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", IbiscapeWarning)
         est_t = read_trajectory(est, fmt_est, times_path=times_est)
         ref_t = read_trajectory(ref)
-    match = "index" if fmt_est == "kitti" and times_est is None else "time"
-    common: dict[str, Any] = {"align": o.align, "max_diff_s": o.max_diff_s, "match": match}
-    a = ate(est_t, ref_t, **common)
-    r = rpe(est_t, ref_t, delta=o.rpe_delta, delta_unit=o.rpe_delta_unit, pairs=o.rpe_pairs,
-            **common)
+        match = "index" if fmt_est == "kitti" and times_est is None else "time"
+        common: dict[str, Any] = {"align": o.align, "max_diff_s": o.max_diff_s, "match": match}
+        a = ate(est_t, ref_t, **common)
+        r = rpe(est_t, ref_t, delta=o.rpe_delta, delta_unit=o.rpe_delta_unit, pairs=o.rpe_pairs,
+                **common)
     doc: dict[str, Any] = {
         "format": fmt_est,
         "warnings": [" ".join(str(w.message).split()) for w in caught
