@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import shutil
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -12,57 +12,19 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from ibiscape_eval.core.errors import CalibrationError, FormatError
-from ibiscape_eval.io import write_trajectory
 from ibiscape_eval.io.kalibr import read_camchain
 from ibiscape_eval.io.stereo import read_frame_list, read_imu_samples
 from ibiscape_eval.vio.inputs import load_sequence
 from ibiscape_eval.vio.pipeline import run_vio
 
-
-def _euroc_from(seq_dir: Path, out: Path, calib: Path) -> Path:
-    """Re-pack an IBISCape-layout street sequence as an EuRoC ASL folder."""
-    src = load_sequence(seq_dir, calib=calib)
-    m = out / "mav0"
-    chain = read_camchain(calib)
-    for cam, folder in (("cam0", "rgbL"), ("cam1", "rgbR")):
-        (m / cam / "data").mkdir(parents=True)
-        rows = []
-        for f in sorted((seq_dir / folder / "frames").iterdir()):
-            shutil.copy(f, m / cam / "data" / f.name)
-            rows.append(f"{f.stem},{f.name}")
-        (m / cam / "data.csv").write_text("#timestamp [ns],filename\n" + "\n".join(rows) + "\n")
-        c = chain.cameras[chain.names.index(cam)]
-        assert c.T_cam_imu is not None
-        T_BS = np.linalg.inv(c.T_cam_imu)
-        k = c.camera.to_kalibr()
-        (m / cam / "sensor.yaml").write_text(yaml.safe_dump({
-            "sensor_type": "camera", "rate_hz": 20,
-            "T_BS": {"cols": 4, "rows": 4, "data": T_BS.ravel().tolist()},
-            "resolution": k["resolution"], "camera_model": "pinhole",
-            "intrinsics": k["intrinsics"], "distortion_model": "radial-tangential",
-            "distortion_coefficients": k["distortion_coeffs"]}))
-    (m / "imu0").mkdir()
-    rows = [f"{t},{','.join(repr(float(x)) for x in (*g, *a))}"
-            for t, g, a in zip(src.imu_stamps_ns, src.gyro_rad_s, src.accel_m_s2, strict=True)]
-    (m / "imu0" / "data.csv").write_text(
-        "#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],"
-        "a_RS_S_x [m s^-2],a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]\n" + "\n".join(rows) + "\n")
-    n = src.noise
-    (m / "imu0" / "sensor.yaml").write_text(yaml.safe_dump({
-        "T_BS": {"cols": 4, "rows": 4, "data": np.eye(4).ravel().tolist()}, "rate_hz": 200,
-        "gyroscope_noise_density": n.gyro_noise_density_rad_s_sqrt_hz,
-        "gyroscope_random_walk": n.gyro_random_walk_rad_s2_sqrt_hz,
-        "accelerometer_noise_density": n.accel_noise_density_m_s2_sqrt_hz,
-        "accelerometer_random_walk": n.accel_random_walk_m_s3_sqrt_hz}))
-    (m / "state_groundtruth_estimate0").mkdir()
-    assert src.groundtruth is not None
-    write_trajectory(m / "state_groundtruth_estimate0" / "data.csv", src.groundtruth, "euroc")
-    return out
+# the one re-packer of a generated sequence into EuRoC's layout (tests/io/_sequence_helpers.py)
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "io"))
+from _sequence_helpers import euroc_from
 
 
 def test_euroc_folder_gives_the_same_estimate(street, tmp_path):
     seq_dir, calib = street
-    euroc = _euroc_from(seq_dir, tmp_path / "MH_street", calib)
+    euroc = euroc_from(seq_dir, tmp_path / "MH_street", calib, empty_gt=False)
     a = load_sequence(seq_dir, calib=calib)
     b = load_sequence(euroc)
     assert b.layout == "euroc" and b.n_frames == a.n_frames
