@@ -366,21 +366,9 @@ def resolve_layout(p: Any, cols: Mapping[str, str | int], names: Sequence[str] |
                 raise FormatError(p, "the header gives different units to the axes of one sensor "
                                   f"({sorted(map(str, gunits | aunits))}); give --units")
             gu, au = gunits.pop(), aunits.pop()
-            gs = as_ = 1.0
-            if gu is not None:
-                if gu not in _GYRO_SCALE:
-                    raise FormatError(p, f"the header's gyro unit {gu!r} is not an angular rate; "
-                                      "give --columns and --units")
-                gs = _GYRO_SCALE[gu]
-                if gs != 1.0:
-                    notes.append(f"gyro in {gu} (header), converted to rad/s")
-            if au is not None:
-                if au not in _ACCEL_SCALE:
-                    raise FormatError(p, f"the header's accelerometer unit {au!r} is not an "
-                                      "acceleration; give --columns and --units")
-                as_ = _ACCEL_SCALE[au]
-                if as_ != 1.0:
-                    notes.append(f"accelerometer in {au} (header), converted to m/s^2")
+            gs = _header_scale(p, gu, _GYRO_SCALE, "gyro", "an angular rate", "rad/s", notes)
+            as_ = _header_scale(p, au, _ACCEL_SCALE, "accelerometer", "an acceleration", "m/s^2",
+                                notes)
             t = roles.get("t")
             t_col = None if t is None else t[0]
             t_unit = None if t is None else t[1]
@@ -434,3 +422,17 @@ def override_units(layout: ImuLayout, scales: tuple[float, float]) -> ImuLayout:
         notes.append("--units overrides the units in the header")
     return dataclasses.replace(layout, gyro_scale=scales[0], accel_scale=scales[1],
                                notes=tuple(notes))
+
+
+def _header_scale(p: Any, unit: str | None, table: dict[str, float], sensor: str, kind: str,
+                  si: str, notes: list[str]) -> float:
+    """The factor to SI of a sensor's unit named in the header (1 when none); a conversion is
+    noted, a unit of the wrong kind refused."""
+    if unit is None:
+        return 1.0
+    if unit not in table:
+        raise FormatError(p, f"the header's {sensor} unit {unit!r} is not {kind}; "
+                          "give --columns and --units")
+    if table[unit] != 1.0:
+        notes.append(f"{sensor} in {unit} (header), converted to {si}")
+    return table[unit]
