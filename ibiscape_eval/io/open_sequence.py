@@ -45,8 +45,12 @@ import numpy.typing as npt
 from ibiscape_eval.core.camera import CameraModel
 from ibiscape_eval.core.errors import FormatError, IbiscapeError
 from ibiscape_eval.core.sequence import CameraStream, ImuStream, Lazy, Sequence
+from ibiscape_eval.core.transforms import invert_transforms
 
-__all__ = ["NoLayoutError", "apply_camchain", "open_sequence", "read_sensor_yaml"]
+from .asl import read_asl_sensor_yaml
+from .yaml_file import read_yaml_mapping
+
+__all__ = ["NoLayoutError", "apply_camchain", "open_sequence"]
 
 #: IBISCape camera folder names, in chain order
 CAMERA_FOLDERS = ("rgbL", "rgbR", "rgb", "davisL", "davisR")
@@ -56,31 +60,6 @@ IMU_NOISE_KEYS = ("gyroscope_noise_density", "gyroscope_random_walk",
 
 class NoLayoutError(FormatError):
     """A path in none of the layouts (the message says what each lacked)."""
-
-
-# ------------------------------------------------------------------------------------------- YAML
-def _yaml(path: Path, what: str = "") -> dict[str, Any]:
-    """A YAML mapping through the one YAML reader (OpenCV's ``%YAML:1.0``, ``!!opencv-matrix``)."""
-    from .yaml_file import read_yaml_mapping
-
-    return read_yaml_mapping(path, what=what)
-
-
-def _inverse(T: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
-    """The inverse of a rigid transform (checked by its reader)."""
-    out = np.eye(4)
-    R = T[:3, :3]
-    out[:3, :3] = R.T
-    out[:3, 3] = -R.T @ T[:3, 3]
-    return out
-
-
-def read_sensor_yaml(path: str | os.PathLike[str]) -> dict[str, Any]:
-    """An EuRoC/ASL ``sensor.yaml`` (``%YAML:1.0`` accepted), ``T_BS`` a checked 4x4 array: the
-    one reader, :func:`ibiscape_eval.io.asl.read_asl_sensor_yaml`."""
-    from .asl import read_asl_sensor_yaml
-
-    return read_asl_sensor_yaml(path)
 
 
 # ------------------------------------------------------------------------------------ frame lists
@@ -292,14 +271,14 @@ def _asl(root: Path, tumvi: bool) -> Sequence | str:
             entry = {**model.to_kalibr(), **({"rostopic": cc.rostopic} if cc.rostopic else {})}
             src = str(camchain)
             if cc.T_cam_imu is not None:
-                T_bc = _inverse(np.asarray(cc.T_cam_imu, dtype=np.float64))
+                T_bc = invert_transforms(cc.T_cam_imu)
         elif (c / "sensor.yaml").is_file():
             from .asl import read_asl_camera
 
             model, T_bc = read_asl_camera(c / "sensor.yaml")  # the one EuRoC camera mapping
             entry = model.to_kalibr()
             src = str(c / "sensor.yaml")
-            rate = _rate(read_sensor_yaml(c / "sensor.yaml").get("rate_hz"))
+            rate = _rate(read_asl_sensor_yaml(c / "sensor.yaml").get("rate_hz"))
         cameras.append(CameraStream(
             c.name, "frames", stamps, c, _size(entry.get("resolution")), rate,
             model or (_model_or_none(entry) if "intrinsics" in entry else None), T_bc,
@@ -311,11 +290,11 @@ def _asl(root: Path, tumvi: bool) -> Sequence | str:
         noise, problem, nsrc, rate, T = None, None, "", None, None
         if (m / "imu0" / "sensor.yaml").is_file():
             nsrc = str(m / "imu0" / "sensor.yaml")
-            d = read_sensor_yaml(nsrc)
+            d = read_asl_sensor_yaml(nsrc)
             (noise, problem), rate, T = _noise(d, nsrc), _rate(d.get("rate_hz")), d["T_BS"]
         cfg = root / "dso" / "imu_config.yaml"
         if tumvi and cfg.is_file():
-            d = _yaml(cfg, "imu_config.yaml")
+            d = read_yaml_mapping(cfg, what="imu_config.yaml")
             if any(k in d for k in IMU_NOISE_KEYS):
                 (noise, problem), nsrc = _noise(d, str(cfg)), str(cfg)
                 rate = _rate(d.get("update_rate")) or rate
@@ -545,7 +524,7 @@ def apply_camchain(seq: Sequence, calib: str | os.PathLike[str]) -> Sequence:
     cams = []
     for c in seq.cameras:
         cc = chain.cameras[found[c.name]]
-        T_bc = c.T_body_cam if cc.T_cam_imu is None else _inverse(np.asarray(cc.T_cam_imu, dtype=np.float64))
+        T_bc = c.T_body_cam if cc.T_cam_imu is None else invert_transforms(cc.T_cam_imu)
         entry = {**cc.camera.to_kalibr(), **({"rostopic": cc.rostopic} if cc.rostopic else {})}
         cams.append(replace(c, camera=cc.camera, sensor_size=cc.resolution, T_body_cam=T_bc, entry=entry,
                             calibration_source=str(calib), rostopic=cc.rostopic or c.rostopic))
