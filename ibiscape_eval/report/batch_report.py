@@ -129,18 +129,11 @@ def sequence_figures(
             except (IbiscapeError, OSError) as e:
                 warnings.warn(f"{truth.gnss}: GNSS left out of the figure of {seq}: {e}",
                               IbiscapeWarning, stacklevel=2)
-        # the figure draws columns 0 and 1: put the plane's axes there and name them
-        cols = [_AXIS[plane[0]], _AXIS[plane[1]]]
-        cols.append(3 - sum(cols))
         fig = sequence_trajectories_figure(
-            seq, gt.pos_m[:, cols],
-            {a: np.asarray(xyz, dtype=np.float64).reshape(-1, 3)[:, cols]
-             for a, xyz in tracks.items()},
-            gnss_xyz_m=None if gnss is None else np.asarray(gnss)[:, cols],
-            align=title_align, colors=legend_colors)
-        ax = fig.axes[0]
-        ax.set_xlabel(f"{plane[0]} [m]")
-        ax.set_ylabel(f"{plane[1]} [m]")
+            seq, gt.pos_m,
+            {a: np.asarray(xyz, dtype=np.float64).reshape(-1, 3) for a, xyz in tracks.items()},
+            gnss_xyz_m=None if gnss is None else np.asarray(gnss),
+            align=title_align, colors=legend_colors, plane=plane)
         out.append((f"trajectories_{_safe_name(seq)}.png",
                     f"{seq} ({plane[0]}-{plane[1]} plane): ground truth"
                     f"{', GNSS' if gnss is not None else ''} and the aligned estimate of each "
@@ -152,7 +145,6 @@ def sequence_figures(
     return out
 
 
-_AXIS = {"x": 0, "y": 1, "z": 2}
 
 
 def _align_caption(aligns: dict[str, str]) -> str:

@@ -75,8 +75,9 @@ def sequence_trajectories_figure(
     gnss_xyz_m: npt.NDArray[np.float64] | None = None,
     align: str = "se3",
     colors: dict[str, Any] | None = None,
+    plane: str = "xy",
 ) -> Figure:
-    """Top view (x, y) of one sequence.
+    """One sequence seen in ``plane`` (default the top view, x-y).
 
     Parameters
     ----------
@@ -92,24 +93,29 @@ def sequence_trajectories_figure(
         The alignment used (for the title).
     colors : dict, optional
         Algorithm -> matplotlib colour (default: :func:`algorithm_colors` of ``tracks``).
+    plane : str
+        ``"xy"``, ``"xz"`` or ``"yz"`` (:data:`ibiscape_eval.report.plots.PLOT_PLANES`).
     """
+    from .plots import _plane_axes
+
+    i, j = _plane_axes(plane)
     # one axes: fixed margins instead of the (slow) constrained layout solver
     fig = _new_figure(6.4, 5.2, layout=None)
     fig.subplots_adjust(left=0.12, right=0.97, bottom=0.1, top=0.93)
     ax = fig.add_subplot()
     gt = np.asarray(gt_xyz_m, dtype=np.float64)
-    ax.plot(gt[:, 0], gt[:, 1], color="black", lw=2.0, label="ground truth", zorder=3)
+    ax.plot(gt[:, i], gt[:, j], color="black", lw=2.0, label="ground truth", zorder=3)
     if gnss_xyz_m is not None and len(gnss_xyz_m):
         g = np.asarray(gnss_xyz_m)
-        ax.scatter(g[:, 0], g[:, 1], s=9, color="0.45", marker="x", label="GNSS", zorder=2)
+        ax.scatter(g[:, i], g[:, j], s=9, color="0.45", marker="x", label="GNSS", zorder=2)
     colors = colors or algorithm_colors(list(tracks))
     for alg, xyz in tracks.items():
         p = np.asarray(xyz, dtype=np.float64).reshape(-1, 3)
-        ax.plot(p[:, 0], p[:, 1], color=colors[alg], lw=1.2, label=alg, zorder=4)
-    ax.plot(gt[:1, 0], gt[:1, 1], "o", color="black", ms=5, zorder=5)
+        ax.plot(p[:, i], p[:, j], color=colors[alg], lw=1.2, label=alg, zorder=4)
+    ax.plot(gt[:1, i], gt[:1, j], "o", color="black", ms=5, zorder=5)
     ax.set_aspect("equal", adjustable="datalim")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
+    ax.set_xlabel(f"{plane[0]} [m]")
+    ax.set_ylabel(f"{plane[1]} [m]")
     ax.set_title(f"{sequence} (estimates aligned: {align})")
     ax.grid(True, alpha=0.3)
     ax.legend(loc="best", fontsize=8)
