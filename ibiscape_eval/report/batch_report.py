@@ -145,8 +145,6 @@ def sequence_figures(
     return out
 
 
-
-
 def _align_caption(aligns: dict[str, str]) -> str:
     if len(set(aligns.values())) <= 1:
         return f"aligned: {next(iter(aligns.values()), 'se3')}"
