@@ -147,7 +147,7 @@ def _imu_rows(rows: dict[str, dict[str, list[np.ndarray]]], errs: dict[str, Any]
 
 
 def imu(a: argparse.Namespace) -> None:
-    from ibiscape_eval.calib.imu_camera import calibrate_imu_camera
+    from ibiscape_eval.calib.imu_camera import ImuCameraOptions, calibrate_imu_camera
     from ibiscape_eval.calib.imu_camera.synthetic import calibration_scene
     from ibiscape_eval.sim import preset
     from ibiscape_eval.sim.calib_scene import simulate_calibration
@@ -179,8 +179,9 @@ def imu(a: argparse.Namespace) -> None:
             noise = replace(noise, gyro_noise_density_rad_s_sqrt_hz=4 * noise.gyro_noise_density_rad_s_sqrt_hz,
                             accel_noise_density_m_s2_sqrt_hz=4 * noise.accel_noise_density_m_s2_sqrt_hz)
             sigma_px = 0.4
-        res = calibrate_imu_camera(obs, sc.imu, noise, sc.corners_target_m, sigma_px=sigma_px,
-                                   refine_intrinsics=refine, intrinsics_covariance=icov)
+        res = calibrate_imu_camera(obs, sc.imu, noise, sc.corners_target_m,
+                                   ImuCameraOptions(sigma_px=sigma_px, refine_intrinsics=refine),
+                                   intrinsics_covariance=icov)
         errs = imu_errors(res, sc.T_cam_imu, sc.timeshift_cam_imu_s)
         _imu_rows(rows, errs)
         if a.verbose:
@@ -195,12 +196,12 @@ def imu(a: argparse.Namespace) -> None:
 
 
 def on_sequence(a: argparse.Namespace) -> None:
-    from ibiscape_eval.calib.imu_camera import calibrate_sequence
+    from ibiscape_eval.calib.imu_camera import SequenceOptions, calibrate_sequence
 
     rows: dict[str, dict[str, list[np.ndarray]]] = {"before": {}, "after": {}}
     for seq in a.seq:
         t0 = time.perf_counter()
-        res = calibrate_sequence(seq, Path(seq) / "imu.yaml", camchain=a.cams)
+        res = calibrate_sequence(seq, Path(seq) / "imu.yaml", SequenceOptions(camchain=a.cams))
         T_truth = {k: v["T_cam_imu"] for k, v in res.truth.items()}
         shift_truth = {k: v["timeshift_cam_imu"] for k, v in res.truth.items()}
         errs = imu_errors(res.result, T_truth, shift_truth)

@@ -44,7 +44,12 @@ from typing import Any
 
 import numpy as np
 
-from ibiscape_eval.calib.imu_camera import calibrate_imu_camera, errors_against_truth
+from ibiscape_eval.calib.imu_camera import (
+    ImuCameraOptions,
+    SequenceOptions,
+    calibrate_imu_camera,
+    errors_against_truth,
+)
 from ibiscape_eval.calib.imu_camera.spline import log_so3
 from ibiscape_eval.calib.imu_camera.synthetic import calibration_scene
 from ibiscape_eval.sim import preset
@@ -68,8 +73,8 @@ def one(size: int, bumps: bool, duration_s: float, seed: int, four: bool = False
                            min_spacing_px=4.0)
     frames = {o.name: o.n_frames_with_target for o in sc.observations}
     t0, c0 = time.perf_counter(), time.process_time()
-    res = calibrate_imu_camera(sc.observations, sc.imu, sc.noise, sc.corners_target_m, sigma_px=0.2,
-                               force=not bumps)
+    res = calibrate_imu_camera(sc.observations, sc.imu, sc.noise, sc.corners_target_m,
+                               ImuCameraOptions(sigma_px=0.2, force=not bumps))
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     truth = {k: {"T_cam_imu": sc.T_cam_imu[k], "timeshift_cam_imu": sc.timeshift_cam_imu_s[k]}
              for k in sc.T_cam_imu}
@@ -128,7 +133,7 @@ def on_sequence(seq: str, cams: str | None, frame_step: int) -> None:
     noise.write_text(yaml.safe_dump({k: imu[k] for k in (
         "accelerometer_noise_density", "accelerometer_random_walk", "gyroscope_noise_density",
         "gyroscope_random_walk", "update_rate", "rostopic")}))
-    res = calibrate_sequence(seq, noise, camchain=cams, frame_step=frame_step)
+    res = calibrate_sequence(seq, noise, SequenceOptions(camchain=cams, frame_step=frame_step))
     t = res.timing_s
     det = {d["name"]: f"{d['frames_with_target']}/{d['frames']}" for d in res.detection["cameras"]}
     print(f"\n{seq}: end to end (intrinsics from {', '.join(sorted(set(res.intrinsics_source.values())))}), "
@@ -189,7 +194,7 @@ def rendered_point(seq: Path, label: dict[str, Any], force: bool, json_dir: Path
     from ibiscape_eval.calib.imu_camera import calibrate_sequence
 
     c0 = time.process_time()
-    res = calibrate_sequence(seq, _noise_yaml(seq), force=force, frame_step=frame_step)
+    res = calibrate_sequence(seq, _noise_yaml(seq), SequenceOptions(force=force, frame_step=frame_step))
     cpu = time.process_time() - c0
     d = res.to_dict()
     d["label"] = label

@@ -24,7 +24,7 @@ def run_sequence(seq: Any, imu_yaml: Path | None, *, camchain: Path | None, imu_
     """``calib SEQ --imu imu.yaml`` on an opened sequence (:func:`ibiscape_eval.io.open_sequence`):
     calibrate, write ``--yaml`` (camchain-imucam) and ``--plot`` figures, print the table (or
     ``--json``).  ``imu_yaml`` None (or ``SEQ/sequence.yaml``): the noise the sequence states."""
-    from ibiscape_eval.calib.imu_camera import calibrate_sequence, camchain_imucam
+    from ibiscape_eval.calib.imu_camera import SequenceOptions, calibrate_sequence, camchain_imucam
     from ibiscape_eval.io.kalibr import read_imu_noise, write_camchain
 
     from .progress import fraction_callback, progress_bar
@@ -33,9 +33,9 @@ def run_sequence(seq: Any, imu_yaml: Path | None, *, camchain: Path | None, imu_
     if imu_yaml is not None and not (own.is_file() and Path(imu_yaml).resolve() == own.resolve()):
         read_imu_noise(imu_yaml)  # a bad imu.yaml fails before anything else is read
     with progress_bar(1000, "calib --imu", unit="‰", unit_scale=False) as bar:
-        res = calibrate_sequence(seq, imu_yaml, camchain=camchain, force=force,
-                                 progress=fraction_callback(bar, "calib --imu"), imu_data=imu_data,
-                                 target=target, frame_step=frame_step, workers=workers)
+        res = calibrate_sequence(seq, imu_yaml, SequenceOptions(
+            camchain=camchain, force=force, imu_data=imu_data, target=target, frame_step=frame_step,
+            workers=workers), progress=fraction_callback(bar, "calib --imu"))
     if yaml_path is not None:
         write_camchain(yaml_path, camchain_imucam(res.result),
                               comments=["camera-IMU calibration by ibiscape-eval calib --imu"])
@@ -105,6 +105,7 @@ def run_imu_camera(observations: Sequence[Any], imu: Any, imu_yaml: str, corners
     cameras) come from the calib command.
     """
     from ibiscape_eval.calib.imu_camera import (
+        ImuCameraOptions,
         calibrate_imu_camera,
         camchain_imucam,
         errors_against_truth,
@@ -116,8 +117,8 @@ def run_imu_camera(observations: Sequence[Any], imu: Any, imu_yaml: str, corners
 
     with progress_bar(1000, "imu-camera", unit="‰", unit_scale=False) as bar:
         progress = fraction_callback(bar, "imu-camera")
-        result = calibrate_imu_camera(observations, imu, noise, corners_target_m, sigma_px=sigma_px,
-                                      force=force, progress=progress)
+        result = calibrate_imu_camera(observations, imu, noise, corners_target_m,
+                                      ImuCameraOptions(sigma_px=sigma_px, force=force), progress=progress)
     errors = errors_against_truth(result, truth or {})
     if yaml_path:
         write_camchain(yaml_path, camchain_imucam(result),

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from ibiscape_eval.calib.imu_camera import calibrate_sequence, camchain_imucam
+from ibiscape_eval.calib.imu_camera import SequenceOptions, calibrate_sequence, camchain_imucam
 from ibiscape_eval.core.errors import CalibrationError
 from ibiscape_eval.sim import preset
 from ibiscape_eval.sim.calib_scene import write_board_frames
@@ -62,7 +62,7 @@ if __name__ == "__main__":
         make_sequence(seq, duration_s=24.0)
 
     # %% calibrate both cameras in one problem
-    res = calibrate_sequence(seq, seq / "imu.yaml", camchain=seq / "camchain.yaml")
+    res = calibrate_sequence(seq, seq / "imu.yaml", SequenceOptions(camchain=seq / "camchain.yaml"))
     print(res)
     for cal in res.result.cameras:
         e = res.errors_vs_truth[cal.name]
@@ -87,9 +87,9 @@ if __name__ == "__main__":
     if not flat.exists():
         make_sequence(flat, duration_s=24.0, bumps=False)
     try:
-        calibrate_sequence(flat, flat / "imu.yaml", camchain=flat / "camchain.yaml")
+        calibrate_sequence(flat, flat / "imu.yaml", SequenceOptions(camchain=flat / "camchain.yaml"))
     except CalibrationError as e:
         print("refused:", e)
-    forced = calibrate_sequence(flat, flat / "imu.yaml", camchain=flat / "camchain.yaml", force=True)
+    forced = calibrate_sequence(flat, flat / "imu.yaml", SequenceOptions(camchain=flat / "camchain.yaml", force=True))
     for w in forced.result.warnings:
         print("weak:", w)

@@ -9,6 +9,7 @@ import pytest
 
 from ibiscape_eval.calib.imu_camera import (
     CameraObservations,
+    ImuCameraOptions,
     ImuData,
     calibrate_imu_camera,
 )
@@ -39,7 +40,7 @@ def bumpy() -> CalibrationScene:
 @pytest.fixture(scope="module")
 def bumpy_result(bumpy):
     return calibrate_imu_camera(bumpy.observations, bumpy.imu, bumpy.noise, bumpy.corners_target_m,
-                                sigma_px=0.2)
+                                ImuCameraOptions(sigma_px=0.2))
 
 
 def _errors(scene, cal):
@@ -109,10 +110,10 @@ def test_flat_road_is_refused_then_flagged_by_the_standard_deviations(bumpy_resu
     flat = _scene(bumps=False)
     with pytest.raises(CalibrationError, match=r"too little rotational excitation.*x=0\.00[0-9]{2}, y=0\.00"):
         calibrate_imu_camera(flat.observations, flat.imu, flat.noise, flat.corners_target_m,
-                             sigma_px=0.2)
+                             ImuCameraOptions(sigma_px=0.2))
     with pytest.warns(UserWarning, match="forced"):
         res = calibrate_imu_camera(flat.observations, flat.imu, flat.noise, flat.corners_target_m,
-                                   sigma_px=0.2, force=True)
+                                   ImuCameraOptions(sigma_px=0.2, force=True))
     assert res.forced and not res.excitation.translation_observable
     assert set(res.excitation.weak_rotation_axes) == {"x", "y"}
     assert res.excitation.gyro_std_rad_s[:2].max() < 0.01 < res.excitation.gyro_std_rad_s[2]

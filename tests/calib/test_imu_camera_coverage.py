@@ -15,7 +15,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from ibiscape_eval.calib.imu_camera import calibrate_imu_camera
+from ibiscape_eval.calib.imu_camera import ImuCameraOptions, calibrate_imu_camera
 from ibiscape_eval.calib.imu_camera.spline import log_so3
 from ibiscape_eval.calib.imu_camera.synthetic import CalibrationScene, calibration_scene
 from ibiscape_eval.sim import preset
@@ -73,7 +73,7 @@ def test_misweighted_noise_is_measured():
                         accel_noise_density_m_s2_sqrt_hz=4 * sc.noise.accel_noise_density_m_s2_sqrt_hz)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            res = calibrate_imu_camera(sc.observations, sc.imu, noise, sc.corners_target_m, sigma_px=0.4)
+            res = calibrate_imu_camera(sc.observations, sc.imu, noise, sc.corners_target_m, ImuCameraOptions(sigma_px=0.4))
         scale = res.uncertainty["residual_scale"]
         assert 1 / 16 / 1.3 < scale["gyro"] < 1.3 / 16 and 1 / 16 / 1.3 < scale["accel"] < 1.3 / 16
         a, b = _z(res, sc)
@@ -94,7 +94,7 @@ def test_bias_random_walk_between_knots_is_covered():
         sc = _scene(seed, 10.0)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            res = calibrate_imu_camera(sc.observations, sc.imu, sc.noise, sc.corners_target_m, sigma_px=0.2)
+            res = calibrate_imu_camera(sc.observations, sc.imu, sc.noise, sc.corners_target_m, ImuCameraOptions(sigma_px=0.2))
         a, b = _z(res, sc)
         za.append(a)
         zb.append(b)
@@ -125,8 +125,8 @@ def test_intrinsics_error_is_propagated():
             obs.append(replace(o, camera=cam))
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            res = calibrate_imu_camera(obs, sc.imu, sc.noise, sc.corners_target_m, sigma_px=0.2,
-                                       refine_intrinsics=False,
+            res = calibrate_imu_camera(obs, sc.imu, sc.noise, sc.corners_target_m,
+                                       ImuCameraOptions(sigma_px=0.2, refine_intrinsics=False),
                                        intrinsics_covariance={o.name: C for o in obs})
         a, b = _z(res, sc)
         za.append(a)

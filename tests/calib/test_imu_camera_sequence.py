@@ -18,7 +18,7 @@ import pytest
 import yaml
 from click.testing import CliRunner
 
-from ibiscape_eval.calib.imu_camera import calibrate_sequence
+from ibiscape_eval.calib.imu_camera import SequenceOptions, calibrate_sequence
 from ibiscape_eval.cli.main import cli
 from ibiscape_eval.core.errors import CalibrationError, IbiscapeError
 from ibiscape_eval.io.kalibr import read_imu_noise
@@ -94,7 +94,7 @@ def test_cli_recovers_planted_extrinsics_and_offsets(seq, tmp_path):
 
 def test_library_call_with_intrinsics_from_the_camera_calibration(seq, tmp_path):
     assert read_imu_noise(_imu_yaml(seq, tmp_path)) == read_imu_noise(seq / "sequence.yaml")
-    res = calibrate_sequence(seq, None, frame_step=3)  # None: the noise sequence.yaml states
+    res = calibrate_sequence(seq, None, SequenceOptions(frame_step=3))  # None: the noise sequence.yaml states
     text = json.dumps(res.to_dict(), allow_nan=False)
     assert "NaN" not in text and res.detection["frame_step"] == 3
     assert res.intrinsics_source == {"rgbL": "camera calibration", "rgbR": "camera calibration"}
@@ -188,7 +188,7 @@ def test_flat_road_refused_with_numbers_then_forced_and_marked(tmp_path):
     _bad(r, "too little rotational excitation", "x=", "rad/s", "--force")
     assert not out.exists()
     with pytest.raises(CalibrationError, match="translation"):
-        calibrate_sequence(seq, imu, camchain=chain)
+        calibrate_sequence(seq, imu, SequenceOptions(camchain=chain))
     r = _run(str(seq), "--imu", str(imu), "--cams", str(chain), "--yaml", str(out), "--force", "--json")
     assert r.exit_code == 0, r.output
     d = json.loads(r.stdout)

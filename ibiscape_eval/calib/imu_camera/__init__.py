@@ -7,8 +7,10 @@ observations, IMU samples and the IMU's noise densities; see :func:`calibrate_im
 from __future__ import annotations
 
 from .calibrate import calibrate_imu_camera
+from .errors import ImuCoverageError, ImuRateError, ImuStreamError
 from .inputs import CameraObservations, ImuData
 from .kalibr import camchain_imucam, errors_against_truth
+from .options import ImuCameraOptions, SequenceOptions
 from .result import CameraImuCalibration, Excitation, ImuCameraResult, ResidualSeries
 from .sequence import SequenceCalibration, calibrate_sequence
 from .synthetic import observe_target
@@ -17,10 +19,15 @@ __all__ = [
     "CameraImuCalibration",
     "CameraObservations",
     "Excitation",
+    "ImuCameraOptions",
     "ImuCameraResult",
+    "ImuCoverageError",
     "ImuData",
+    "ImuRateError",
+    "ImuStreamError",
     "ResidualSeries",
     "SequenceCalibration",
+    "SequenceOptions",
     "calibrate_imu_camera",
     "calibrate_sequence",
     "camchain_imucam",

@@ -33,7 +33,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -49,20 +49,31 @@ _H_ROT = 1e-6  # rad, central differences on rotation control points
 _ARANGE4 = np.arange(4)
 
 
-@dataclass
-class Piece:
-    """One spline piece: knots ``t0_s + k dt_s``, ``n_seg`` segments, control points from ``offset``."""
+class Piece(NamedTuple):
+    """One spline piece: knots ``t0_s + k dt_s`` for ``k = 0..n_seg`` (``n_seg`` segments), control
+    points ``offset .. offset + n_seg + 2``."""
 
     t0_s: float
     n_seg: int
     offset: int
+    dt_s: float
 
     @property
     def t1_s(self) -> float:
-        return self.t0_s
+        """The last knot."""
+        return self.t0_s + self.n_seg * self.dt_s
+
+    @property
+    def n_ctrl(self) -> int:
+        """Control points of the piece (a cubic B-spline: segments + 3)."""
+        return self.n_seg + 3
+
+    def covers(self, t_s: FloatArray) -> npt.NDArray[np.bool_]:
+        """Which times lie between the first and the last knot."""
+        return (t_s >= self.t0_s) & (t_s <= self.t1_s)
 
 
-@dataclass
+@dataclass(frozen=True, eq=False)
 class CameraBlock:
     """Static data of one camera: frames with the target, padded corners."""
 
@@ -76,10 +87,13 @@ class CameraBlock:
     sigma_px: float | None = None
 
 
-@dataclass
+@dataclass(frozen=True, eq=False, kw_only=True)
 class Problem:
+    """The data, weights and layout of one batch problem (built by keyword; a changed problem, e.g.
+    on other knots or with other camera weights, is a new value made by ``dataclasses.replace``)."""
+
     dt_s: float
-    pieces: list[tuple[float, int, int]]  # (t0_s, n_seg, offset)
+    pieces: tuple[Piece, ...]
     n_ctrl: int
     bias_t0_s: float
     bias_dt_s: float
@@ -91,7 +105,7 @@ class Problem:
     sigma_accel: float
     bias_walk_sigma: FloatArray  # (6,) per knot interval
     gravity_m_s2: float
-    cams: list[CameraBlock]
+    cams: tuple[CameraBlock, ...]
     sigma_px: float
     bias_prior_sigma: FloatArray = field(default_factory=lambda: np.array([0.1] * 3 + [2.0] * 3))
     trans_prior_sigma_m: float = 20.0
@@ -129,11 +143,11 @@ class Problem:
         base = np.zeros(t_s.shape, np.int64)
         u = np.zeros(t_s.shape)
         ok = np.zeros(t_s.shape, bool)
-        for t0, n_seg, off in self.pieces:
-            x = (t_s - t0) / self.dt_s
-            inside = (x >= 0) & (x <= n_seg) & ~ok
-            i = np.clip(np.floor(x).astype(np.int64), 0, n_seg - 1)
-            base = np.where(inside, off + i, base)
+        for pc in self.pieces:
+            x = (t_s - pc.t0_s) / self.dt_s
+            inside = (x >= 0) & (x <= pc.n_seg) & ~ok
+            i = np.clip(np.floor(x).astype(np.int64), 0, pc.n_seg - 1)
+            base = np.where(inside, pc.offset + i, base)
             u = np.where(inside, x - i, u)
             ok |= inside
         return base, u, ok
@@ -144,8 +158,10 @@ class Problem:
         return k, np.clip(x - k, 0.0, 1.0)
 
 
-@dataclass
+@dataclass(frozen=True, eq=False)
 class State:
+    """The unknowns at one iterate (a step makes a new value: :meth:`retract`)."""
+
     R_ctrl: FloatArray  # (Nc, 3, 3) R_target_imu control points
     P_ctrl: FloatArray  # (Nc, 3)
     bias: FloatArray  # (Nb, 6) gyro, accel
@@ -154,11 +170,6 @@ class State:
     t_ci: FloatArray  # (C, 3)
     shift_s: FloatArray  # (C,)
     intr: FloatArray | None = None  # (C, 4) fx, fy, cx, cy when refined
-
-    def copy(self) -> State:
-        return State(self.R_ctrl.copy(), self.P_ctrl.copy(), self.bias.copy(), self.R_g.copy(),
-                     self.R_ci.copy(), self.t_ci.copy(), self.shift_s.copy(),
-                     None if self.intr is None else self.intr.copy())
 
     def camera(self, prob: Problem, c: int) -> CameraModel:
         """Camera ``c`` with the current intrinsics."""
@@ -172,21 +183,22 @@ class State:
         return self.R_g @ np.array([0.0, 0.0, -g])
 
     def retract(self, prob: Problem, d: FloatArray) -> State:
+        """The state moved by the tangent step ``d`` (layout: the module's docstring)."""
         n = prob.n_ctrl
-        s = self.copy()
-        s.R_ctrl = self.R_ctrl @ exp_so3(d[: 3 * n].reshape(n, 3))
-        s.P_ctrl = self.P_ctrl + d[3 * n : 6 * n].reshape(n, 3)
-        s.bias = self.bias + d[prob.i_bias : prob.i_grav].reshape(-1, 6)
-        dg = d[prob.i_grav : prob.i_grav + 2]
-        s.R_g = self.R_g @ exp_so3(np.array([dg[0], dg[1], 0.0]))
+        R_ci, t_ci, shift_s = self.R_ci.copy(), self.t_ci.copy(), self.shift_s.copy()
+        intr = None if self.intr is None else self.intr.copy()
         for c in range(len(prob.cams)):
             k = prob.i_cam(c)
-            s.R_ci[c] = self.R_ci[c] @ exp_so3(d[k : k + 3])
-            s.t_ci[c] = self.t_ci[c] + d[k + 3 : k + 6]
-            s.shift_s[c] = self.shift_s[c] + d[k + 6]
-            if prob.n_intr and s.intr is not None:
-                s.intr[c] = self.intr[c] + d[k + 7 : k + 11]  # type: ignore[index]
-        return s
+            R_ci[c] = self.R_ci[c] @ exp_so3(d[k : k + 3])
+            t_ci[c] = self.t_ci[c] + d[k + 3 : k + 6]
+            shift_s[c] = self.shift_s[c] + d[k + 6]
+            if prob.n_intr and intr is not None and self.intr is not None:
+                intr[c] = self.intr[c] + d[k + 7 : k + 11]
+        dg = d[prob.i_grav : prob.i_grav + 2]
+        return State(self.R_ctrl @ exp_so3(d[: 3 * n].reshape(n, 3)),
+                     self.P_ctrl + d[3 * n : 6 * n].reshape(n, 3),
+                     self.bias + d[prob.i_bias : prob.i_grav].reshape(-1, 6),
+                     self.R_g @ exp_so3(np.array([dg[0], dg[1], 0.0])), R_ci, t_ci, shift_s, intr)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -464,60 +476,132 @@ def estimate_covariance(prob: Problem, st: State, solve: Callable[[FloatArray], 
     Returns the (k, k) covariance and ``{"residual_scale": {group: variance ratio},
     "dof_absorbed": {group: p_g}, "batch_means_ratio": [std ratio per column]}``.
     """
-    n_par = prob.n_params
-    k = columns.size
-    E = np.zeros((n_par, k))
-    E[columns, np.arange(k)] = 1.0
-    Z = np.random.default_rng(0).choice([-1.0, 1.0], size=(n_par, n_probe))
-    W = np.hstack([solve(np.hstack([E, Z])), Z])  # [X | H^-1 Z | Z]
-    q0, q1 = k, k + n_probe
-
-    def part(A: FloatArray) -> tuple[FloatArray, float]:
-        """Rows' responses (r, k + 2q) -> (G^T G of the columns, absorbed dof)."""
-        G = A[:, :k]
-        return G.T @ G, float(np.sum(A[:, q0:q1] * A[:, q1:])) / n_probe
-
+    probes = _Probes.of(prob, solve, columns, n_probe)
+    k = probes.k
     r_imu, _, _, _ = imu_block(prob, st, jac=False)
-    n = r_imu.shape[0]
-    t_lo = float(prob.pieces[0][0])
-    n_blocks = max(1, math.ceil((float(prob.imu_t_s.max(initial=t_lo)) - t_lo) / block_s) + 1)
-    U = np.zeros((n_blocks + 1, k))  # batch-means scores per block of time
+    blocks = _TimeBlocks.of(prob, block_s)
+    U = np.zeros((blocks.n + 1, k))  # batch-means scores per block of time
+    A_imu = _imu_responses(prob, st, probes.W, chunk)
+    np.add.at(U, blocks.index(prob.imu_t_s), np.einsum("nak,na->nk", A_imu[..., :k], r_imu))
+    groups: list[_Group] = []
+    for name, ax in (("gyro", slice(0, 3)), ("accel", slice(3, 6))):
+        GtG, p_abs = probes.part(A_imu[:, ax].reshape(-1, probes.W.shape[1]))
+        groups.append(_Group(name, float(np.sum(r_imu[:, ax] ** 2)), 3.0 * r_imu.shape[0], p_abs, GtG))
+    held_cov = np.zeros((k, k))
+    for c in range(len(prob.cams)):
+        group, held = _camera_group(prob, st, c, probes, U, blocks,
+                                    None if intrinsics_cov is None else intrinsics_cov.get(c))
+        groups.append(group)
+        held_cov += held
+    cov, info = _scaled_groups(groups, k)
+    cov = _add_bias_bridge(cov, prob, A_imu[..., :k])
+    _, Jp, colp = prior_block(prob, st)
+    Gp = np.einsum("nj,njk->nk", Jp, probes.W[colp, :k])
+    cov += Gp.T @ Gp
+    cov = 0.5 * (cov + cov.T) + 0.5 * (held_cov + held_cov.T)
+    if intrinsics_cov:
+        info["held_intrinsics_share"] = (np.diag(held_cov) / np.maximum(np.diag(cov), 1e-300)).tolist()
+    return _batch_means(U, cov, info), info
+
+
+@dataclass(frozen=True, eq=False)
+class _Probes:
+    """``W = [X | H^-1 Z | Z]``: the responses ``X = H^-1 E`` of the ``k`` reported columns and
+    ``n_probe`` Rademacher probes ``Z`` (Hutchinson's trace estimate)."""
+
+    W: FloatArray
+    k: int
+    n_probe: int
+
+    @classmethod
+    def of(cls, prob: Problem, solve: Callable[[FloatArray], FloatArray], columns: IntArray,
+           n_probe: int) -> _Probes:
+        n_par = prob.n_params
+        k = columns.size
+        E = np.zeros((n_par, k))
+        E[columns, np.arange(k)] = 1.0
+        Z = np.random.default_rng(0).choice([-1.0, 1.0], size=(n_par, n_probe))
+        return cls(np.hstack([solve(np.hstack([E, Z])), Z]), k, n_probe)
+
+    def part(self, A: FloatArray) -> tuple[FloatArray, float]:
+        """Rows' responses (r, k + 2q) -> (G^T G of the columns, absorbed dof)."""
+        q0, q1 = self.k, self.k + self.n_probe
+        G = A[:, : self.k]
+        return G.T @ G, float(np.sum(A[:, q0:q1] * A[:, q1:])) / self.n_probe
+
+
+@dataclass(frozen=True)
+class _TimeBlocks:
+    """The batch-means blocks: ``block_s`` seconds from the first knot, ``n + 1`` of them."""
+
+    t_lo: float
+    block_s: float
+    n: int
+
+    @classmethod
+    def of(cls, prob: Problem, block_s: float) -> _TimeBlocks:
+        t_lo = float(prob.pieces[0].t0_s)
+        n = max(1, math.ceil((float(prob.imu_t_s.max(initial=t_lo)) - t_lo) / block_s) + 1)
+        return cls(t_lo, block_s, n)
+
+    def index(self, t_s: FloatArray) -> IntArray:
+        return np.clip(((t_s - self.t_lo) / self.block_s).astype(np.int64), 0, self.n)
+
+
+class _Group(NamedTuple):
+    """One residual group of the sandwich: its SSR, rows, absorbed dof and ``G^T G``."""
+
+    name: str
+    ssr: float
+    rows: float
+    p_abs: float
+    GtG: FloatArray
+
+
+def _imu_responses(prob: Problem, st: State, W: FloatArray, chunk: int) -> FloatArray:
+    """``J_i W`` of every IMU sample (n, 6, W columns), in chunks of ``chunk`` samples."""
+    n = prob.imu_t_s.size
     A_imu = np.empty((n, 6, W.shape[1]))
     for a in range(0, n, chunk):
         sl = slice(a, min(n, a + chunk))
         _, J, cols, _ = _imu_rows(prob, st, sl)
         A_imu[sl] = J @ W[cols]
-    blk = np.clip(((prob.imu_t_s - t_lo) / block_s).astype(np.int64), 0, n_blocks)
-    np.add.at(U, blk, np.einsum("nak,na->nk", A_imu[..., :k], r_imu))
-    groups: list[tuple[str, float, float, float, FloatArray]] = []  # name, SSR, rows, p_g, G^T G
+    return A_imu
+
+
+def _camera_group(prob: Problem, st: State, c: int, probes: _Probes, U: FloatArray,
+                  blocks: _TimeBlocks, intr_cov: FloatArray | None) -> tuple[_Group, FloatArray]:
+    """Camera ``c``'s residual group (its batch-means scores added to ``U``) and the covariance
+    its held intrinsics propagate (zero without ``intr_cov``)."""
+    k, W = probes.k, probes.W
+    rc, Jc, colc, valid = camera_block(prob, st, c, jac=True)
+    assert Jc is not None and colc is not None
+    F = Jc.shape[0]
+    Jf = Jc.reshape(F, -1, Jc.shape[-1])  # (F, 2M, 31 [+ 4])
+    GtG, p_abs = np.zeros((k, k)), 0.0
+    rf = rc.reshape(F, -1)
+    blk = blocks.index(prob.cams[c].t_s + st.shift_s[c])
+    for a in range(0, F, 64):
+        Af = Jf[a:a + 64] @ W[colc[a:a + 64]]
+        np.add.at(U, blk[a:a + 64], np.einsum("frk,fr->fk", Af[..., :k], rf[a:a + 64]))
+        g, pa = probes.part(Af.reshape(-1, W.shape[1]))
+        GtG += g
+        p_abs += pa
     held_cov = np.zeros((k, k))
-    for name, ax in (("gyro", slice(0, 3)), ("accel", slice(3, 6))):
-        GtG, p_abs = part(A_imu[:, ax].reshape(-1, W.shape[1]))
-        groups.append((name, float(np.sum(r_imu[:, ax] ** 2)), 3.0 * n, p_abs, GtG))
-    for c in range(len(prob.cams)):
-        rc, Jc, colc, valid = camera_block(prob, st, c, jac=True)
-        assert Jc is not None and colc is not None
-        F = Jc.shape[0]
-        Jf = Jc.reshape(F, -1, Jc.shape[-1])  # (F, 2M, 31 [+ 4])
-        GtG, p_abs = np.zeros((k, k)), 0.0
-        rf = rc.reshape(F, -1)
-        blk = np.clip(((prob.cams[c].t_s + st.shift_s[c] - t_lo) / block_s).astype(np.int64), 0, n_blocks)
+    if intr_cov is not None:
+        held = np.arange(4 if prob.n_intr else 0, 8)
+        Jh = camera_param_jacobian(prob, st, c)[..., held].reshape(F, -1, held.size)
+        S = np.zeros((k, held.size))
         for a in range(0, F, 64):
-            Af = Jf[a:a + 64] @ W[colc[a:a + 64]]
-            np.add.at(U, blk[a:a + 64], np.einsum("frk,fr->fk", Af[..., :k], rf[a:a + 64]))
-            g, pa = part(Af.reshape(-1, W.shape[1]))
-            GtG += g
-            p_abs += pa
-        if intrinsics_cov is not None and c in intrinsics_cov:
-            held = np.arange(4 if prob.n_intr else 0, 8)
-            Jh = camera_param_jacobian(prob, st, c)[..., held].reshape(F, -1, held.size)
-            S = np.zeros((k, held.size))
-            for a in range(0, F, 64):
-                Gf = (Jf[a:a + 64] @ W[colc[a:a + 64], :k])
-                S -= np.einsum("frk,frh->kh", Gf, Jh[a:a + 64])
-            Ch = np.asarray(intrinsics_cov[c], dtype=np.float64)[np.ix_(held, held)]
-            held_cov += S @ Ch @ S.T
-        groups.append((f"cam{c}", float(np.sum(rc**2)), 2.0 * int(valid.sum()), p_abs, GtG))
+            Gf = (Jf[a:a + 64] @ W[colc[a:a + 64], :k])
+            S -= np.einsum("frk,frh->kh", Gf, Jh[a:a + 64])
+        Ch = np.asarray(intr_cov, dtype=np.float64)[np.ix_(held, held)]
+        held_cov += S @ Ch @ S.T
+    return _Group(f"cam{c}", float(np.sum(rc**2)), 2.0 * int(valid.sum()), p_abs, GtG), held_cov
+
+
+def _scaled_groups(groups: list[_Group], k: int) -> tuple[FloatArray, dict[str, Any]]:
+    """``sum_g s2_g G_g^T G_g`` with each group's measured variance ratio ``s2_g``."""
     cov = np.zeros((k, k))
     info: dict[str, Any] = {"residual_scale": {}, "dof_absorbed": {}}
     for name, ssr, rows, p_abs, GtG in groups:
@@ -526,7 +610,14 @@ def estimate_covariance(prob: Problem, st: State, solve: Callable[[FloatArray], 
         info["residual_scale"][name] = s2
         info["dof_absorbed"][name] = p_abs
         cov += s2 * GtG
-    # the bias random walk's deviation from the linear interpolation between knots
+    return cov, info
+
+
+def _add_bias_bridge(cov: FloatArray, prob: Problem, A_imu: FloatArray) -> FloatArray:
+    """``cov`` plus the bias random walk's deviation from the linear interpolation between knots
+    (``A_imu``: the IMU rows' responses of the reported columns, (n, 6, k))."""
+    k = A_imu.shape[-1]
+    n = prob.imu_t_s.size
     kb, al = prob.bias_locate(prob.imu_t_s)
     walk = prob.bias_walk_sigma / np.sqrt(prob.bias_dt_s)  # K per axis
     sig = np.array([prob.sigma_gyro] * 3 + [prob.sigma_accel] * 3)
@@ -535,29 +626,29 @@ def estimate_covariance(prob: Problem, st: State, solve: Callable[[FloatArray], 
         sel = np.flatnonzero(kb == i)
         if sel.size < 2:
             continue
-        g = A_imu[sel, :, :k] / sig[None, :, None]  # response to the bias in physical units
+        g = A_imu[sel] / sig[None, :, None]  # response to the bias in physical units
         s_tau = np.einsum("n,nak->ak", al[sel], g)
         coef = np.cumsum(g[::-1], axis=0)[::-1] - s_tau[None]  # response to each increment
         w = walk[None, :] ** 2 * dt_inc[sel][:, None]  # (m, 6) increment variances
         w[0] = 0.0  # the walk's value at the first sample belongs to the knots
         coef *= np.sqrt(w)[..., None]
         cov += coef.reshape(-1, k).T @ coef.reshape(-1, k)
-    _, Jp, colp = prior_block(prob, st)
-    Gp = np.einsum("nj,njk->nk", Jp, W[colp, :k])
-    cov += Gp.T @ Gp
-    cov = 0.5 * (cov + cov.T) + 0.5 * (held_cov + held_cov.T)
-    if intrinsics_cov:
-        info["held_intrinsics_share"] = (np.diag(held_cov) / np.maximum(np.diag(cov), 1e-300)).tolist()
+    return cov
+
+
+def _batch_means(U: FloatArray, cov: FloatArray, info: dict[str, Any]) -> FloatArray:
+    """``cov`` scaled up per parameter where the batch means of the scores ``U`` (one row per
+    block of time) say the variance is larger (their ratio goes to ``info``)."""
     used = np.flatnonzero(np.any(U != 0, axis=1))
     B = used.size
-    if B >= 4:  # batch means: a second estimate of the whole; the larger variance is kept
-        Ub = U[used]
-        cov_bm = B / (B - 1) * (Ub.T @ Ub)
-        ratio = np.sqrt(np.diag(cov_bm) / np.maximum(np.diag(cov), 1e-300))
-        info["batch_means_ratio"] = ratio.tolist()
-        f = np.maximum(ratio, 1.0)
-        cov = cov * np.outer(f, f)
-    return cov, info
+    if B < 4:
+        return cov
+    Ub = U[used]
+    cov_bm = B / (B - 1) * (Ub.T @ Ub)
+    ratio = np.sqrt(np.diag(cov_bm) / np.maximum(np.diag(cov), 1e-300))
+    info["batch_means_ratio"] = ratio.tolist()
+    f = np.maximum(ratio, 1.0)
+    return cov * np.outer(f, f)
 
 
 def camera_param_jacobian(prob: Problem, st: State, c: int, *, h: float = 1e-6) -> FloatArray:

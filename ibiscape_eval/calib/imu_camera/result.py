@@ -1,9 +1,11 @@
-"""Result types of the camera-IMU calibration (frozen, ``to_dict()`` in strict JSON)."""
+"""Result types of the camera-IMU calibration: frozen values, ``to_dict()`` in strict JSON and
+``from_dict()`` back (``from_dict(r.to_dict()) == r``; equality compares arrays element by element
+with NaN equal to NaN; the residual series for the figures is not part of the value)."""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
@@ -27,8 +29,45 @@ def _l(a: Any) -> Any:
     return [_l(x) for x in arr] if arr.ndim > 0 else _f(float(arr))
 
 
+def _a(doc: Any) -> FloatArray:
+    """An array back from :func:`_l` (``None`` -> NaN)."""
+    return np.asarray(doc, dtype=np.float64)
+
+
+def _n(v: Any) -> float:
+    """A float back from :func:`_f` (``None`` -> NaN)."""
+    return float("nan") if v is None else float(v)
+
+
+def same(a: Any, b: Any) -> bool:
+    """Value equality of results: arrays and floats element by element (NaN equals NaN), lists
+    and tuples alike, mappings by key, anything else by ``==``."""
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        x, y = np.asarray(a), np.asarray(b)
+        return x.shape == y.shape and bool(np.array_equal(x, y, equal_nan=x.dtype.kind == "f"))
+    if isinstance(a, float) and isinstance(b, float):
+        return a == b or (math.isnan(a) and math.isnan(b))
+    if isinstance(a, list | tuple) and isinstance(b, list | tuple):
+        return len(a) == len(b) and all(same(x, y) for x, y in zip(a, b, strict=True))
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() == b.keys() and all(same(a[k], b[k]) for k in a)
+    return bool(a == b)
+
+
+class ValueEquality:
+    """``==`` over the dataclass fields that compare, by :func:`same`."""
+
+    def __eq__(self, other: object) -> bool:
+        if type(other) is not type(self):
+            return NotImplemented
+        return all(same(getattr(self, f.name), getattr(other, f.name))
+                   for f in fields(self) if f.compare)  # type: ignore[arg-type]
+
+    __hash__ = None  # type: ignore[assignment]
+
+
 @dataclass(frozen=True, eq=False)
-class CameraImuCalibration:
+class CameraImuCalibration(ValueEquality):
     """One camera's extrinsics and time offset relative to the IMU.
 
     Attributes
@@ -78,6 +117,15 @@ class CameraImuCalibration:
             "n_corners": self.n_corners,
         }
 
+    @classmethod
+    def from_dict(cls, doc: dict[str, Any]) -> CameraImuCalibration:
+        """The inverse of :meth:`to_dict`."""
+        return cls(doc["name"], CameraModel.from_kalibr(doc["camera"]), _a(doc["T_cam_imu"]),
+                   _n(doc["timeshift_cam_imu_s"]), _a(doc["rotation_std_deg"]),
+                   _a(doc["translation_std_m"]), _a(doc["position_std_imu_m"]),
+                   _n(doc["timeshift_std_s"]), _n(doc["reprojection_rms_px"]), int(doc["n_frames"]),
+                   int(doc["n_corners"]))
+
     def __repr__(self) -> str:
         t = self.T_cam_imu[:3, 3]
         return (f"CameraImuCalibration({self.name}: t=({t[0]:.4f}, {t[1]:.4f}, {t[2]:.4f}) m, "
@@ -85,7 +133,7 @@ class CameraImuCalibration:
 
 
 @dataclass(frozen=True, eq=False)
-class Excitation:
+class Excitation(ValueEquality):
     """How much the recording moved the rig, over the samples used.
 
     Attributes
@@ -115,6 +163,13 @@ class Excitation:
                 "weak_rotation_axes": list(self.weak_rotation_axes),
                 "translation_observable": self.translation_observable}
 
+    @classmethod
+    def from_dict(cls, doc: dict[str, Any]) -> Excitation:
+        """The inverse of :meth:`to_dict`."""
+        return cls(_a(doc["gyro_std_rad_s"]), _a(doc["accel_std_m_s2"]), _n(doc["duration_s"]),
+                   float(doc["min_rate_std_rad_s"]), tuple(doc["weak_rotation_axes"]),
+                   bool(doc["translation_observable"]))
+
 
 @dataclass(frozen=True, eq=False)
 class ResidualSeries:
@@ -127,8 +182,9 @@ class ResidualSeries:
 
 
 @dataclass(frozen=True, eq=False)
-class ImuCameraResult:
-    """Everything the calibration estimated and how well it is determined."""
+class ImuCameraResult(ValueEquality):
+    """Everything the calibration estimated and how well it is determined (``residuals``: the
+    series for the figures, neither in :meth:`to_dict` nor compared)."""
 
     cameras: tuple[CameraImuCalibration, ...]
     gravity_target_m_s2: FloatArray
@@ -145,7 +201,7 @@ class ImuCameraResult:
     warnings: tuple[str, ...]
     knot_spacing_s: float
     runtime_s: float
-    residuals: ResidualSeries | None = None
+    residuals: ResidualSeries | None = field(default=None, compare=False)
     #: how the standard deviations were made (method, measured residual scales, inflation)
     uncertainty: dict[str, Any] = field(default_factory=dict)
 
@@ -173,6 +229,21 @@ class ImuCameraResult:
             "runtime_s": _f(self.runtime_s),
             "uncertainty": self.uncertainty,
         }
+
+    @classmethod
+    def from_dict(cls, doc: dict[str, Any]) -> ImuCameraResult:
+        """The inverse of :meth:`to_dict` (other keys of ``doc`` are ignored; no residual series)."""
+        bias = doc["bias"]
+        return cls(
+            cameras=tuple(CameraImuCalibration.from_dict(c) for c in doc["cameras"]),
+            gravity_target_m_s2=_a(doc["gravity_target_m_s2"]), bias_t_s=_a(bias["t_s"]),
+            gyro_bias_rad_s=_a(bias["gyro_rad_s"]), accel_bias_m_s2=_a(bias["accel_m_s2"]),
+            excitation=Excitation.from_dict(doc["excitation"]),
+            gyro_rms_rad_s=_n(doc["gyro_rms_rad_s"]), accel_rms_m_s2=_n(doc["accel_rms_m_s2"]),
+            chi2_per_dof=_n(doc["chi2_per_dof"]), iterations=int(doc["iterations"]),
+            converged=bool(doc["converged"]), forced=bool(doc["forced"]),
+            warnings=tuple(doc["warnings"]), knot_spacing_s=float(doc["knot_spacing_s"]),
+            runtime_s=_n(doc["runtime_s"]), uncertainty=dict(doc["uncertainty"]))
 
     def __repr__(self) -> str:
         cams = ", ".join(c.name for c in self.cameras)

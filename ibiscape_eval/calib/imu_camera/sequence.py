@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import os
 import time
-import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,12 +26,14 @@ import numpy as np
 import numpy.typing as npt
 
 from ibiscape_eval.core.camera import CameraModel
-from ibiscape_eval.core.errors import CalibrationError, FormatError, IbiscapeError, IbiscapeWarning
+from ibiscape_eval.core.errors import CalibrationError, FormatError, IbiscapeError
 from ibiscape_eval.core.kalibr import ImuNoise
 
+from .errors import ImuStreamError
 from .inputs import CameraObservations, ImuData
 from .kalibr import errors_against_truth
-from .result import ImuCameraResult
+from .options import ImuCameraOptions, SequenceOptions
+from .result import ImuCameraResult, ValueEquality
 
 if TYPE_CHECKING:
     from ibiscape_eval.core.sequence import Sequence as Recording
@@ -45,7 +46,7 @@ MAX_SHIFT_NS = 100_000_000
 
 
 @dataclass(frozen=True, eq=False)
-class SequenceCalibration:
+class SequenceCalibration(ValueEquality):
     """Everything ``calib SEQ --imu`` found.
 
     Attributes
@@ -67,7 +68,7 @@ class SequenceCalibration:
     imu_file : str
     timing_s : dict
         Wall-clock seconds of detection, camera calibration, camera-IMU solve, total, and the
-        process CPU seconds.
+        process CPU seconds (to the millisecond).
     """
 
     sequence: str
@@ -93,6 +94,14 @@ class SequenceCalibration:
             "imu_file": self.imu_file,
             "timing_s": {k: round(float(v), 3) for k, v in self.timing_s.items()},
         }
+
+    @classmethod
+    def from_dict(cls, doc: dict[str, Any]) -> SequenceCalibration:
+        """The inverse of :meth:`to_dict` (the result's keys sit at the top level)."""
+        return cls(str(doc["sequence"]), ImuCameraResult.from_dict(doc), dict(doc["intrinsics_source"]),
+                   dict(doc["truth"]), dict(doc["errors_vs_truth"]), doc["camera_calibration"],
+                   dict(doc["detection"]), str(doc["imu_file"]),
+                   {k: float(v) for k, v in doc["timing_s"].items()})
 
     def __repr__(self) -> str:
         errs = ", ".join(f"{k}: {v['rotation_error_deg']:.3f} deg {v['translation_error_m'] * 1e3:.1f} mm "
@@ -204,15 +213,9 @@ def _truth(doc: dict[str, Any], names: Sequence[str]) -> dict[str, dict[str, Any
 
 # ------------------------------------------------------------------------------------------ the call
 def calibrate_sequence(sequence: Recording | str | os.PathLike[str],
-                       noise: ImuNoise | str | os.PathLike[str] | None = None, *,
-                       camchain: str | os.PathLike[str] | None = None,
-                       cameras: Sequence[str] | None = None, force: bool = False,
-                       progress: Progress | None = None,
-                       imu_data: str | os.PathLike[str] | None = None,
-                       target: Any = None, frame_step: int = 1, sigma_px: float = 0.3,
-                       refine_intrinsics: bool | None = None,
-                       estimate_corner_noise: bool = True,
-                       workers: int | None = None) -> SequenceCalibration:
+                       noise: ImuNoise | str | os.PathLike[str] | None = None,
+                       options: SequenceOptions | None = None, *,
+                       progress: Progress | None = None) -> SequenceCalibration:
     """Calibrate ``T_cam_imu`` and ``timeshift_cam_imu`` of every camera of a sequence.
 
     Parameters
@@ -224,29 +227,10 @@ def calibrate_sequence(sequence: Recording | str | os.PathLike[str],
     noise : ImuNoise or path, optional
         The IMU's continuous-time noise (Kalibr ``imu.yaml``, the ``allan`` command's output);
         default (or the sequence's own ``sequence.yaml``): the noise the sequence states.
-    camchain : path, optional
-        Kalibr ``camchain.yaml`` with the intrinsics (default: calibrate the cameras on the same
-        frames first).
-    cameras : sequence of str, optional
-        Cameras to use, in order (default: every camera of the sequence).
-    force : bool
-        Estimate even without the rotational excitation the translation needs (marked).
+    options : SequenceOptions, optional
+        Camchain, cameras, ``--imu-data``, target, frame step, ``force`` and the solve's weights
+        (default: ``SequenceOptions()``).
     progress : callable(fraction, label), optional
-    imu_data : path, optional
-        IMU csv (``#timestamp [ns], w_xyz, a_xyz``; IBISCape's frame inside an IBISCape folder)
-        instead of the sequence's ``other_sensors`` file.
-    target : CalibrationTarget, optional
-        Default: ``sequence.yaml``'s target.
-    frame_step : int
-        Use every n-th frame of each camera (1: all).
-    refine_intrinsics : bool, optional
-        Also estimate focal lengths and principal points (default: when they come from the camera
-        calibration of the same frames, not with ``camchain``).
-    estimate_corner_noise : bool
-        Solve with ``sigma_px``, then weigh each camera by its own reprojection RMS and solve again
-        (default: a detector's corners are usually several times better than the nominal 0.3 px,
-        and the under-weighted cameras let the accelerometer noise bend the lever arms: on the
-        60 s drive at -20 ms, translation 8.3 -> 2.6 mm, rotation 0.020 -> 0.014 deg).
 
     Raises
     ------
@@ -256,42 +240,83 @@ def calibrate_sequence(sequence: Recording | str | os.PathLike[str],
         Missing intrinsics, an IMU stream that does not cover the images, an update rate that
         disagrees with the data, too few views, too little excitation (without ``force``).
     """
-    from ibiscape_eval.calib.pipeline import (
-        DetectionSummary,
-        calibrate_frames,
-        camera_frames,
-        detect_frames,
-        sequence_target,
-    )
-    from ibiscape_eval.core.sequence import Sequence as Opened
+    from ibiscape_eval.calib.pipeline import sequence_target
     from ibiscape_eval.io.image_sets import pair_views
-    from ibiscape_eval.io.open_sequence import open_sequence
-    from ibiscape_eval.io.stereo import read_imu_samples
-
-    from .calibrate import calibrate_imu_camera as solve
 
     t0, cpu0 = time.perf_counter(), time.process_time()
+    opts = SequenceOptions() if options is None else options
+    step = _Steps(progress)
+    opened = _open(sequence, opts.cameras)
+    noise, noise_src = _sequence_noise(opened, noise)
+    target = sequence_target(opened, opts.target)
+    imu, imu_path = _imu_samples(opened, opts.imu_data)  # a bad IMU file should not cost a detection
+    frames, recon, stamps = _camera_frames(opened, target)
+    names = [f.name for f in frames]
+    _check_imu_fits(imu, imu_path, noise, noise_src, dict(zip(names, stamps, strict=True)))
+    models: dict[str, CameraModel] = {}
+    if opts.camchain is not None:
+        models = _camchain_cameras(opts.camchain, names, {c.name: {"resolution": list(c.sensor_size)}
+                                                          for c in opened.cameras if c.sensor_size})
+        _require_intrinsics(names, models, opts.camchain)
+    # the view table pairs simultaneous frames (the camera calibration's stereo views); every
+    # frame_step-th instant is detected
+    views = pair_views(opened.cameras)[:: opts.frame_step]
+    summary, per_cam = _detect(target, frames, views, opts.workers, step)
+    t_det = time.perf_counter()
+    step(0.45, "intrinsics")
+    intr = (_Intrinsics({n: str(opts.camchain) for n in models}, models, None, {})
+            if opts.camchain is not None else _intrinsics_from_frames(opened, target, summary))
+    t_intr = time.perf_counter()
+    obs = [CameraObservations.from_frames(n, intr.models.get(n), stamps[k], per_cam[k])
+           for k, n in enumerate(names)]
+    _require_intrinsics(names, intr.models, opts.camchain)
+    result = _solve(obs, imu, imu_path, noise, target.object_points(), opts.solve_options(),
+                    intr.covariance, step)
+    truth, errors = _errors_vs_truth(result, dict(opened.doc), names)
+    t_end = time.perf_counter()
+    detection = {"frame_step": opts.frame_step, "cameras": [
+        {"name": n, "frames": int(stamps[k].size), "frames_with_target": int(obs[k].n_frames_with_target),
+         "corners": int(obs[k].corner_ids.size), **({"reconstruction": recon[n]} if n in recon else {})}
+        for k, n in enumerate(names)]}
+    timing = {"detection": t_det - t0, "intrinsics": t_intr - t_det, "imu_camera": t_end - t_intr,
+              "total": t_end - t0, "cpu": time.process_time() - cpu0}
+    return SequenceCalibration(str(opened.path), result, intr.source, truth, errors, intr.camera_calibration,
+                               detection, str(imu_path), {k: round(float(v), 3) for k, v in timing.items()})
 
-    def step(frac: float, label: str) -> None:
-        if progress is not None:
-            progress(min(1.0, max(0.0, frac)), label)
 
-    if isinstance(frame_step, bool) or not isinstance(frame_step, int) or frame_step < 1:
-        raise IbiscapeError(f"frame_step must be an integer >= 1, got {frame_step!r}")
+@dataclass(frozen=True)
+class _Steps:
+    """``progress(fraction in [0, 1], label)`` when given."""
+
+    callback: Progress | None
+
+    def __call__(self, frac: float, label: str) -> None:
+        if self.callback is not None:
+            self.callback(min(1.0, max(0.0, frac)), label)
+
+
+def _open(sequence: Recording | str | os.PathLike[str], cameras: Sequence[str] | None) -> Recording:
+    """The sequence opened (a path by :func:`ibiscape_eval.open_sequence`), cut to ``cameras``."""
+    from ibiscape_eval.core.sequence import Sequence as Opened
+    from ibiscape_eval.io.open_sequence import open_sequence
+
     if isinstance(sequence, Opened):
         opened = sequence
     else:
         if not Path(sequence).is_dir() and not Path(sequence).is_file():
             raise IbiscapeError(f"{sequence}: not a sequence folder")
         opened = open_sequence(sequence)
-    opened = opened.select(list(cameras) if cameras else None)
+    return opened.select(list(cameras) if cameras else None)
+
+
+def _imu_samples(opened: Recording, imu_data: str | os.PathLike[str] | None
+                 ) -> tuple[ImuData, str | os.PathLike[str]]:
+    """The IMU samples (``imu_data``, else the sequence's) and the file they come from."""
+    from ibiscape_eval.io.stereo import read_imu_samples
+
     seq = opened.path
-    noise, noise_src = _sequence_noise(opened, noise)
-    doc: dict[str, Any] = dict(opened.doc)
-    target = sequence_target(opened, target)
-    # the IMU first: a bad IMU file should not cost a detection pass
     if imu_data is not None:
-        imu_path = Path(imu_data)
+        imu_path: str | os.PathLike[str] = Path(imu_data)
         st, gyro, acc = read_imu_samples(imu_path, fmt="ibiscape" if (seq / "vehicle_gt").is_dir() else "euroc")
     elif opened.imu is not None:
         imu_path = opened.imu.source
@@ -300,9 +325,15 @@ def calibrate_sequence(sequence: Recording | str | os.PathLike[str],
         raise FormatError(seq / "other_sensors", "no IMU file (other_sensors/imu0.csv); give --imu-data "
                           "PATH with the IMU samples of this run")
     try:
-        imu = ImuData(st, gyro, acc)
+        return ImuData(st, gyro, acc), imu_path
     except IbiscapeError as e:
         raise FormatError(imu_path, str(e)) from None
+
+
+def _camera_frames(opened: Recording, target: Any) -> tuple[list[Any], dict[str, dict[str, Any]],
+                                                             list[npt.NDArray[np.int64]]]:
+    """Every camera's frames (DVS: reconstructed), the reconstructions and the frame stamps."""
+    from ibiscape_eval.calib.pipeline import camera_frames
 
     for c in opened.cameras:
         if c.stamps_ns is None:
@@ -320,41 +351,50 @@ def calibrate_sequence(sequence: Recording | str | os.PathLike[str],
         else:
             assert c.windows_ns is not None
             stamps.append(event_frame_stamps_ns(c.windows_ns, recon[c.name]["method"]))
-    names = [f.name for f in frames]
-    # refuse what the solve would refuse before the (long) detection: rate, coverage, intrinsics
+    return frames, recon, stamps
+
+
+def _check_imu_fits(imu: ImuData, imu_path: str | os.PathLike[str], noise: ImuNoise, noise_src: str,
+                    stamps: dict[str, npt.NDArray[np.int64]]) -> None:
+    """Refuse what the solve would refuse before the (long) detection: rate and coverage."""
     if abs(imu.rate_hz - noise.update_rate_hz) > 0.05 * noise.update_rate_hz:
         raise CalibrationError(
             f"{noise_src}: update_rate {noise.update_rate_hz:g} Hz disagrees with the IMU data "
             f"({imu_path} runs at {imu.rate_hz:.2f} Hz); fix update_rate or give the imu.yaml of "
             "this IMU")
-    for n, stc in zip(names, stamps, strict=True):
+    for n, stc in stamps.items():
         if stc.size and (stc[0] < imu.stamps_ns[0] - MAX_SHIFT_NS or stc[-1] > imu.stamps_ns[-1] + MAX_SHIFT_NS):
             raise CalibrationError(
                 f"{imu_path}: the IMU stream ({imu.stamps_ns[0]}..{imu.stamps_ns[-1]} ns) does not cover "
                 f"the images of camera {n} ({stc[0]}..{stc[-1]} ns); give the IMU recording of the same run")
-    models: dict[str, CameraModel] = {}
-    if camchain is not None:
-        models = _camchain_cameras(camchain, names, {c.name: {"resolution": list(c.sensor_size)}
-                                                     for c in opened.cameras if c.sensor_size})
-        _require_intrinsics(names, models, camchain)
-    # the view table pairs simultaneous frames (the camera calibration's stereo views); every
-    # frame_step-th instant is detected
-    views = pair_views(opened.cameras)[::frame_step]
+
+
+@dataclass
+class _DetectionCount:
+    """Frames detected out of the total, reported as the first 45 % of the progress."""
+
+    step: _Steps
+    total: int
+    done: int = 0
+
+    def add(self, n: int) -> None:
+        self.done += n
+        self.step(0.45 * self.done / self.total, f"detecting {self.done}/{self.total}")
+
+    def set_total(self, n: int) -> None:
+        self.total = max(1, n)
+
+
+def _detect(target: Any, frames: list[Any], views: Any, workers: int | None, step: _Steps
+            ) -> tuple[Any, list[list[tuple[Any, Any] | None]]]:
+    """The detection summary and, per camera, the detections in frame order (canonical
+    checkerboard numbering)."""
+    from ibiscape_eval.calib.pipeline import detect_frames
+
     step(0.0, "detecting")
-    total = [max(1, len(views))]
-    done = [0]
-
-    def det_progress(n: int) -> None:
-        done[0] += n
-        step(0.45 * done[0] / total[0], f"detecting {done[0]}/{total[0]}")
-
-    def det_total(n: int) -> None:
-        total[0] = max(1, n)
-
+    count = _DetectionCount(step, max(1, len(views)))
     summary = detect_frames(target, frames, views, max_detect=len(views), workers=workers,
-                            progress=det_progress, total=det_total)
-    t_det = time.perf_counter()
-    # per camera, the detections in frame order (canonical checkerboard numbering)
+                            progress=count.add, total=count.set_total)
     per_cam: list[list[tuple[Any, Any] | None]] = [[None] * f.n_frames for f in frames]
     for k, o in enumerate(summary.observations):
         for vi, det in enumerate(o.detections):
@@ -363,90 +403,93 @@ def calibrate_sequence(sequence: Recording | str | os.PathLike[str],
             i = views[summary.views[vi]][k]
             assert i is not None
             per_cam[k][i] = canonical_checkerboard(det.ids, det.corners_px, target)
+    return summary, per_cam
 
-    # intrinsics
-    step(0.45, "intrinsics")
-    source: dict[str, str] = {}
-    cam_calib: dict[str, Any] | None = None
-    icov: dict[str, Any] = {}  # the camera calibration's intrinsics covariance, propagated
-    if camchain is not None:
-        source = {n: str(camchain) for n in models}
-    else:
-        from ibiscape_eval.calib.report import compare_with_truth, truth_from_sequence
 
-        # the frame cameras and the event cameras are calibrated apart: frames reconstructed from
-        # events are poorer, and one chain would let them bend the frame cameras' intrinsics
-        groups: dict[str, list[int]] = {}
-        for k, cam in enumerate(opened.cameras):
-            groups.setdefault(cam.kind, []).append(k)
-        cam_calib = {"views": 0, "cameras": [], "ground_truth": None}
-        gts = []
-        for kind, idx in groups.items():
-            sub = DetectionSummary(tuple(summary.observations[k] for k in idx), summary.views,
-                                   tuple(summary.frames_tried[k] for k in idx),
-                                   tuple(summary.frames_unreadable[k] for k in idx),
-                                   tuple(summary.frames_detected[k] for k in idx), dict(summary.extra))
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", IbiscapeWarning)
-                try:
-                    cres = calibrate_frames(target, sub, max_views=60)
-                except CalibrationError as e:
-                    what = "event cameras" if kind == "events" else "cameras"
-                    raise CalibrationError(f"{seq}: the camera calibration of the {what} for the "
-                                           f"intrinsics failed ({e}); give --cams camchain.yaml") from None
-            models.update({c.name: c.camera for c in cres.cameras})
-            icov.update({c.name: c.covariance for c in cres.cameras if c.covariance is not None})
-            cmp = compare_with_truth(cres, truth_from_sequence(doc))
-            cam_calib["views"] += int(cres.n_views)
-            cam_calib["cameras"] += [{"name": c.name, "camera": c.camera.to_kalibr(),
-                                      "reprojection_rms_px": float(c.residuals.rms_px)}
-                                     for c in cres.cameras]
-            if cmp is not None:
-                gts.append(cmp.to_dict())
-        source = {n: "camera calibration" for n in models}
-        if gts:
-            cam_calib["ground_truth"] = _merge_truth(gts)
-    t_intr = time.perf_counter()
-    obs = [CameraObservations.from_frames(n, models.get(n), stamps[k], per_cam[k])
-           for k, n in enumerate(names)]
-    _require_intrinsics(names, models, camchain)
+@dataclass(frozen=True)
+class _Intrinsics:
+    """Where each camera's intrinsics come from, the models, the camera calibration's report and
+    its intrinsics covariance (propagated into the camera-IMU std)."""
+
+    source: dict[str, str]
+    models: dict[str, CameraModel]
+    camera_calibration: dict[str, Any] | None
+    covariance: dict[str, Any]
+
+
+def _intrinsics_from_frames(opened: Recording, target: Any, summary: Any) -> _Intrinsics:
+    """Calibrate the frame cameras and the event cameras apart (frames reconstructed from events
+    are poorer, and one chain would let them bend the frame cameras' intrinsics)."""
+    from ibiscape_eval.calib.report import compare_with_truth, truth_from_sequence
+
+    groups: dict[str, list[int]] = {}
+    for k, cam in enumerate(opened.cameras):
+        groups.setdefault(cam.kind, []).append(k)
+    report: dict[str, Any] = {"views": 0, "cameras": [], "ground_truth": None}
+    models: dict[str, CameraModel] = {}
+    icov: dict[str, Any] = {}
+    gts = []
+    for kind, idx in groups.items():
+        cres = _calibrate_group(opened.path, target, summary, idx, kind)
+        models.update({c.name: c.camera for c in cres.cameras})
+        icov.update({c.name: c.covariance for c in cres.cameras if c.covariance is not None})
+        cmp = compare_with_truth(cres, truth_from_sequence(dict(opened.doc)))
+        report["views"] += int(cres.n_views)
+        report["cameras"] += [{"name": c.name, "camera": c.camera.to_kalibr(),
+                               "reprojection_rms_px": float(c.residuals.rms_px)} for c in cres.cameras]
+        if cmp is not None:
+            gts.append(cmp.to_dict())
+    if gts:
+        report["ground_truth"] = _merge_truth(gts)
+    return _Intrinsics({n: "camera calibration" for n in models}, models, report, icov)
+
+
+def _calibrate_group(seq: Path, target: Any, summary: Any, idx: list[int], kind: str) -> Any:
+    """The camera calibration of the cameras ``idx`` (one kind) on their detections."""
+    from ibiscape_eval.calib.pipeline import DetectionSummary, calibrate_frames
+
+    sub = DetectionSummary(tuple(summary.observations[k] for k in idx), summary.views,
+                           tuple(summary.frames_tried[k] for k in idx),
+                           tuple(summary.frames_unreadable[k] for k in idx),
+                           tuple(summary.frames_detected[k] for k in idx), dict(summary.extra))
+    try:
+        return calibrate_frames(target, sub, max_views=60)
+    except CalibrationError as e:
+        what = "event cameras" if kind == "events" else "cameras"
+        raise CalibrationError(f"{seq}: the camera calibration of the {what} for the "
+                               f"intrinsics failed ({e}); give --cams camchain.yaml") from None
+
+
+def _solve(obs: list[CameraObservations], imu: ImuData, imu_path: str | os.PathLike[str], noise: ImuNoise,
+           corners: Any, options: ImuCameraOptions, icov: dict[str, Any], step: _Steps) -> ImuCameraResult:
+    """The camera-IMU solve (the last half of the progress); an IMU that does not fit is named."""
+    from .calibrate import calibrate_imu_camera as solve
 
     def solve_progress(frac: float, label: str) -> None:
         step(0.5 + 0.5 * frac, label)
 
-    corners = target.object_points()
-    # intrinsics from a calibration on the drive's own (weakly tilted) views are refined with the
-    # extrinsics; those of --cams are taken as they are (Kalibr's way)
-    refine = camchain is None if refine_intrinsics is None else bool(refine_intrinsics)
     try:
-        result = solve(obs, imu, noise, corners, sigma_px=sigma_px, force=force,
-                                      refine_intrinsics=refine, progress=solve_progress,
-                                      estimate_corner_noise=estimate_corner_noise,
-                                      intrinsics_covariance=icov or None)
-    except CalibrationError as e:
-        msg = str(e)
-        if "update_rate" in msg or "IMU stream" in msg:
-            raise CalibrationError(f"{imu_path}: {msg}") from None
-        raise
-    truth = _truth(doc, names)
-    errors = errors_against_truth(result, truth)
+        return solve(obs, imu, noise, corners, options, intrinsics_covariance=icov or None,
+                     progress=solve_progress)
+    except ImuStreamError as e:
+        raise e.at(imu_path) from None
+
+
+def _errors_vs_truth(result: ImuCameraResult, doc: dict[str, Any], names: Sequence[str]
+                     ) -> tuple[dict[str, dict[str, Any]], dict[str, dict[str, float]]]:
+    """``sequence.yaml``'s extrinsics and offsets, and the result's errors (with the refined
+    intrinsics' errors where the truth has the camera)."""
     from ibiscape_eval.calib.report import truth_from_sequence
 
+    truth = _truth(doc, names)
+    errors = errors_against_truth(result, truth)
     true_cams = truth_from_sequence(doc)
     for cal in result.cameras:
         if cal.name in errors and cal.name in true_cams:
             t_cam = true_cams[cal.name][0]
             errors[cal.name].update({f"{k}_error_px": float(a - b) for k, a, b in zip(
                 ("fx", "fy", "cx", "cy"), cal.camera.intrinsics, t_cam.intrinsics, strict=True)})
-    t_end = time.perf_counter()
-    detection = {"frame_step": frame_step, "cameras": [
-        {"name": n, "frames": int(stamps[k].size), "frames_with_target": int(obs[k].n_frames_with_target),
-         "corners": int(obs[k].corner_ids.size), **({"reconstruction": recon[n]} if n in recon else {})}
-        for k, n in enumerate(names)]}
-    return SequenceCalibration(
-        str(seq), result, source, truth, errors, cam_calib, detection, str(imu_path),
-        {"detection": t_det - t0, "intrinsics": t_intr - t_det, "imu_camera": t_end - t_intr,
-         "total": t_end - t0, "cpu": time.process_time() - cpu0})
+    return truth, errors
 
 
 def _merge_truth(docs: list[dict[str, Any]]) -> dict[str, Any]:
