@@ -10,7 +10,10 @@ import pytest
 from ibiscape_eval.calib.imu_camera import (
     CameraObservations,
     ImuCameraOptions,
+    ImuCameraResult,
+    ImuCoverageError,
     ImuData,
+    ImuRateError,
     calibrate_imu_camera,
 )
 from ibiscape_eval.calib.imu_camera.spline import exp_so3, log_so3, position, rotation
@@ -106,6 +109,20 @@ def test_result_to_dict_is_strict_json(bumpy_result):
     assert repr(bumpy_result).startswith("ImuCameraResult([rgbL, rgbR]")
 
 
+def test_result_round_trips_through_its_dict(bumpy_result):
+    import json
+
+    back = ImuCameraResult.from_dict(bumpy_result.to_dict())
+    assert back == bumpy_result and back.residuals is None  # the figures' series is not the value
+    doc = json.loads(json.dumps(bumpy_result.to_dict(), allow_nan=False))
+    assert ImuCameraResult.from_dict(doc).to_dict() == doc
+    cam = bumpy_result.cameras[0]
+    moved = cam.T_cam_imu.copy()
+    moved[0, 3] += 1e-12
+    other = replace(bumpy_result, cameras=(replace(cam, T_cam_imu=moved), *bumpy_result.cameras[1:]))
+    assert other != bumpy_result
+
+
 def test_flat_road_is_refused_then_flagged_by_the_standard_deviations(bumpy_result):
     flat = _scene(bumps=False)
     with pytest.raises(CalibrationError, match=r"too little rotational excitation.*x=0\.00[0-9]{2}, y=0\.00"):
@@ -141,8 +158,10 @@ def test_imu_that_does_not_cover_the_images_is_refused(bumpy):
     imu = bumpy.imu
     cut = imu.stamps_ns.size // 3
     short = ImuData(imu.stamps_ns[:cut], imu.gyro_rad_s[:cut], imu.accel_m_s2[:cut])
-    with pytest.raises(CalibrationError, match="does not cover the images"):
+    with pytest.raises(ImuCoverageError, match="does not cover the images") as e:
         calibrate_imu_camera(bumpy.observations, short, bumpy.noise, bumpy.corners_target_m)
+    assert isinstance(e.value, CalibrationError) and e.value.camera == "rgbL" and e.value.source is None
+    assert e.value.imu_ns == (int(short.stamps_ns[0]), int(short.stamps_ns[-1]))
 
 
 def test_imu_yaml_with_missing_keys_or_wrong_rate():
@@ -157,8 +176,9 @@ def test_imu_yaml_with_missing_keys_or_wrong_rate():
 def test_rate_mismatch_with_imu_yaml(bumpy):
     n = bumpy.noise
     wrong = replace(n, update_rate_hz=100.0)
-    with pytest.raises(CalibrationError, match=r"update_rate 100 Hz but the IMU data run at 200\.00 Hz"):
+    with pytest.raises(ImuRateError, match=r"update_rate 100 Hz but the IMU data run at 200\.00 Hz") as e:
         calibrate_imu_camera(bumpy.observations, bumpy.imu, wrong, bumpy.corners_target_m)
+    assert (e.value.update_rate_hz, round(e.value.data_rate_hz)) == (100.0, 200)
 
 
 def test_camera_without_intrinsics_is_refused(bumpy):

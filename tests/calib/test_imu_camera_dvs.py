@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from ibiscape_eval.calib.imu_camera import calibrate_sequence
+from ibiscape_eval.calib.imu_camera import SequenceCalibration, calibrate_sequence
 from ibiscape_eval.calib.imu_camera.sequence import event_frame_stamps_ns
 from ibiscape_eval.core.errors import IbiscapeWarning
 from ibiscape_eval.core.kalibr import ImuNoise
@@ -162,3 +162,4 @@ def test_event_cameras_are_weighed_by_their_noise(solved):
     assert cams["davisL"].rotation_std_deg.max() > 2 * cams["rgbL"].rotation_std_deg.max()
     doc = solved.to_dict()
     assert {c["name"] for c in doc["camera_calibration"]["cameras"]} == {"rgbL", "rgbR", "davisL", "davisR"}
+    assert SequenceCalibration.from_dict(doc) == solved

@@ -18,7 +18,7 @@ import pytest
 import yaml
 from click.testing import CliRunner
 
-from ibiscape_eval.calib.imu_camera import SequenceOptions, calibrate_sequence
+from ibiscape_eval.calib.imu_camera import SequenceCalibration, SequenceOptions, calibrate_sequence
 from ibiscape_eval.cli.main import cli
 from ibiscape_eval.core.errors import CalibrationError, IbiscapeError
 from ibiscape_eval.io.kalibr import read_imu_noise
@@ -76,6 +76,9 @@ def test_cli_recovers_planted_extrinsics_and_offsets(seq, tmp_path):
     assert r.exit_code == 0, r.output
     doc = json.loads(r.stdout)
     assert [c["name"] for c in doc["cameras"]] == ["rgbL", "rgbR"]
+    # the library's value is what --json prints (besides the outputs the command wrote)
+    value = {k: v for k, v in doc.items() if k not in ("outputs", "non_finite")}
+    assert SequenceCalibration.from_dict(value).to_dict() == value
     for name, shift in SHIFTS.items():
         e = doc["errors_vs_truth"][name]
         assert doc["truth"][name]["timeshift_cam_imu"] == pytest.approx(shift)
@@ -104,6 +107,7 @@ def test_library_call_with_intrinsics_from_the_camera_calibration(seq, tmp_path)
         assert e["rotation_error_deg"] < 0.6 and e["translation_error_m"] < 0.04, e
         assert abs(e["fx_error_px"]) < 1.0 and abs(e["cx_error_px"]) < 3.0, e
     assert "SequenceCalibration(" in repr(res) and len(repr(res)) < 300
+    assert SequenceCalibration.from_dict(res.to_dict()) == res
 
 
 def _bad(r, *needles: str) -> None:

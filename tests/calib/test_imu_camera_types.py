@@ -16,7 +16,7 @@ from ibiscape_eval.calib.imu_camera import (
 )
 from ibiscape_eval.calib.imu_camera.calibrate import _pieces
 from ibiscape_eval.calib.imu_camera.problem import CameraBlock, Piece, Problem
-from ibiscape_eval.calib.imu_camera.result import Excitation, same
+from ibiscape_eval.calib.imu_camera.result import CameraImuCalibration, Excitation, same
 from ibiscape_eval.core.camera import CameraModel
 from ibiscape_eval.core.errors import CalibrationError, IbiscapeError
 
@@ -80,3 +80,10 @@ def test_value_equality_of_results():
     assert back == e and back.to_dict() == e.to_dict()
     assert dataclasses.replace(e, duration_s=12.5) != e
     assert same([1.0, float("nan")], (1.0, float("nan"))) and not same({"a": 1}, {"b": 1})
+    # a camera without distortion reads back as radtan with zero coefficients: the same camera
+    cam = CameraModel(64, 48, 50.0, 51.0, 31.5, 23.5)
+    cal = CameraImuCalibration("c", cam, np.eye(4), 0.01, np.full(3, 0.1), np.full(3, 0.002),
+                               np.full(3, 0.003), 1e-4, float("nan"), 12, 480)
+    back_cal = CameraImuCalibration.from_dict(cal.to_dict())
+    assert back_cal == cal and back_cal.camera.distortion == "radtan"
+    assert dataclasses.replace(cal, camera=dataclasses.replace(cam, fx=50.5)) != cal

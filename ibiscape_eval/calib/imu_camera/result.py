@@ -41,7 +41,10 @@ def _n(v: Any) -> float:
 
 def same(a: Any, b: Any) -> bool:
     """Value equality of results: arrays and floats element by element (NaN equals NaN), lists
-    and tuples alike, mappings by key, anything else by ``==``."""
+    and tuples alike, mappings by key, cameras as their Kalibr entry (no distortion is radtan
+    with zero coefficients there), anything else by ``==``."""
+    if isinstance(a, CameraModel) and isinstance(b, CameraModel):
+        return bool(a.to_kalibr() == b.to_kalibr())
     if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
         x, y = np.asarray(a), np.asarray(b)
         return x.shape == y.shape and bool(np.array_equal(x, y, equal_nan=x.dtype.kind == "f"))
