@@ -25,6 +25,7 @@ import numpy.typing as npt
 
 from ibiscape_eval.core.errors import FormatError, IbiscapeError
 from ibiscape_eval.core.events import EventChunk, Events
+from ibiscape_eval.core.numbers import finite_or_none
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -200,9 +201,6 @@ class HotPixelResult:
     def to_dict(self) -> dict[str, Any]:
         """Strict JSON (NaN as None): counts, criteria and every hot pixel with its count."""
 
-        def num(v: float) -> float | None:
-            return float(v) if np.isfinite(v) else None
-
         return {
             "sensor_size": [int(v) for v in self.sensor_size],
             "n_events": self.n_events,
@@ -213,9 +211,9 @@ class HotPixelResult:
             "criteria": {
                 "top_n": self.top_n,
                 "n_sigma": None if self.n_sigma is None else float(self.n_sigma),
-                "threshold": num(self.threshold),
-                "mean": num(self.mean),
-                "std": num(self.std),
+                "threshold": finite_or_none(self.threshold),
+                "mean": finite_or_none(self.mean),
+                "std": finite_or_none(self.std),
             },
             "hot_pixels": [
                 {"x": int(x), "y": int(y), "count": int(c)}

@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 import numpy as np
 
 from ibiscape_eval.core.errors import DegenerateInputError, IbiscapeError, IbiscapeWarning
+from ibiscape_eval.core.numbers import finite_or_none
 
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
@@ -143,7 +144,7 @@ class AllanResult:
         (NaN as null)."""
 
         def lst(a: np.ndarray) -> list[Any]:
-            return [float(v) if np.isfinite(v) else None for v in np.asarray(a, dtype=float)]
+            return [finite_or_none(v) for v in np.asarray(a, dtype=float)]
 
         return {
             "rate_hz": float(self.rate_hz),

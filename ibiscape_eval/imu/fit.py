@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ibiscape_eval.core.errors import IbiscapeError
+from ibiscape_eval.core.numbers import finite_or_none
 
 from .allan import AllanResult
 
@@ -204,7 +205,7 @@ class NoiseModel:
 
         def val(v: Any) -> Any:
             if isinstance(v, float):
-                return v if math.isfinite(v) else None
+                return finite_or_none(v)
             if isinstance(v, tuple):
                 return [val(x) for x in v]
             return v

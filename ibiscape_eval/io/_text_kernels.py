@@ -27,11 +27,6 @@ EXACT_POW = np.array([10.0**k for k in range(23)])
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def is_sep(c):
-    return c == SPACE or c == TAB or c == COMMA or c == CR
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
 def lower(c):
     return c + (LOWER_A - UPPER_A) if UPPER_A <= c <= UPPER_Z else c
 

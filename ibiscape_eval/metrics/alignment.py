@@ -12,6 +12,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ibiscape_eval.core import DegenerateInputError, IbiscapeError, IbiscapeWarning, Trajectory
+from ibiscape_eval.core.numbers import finite_or_none
 from ibiscape_eval.core.rotations import quat_from_matrix
 from ibiscape_eval.core.transforms import invert_transforms
 
@@ -113,21 +114,18 @@ class AlignmentConditioning:
     def to_dict(self) -> dict[str, Any]:
         """Strict JSON (an undetermined value, infinite or NaN, becomes ``None``)."""
 
-        def num(x: float) -> float | None:
-            return float(x) if math.isfinite(x) else None
-
         return {
             "method": self.method,
             "n_used": int(self.n_used),
-            "sigma_pos_m": num(self.sigma_pos_m),
-            "spread_m": [num(v) for v in self.spread_m],
-            "rotation_sigma_deg": [num(v) for v in self.rotation_sigma_deg],
-            "rotation_axes": [[num(v) for v in row] for row in self.rotation_axes],
-            "rotation_sigma_total_deg": num(self.rotation_sigma_total_deg),
-            "translation_sigma_m": [num(v) for v in self.translation_sigma_m],
-            "scale_sigma": None if self.scale_sigma is None else num(self.scale_sigma),
-            "residual_rho": num(self.residual_rho),
-            "variance_inflation": num(self.variance_inflation),
+            "sigma_pos_m": finite_or_none(self.sigma_pos_m),
+            "spread_m": [finite_or_none(v) for v in self.spread_m],
+            "rotation_sigma_deg": [finite_or_none(v) for v in self.rotation_sigma_deg],
+            "rotation_axes": [[finite_or_none(v) for v in row] for row in self.rotation_axes],
+            "rotation_sigma_total_deg": finite_or_none(self.rotation_sigma_total_deg),
+            "translation_sigma_m": [finite_or_none(v) for v in self.translation_sigma_m],
+            "scale_sigma": finite_or_none(self.scale_sigma),
+            "residual_rho": finite_or_none(self.residual_rho),
+            "variance_inflation": finite_or_none(self.variance_inflation),
         }
 
     def __repr__(self) -> str:
