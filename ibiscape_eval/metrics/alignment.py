@@ -400,6 +400,25 @@ def _ro(a: FloatArray) -> FloatArray:
     return out
 
 
+def _n_used(n: int, n_align: int | None) -> int:
+    """Pairs to align on: ``n_align`` (at most ``n``, with a warning when it asks for more)."""
+    if n == 0:
+        raise DegenerateInputError("cannot align empty trajectories")
+    if n_align is None:
+        return n
+    if int(n_align) != n_align or n_align < 1:
+        raise IbiscapeError(f"n_align must be a positive integer, got {n_align!r}")
+    n_used = int(n_align)
+    if n_used > n:
+        warnings.warn(
+            f"n_align={n_used} exceeds the {n} matched poses; aligning on all of them",
+            IbiscapeWarning,
+            stacklevel=3,
+        )
+        n_used = n
+    return n_used
+
+
 def align(
     est: Trajectory,
     ref: Trajectory,
@@ -445,22 +464,7 @@ def align(
             f"align needs matched trajectories of equal length, got {len(est)} and {len(ref)}; "
             "call associate() first"
         )
-    n = len(est)
-    if n == 0:
-        raise DegenerateInputError("cannot align empty trajectories")
-    if n_align is None:
-        n_used = n
-    else:
-        if int(n_align) != n_align or n_align < 1:
-            raise IbiscapeError(f"n_align must be a positive integer, got {n_align!r}")
-        n_used = int(n_align)
-        if n_used > n:
-            warnings.warn(
-                f"n_align={n_used} exceeds the {n} matched poses; aligning on all of them",
-                IbiscapeWarning,
-                stacklevel=2,
-            )
-            n_used = n
+    n_used = _n_used(len(est), n_align)
     if m is Alignment.NONE:
         return AlignmentResult(m.value, np.eye(4), 1.0, 0)
     if m is Alignment.ORIGIN:
