@@ -253,6 +253,46 @@ def _union_sorted(flat: np.ndarray, counts_flat: np.ndarray) -> np.ndarray:
     return flat[order]
 
 
+def _fired_stats(counts: np.ndarray) -> tuple[float, float]:
+    """Mean and population standard deviation (``cv::meanStdDev``) of the counts of the pixels
+    that fired (NaN if none did)."""
+    fired = counts[counts > 0]
+    if not fired.size:
+        return float("nan"), float("nan")
+    return float(fired.mean()), float(fired.std())
+
+
+def _plane_hot(plane: np.ndarray, top_n: int | None,
+               n_sigma: float | None) -> tuple[float, list[np.ndarray]]:
+    """The n-sigma threshold (NaN if unused) and the flat indices each criterion marks in one
+    count plane."""
+    m, s = _fired_stats(plane)
+    n_fired = int(np.count_nonzero(plane > 0))
+    chosen: list[np.ndarray] = []
+    thr = float("nan")
+    if n_sigma is not None and n_fired:
+        thr = m + float(n_sigma) * s
+        chosen.append(np.flatnonzero(plane > thr))
+    k = min(int(top_n), n_fired) if top_n is not None else 0
+    if k > 0:
+        # partial selection, then a stable order: count desc, index asc (dvs_tools'
+        # repeated minMaxLoc scans row-major, so ties go to the lower index too)
+        cand = np.argpartition(-plane, k - 1)[:k]
+        kth = plane[cand].min()
+        above = np.flatnonzero(plane > kth)
+        ties = np.flatnonzero(plane == kth)[: k - above.size]
+        chosen.append(np.concatenate([above, ties]))
+    return thr, chosen
+
+
+def _extra_flat(extra_pixels: npt.ArrayLike, w: int, h: int) -> np.ndarray:
+    """Flat indices of further hot pixels (x, y), refused outside the sensor."""
+    ep = np.asarray(extra_pixels, dtype=np.int64).reshape(-1, 2)
+    if ep.size and ((ep[:, 0] < 0) | (ep[:, 0] >= w) | (ep[:, 1] < 0) | (ep[:, 1] >= h)).any():
+        raise IbiscapeError(f"extra hot pixels lie outside the {w}x{h} sensor")
+    return ep[:, 1] * w + ep[:, 0]
+
+
 def hot_pixels_from_counts(
     count_map: npt.ArrayLike,
     *,
@@ -293,40 +333,15 @@ def hot_pixels_from_counts(
     h, w = cm.shape[-2:]
     total = planes.sum(axis=0)
     chosen: list[np.ndarray] = []
-    threshold = mean = std = float("nan")
+    threshold = float("nan")
     for plane in planes:
-        fired = plane[plane > 0]
-        if fired.size:
-            m = float(fired.mean())
-            s = float(fired.std())  # population std, like cv::meanStdDev
-        else:
-            m = s = float("nan")
+        thr, picked = _plane_hot(plane, top_n, n_sigma)
+        chosen += picked
         if planes.shape[0] == 1:
-            mean, std = m, s
-        if n_sigma is not None and fired.size:
-            thr = m + float(n_sigma) * s
-            if planes.shape[0] == 1:
-                threshold = thr
-            chosen.append(np.flatnonzero(plane > thr))
-        if top_n is not None and int(top_n) > 0:
-            k = min(int(top_n), int(fired.size))
-            if k:
-                # partial selection, then a stable order: count desc, index asc (dvs_tools'
-                # repeated minMaxLoc scans row-major, so ties go to the lower index too)
-                cand = np.argpartition(-plane, k - 1)[:k]
-                kth = plane[cand].min()
-                above = np.flatnonzero(plane > kth)
-                ties = np.flatnonzero(plane == kth)[: k - above.size]
-                chosen.append(np.concatenate([above, ties]))
-    if planes.shape[0] == 2:
-        fired = total[total > 0]
-        mean = float(fired.mean()) if fired.size else float("nan")
-        std = float(fired.std()) if fired.size else float("nan")
+            threshold = thr
+    mean, std = _fired_stats(total)
     if extra_pixels is not None:
-        ep = np.asarray(extra_pixels, dtype=np.int64).reshape(-1, 2)
-        if ep.size and ((ep[:, 0] < 0) | (ep[:, 0] >= w) | (ep[:, 1] < 0) | (ep[:, 1] >= h)).any():
-            raise IbiscapeError(f"extra hot pixels lie outside the {w}x{h} sensor")
-        chosen.append(ep[:, 1] * w + ep[:, 0])
+        chosen.append(_extra_flat(extra_pixels, w, h))
     flat = _union_sorted(np.concatenate(chosen) if chosen else np.empty(0, np.int64), total)
     pixels = np.stack([flat % w, flat // w], axis=1).astype(np.int64)
     return HotPixelResult(
