@@ -124,6 +124,20 @@ def count_events(
     return total[0] if p is None else total
 
 
+#: Streams shorter than this run on one thread (starting the numba threads costs more).
+PARALLEL_MIN_EVENTS = 4_000_000
+
+
+def _threads(n: int) -> int:
+    """numba threads to use for ``n`` events (``NUMBA_NUM_THREADS`` / ``numba.set_num_threads``
+    decide the most; 1 for short streams)."""
+    if n < PARALLEL_MIN_EVENTS:
+        return 1
+    import numba
+
+    return int(numba.get_num_threads())
+
+
 _PAD = 16  # uint32 counters = one 64-byte cache line of row padding (see _kernels.count_xy)
 
 
@@ -135,6 +149,11 @@ def _count_padded(
 
     stride = w + _PAD
     planes = 1 if p is None else 2
+    threads = _threads(x.shape[0]) if p is None else 1
+    if threads > 1:  # one histogram per thread, summed
+        parts = np.zeros((threads, h * stride), np.uint32)
+        bad = _kernels.count_xy_threads(x, y, w, h, stride, parts, threads)
+        return int(bad) if bad >= 0 else parts.sum(axis=0, dtype=np.uint32).reshape(1, h, stride)[:, :, :w]
     buf = np.zeros(planes * h * stride, np.uint32)
     if p is None:
         bad = _kernels.count_xy(x, y, w, h, stride, buf)
@@ -440,9 +459,9 @@ def hot_pixel_mask(
     xa, ya = _coords(x, y)
     lut = _hot_lut(pixels, w, h)
     out = np.empty(xa.shape[0], np.bool_)
-    bad = _kernels.keep_mask(xa, ya, w, h, lut, out)
-    if bad >= 0:
-        raise _outside(xa, ya, int(bad), w, h)
+    kept = int(_kernels.keep_mask(xa, ya, w, h, lut, out.view(np.uint8)))
+    if kept < 0:
+        raise _outside(xa, ya, -1 - kept, w, h)
     return out
 
 
@@ -477,14 +496,21 @@ def filter_arrays(
     if ta.shape != xa.shape or pa.shape != xa.shape:
         raise IbiscapeError(f"t, x, y, p lengths differ: {ta.shape}, {xa.shape}, {ya.shape}, {pa.shape}")
     lut = _hot_lut(pixels, w, h)
-    keep = np.empty(xa.shape[0], np.bool_)
-    bad = _kernels.keep_mask(xa, ya, w, h, lut, keep)
-    if bad >= 0:
-        raise _outside(xa, ya, int(bad), w, h)
-    to, xo, yo, po = (np.empty_like(a) for a in (ta, xa, ya, pa))
-    k = int(_kernels.compact4(ta, xa, ya, pa, keep.view(np.uint8), to, xo, yo, po))
-    # views, not copies: the unused tail (the discarded events) is the only memory kept
-    return to[:k], xo[:k], yo[:k], po[:k]
+    keep = np.empty(xa.shape[0], np.uint8)
+    threads = _threads(xa.shape[0])
+    if threads > 1:
+        *outs, bad = _kernels.filter_threads(ta, xa, ya, pa, w, h, lut, keep, 2 * threads)
+        if bad >= 0:
+            raise _outside(xa, ya, int(bad), w, h)
+        to, xo, yo, po = (a[:-1] for a in outs)
+        return to, xo, yo, po
+    kept = int(_kernels.keep_mask(xa, ya, w, h, lut, keep))
+    if kept < 0:
+        raise _outside(xa, ya, -1 - kept, w, h)
+    # exactly sized (plus the one spare place the branch-free compaction writes to)
+    to, xo, yo, po = (np.empty(kept + 1, a.dtype) for a in (ta, xa, ya, pa))
+    _kernels.compact4(ta, xa, ya, pa, keep, to, xo, yo, po)
+    return to[:kept], xo[:kept], yo[:kept], po[:kept]
 
 
 def rate_hot_pixels(
