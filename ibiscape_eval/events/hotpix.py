@@ -459,9 +459,9 @@ def hot_pixel_mask(
     xa, ya = _coords(x, y)
     lut = _hot_lut(pixels, w, h)
     out = np.empty(xa.shape[0], np.bool_)
-    kept = int(_kernels.keep_mask(xa, ya, w, h, lut, out.view(np.uint8)))
-    if kept < 0:
-        raise _outside(xa, ya, -1 - kept, w, h)
+    bad = int(_kernels.keep_mask(xa, ya, w, h, lut, out.view(np.uint8)))
+    if bad >= 0:
+        raise _outside(xa, ya, bad, w, h)
     return out
 
 
@@ -504,9 +504,10 @@ def filter_arrays(
             raise _outside(xa, ya, int(bad), w, h)
         to, xo, yo, po = (a[:-1] for a in outs)
         return to, xo, yo, po
-    kept = int(_kernels.keep_mask(xa, ya, w, h, lut, keep))
-    if kept < 0:
-        raise _outside(xa, ya, -1 - kept, w, h)
+    bad = int(_kernels.keep_mask(xa, ya, w, h, lut, keep))
+    if bad >= 0:
+        raise _outside(xa, ya, bad, w, h)
+    kept = int(_kernels.count_kept(keep))
     # exactly sized (plus the one spare place the branch-free compaction writes to)
     to, xo, yo, po = (np.empty(kept + 1, a.dtype) for a in (ta, xa, ya, pa))
     _kernels.compact4(ta, xa, ya, pa, keep, to, xo, yo, po)
