@@ -1,6 +1,8 @@
 """Hot-pixel counting and filtering: ibiscape-eval's numba kernels against the plain numpy
-bincount-and-mask baseline, in the same run, on one core; then peak memory of
-``ibiscape-eval hotpix`` streaming an IBISCape DVS folder (count + write the filtered folder).
+bincount-and-mask baseline, in the same run, on one thread (CPU time) and on two threads (wall
+time, with the load average: the machine may be shared), with the peak memory each step adds
+over the events already in memory; then ``ibiscape-eval hotpix`` streaming an IBISCape DVS
+folder from disk (count + write the filtered folder), its wall time and peak memory.
 
 Run::
 
@@ -36,19 +38,61 @@ from ibiscape_eval.events import (
     synthetic_windows,
 )
 
-os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 SENSOR = (1024, 1024)  # IBISCape's DVS resolution
 
 
 def best_of(fn: Callable[[], object], repeat: int) -> float:
     """Best CPU time (process_time: this process only, robust on a shared machine)."""
+    return best_times(fn, repeat)[0]
+
+
+def best_times(fn: Callable[[], object], repeat: int) -> tuple[float, float]:
+    """Best CPU time and best wall time of ``repeat`` runs after a warm-up."""
     fn()  # warm-up (numba compile / page faults)
-    times = []
+    cpu, wall = [], []
     for _ in range(repeat):
-        t0 = time.process_time()
+        t0, w0 = time.process_time(), time.perf_counter()
         fn()
-        times.append(time.process_time() - t0)
-    return min(times)
+        cpu.append(time.process_time() - t0)
+        wall.append(time.perf_counter() - w0)
+    return min(cpu), min(wall)
+
+
+def _rss_bytes() -> int:
+    with open("/proc/self/statm") as fh:
+        return int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+
+
+def peak_added_mb(fn: Callable[[], object]) -> float:
+    """Peak resident memory added while ``fn`` runs (its result included), MB, sampled every
+    millisecond by a thread (the kernels release the GIL)."""
+    import gc
+    import threading
+
+    gc.collect()
+    try:  # hand memory freed by earlier runs back to the OS, or reusing it hides the peak
+        import ctypes
+
+        ctypes.CDLL("libc.so.6").malloc_trim(0)
+    except OSError:
+        pass
+    base = _rss_bytes()
+    peak = [base]
+    done = threading.Event()
+
+    def sample() -> None:
+        while not done.is_set():
+            peak[0] = max(peak[0], _rss_bytes())
+            time.sleep(0.001)
+
+    th = threading.Thread(target=sample)
+    th.start()
+    out = fn()
+    peak[0] = max(peak[0], _rss_bytes())
+    done.set()
+    th.join()
+    del out
+    return (peak[0] - base) / 1e6
 
 
 def make_stream(n_events: int, seed: int = 0) -> tuple[Events, np.ndarray]:
@@ -67,9 +111,10 @@ def in_memory(n_events: int, repeat: int) -> None:
     ev, planted = make_stream(n_events)
     n = len(ev)
     print(f"in memory: {n:,} events on a {SENSOR[0]}x{SENSOR[1]} sensor "
-          f"(generated in {time.process_time() - t0:.1f} s), best of {repeat}, one core")
+          f"(generated in {time.process_time() - t0:.1f} s), best of {repeat}")
     w, h = SENSOR
     x, y, t, p = ev.x, ev.y, ev.t_ns, ev.p
+    ev_mb = sum(a.nbytes for a in (x, y, t, p)) / 1e6
     hot = hot_pixels_from_counts(count_events(x, y, sensor_size=SENSOR), top_n=200).pixels
 
     def np_count() -> np.ndarray:
@@ -117,10 +162,24 @@ def in_memory(n_events: int, repeat: int) -> None:
         ("filter (t, x, y, p compaction)", np_filter, ib_filter),
         ("count + filter", np_both, ib_both),
     ]
-    print(f"  {'step':32s} {'numpy Mev/s':>12s} {'ibiscape Mev/s':>15s} {'RATIO':>7s}")
+    import numba
+
+    threads = min(2, numba.config.NUMBA_NUM_THREADS)
+    print(f"  Mev/s: one thread by CPU time, {threads} threads by wall time (load average "
+          f"{os.getloadavg()[0]:.1f}); peak MB added over the {ev_mb:.0f} MB of events")
+    print(f"  {'step':32s} {'numpy':>7s} {'ours 1T':>8s} {'RATIO':>6s} {'numpy wall':>10s} "
+          f"{f'ours {threads}T wall':>13s} {'RATIO':>6s} {'peak MB numpy/1T/' + str(threads) + 'T':>22s}")
     for name, a, b in rows:
-        ta, tb = best_of(a, repeat), best_of(b, repeat)
-        print(f"  {name:32s} {n / ta / 1e6:12.0f} {n / tb / 1e6:15.0f} {ta / tb:6.1f}x")
+        numba.set_num_threads(1)
+        (ta, wa), tb = best_times(a, repeat), best_of(b, repeat)
+        pa, pb = peak_added_mb(a), peak_added_mb(b)
+        numba.set_num_threads(threads)
+        wb = best_times(b, repeat)[1]
+        pc = peak_added_mb(b)
+        print(f"  {name:32s} {n / ta / 1e6:7.0f} {n / tb / 1e6:8.0f} {ta / tb:5.1f}x "
+              f"{n / wa / 1e6:10.0f} {n / wb / 1e6:13.0f} {wa / wb:5.1f}x "
+              f"{pa:8.0f}/{pb:.0f}/{pc:.0f}")
+    numba.set_num_threads(1)
 
 
 def streamed(n_events: int, tmp_root: Path) -> None:

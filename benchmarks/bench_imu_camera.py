@@ -271,7 +271,7 @@ def esvi(a: argparse.Namespace) -> None:
     import sys
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "calib"))
-    from test_imu_camera_dvs import SHIFT_S, write_esvi_calibration
+    from _esvi_scene import SHIFT_S, write_esvi_calibration
 
     dur, rgb_px, dvs_px = (float(v) for v in a.esvi.split(","))
     out = Path(a.cache) / f"esvi_board_{dur:g}s_rgb{rgb_px:g}_dvs{dvs_px:g}_seed2"

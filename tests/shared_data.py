@@ -19,13 +19,21 @@ def in_ci() -> bool:
     return os.environ.get("CI", "").strip().lower() in ("1", "true", "yes")
 
 
-def require_shared(*parts: str) -> Path:
-    """The path ``SHARED_DATA/parts...``; skips the test when it is missing (fails under CI)."""
-    p = SHARED_DATA.joinpath(*parts)
+#: The paper's LaTeX source, beside the data in the shared folder.
+PAPER = SHARED_DATA.parent / "paper" / "ibiscape-paper.tex"
+
+
+def require_path(p: Path) -> Path:
+    """``p`` (a file of the shared folder); skips the test when it is missing (fails under CI)."""
     if not p.exists():
-        msg = (f"shared real data {p} is missing; check out ../shared/data beside the repository "
-               "or set IBISCAPE_SHARED_DATA")
+        msg = (f"shared real data {p} is missing; check out ../shared beside the repository "
+               "or set IBISCAPE_SHARED_DATA to its data folder")
         if in_ci():
             pytest.fail(msg + " (CI=true: the cross-checks on real data must run)", pytrace=False)
         pytest.skip(msg)
     return p
+
+
+def require_shared(*parts: str) -> Path:
+    """The path ``SHARED_DATA/parts...``; skips the test when it is missing (fails under CI)."""
+    return require_path(SHARED_DATA.joinpath(*parts))

@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from ibiscape_eval.core.errors import IbiscapeError
+from ibiscape_eval.core.numbers import finite_or_none
 
 __all__ = [
     "camera_calibration",
@@ -54,14 +55,6 @@ def _sequence_doc(seq: str) -> dict[str, Any]:
         raise IbiscapeError(f"{path}: not found; the benchmark needs the truth of a simulated "
                             "sequence (generate it with 'ibiscape-eval sim suite')")
     return read_sequence_yaml(path)
-
-
-def _finite(x: Any) -> float | None:
-    try:
-        v = float(x)
-    except (TypeError, ValueError):
-        return None
-    return v if math.isfinite(v) else None
 
 
 # ---------------------------------------------------------------------------------------------
@@ -110,7 +103,7 @@ def _camera_calibration(seq: str, cameras: Sequence[str], model: str, max_views:
               "baseline_truth_m": c["baseline_truth_m"], "rotation_error_deg": c["rotation_error_deg"]}
              for c in (truth.chain if truth is not None else [])]
     return {"sequence": Path(seq).name, "target": target.to_kalibr().get("target_type"),
-            "model": model, "cameras": cams, "chain": chain, "rms_px": _finite(rd.get("rms_px")),
+            "model": model, "cameras": cams, "chain": chain, "rms_px": finite_or_none(rd.get("rms_px")),
             "n_views": rd.get("n_views"), "reconstruction": recon}
 
 
@@ -138,13 +131,13 @@ def imu_camera_calibration(seq: str, cameras: Sequence[str]) -> dict[str, Any]:
     for c in res.result.cameras:
         er = res.errors_vs_truth.get(c.name, {})
         rows.append({"camera": c.name,
-                     "rotation_error_deg": _finite(er.get("rotation_error_deg")),
-                     "translation_error_mm": _finite(1e3 * er.get("translation_error_m", math.nan)),
-                     "timeshift_error_ms": _finite(1e3 * er.get("timeshift_error_s", math.nan)),
-                     "timeshift_ms": _finite(1e3 * c.timeshift_cam_imu_s),
-                     "timeshift_truth_ms": _finite(
+                     "rotation_error_deg": finite_or_none(er.get("rotation_error_deg")),
+                     "translation_error_mm": finite_or_none(1e3 * er.get("translation_error_m", math.nan)),
+                     "timeshift_error_ms": finite_or_none(1e3 * er.get("timeshift_error_s", math.nan)),
+                     "timeshift_ms": finite_or_none(1e3 * c.timeshift_cam_imu_s),
+                     "timeshift_truth_ms": finite_or_none(
                          1e3 * res.truth.get(c.name, {}).get("timeshift_cam_imu", math.nan)),
-                     "reprojection_rms_px": _finite(c.reprojection_rms_px)})
+                     "reprojection_rms_px": finite_or_none(c.reprojection_rms_px)})
     return {"sequence": Path(seq).name, "cameras": rows, "forced": bool(res.result.forced),
             "warnings": list(res.result.warnings),
             "method": "calibrate_sequence: detected corners, B-spline camera-IMU solve"}
@@ -175,7 +168,7 @@ def imu_noise(seq: str) -> dict[str, Any]:
     est = model.kalibr(gyro=rec.names[:3], accel=rec.names[3:])
     rows = []
     for key in KALIBR_NOISE_KEYS:
-        t, v = _finite(imu0.get(key)), _finite(est.get(key))
+        t, v = finite_or_none(imu0.get(key)), finite_or_none(est.get(key))
         rows.append({"key": key, "truth": t, "estimate": v,
                      "error_pct": None if t in (None, 0.0) or v is None else 100.0 * (v / t - 1.0)})
     return {"sequence": Path(seq).name, "n_samples": int(rec.n_samples),
@@ -220,7 +213,7 @@ def hot_pixels(seq: str, camera: str, n_sigma: float = 5.0) -> dict[str, Any]:
     tp = len(a & b)
     return {"sequence": Path(seq).name, "camera": camera, "n_events": int(res.n_events),
             "n_hot_pixels": len(a), "n_noisy_pixels": len(b),
-            "fraction_removed": _finite(res.fraction_discarded),
+            "fraction_removed": finite_or_none(res.fraction_discarded),
             "precision": tp / len(a) if a and b else None,
             "recall": tp / len(b) if b else None}
 

@@ -25,6 +25,7 @@ import numpy.typing as npt
 
 from ibiscape_eval.core.errors import FormatError, IbiscapeError
 from ibiscape_eval.core.events import EventChunk, Events
+from ibiscape_eval.core.numbers import finite_or_none
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -123,6 +124,20 @@ def count_events(
     return total[0] if p is None else total
 
 
+#: Streams shorter than this run on one thread (starting the numba threads costs more).
+PARALLEL_MIN_EVENTS = 4_000_000
+
+
+def _threads(n: int) -> int:
+    """numba threads to use for ``n`` events (``NUMBA_NUM_THREADS`` / ``numba.set_num_threads``
+    decide the most; 1 for short streams)."""
+    if n < PARALLEL_MIN_EVENTS:
+        return 1
+    import numba
+
+    return int(numba.get_num_threads())
+
+
 _PAD = 16  # uint32 counters = one 64-byte cache line of row padding (see _kernels.count_xy)
 
 
@@ -134,6 +149,11 @@ def _count_padded(
 
     stride = w + _PAD
     planes = 1 if p is None else 2
+    threads = _threads(x.shape[0]) if p is None else 1
+    if threads > 1:  # one histogram per thread, summed
+        parts = np.zeros((threads, h * stride), np.uint32)
+        bad = _kernels.count_xy_threads(x, y, w, h, stride, parts, threads)
+        return int(bad) if bad >= 0 else parts.sum(axis=0, dtype=np.uint32).reshape(1, h, stride)[:, :, :w]
     buf = np.zeros(planes * h * stride, np.uint32)
     if p is None:
         bad = _kernels.count_xy(x, y, w, h, stride, buf)
@@ -200,9 +220,6 @@ class HotPixelResult:
     def to_dict(self) -> dict[str, Any]:
         """Strict JSON (NaN as None): counts, criteria and every hot pixel with its count."""
 
-        def num(v: float) -> float | None:
-            return float(v) if np.isfinite(v) else None
-
         return {
             "sensor_size": [int(v) for v in self.sensor_size],
             "n_events": self.n_events,
@@ -213,9 +230,9 @@ class HotPixelResult:
             "criteria": {
                 "top_n": self.top_n,
                 "n_sigma": None if self.n_sigma is None else float(self.n_sigma),
-                "threshold": num(self.threshold),
-                "mean": num(self.mean),
-                "std": num(self.std),
+                "threshold": finite_or_none(self.threshold),
+                "mean": finite_or_none(self.mean),
+                "std": finite_or_none(self.std),
             },
             "hot_pixels": [
                 {"x": int(x), "y": int(y), "count": int(c)}
@@ -253,6 +270,46 @@ def _union_sorted(flat: np.ndarray, counts_flat: np.ndarray) -> np.ndarray:
     flat = np.unique(flat)
     order = np.lexsort((flat, -counts_flat[flat]))
     return flat[order]
+
+
+def _fired_stats(counts: np.ndarray) -> tuple[float, float]:
+    """Mean and population standard deviation (``cv::meanStdDev``) of the counts of the pixels
+    that fired (NaN if none did)."""
+    fired = counts[counts > 0]
+    if not fired.size:
+        return float("nan"), float("nan")
+    return float(fired.mean()), float(fired.std())
+
+
+def _plane_hot(plane: np.ndarray, top_n: int | None,
+               n_sigma: float | None) -> tuple[float, list[np.ndarray]]:
+    """The n-sigma threshold (NaN if unused) and the flat indices each criterion marks in one
+    count plane."""
+    m, s = _fired_stats(plane)
+    n_fired = int(np.count_nonzero(plane > 0))
+    chosen: list[np.ndarray] = []
+    thr = float("nan")
+    if n_sigma is not None and n_fired:
+        thr = m + float(n_sigma) * s
+        chosen.append(np.flatnonzero(plane > thr))
+    k = min(int(top_n), n_fired) if top_n is not None else 0
+    if k > 0:
+        # partial selection, then a stable order: count desc, index asc (dvs_tools'
+        # repeated minMaxLoc scans row-major, so ties go to the lower index too)
+        cand = np.argpartition(-plane, k - 1)[:k]
+        kth = plane[cand].min()
+        above = np.flatnonzero(plane > kth)
+        ties = np.flatnonzero(plane == kth)[: k - above.size]
+        chosen.append(np.concatenate([above, ties]))
+    return thr, chosen
+
+
+def _extra_flat(extra_pixels: npt.ArrayLike, w: int, h: int) -> np.ndarray:
+    """Flat indices of further hot pixels (x, y), refused outside the sensor."""
+    ep = np.asarray(extra_pixels, dtype=np.int64).reshape(-1, 2)
+    if ep.size and ((ep[:, 0] < 0) | (ep[:, 0] >= w) | (ep[:, 1] < 0) | (ep[:, 1] >= h)).any():
+        raise IbiscapeError(f"extra hot pixels lie outside the {w}x{h} sensor")
+    return ep[:, 1] * w + ep[:, 0]
 
 
 def hot_pixels_from_counts(
@@ -295,40 +352,15 @@ def hot_pixels_from_counts(
     h, w = cm.shape[-2:]
     total = planes.sum(axis=0)
     chosen: list[np.ndarray] = []
-    threshold = mean = std = float("nan")
+    threshold = float("nan")
     for plane in planes:
-        fired = plane[plane > 0]
-        if fired.size:
-            m = float(fired.mean())
-            s = float(fired.std())  # population std, like cv::meanStdDev
-        else:
-            m = s = float("nan")
+        thr, picked = _plane_hot(plane, top_n, n_sigma)
+        chosen += picked
         if planes.shape[0] == 1:
-            mean, std = m, s
-        if n_sigma is not None and fired.size:
-            thr = m + float(n_sigma) * s
-            if planes.shape[0] == 1:
-                threshold = thr
-            chosen.append(np.flatnonzero(plane > thr))
-        if top_n is not None and int(top_n) > 0:
-            k = min(int(top_n), int(fired.size))
-            if k:
-                # partial selection, then a stable order: count desc, index asc (dvs_tools'
-                # repeated minMaxLoc scans row-major, so ties go to the lower index too)
-                cand = np.argpartition(-plane, k - 1)[:k]
-                kth = plane[cand].min()
-                above = np.flatnonzero(plane > kth)
-                ties = np.flatnonzero(plane == kth)[: k - above.size]
-                chosen.append(np.concatenate([above, ties]))
-    if planes.shape[0] == 2:
-        fired = total[total > 0]
-        mean = float(fired.mean()) if fired.size else float("nan")
-        std = float(fired.std()) if fired.size else float("nan")
+            threshold = thr
+    mean, std = _fired_stats(total)
     if extra_pixels is not None:
-        ep = np.asarray(extra_pixels, dtype=np.int64).reshape(-1, 2)
-        if ep.size and ((ep[:, 0] < 0) | (ep[:, 0] >= w) | (ep[:, 1] < 0) | (ep[:, 1] >= h)).any():
-            raise IbiscapeError(f"extra hot pixels lie outside the {w}x{h} sensor")
-        chosen.append(ep[:, 1] * w + ep[:, 0])
+        chosen.append(_extra_flat(extra_pixels, w, h))
     flat = _union_sorted(np.concatenate(chosen) if chosen else np.empty(0, np.int64), total)
     pixels = np.stack([flat % w, flat // w], axis=1).astype(np.int64)
     return HotPixelResult(
@@ -427,9 +459,9 @@ def hot_pixel_mask(
     xa, ya = _coords(x, y)
     lut = _hot_lut(pixels, w, h)
     out = np.empty(xa.shape[0], np.bool_)
-    bad = _kernels.keep_mask(xa, ya, w, h, lut, out)
+    bad = int(_kernels.keep_mask(xa, ya, w, h, lut, out.view(np.uint8)))
     if bad >= 0:
-        raise _outside(xa, ya, int(bad), w, h)
+        raise _outside(xa, ya, bad, w, h)
     return out
 
 
@@ -464,14 +496,22 @@ def filter_arrays(
     if ta.shape != xa.shape or pa.shape != xa.shape:
         raise IbiscapeError(f"t, x, y, p lengths differ: {ta.shape}, {xa.shape}, {ya.shape}, {pa.shape}")
     lut = _hot_lut(pixels, w, h)
-    keep = np.empty(xa.shape[0], np.bool_)
-    bad = _kernels.keep_mask(xa, ya, w, h, lut, keep)
+    keep = np.empty(xa.shape[0], np.uint8)
+    threads = _threads(xa.shape[0])
+    if threads > 1:
+        *outs, bad = _kernels.filter_threads(ta, xa, ya, pa, w, h, lut, keep, 2 * threads)
+        if bad >= 0:
+            raise _outside(xa, ya, int(bad), w, h)
+        to, xo, yo, po = (a[:-1] for a in outs)
+        return to, xo, yo, po
+    bad = int(_kernels.keep_mask(xa, ya, w, h, lut, keep))
     if bad >= 0:
-        raise _outside(xa, ya, int(bad), w, h)
-    to, xo, yo, po = (np.empty_like(a) for a in (ta, xa, ya, pa))
-    k = int(_kernels.compact4(ta, xa, ya, pa, keep.view(np.uint8), to, xo, yo, po))
-    # views, not copies: the unused tail (the discarded events) is the only memory kept
-    return to[:k], xo[:k], yo[:k], po[:k]
+        raise _outside(xa, ya, bad, w, h)
+    kept = int(_kernels.count_kept(keep))
+    # exactly sized (plus the one spare place the branch-free compaction writes to)
+    to, xo, yo, po = (np.empty(kept + 1, a.dtype) for a in (ta, xa, ya, pa))
+    _kernels.compact4(ta, xa, ya, pa, keep, to, xo, yo, po)
+    return to[:kept], xo[:kept], yo[:kept], po[:kept]
 
 
 def rate_hot_pixels(

@@ -46,6 +46,54 @@ def _plant(rng: np.random.Generator, w: int, h: int, n_hot: int) -> np.ndarray:
     return np.stack([flat % w, flat // w], axis=1).astype(np.int64)
 
 
+@dataclass(frozen=True, eq=False)
+class _Scene:
+    """What :func:`synthetic_windows` draws: sensor, edge, background and hot pixels."""
+
+    w: int
+    h: int
+    t0_ns: int
+    speed_px_s: float
+    edge_rate_hz: float
+    noise_rate_hz: float
+    hot: np.ndarray
+    hot_rate_hz: float
+
+
+def _window(rng: np.random.Generator, sc: _Scene, a: int, b: int) -> Events:
+    """The events of the window ``[a, b)`` ns, sorted by time."""
+    w, h, hot = sc.w, sc.h, sc.hot
+    dt_s = (b - a) * 1e-9
+    # moving edge: column = speed * t (mod width); both the entering (+) and the leaving
+    # (-) column fire
+    n_e = rng.poisson(sc.edge_rate_hz * dt_s)
+    te = rng.integers(a, b, size=n_e)
+    col = np.floor(sc.speed_px_s * (te - sc.t0_ns) * 1e-9).astype(np.int64)
+    pos = rng.random(n_e) < 0.5
+    xe = np.where(pos, col, col - w // 4) % w
+    ye = rng.integers(0, h, size=n_e)
+    # background activity
+    n_n = rng.poisson(sc.noise_rate_hz * w * h * dt_s)
+    tn = rng.integers(a, b, size=n_n)
+    xn = rng.integers(0, w, size=n_n)
+    yn = rng.integers(0, h, size=n_n)
+    pn = rng.random(n_n) < 0.5
+    # hot pixels
+    per = rng.poisson(sc.hot_rate_hz * dt_s, size=len(hot))
+    th = rng.integers(a, b, size=int(per.sum()))
+    xh = np.repeat(hot[:, 0], per)
+    yh = np.repeat(hot[:, 1], per)
+    ph = rng.random(th.size) < 0.5
+    t = np.concatenate([te, tn, th])
+    order = np.argsort(t, kind="stable")
+    return Events(
+        t[order],
+        np.concatenate([xe, xn, xh]).astype(np.uint16)[order],
+        np.concatenate([ye, yn, yh]).astype(np.uint16)[order],
+        np.concatenate([pos, pn, ph])[order],
+    )
+
+
 def synthetic_windows(
     *,
     sensor_size: tuple[int, int] = (64, 48),
@@ -101,39 +149,13 @@ def synthetic_windows(
     win_ns = max(1, round(window_s * 1e9))
     n_win = max(1, int(np.ceil(duration_s * 1e9 / win_ns)))
 
+    scene = _Scene(w=w, h=h, t0_ns=int(t0_ns), speed_px_s=speed, edge_rate_hz=edge_rate_hz,
+                   noise_rate_hz=noise_rate_hz, hot=hot, hot_rate_hz=hot_rate_hz)
+
     def gen() -> Iterator[tuple[int, int, Events]]:
         for k in range(n_win):
             a = t0_ns + k * win_ns
-            b = a + win_ns
-            dt_s = win_ns * 1e-9
-            # moving edge: column = speed * t (mod width); both the entering (+) and the leaving
-            # (-) column fire
-            n_e = rng.poisson(edge_rate_hz * dt_s)
-            te = rng.integers(a, b, size=n_e)
-            col = np.floor(speed * (te - t0_ns) * 1e-9).astype(np.int64)
-            pos = rng.random(n_e) < 0.5
-            xe = np.where(pos, col, col - w // 4) % w
-            ye = rng.integers(0, h, size=n_e)
-            # background activity
-            n_n = rng.poisson(noise_rate_hz * w * h * dt_s)
-            tn = rng.integers(a, b, size=n_n)
-            xn = rng.integers(0, w, size=n_n)
-            yn = rng.integers(0, h, size=n_n)
-            pn = rng.random(n_n) < 0.5
-            # hot pixels
-            per = rng.poisson(hot_rate_hz * dt_s, size=len(hot))
-            th = rng.integers(a, b, size=int(per.sum()))
-            xh = np.repeat(hot[:, 0], per)
-            yh = np.repeat(hot[:, 1], per)
-            ph = rng.random(th.size) < 0.5
-            t = np.concatenate([te, tn, th])
-            order = np.argsort(t, kind="stable")
-            yield a, b, Events(
-                t[order],
-                np.concatenate([xe, xn, xh]).astype(np.uint16)[order],
-                np.concatenate([ye, yn, yh]).astype(np.uint16)[order],
-                np.concatenate([pos, pn, ph])[order],
-            )
+            yield a, a + win_ns, _window(rng, scene, a, a + win_ns)
 
     return hot, gen()
 

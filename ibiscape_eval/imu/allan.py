@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 import numpy as np
 
 from ibiscape_eval.core.errors import DegenerateInputError, IbiscapeError, IbiscapeWarning
+from ibiscape_eval.core.numbers import finite_or_none
 
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
@@ -143,7 +144,7 @@ class AllanResult:
         (NaN as null)."""
 
         def lst(a: np.ndarray) -> list[Any]:
-            return [float(v) if np.isfinite(v) else None for v in np.asarray(a, dtype=float)]
+            return [finite_or_none(v) for v in np.asarray(a, dtype=float)]
 
         return {
             "rate_hz": float(self.rate_hz),
@@ -219,14 +220,78 @@ def _factors_from_taus(taus_s: np.ndarray, rate_hz: float, n_samples: int) -> np
     return out
 
 
+def _as_source(samples: np.ndarray | ChunkedSamples) -> ChunkedSamples:
+    """The samples as a :class:`ChunkedSamples` (an array gets a column axis if 1-D); refuses
+    fewer than 3 samples."""
+    if isinstance(samples, ChunkedSamples) and not isinstance(samples, np.ndarray):
+        source: ChunkedSamples = samples
+    else:
+        arr = samples if isinstance(samples, np.ndarray) else np.asarray(samples)
+        if arr.ndim == 1:
+            arr = arr[:, None]
+        if arr.ndim != 2:
+            raise IbiscapeError(f"samples must have shape (N,) or (N, k), got {arr.shape}")
+        source = _ArraySamples(arr)
+    n = int(source.n_samples)
+    if n < 3:
+        raise DegenerateInputError(f"need at least 3 samples for an Allan deviation, got {n}")
+    return source
+
+
+def _axis_names(names: Sequence[str] | None, k: int) -> tuple[str, ...]:
+    """The given names, or ``w_x .. a_z`` for six columns, else ``"0", "1", ...``."""
+    if names is None:
+        from ibiscape_eval.core.imu import AXES
+
+        axis_names = AXES if k == len(AXES) else tuple(str(i) for i in range(k))
+    else:
+        axis_names = tuple(names)
+    if len(axis_names) != k:
+        raise IbiscapeError(f"{len(axis_names)} names for {k} columns")
+    return axis_names
+
+
+def _check_not_constant(adev: np.ndarray, names: tuple[str, ...], where: object) -> None:
+    """Refuse an axis whose Allan deviation is 0 at every tau (``where``: the file, if known)."""
+    for j, name in enumerate(names):
+        if not np.any(adev[:, j] > 0):
+            raise DegenerateInputError(
+                (f"{where}: " if where else "") + f"axis {name!r} is constant (Allan deviation "
+                "0): a real IMU always shows noise; check the column mapping or drop the axis"
+            )
+
+
+def _grouped_sums(source: ChunkedSamples, ms: np.ndarray, names: tuple[str, ...],
+                  memory_budget_bytes: int,
+                  progress: Callable[[int], None] | None) -> np.ndarray:
+    """Second-difference sums (k, T) of every column, integrating as many columns at once as
+    the memory budget allows (8 bytes per sample and axis), reading the input once per group."""
+    n, k = int(source.n_samples), int(source.n_columns)
+    sums = np.empty((k, ms.size))
+    group = max(1, min(k, int(memory_budget_bytes // (8 * (n + 1)))))
+    for g0 in range(0, k, group):
+        cols = list(range(g0, min(k, g0 + group)))
+        theta = _integrate(source, cols, n, names, progress)
+        sums[cols] = _second_difference_sums(theta, ms)
+        del theta
+    return sums
+
+
+def _chi2_bounds(adev: np.ndarray, edf: np.ndarray, ci: float) -> tuple[np.ndarray, np.ndarray]:
+    """Lower and upper ``ci`` confidence bounds of ``adev`` from the chi-squared distribution
+    with ``edf`` degrees of freedom per tau."""
+    from scipy.stats import chi2
+
+    lo_q = (1.0 - ci) / 2.0
+    chi_lo = chi2.ppf(lo_q, edf)
+    chi_hi = chi2.ppf(1.0 - lo_q, edf)
+    return adev * np.sqrt(edf / chi_hi)[:, None], adev * np.sqrt(edf / chi_lo)[:, None]
+
+
 def allan_deviation(
-    samples: np.ndarray | ChunkedSamples,
-    rate_hz: float,
-    *,
-    taus_s: Sequence[float] | np.ndarray | None = None,
-    points_per_decade: int = 10,
-    names: Sequence[str] | None = None,
-    ci: float = ONE_SIGMA_CI,
+    samples: np.ndarray | ChunkedSamples, rate_hz: float, *,
+    taus_s: Sequence[float] | np.ndarray | None = None, points_per_decade: int = 10,
+    names: Sequence[str] | None = None, ci: float = ONE_SIGMA_CI,
     memory_budget_bytes: int = DEFAULT_MEMORY_BUDGET,
     progress: Callable[[int], None] | None = None,
 ) -> AllanResult:
@@ -277,80 +342,28 @@ def allan_deviation(
     (numba, parallel over blocks), so the cost is O(N T) with the data read from memory once per
     block rather than once per tau.
     """
-    from scipy.stats import chi2
-
     if not (np.isfinite(rate_hz) and rate_hz > 0):
         raise IbiscapeError(f"rate_hz must be a positive number, got {rate_hz!r}")
     if not 0 < ci < 1:
         raise IbiscapeError(f"ci must be in (0, 1), got {ci!r}")
-
-    if isinstance(samples, ChunkedSamples) and not isinstance(samples, np.ndarray):
-        source: ChunkedSamples = samples
-    else:
-        arr = samples if isinstance(samples, np.ndarray) else np.asarray(samples)
-        if arr.ndim == 1:
-            arr = arr[:, None]
-        if arr.ndim != 2:
-            raise IbiscapeError(f"samples must have shape (N,) or (N, k), got {arr.shape}")
-        source = _ArraySamples(arr)
-    n = int(source.n_samples)
-    k = int(source.n_columns)
-    if n < 3:
-        raise DegenerateInputError(f"need at least 3 samples for an Allan deviation, got {n}")
-    if names is None:
-        from ibiscape_eval.core.imu import AXES
-
-        axis_names = AXES if k == len(AXES) else tuple(str(i) for i in range(k))
-    else:
-        axis_names = tuple(names)
-    if len(axis_names) != k:
-        raise IbiscapeError(f"{len(axis_names)} names for {k} columns")
-
-    if taus_s is None:
-        ms = default_averaging_factors(n, points_per_decade=points_per_decade)
-        requested = None
-    else:
-        requested = np.atleast_1d(np.asarray(taus_s, dtype=np.float64))
-        ms = _factors_from_taus(requested, rate_hz, n)
-
-    sums = np.empty((k, ms.size))
-    group = max(1, min(k, int(memory_budget_bytes // (8 * (n + 1)))))
-    for g0 in range(0, k, group):
-        cols = list(range(g0, min(k, g0 + group)))
-        theta = _integrate(source, cols, n, axis_names, progress)
-        sums[cols] = _second_difference_sums(theta, ms)
-        del theta
-
+    source = _as_source(samples)
+    n, k = int(source.n_samples), int(source.n_columns)
+    axis_names = _axis_names(names, k)
+    requested = None if taus_s is None else np.atleast_1d(np.asarray(taus_s, dtype=np.float64))
+    ms = (default_averaging_factors(n, points_per_decade=points_per_decade) if requested is None
+          else _factors_from_taus(requested, rate_hz, n))
+    sums = _grouped_sums(source, ms, axis_names, memory_budget_bytes, progress)
     n_terms = (n + 1) - 2 * ms
     # allantools: dev = sqrt(s / (2 n)) / m * rate on phase in seconds; here theta is in samples
     # (not multiplied by 1/rate), so tau^2 = m^2 in those units.
     adev = (np.sqrt(sums / (2.0 * n_terms)) / ms).T  # (T, k)
-    for j, name in enumerate(axis_names):
-        if not np.any(adev[:, j] > 0):
-            where = getattr(samples, "path", None)  # an ImuRecord names its file
-            raise DegenerateInputError(
-                (f"{where}: " if where else "") + f"axis {name!r} is constant (Allan deviation 0): a real IMU always shows noise; "
-                "check the column mapping or drop the axis"
-            )
+    _check_not_constant(adev, axis_names, getattr(samples, "path", None))
     edf = edf_white_fm(n + 1, ms)
-    lo_q = (1.0 - ci) / 2.0
-    chi_lo = chi2.ppf(lo_q, edf)
-    chi_hi = chi2.ppf(1.0 - lo_q, edf)
-    adev_lo = adev * np.sqrt(edf / chi_hi)[:, None]
-    adev_hi = adev * np.sqrt(edf / chi_lo)[:, None]
+    adev_lo, adev_hi = _chi2_bounds(adev, edf, ci)
     return AllanResult(
-        taus_s=ms / float(rate_hz),
-        m=ms,
-        adev=adev,
-        n_terms=n_terms.astype(np.int64),
-        edf=edf,
-        adev_lo=adev_lo,
-        adev_hi=adev_hi,
-        ci=float(ci),
-        rate_hz=float(rate_hz),
-        n_samples=n,
-        names=axis_names,
-        requested_taus_s=requested,
+        taus_s=ms / float(rate_hz), m=ms, adev=adev, n_terms=n_terms.astype(np.int64), edf=edf,
+        adev_lo=adev_lo, adev_hi=adev_hi, ci=float(ci), rate_hz=float(rate_hz), n_samples=n,
+        names=axis_names, requested_taus_s=requested,
     )
 
 

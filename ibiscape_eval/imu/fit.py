@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ibiscape_eval.core.errors import IbiscapeError
+from ibiscape_eval.core.numbers import finite_or_none
 
 from .allan import AllanResult
 
@@ -204,7 +205,7 @@ class NoiseModel:
 
         def val(v: Any) -> Any:
             if isinstance(v, float):
-                return v if math.isfinite(v) else None
+                return finite_or_none(v)
             if isinstance(v, tuple):
                 return [val(x) for x in v]
             return v
@@ -315,6 +316,150 @@ def _in_range(taus: np.ndarray, rng: tuple[float, float], what: str) -> np.ndarr
     return sel
 
 
+@dataclass(frozen=True, eq=False)
+class _Curve:
+    """The taus of an Allan curve, their equivalent degrees of freedom and which are usable."""
+
+    taus: np.ndarray
+    edf: np.ndarray
+    usable: np.ndarray
+
+
+def _white_selection(c: _Curve, slopes: np.ndarray, slope_tolerance: float,
+                     white_range_s: tuple[float, float] | None) -> np.ndarray:
+    """Taus of the white-noise fit: the given range, else the first run of slope -1/2."""
+    if white_range_s is not None:
+        return _in_range(c.taus, white_range_s, "white-noise")
+    cand = c.usable & (np.abs(slopes + 0.5) <= slope_tolerance)
+    runs = _runs(cand)
+    w_sel = np.zeros(c.taus.size, dtype=bool)
+    if runs:
+        w_sel[runs[0][0] : runs[0][1]] = True
+    return w_sel
+
+
+def _walk_selection(c: _Curve, slopes: np.ndarray, slope_tolerance: float,
+                    walk_range_s: tuple[float, float] | None, w_sel: np.ndarray) -> np.ndarray:
+    """Taus of the random-walk fit: the given range, else the most informative run of slope
+    +1/2, widened while the curve keeps rising, and none if it starts before the white range
+    ends."""
+    if walk_range_s is not None:
+        return _in_range(c.taus, walk_range_s, "random-walk")
+    taus, edf, usable = c.taus, c.edf, c.usable
+    cand = usable & (np.abs(slopes - 0.5) <= slope_tolerance)
+    runs = [r for r in _runs(cand) if r[1] - r[0] >= 2]
+    k_sel = np.zeros(taus.size, dtype=bool)
+    if runs:  # the run with the most information (sum of edf), usually the earliest
+        best = max(runs, key=lambda r: float(edf[r[0] : r[1]].sum()))
+        k_sel[best[0] : best[1]] = True
+        # widened to the end of the usable curve while it keeps rising: a 0.1-decade
+        # range gave uncertainties that covered the truth far less often than stated
+        for i in range(best[1], taus.size):  # over taus (tens), not samples
+            if not (usable[i] and slopes[i] > _WALK_EXTEND_SLOPE):
+                break
+            k_sel[i] = True
+    if w_sel.any() and k_sel.any() and taus[k_sel][0] <= taus[w_sel][-1]:
+        k_sel[:] = False
+    return k_sel
+
+
+def _fit_white_and_walk(var: np.ndarray, c: _Curve, w_sel: np.ndarray,
+                        k_sel: np.ndarray) -> tuple[float, float, float, float]:
+    """``(N, N's relative sigma, K, K's relative sigma)``, alternating: N with the K part
+    removed, K with the N part removed (NaN where a range is empty)."""
+    taus, edf = c.taus, c.edf
+    N = K = math.nan
+    n_rel = k_rel = math.nan
+    for _ in range(3):
+        if w_sel.any():
+            v = var[w_sel] - (K**2 * taus[w_sel] / 3.0 if math.isfinite(K) else 0.0)
+            N, n_rel = _fixed_slope_fit(v, taus[w_sel], edf[w_sel], -0.5, 1.0)
+        if k_sel.any():
+            v = var[k_sel] - (N**2 / taus[k_sel] if math.isfinite(N) else 0.0)
+            K, k_rel = _fixed_slope_fit(v, taus[k_sel], edf[k_sel], 0.5, 3.0,
+                                        edf_of="mean")
+    return N, n_rel, K, k_rel
+
+
+def _range_notes(c: _Curve, slopes: np.ndarray, w_sel: np.ndarray,
+                 k_sel: np.ndarray) -> list[str]:
+    """Why N or K is missing (no slope -1/2 or +1/2 region)."""
+    notes: list[str] = []
+    if not w_sel.any():
+        notes.append(
+            "no slope -1/2 region at short taus: the white noise is hidden (filtered or "
+            "quantised data?); give --white-range to force a fit"
+        )
+    if not k_sel.any():
+        last = np.flatnonzero(c.usable)
+        t_last = float(c.taus[last[-1]]) if last.size else float(c.taus[-1])
+        s_last = float(slopes[last[-1]]) if last.size else math.nan
+        notes.append(
+            f"record too short to see the rate random walk: no slope +1/2 region up to "
+            f"tau = {t_last:.4g} s (local slope there {s_last:+.2f}); record for longer or "
+            "give --walk-range"
+        )
+    return notes
+
+
+def _bias_instability(result: AllanResult, j: int, c: _Curve, slopes: np.ndarray,
+                      notes: list[str]) -> tuple[float, float, float]:
+    """``(B, its sigma, its tau)``: the minimum over the trustworthy part of the curve (NaN
+    with a note when the curve is still falling at its end)."""
+    adev, taus = result.adev[:, j], c.taus
+    many = np.flatnonzero(c.edf >= MIN_EDF_BIAS)
+    idx = many if many.size >= 3 else np.flatnonzero(c.usable)
+    if not idx.size:
+        return math.nan, math.nan, math.nan
+    # the minimum of the curve smoothed over three neighbouring taus (0.2 decade): the
+    # lowest single point of a flat, noisy floor is a downward fluctuation whose
+    # chi-squared bounds understate B's error (1 sigma covered 25 % of such axes)
+    sm = adev[idx]
+    if idx.size >= 3:
+        sm = np.convolve(np.log(np.maximum(sm, 1e-300)), np.ones(3) / 3.0, mode="same")
+        sm[0], sm[-1] = np.log(max(adev[idx[0]], 1e-300)), np.log(max(adev[idx[-1]], 1e-300))
+        sm = np.exp(sm)
+    k_min = int(np.argmin(sm))
+    i_min = int(idx[k_min])
+    if i_min == idx[-1] and not (slopes[i_min] > -FLOOR_SLOPE):
+        notes.append(
+            f"curve still falling at tau = {taus[i_min]:.4g} s: no bias-instability floor "
+            "in this record"
+        )
+        return math.nan, math.nan, math.nan
+    B = float(sm[k_min] / BIAS_INSTABILITY_FACTOR)
+    rel_half = (result.adev_hi[i_min, j] - result.adev_lo[i_min, j]) / 2.0 / adev[i_min]
+    return B, float(B * rel_half * BIAS_INSTABILITY_UNC_INFLATION), float(taus[i_min])
+
+
+def _fit_axis(result: AllanResult, j: int, name: str, c: _Curve, *,
+              white_range_s: tuple[float, float] | None,
+              walk_range_s: tuple[float, float] | None, slope_tolerance: float) -> AxisNoise:
+    """N, K and B of axis ``j`` (see :func:`fit_noise_model`)."""
+    taus, rate = c.taus, result.rate_hz
+    adev = result.adev[:, j]
+    logt = np.log10(taus)
+    with np.errstate(divide="ignore"):
+        logs = np.log10(adev)
+    slopes = np.full(taus.size, np.nan)
+    if c.usable.sum() >= 2:
+        slopes[c.usable] = _local_slopes(logt[c.usable], logs[c.usable], 0.25)
+    w_sel = _white_selection(c, slopes, slope_tolerance, white_range_s)
+    k_sel = _walk_selection(c, slopes, slope_tolerance, walk_range_s, w_sel)
+    N, n_rel, K, k_rel = _fit_white_and_walk(adev**2, c, w_sel, k_sel)
+    notes = _range_notes(c, slopes, w_sel, k_sel)
+    B, B_unc, tau_b = _bias_instability(result, j, c, slopes, notes)
+    return AxisNoise(
+        name=name, noise_density=N, noise_density_unc=N * n_rel, random_walk=K,
+        random_walk_unc=K * k_rel, bias_instability=B, bias_instability_unc=B_unc,
+        bias_tau_s=tau_b,
+        white_range_s=(float(taus[w_sel][0]), float(taus[w_sel][-1])) if w_sel.any() else None,
+        walk_range_s=(float(taus[k_sel][0]), float(taus[k_sel][-1])) if k_sel.any() else None,
+        discrete_sigma=N * math.sqrt(rate), discrete_walk_sigma=K / math.sqrt(rate),
+        notes=tuple(notes),
+    )
+
+
 def fit_noise_model(
     result: AllanResult,
     *,
@@ -351,112 +496,10 @@ def fit_noise_model(
     if usable.sum() < 2:
         usable = edf >= 1.0
     rate = result.rate_hz
-    axes = []
-    for j, name in enumerate(result.names):
-        adev = result.adev[:, j]
-        var = adev**2
-        notes: list[str] = []
-        logt = np.log10(taus)
-        with np.errstate(divide="ignore"):
-            logs = np.log10(adev)
-        slopes = np.full(taus.size, np.nan)
-        if usable.sum() >= 2:
-            slopes[usable] = _local_slopes(logt[usable], logs[usable], 0.25)
-
-        # ranges
-        if white_range_s is not None:
-            w_sel = _in_range(taus, white_range_s, "white-noise")
-        else:
-            cand = usable & (np.abs(slopes + 0.5) <= slope_tolerance)
-            runs = _runs(cand)
-            w_sel = np.zeros(taus.size, dtype=bool)
-            if runs:
-                w_sel[runs[0][0] : runs[0][1]] = True
-        if walk_range_s is not None:
-            k_sel = _in_range(taus, walk_range_s, "random-walk")
-        else:
-            cand = usable & (np.abs(slopes - 0.5) <= slope_tolerance)
-            runs = [r for r in _runs(cand) if r[1] - r[0] >= 2]
-            k_sel = np.zeros(taus.size, dtype=bool)
-            if runs:  # the run with the most information (sum of edf), usually the earliest
-                best = max(runs, key=lambda r: float(edf[r[0] : r[1]].sum()))
-                k_sel[best[0] : best[1]] = True
-                # widened to the end of the usable curve while it keeps rising: a 0.1-decade
-                # range gave uncertainties that covered the truth far less often than stated
-                for i in range(best[1], taus.size):  # over taus (tens), not samples
-                    if not (usable[i] and slopes[i] > _WALK_EXTEND_SLOPE):
-                        break
-                    k_sel[i] = True
-            if w_sel.any() and k_sel.any() and taus[k_sel][0] <= taus[w_sel][-1]:
-                k_sel[:] = False
-
-        # alternate: N with the K part removed, K with the N part removed
-        N = K = math.nan
-        n_rel = k_rel = math.nan
-        for _ in range(3):
-            if w_sel.any():
-                v = var[w_sel] - (K**2 * taus[w_sel] / 3.0 if math.isfinite(K) else 0.0)
-                N, n_rel = _fixed_slope_fit(v, taus[w_sel], edf[w_sel], -0.5, 1.0)
-            if k_sel.any():
-                v = var[k_sel] - (N**2 / taus[k_sel] if math.isfinite(N) else 0.0)
-                K, k_rel = _fixed_slope_fit(v, taus[k_sel], edf[k_sel], 0.5, 3.0,
-                                            edf_of="mean")
-        if not w_sel.any():
-            notes.append(
-                "no slope -1/2 region at short taus: the white noise is hidden (filtered or "
-                "quantised data?); give --white-range to force a fit"
-            )
-        if not k_sel.any():
-            last = np.flatnonzero(usable)
-            t_last = float(taus[last[-1]]) if last.size else float(taus[-1])
-            s_last = float(slopes[last[-1]]) if last.size else math.nan
-            notes.append(
-                f"record too short to see the rate random walk: no slope +1/2 region up to "
-                f"tau = {t_last:.4g} s (local slope there {s_last:+.2f}); record for longer or "
-                "give --walk-range"
-            )
-
-        # bias instability: the minimum over the trustworthy part of the curve
-        many = np.flatnonzero(edf >= MIN_EDF_BIAS)
-        idx = many if many.size >= 3 else np.flatnonzero(usable)
-        B = B_unc = tau_b = math.nan
-        if idx.size:
-            # the minimum of the curve smoothed over three neighbouring taus (0.2 decade): the
-            # lowest single point of a flat, noisy floor is a downward fluctuation whose
-            # chi-squared bounds understate B's error (1 sigma covered 25 % of such axes)
-            sm = adev[idx]
-            if idx.size >= 3:
-                sm = np.convolve(np.log(np.maximum(sm, 1e-300)), np.ones(3) / 3.0, mode="same")
-                sm[0], sm[-1] = np.log(max(adev[idx[0]], 1e-300)), np.log(max(adev[idx[-1]], 1e-300))
-                sm = np.exp(sm)
-            k_min = int(np.argmin(sm))
-            i_min = int(idx[k_min])
-            if i_min == idx[-1] and not (slopes[i_min] > -FLOOR_SLOPE):
-                notes.append(
-                    f"curve still falling at tau = {taus[i_min]:.4g} s: no bias-instability floor "
-                    "in this record"
-                )
-            else:
-                B = float(sm[k_min] / BIAS_INSTABILITY_FACTOR)
-                rel_half = (result.adev_hi[i_min, j] - result.adev_lo[i_min, j]) / 2.0 / adev[i_min]
-                B_unc = float(B * rel_half * BIAS_INSTABILITY_UNC_INFLATION)
-                tau_b = float(taus[i_min])
-
-        axes.append(
-            AxisNoise(
-                name=name,
-                noise_density=N,
-                noise_density_unc=N * n_rel,
-                random_walk=K,
-                random_walk_unc=K * k_rel,
-                bias_instability=B,
-                bias_instability_unc=B_unc,
-                bias_tau_s=tau_b,
-                white_range_s=(float(taus[w_sel][0]), float(taus[w_sel][-1])) if w_sel.any() else None,
-                walk_range_s=(float(taus[k_sel][0]), float(taus[k_sel][-1])) if k_sel.any() else None,
-                discrete_sigma=N * math.sqrt(rate),
-                discrete_walk_sigma=K / math.sqrt(rate),
-                notes=tuple(notes),
-            )
-        )
+    curve = _Curve(taus=taus, edf=edf, usable=usable)
+    axes = [
+        _fit_axis(result, j, name, curve, white_range_s=white_range_s, walk_range_s=walk_range_s,
+                  slope_tolerance=slope_tolerance)
+        for j, name in enumerate(result.names)
+    ]
     return NoiseModel(axes=tuple(axes), rate_hz=float(rate), duration_s=result.duration_s)

@@ -183,6 +183,38 @@ def _block_means(samples: np.ndarray | ChunkedSamples, m: int) -> np.ndarray:
     return np.concatenate(out, axis=0) if out else np.zeros((0, 6))
 
 
+def _mean_checks(g_mean: np.ndarray, a_norm: float) -> tuple[list[str], list[str]]:
+    """Reasons (not still) and notes from the record's mean gyro rate and accelerometer norm."""
+    reasons: list[str] = []
+    notes: list[str] = []
+    gn = float(np.linalg.norm(g_mean))
+    if gn > GYRO_MEAN_MAX_RAD_S:
+        reasons.append(f"gyro mean {gn:.3g} rad/s (norm) where a still gyro shows its bias, "
+                       f"below {GYRO_MEAN_MAX_RAD_S:g} rad/s (turning, or in deg/s: --units "
+                       "gyro=deg/s)")
+    if a_norm < NO_GRAVITY_M_S2:
+        notes.append(f"accelerometer mean {a_norm:.3g} m/s^2, no gravity: the gravity check "
+                     "was skipped")
+    elif abs(a_norm - G) > GRAVITY_TOLERANCE * G:
+        reasons.append(f"accelerometer mean norm {a_norm:.4g} m/s^2 where a still IMU reads "
+                       f"g = {G:.4g} +- {100 * GRAVITY_TOLERANCE:g} % (moving, or a wrong unit)")
+    elif abs(a_norm - G) > GRAVITY_NOTE * G:
+        notes.append(f"accelerometer mean norm {a_norm:.4g} m/s^2 is {100 * (a_norm / G - 1):+.1f} % "
+                     "from g: an uncalibrated scale or zero-g offset; the accelerometer's noise "
+                     "values carry that scale error")
+    return reasons, notes
+
+
+def _explained(white: np.ndarray, floor: np.ndarray, u: np.ndarray | None) -> np.ndarray:
+    """Window-mean variation a still IMU explains per axis (white noise and the floors), plus
+    the accelerometer norm's when ``u`` (the unit gravity direction) is given."""
+    explained = np.sqrt(white**2 + floor**2)
+    if u is not None:
+        # the norm moves with the accelerometer noise along gravity
+        explained = np.append(explained, math.sqrt(float(np.dot(u**2, explained[3:] ** 2))))
+    return explained
+
+
 def assess_stillness(samples: np.ndarray | ChunkedSamples, rate_hz: float, *,
                      window_s: float = TAU_WINDOW_S, short_s: float = TAU_SHORT_S,
                      gyro_floor_rad_s: float = GYRO_FLOOR_RAD_S,
@@ -209,23 +241,7 @@ def assess_stillness(samples: np.ndarray | ChunkedSamples, rate_hz: float, *,
     mean = b.mean(axis=0) if b.shape[0] else np.full(6, np.nan)
     g_mean, a_mean = mean[:3], mean[3:]
     a_norm = float(np.linalg.norm(a_mean))
-    reasons: list[str] = []
-    notes: list[str] = []
-    gn = float(np.linalg.norm(g_mean))
-    if gn > GYRO_MEAN_MAX_RAD_S:
-        reasons.append(f"gyro mean {gn:.3g} rad/s (norm) where a still gyro shows its bias, "
-                       f"below {GYRO_MEAN_MAX_RAD_S:g} rad/s (turning, or in deg/s: --units "
-                       "gyro=deg/s)")
-    if a_norm < NO_GRAVITY_M_S2:
-        notes.append(f"accelerometer mean {a_norm:.3g} m/s^2, no gravity: the gravity check "
-                     "was skipped")
-    elif abs(a_norm - G) > GRAVITY_TOLERANCE * G:
-        reasons.append(f"accelerometer mean norm {a_norm:.4g} m/s^2 where a still IMU reads "
-                       f"g = {G:.4g} +- {100 * GRAVITY_TOLERANCE:g} % (moving, or a wrong unit)")
-    elif abs(a_norm - G) > GRAVITY_NOTE * G:
-        notes.append(f"accelerometer mean norm {a_norm:.4g} m/s^2 is {100 * (a_norm / G - 1):+.1f} % "
-                     "from g: an uncalibrated scale or zero-g offset; the accelerometer's noise "
-                     "values carry that scale error")
+    reasons, notes = _mean_checks(g_mean, a_norm)
     nan7 = (math.nan,) * 7
     if n_w < MIN_WINDOWS:
         notes.append(f"record too short to test stillness ({n_w} windows of {window_s:g} s)")
@@ -244,13 +260,8 @@ def assess_stillness(samples: np.ndarray | ChunkedSamples, rate_hz: float, *,
     cols = np.concatenate((w, wn), axis=1) if gravity else w
     dw = np.diff(cols, axis=0)
     measured = np.sqrt(0.5 * np.mean(dw**2, axis=0))
-    white = sig0 / math.sqrt(k)
     floor = np.array([gyro_floor_rad_s] * 3 + [accel_floor_m_s2] * 3)
-    explained = np.sqrt(white**2 + floor**2)
-    if gravity:
-        # the norm moves with the accelerometer noise along gravity
-        u = a_mean / a_norm
-        explained = np.append(explained, math.sqrt(float(np.dot(u**2, explained[3:] ** 2))))
+    explained = _explained(sig0 / math.sqrt(k), floor, a_mean / a_norm if gravity else None)
     ratios = measured / explained
     i = int(np.argmax(ratios))
     names = StillnessReport.NAMES

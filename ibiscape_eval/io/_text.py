@@ -200,14 +200,18 @@ def _status_error(
                        line=line)
 
 
+def _outputs(cap: int, widths: tuple[int, ...]) -> tuple[np.ndarray, ...]:
+    """The kernels' output arrays for ``cap`` rows: three value groups (unused ones empty),
+    mantissa, exponent, finite, line."""
+    groups = tuple(np.empty((cap, w)) for w in widths)
+    groups += tuple(np.empty((0, 0)) for _ in range(3 - len(widths)))
+    return (*groups, np.empty(cap, dtype=np.int64), np.empty(cap, dtype=np.int32),
+            np.empty(cap, dtype=np.bool_), np.empty(cap, dtype=np.int64))
+
+
 def parse_table(
-    path: str | os.PathLike[str],
-    data: bytes | mmap.mmap,
-    *,
-    nkeep: int,
-    ncols_min: int,
-    ncols_max: int,
-    expected: str,
+    path: str | os.PathLike[str], data: bytes | mmap.mmap, *,
+    nkeep: int, ncols_min: int, ncols_max: int, expected: str,
     widths: tuple[int, ...] | None = None,
 ) -> Table:
     """Tokenize ``data`` (the content of ``path``) into a :class:`Table`.
@@ -256,11 +260,7 @@ def parse_table(
         counts = pool.map(count_newlines, [(buf, a, b) for a, b in pieces])
         n_head = count_newlines(buf, 0, head)
         cap = n_head + sum(counts) + (body < len(data))
-        groups = tuple(np.empty((cap, w)) for w in widths)
-        groups += tuple(np.empty((0, 0)) for _ in range(3 - len(widths)))
-        out = (*groups, np.empty(cap, dtype=np.int64), np.empty(cap, dtype=np.int32),
-               np.empty(cap, dtype=np.bool_), np.empty(cap, dtype=np.int64))
-        # out: three value groups, mantissa, exponent, finite, line
+        out = _outputs(cap, widths)
         status = np.zeros((len(pieces) + 2, 6), dtype=np.int64)
         rows = scan_lines(buf, 0, head, nkeep, ncols_min, ncols_max, 0, 0, *out, status[0])
         if status[0, 0]:

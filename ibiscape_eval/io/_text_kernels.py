@@ -27,11 +27,6 @@ EXACT_POW = np.array([10.0**k for k in range(23)])
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def is_sep(c):
-    return c == SPACE or c == TAB or c == COMMA or c == CR
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
 def lower(c):
     return c + (LOWER_A - UPPER_A) if UPPER_A <= c <= UPPER_Z else c
 
@@ -166,6 +161,10 @@ def token_end(buf, i, status, line):
     return i
 
 
+# Long on purpose (numba kernel): one state machine over every byte of the file, the fast
+# digit loop, the exact-fallback token and the column routing share the loop's local state
+# (position, column, row); split into calls, each byte would pay for passing that state back
+# and forth, and a jitted helper cannot return early out of the caller's loop on an error.
 @njit(cache=True, nogil=True, error_model="numpy")
 def scan_lines(buf, start, stop, nkeep, ncols_min, ncols_max, line0, row0,
                vals, vals2, vals3, mant, exps, finite, lines, status):
@@ -371,6 +370,9 @@ def write_uint(out, pos, v, width):
     return pos
 
 
+# Long on purpose (numba kernel): the special values, the digit extraction and the fixed or
+# exponent layout run once per written number in the writer's hot loop; kept in one function
+# so the digits stay in registers instead of going through a scratch array between calls.
 @njit(cache=True, nogil=True, error_model="numpy")
 def write_float(out, pos, x):
     """Write ``x`` with 15 significant digits, trailing zeros stripped (like ``%.15g``, but fixed

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 import warnings
 from dataclasses import dataclass, field
 from typing import Any
@@ -24,8 +23,9 @@ __all__ = [
     "aligned_errors",
     "emit",
     "frozen",
-    "match",
+    "match_poses",
     "matched_fields",
+    "prepare",
     "relative_errors",
     "select",
     "take",
@@ -103,7 +103,7 @@ def frozen(a: npt.ArrayLike, dtype: Any = None, *, owned: bool = False) -> np.nd
     return out
 
 
-def match(
+def match_poses(
     est: Trajectory,
     ref: Trajectory,
     *,
@@ -128,6 +128,49 @@ def match(
 
         offset_s = estimate_time_offset(est, ref, max_diff_s=max_diff_s, center_s=offset_s)
     return associate(est, ref, max_diff_s=max_diff_s, offset_s=offset_s, interpolate=interpolate)
+
+
+@dataclass(frozen=True, eq=False)
+class Prepared:
+    """The selected, matched and aligned pair that ATE, RPE and drift start from.
+
+    ``est`` and ``ref`` are the trajectories after evo's pose selection (their names stay for
+    messages), ``m`` the association, ``al`` the alignment of ``m.est`` onto ``m.ref``."""
+
+    est: Trajectory
+    ref: Trajectory
+    m: Matched
+    al: AlignmentResult
+    synthetic: bool
+    index: npt.NDArray[np.int64]
+
+    def fields(self, est_aligned: Trajectory, warnings: tuple[str, ...],
+               m: Matched | None = None) -> dict[str, Any]:
+        """Keyword arguments of :class:`MatchedResult` (``m`` replaces the association, e.g.
+        with a projected reference)."""
+        return matched_fields(self.m if m is None else m, self.al, est_aligned,
+                              synthetic=self.synthetic, warnings=warnings,
+                              ref_pose_index=self.index)
+
+
+def prepare(
+    est: Trajectory, ref: Trajectory, *, align: Any, n_align: int | None, match: str,
+    max_diff_s: float, offset_s: float, estimate_offset: bool, interpolate: bool,
+    t_start_s: float | None, t_end_s: float | None, downsample: int | None,
+    motion_filter: tuple[float, float] | None,
+) -> Prepared:
+    """evo's pose selection (:func:`select`), the association (:func:`match_poses`) and the
+    alignment (:func:`~ibiscape_eval.metrics.alignment.align`), in that order."""
+    from .alignment import align as _align
+
+    est, ref = select(est, ref, t_start_s=t_start_s, t_end_s=t_end_s, downsample=downsample,
+                      motion_filter=motion_filter)
+    m = match_poses(est, ref, match=match, max_diff_s=max_diff_s, offset_s=offset_s,
+                    estimate_offset=estimate_offset, interpolate=interpolate)
+    synthetic = stamps_synthetic(est, ref, m)
+    index = pose_index(ref, m)
+    al = _align(m.est, m.ref, method=align, n_align=n_align)
+    return Prepared(est=est, ref=ref, m=m, al=al, synthetic=synthetic, index=index)
 
 
 def _indices(index: npt.ArrayLike, n: int) -> npt.NDArray[np.intp]:
@@ -185,11 +228,6 @@ def scaled_stats(stats: Any, factor: float) -> dict[str, float]:
     if factor == 1.0:
         return d
     return {k: (v * factor * factor if k == "sse" else v * factor) for k, v in d.items()}
-
-
-def nan_to_none(x: float) -> float | None:
-    """JSON-friendly float: NaN becomes None."""
-    return None if math.isnan(x) else float(x)
 
 
 @dataclass(frozen=True, eq=False)

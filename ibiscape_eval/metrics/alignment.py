@@ -12,6 +12,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ibiscape_eval.core import DegenerateInputError, IbiscapeError, IbiscapeWarning, Trajectory
+from ibiscape_eval.core.numbers import finite_or_none
 from ibiscape_eval.core.rotations import quat_from_matrix
 from ibiscape_eval.core.transforms import invert_transforms
 
@@ -113,21 +114,18 @@ class AlignmentConditioning:
     def to_dict(self) -> dict[str, Any]:
         """Strict JSON (an undetermined value, infinite or NaN, becomes ``None``)."""
 
-        def num(x: float) -> float | None:
-            return float(x) if math.isfinite(x) else None
-
         return {
             "method": self.method,
             "n_used": int(self.n_used),
-            "sigma_pos_m": num(self.sigma_pos_m),
-            "spread_m": [num(v) for v in self.spread_m],
-            "rotation_sigma_deg": [num(v) for v in self.rotation_sigma_deg],
-            "rotation_axes": [[num(v) for v in row] for row in self.rotation_axes],
-            "rotation_sigma_total_deg": num(self.rotation_sigma_total_deg),
-            "translation_sigma_m": [num(v) for v in self.translation_sigma_m],
-            "scale_sigma": None if self.scale_sigma is None else num(self.scale_sigma),
-            "residual_rho": num(self.residual_rho),
-            "variance_inflation": num(self.variance_inflation),
+            "sigma_pos_m": finite_or_none(self.sigma_pos_m),
+            "spread_m": [finite_or_none(v) for v in self.spread_m],
+            "rotation_sigma_deg": [finite_or_none(v) for v in self.rotation_sigma_deg],
+            "rotation_axes": [[finite_or_none(v) for v in row] for row in self.rotation_axes],
+            "rotation_sigma_total_deg": finite_or_none(self.rotation_sigma_total_deg),
+            "translation_sigma_m": [finite_or_none(v) for v in self.translation_sigma_m],
+            "scale_sigma": finite_or_none(self.scale_sigma),
+            "residual_rho": finite_or_none(self.residual_rho),
+            "variance_inflation": finite_or_none(self.variance_inflation),
         }
 
     def __repr__(self) -> str:
@@ -402,6 +400,25 @@ def _ro(a: FloatArray) -> FloatArray:
     return out
 
 
+def _n_used(n: int, n_align: int | None) -> int:
+    """Pairs to align on: ``n_align`` (at most ``n``, with a warning when it asks for more)."""
+    if n == 0:
+        raise DegenerateInputError("cannot align empty trajectories")
+    if n_align is None:
+        return n
+    if int(n_align) != n_align or n_align < 1:
+        raise IbiscapeError(f"n_align must be a positive integer, got {n_align!r}")
+    n_used = int(n_align)
+    if n_used > n:
+        warnings.warn(
+            f"n_align={n_used} exceeds the {n} matched poses; aligning on all of them",
+            IbiscapeWarning,
+            stacklevel=3,
+        )
+        n_used = n
+    return n_used
+
+
 def align(
     est: Trajectory,
     ref: Trajectory,
@@ -447,22 +464,7 @@ def align(
             f"align needs matched trajectories of equal length, got {len(est)} and {len(ref)}; "
             "call associate() first"
         )
-    n = len(est)
-    if n == 0:
-        raise DegenerateInputError("cannot align empty trajectories")
-    if n_align is None:
-        n_used = n
-    else:
-        if int(n_align) != n_align or n_align < 1:
-            raise IbiscapeError(f"n_align must be a positive integer, got {n_align!r}")
-        n_used = int(n_align)
-        if n_used > n:
-            warnings.warn(
-                f"n_align={n_used} exceeds the {n} matched poses; aligning on all of them",
-                IbiscapeWarning,
-                stacklevel=2,
-            )
-            n_used = n
+    n_used = _n_used(len(est), n_align)
     if m is Alignment.NONE:
         return AlignmentResult(m.value, np.eye(4), 1.0, 0)
     if m is Alignment.ORIGIN:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -128,6 +129,50 @@ def _check_count(n: int, est: Trajectory, ref: Trajectory, how: str) -> None:
         )
 
 
+def _checked_stamps(est: Trajectory, ref: Trajectory, max_diff_s: float,
+                    offset_s: float) -> tuple[int, int, np.ndarray]:
+    """``(max_diff_ns, offset_ns, shifted estimate stamps)``; refuses empty trajectories, a bad
+    ``max_diff_s`` and time ranges that do not overlap."""
+    if len(est) == 0 or len(ref) == 0:
+        raise DegenerateInputError(
+            f"cannot associate an empty trajectory ({est.describe('estimate')} has {len(est)} poses, "
+            f"{ref.describe('reference')} {len(ref)})"
+        )
+    if not (math.isfinite(max_diff_s) and max_diff_s >= 0.0):
+        raise IbiscapeError(f"max_diff_s must be a finite number >= 0, got {max_diff_s!r}")
+    max_diff_ns = _ns(max_diff_s, "max_diff_s")
+    offset_ns = _ns(offset_s, "offset_s")
+    est_ns = est.stamps_ns + np.int64(offset_ns)
+    ref_ns = ref.stamps_ns
+    if est_ns[-1] + max_diff_ns < ref_ns[0] or est_ns[0] > ref_ns[-1] + max_diff_ns:
+        shift = f" after adding offset {offset_s:+.6f} s" if offset_ns else ""
+        raise IbiscapeError(
+            f"estimate {est.name!r} spans {_span(est_ns)}{shift} and reference {ref.name!r} spans "
+            f"{_span(ref_ns)}: the time ranges do not overlap; check the files' time units or "
+            "give an --offset-s"
+        )
+    return max_diff_ns, offset_ns, est_ns
+
+
+def _interpolated_pairs(
+    short: Trajectory, long_: Trajectory, i_short: np.ndarray, check: Callable[[int], None]
+) -> tuple[Trajectory, Trajectory, int]:
+    """The sparser trajectory's poses inside the denser one's span, the denser one resampled at
+    their stamps, and the denser poses dropped (``check`` refuses too few pairs)."""
+    inside = (short.stamps_ns[i_short] >= long_.stamps_ns[0]) & (
+        short.stamps_ns[i_short] <= long_.stamps_ns[-1]
+    )
+    i_short = i_short[inside]
+    check(i_short.shape[0])
+    short_m = take(short, i_short)
+    long_m = _interpolate(long_, short_m.stamps_ns)
+    # No original pose of the denser trajectory is kept: those outside the matched span
+    # count as dropped.
+    lo, hi = short_m.stamps_ns[0], short_m.stamps_ns[-1]
+    drop_long = int(np.count_nonzero((long_.stamps_ns < lo) | (long_.stamps_ns > hi)))
+    return short_m, long_m, drop_long
+
+
 def associate(
     est: Trajectory,
     ref: Trajectory,
@@ -169,24 +214,7 @@ def associate(
     DegenerateInputError
         When fewer than 3 poses are matched.
     """
-    if len(est) == 0 or len(ref) == 0:
-        raise DegenerateInputError(
-            f"cannot associate an empty trajectory ({est.describe('estimate')} has {len(est)} poses, "
-            f"{ref.describe('reference')} {len(ref)})"
-        )
-    if not (math.isfinite(max_diff_s) and max_diff_s >= 0.0):
-        raise IbiscapeError(f"max_diff_s must be a finite number >= 0, got {max_diff_s!r}")
-    max_diff_ns = _ns(max_diff_s, "max_diff_s")
-    offset_ns = _ns(offset_s, "offset_s")
-    est_ns = est.stamps_ns + np.int64(offset_ns)
-    ref_ns = ref.stamps_ns
-    if est_ns[-1] + max_diff_ns < ref_ns[0] or est_ns[0] > ref_ns[-1] + max_diff_ns:
-        shift = f" after adding offset {offset_s:+.6f} s" if offset_ns else ""
-        raise IbiscapeError(
-            f"estimate {est.name!r} spans {_span(est_ns)}{shift} and reference {ref.name!r} spans "
-            f"{_span(ref_ns)}: the time ranges do not overlap; check the files' time units or "
-            "give an --offset-s"
-        )
+    max_diff_ns, offset_ns, est_ns = _checked_stamps(est, ref, max_diff_s, offset_s)
     est_shifted = trusted(est_ns, est.pos_m, est.quat_xyzw, est.name)
     # Like evo: start from the trajectory with fewer poses (the estimate on a tie).
     est_is_short = len(est) <= len(ref)
@@ -194,17 +222,9 @@ def associate(
     i_short, i_long, diff = _nearest(short.stamps_ns, long_.stamps_ns, max_diff_ns)
     how = f"within {max_diff_s} s" + (f" with offset {offset_s:+.6f} s" if offset_ns else "")
     if interpolate:
-        inside = (short.stamps_ns[i_short] >= long_.stamps_ns[0]) & (
-            short.stamps_ns[i_short] <= long_.stamps_ns[-1]
-        )
-        i_short = i_short[inside]
-        _check_count(i_short.shape[0], est, ref, how + " inside the overlap")
-        short_m = take(short, i_short)
-        long_m = _interpolate(long_, short_m.stamps_ns)
-        # No original pose of the denser trajectory is kept: those outside the matched span
-        # count as dropped.
-        lo, hi = short_m.stamps_ns[0], short_m.stamps_ns[-1]
-        drop_long = int(np.count_nonzero((long_.stamps_ns < lo) | (long_.stamps_ns > hi)))
+        inside = how + " inside the overlap"
+        short_m, long_m, drop_long = _interpolated_pairs(
+            short, long_, i_short, lambda n: _check_count(n, est, ref, inside))
     else:
         keep = _one_to_one(i_short, i_long, diff)
         i_short, i_long = i_short[keep], i_long[keep]

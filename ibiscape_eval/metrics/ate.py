@@ -17,16 +17,11 @@ from ._common import (
     check_unit,
     emit,
     frozen,
-    matched_fields,
-    pose_index,
+    prepare,
     scaled_stats,
-    select,
-    stamps_synthetic,
 )
-from ._common import match as _match
 from ._stats import ErrorStats
 from .alignment import Alignment, conditioning_warnings
-from .alignment import align as _align
 from .relations import check_plane, check_relation, relation_errors
 from .relations import project_to_plane as _project
 from .summary import summary_html, summary_repr
@@ -132,21 +127,12 @@ class AteResult(MatchedResult):
 
 
 def ate(
-    est: Trajectory,
-    ref: Trajectory,
-    *,
-    align: str | Alignment = "se3",
-    n_align: int | None = None,
-    max_diff_s: float = 0.01,
-    offset_s: float = 0.0,
-    estimate_offset: bool = False,
-    interpolate: bool = False,
-    match: str = "time",
-    pose_relation: str = "trans",
-    project_to_plane: str | None = None,
-    t_start_s: float | None = None,
-    t_end_s: float | None = None,
-    downsample: int | None = None,
+    est: Trajectory, ref: Trajectory, *,
+    align: str | Alignment = "se3", n_align: int | None = None,
+    max_diff_s: float = 0.01, offset_s: float = 0.0, estimate_offset: bool = False,
+    interpolate: bool = False, match: str = "time",
+    pose_relation: str = "trans", project_to_plane: str | None = None,
+    t_start_s: float | None = None, t_end_s: float | None = None, downsample: int | None = None,
     motion_filter: tuple[float, float] | None = None,
 ) -> AteResult:
     """Absolute trajectory error of ``est`` against ``ref``.
@@ -190,19 +176,16 @@ def ate(
     Returns
     -------
     AteResult
-        With ``warnings`` when the rotation error is dominated by a poorly determined
-        alignment (see :func:`~ibiscape_eval.metrics.alignment.conditioning_warnings`); they
-        are also issued as :class:`~ibiscape_eval.core.IbiscapeWarning`.
+        With ``warnings`` (also issued as :class:`~ibiscape_eval.core.IbiscapeWarning`) when a
+        poorly determined alignment dominates the rotation error (:func:`conditioning_warnings`).
     """
     check_relation(pose_relation)
     plane = check_plane(project_to_plane)
-    est, ref = select(est, ref, t_start_s=t_start_s, t_end_s=t_end_s, downsample=downsample,
-                      motion_filter=motion_filter)
-    m = _match(est, ref, match=match, max_diff_s=max_diff_s, offset_s=offset_s,
-               estimate_offset=estimate_offset, interpolate=interpolate)
-    synthetic = stamps_synthetic(est, ref, m)
-    index = pose_index(ref, m)
-    al = _align(m.est, m.ref, method=align, n_align=n_align)
+    pre = prepare(est, ref, align=align, n_align=n_align, match=match, max_diff_s=max_diff_s,
+                  offset_s=offset_s, estimate_offset=estimate_offset, interpolate=interpolate,
+                  t_start_s=t_start_s, t_end_s=t_end_s, downsample=downsample,
+                  motion_filter=motion_filter)
+    m, al = pre.m, pre.al
     est_al, trans, rot = aligned_errors(al, m.est, m.ref)
     if plane is not None:
         est_al, ref_p = _project(est_al, plane), _project(m.ref, plane)
@@ -211,7 +194,7 @@ def ate(
     rot_deg = np.degrees(rot, out=rot)
     rot_stats = ErrorStats.from_errors(rot_deg)
     notes = emit(conditioning_warnings(al, rotation_rmse_deg=rot_stats.rmse,
-                                       who=est.describe("estimate")))
+                                       who=pre.est.describe("estimate")))
     return AteResult(
         stamps_ns=frozen(m.ref.stamps_ns),
         errors_m=frozen(trans, owned=True),
@@ -220,7 +203,6 @@ def ate(
         rotation_deg=rot_stats,
         pose_relation=pose_relation,
         project_to_plane=plane,
-        **matched_fields(m, al, est_al, synthetic=synthetic, warnings=notes,
-                         ref_pose_index=index),
+        **pre.fields(est_al, notes, m),
     )
 

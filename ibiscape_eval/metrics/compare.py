@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ibiscape_eval.core import IbiscapeError, Trajectory
+from ibiscape_eval.core.numbers import finite_or_none
 
 from .ate import AteResult, ate
 from .rpe import RpeResult, rpe
@@ -118,22 +119,18 @@ class CompareResult:
                 row[f"{kind}_json"], row[f"{kind}_csv"] = jp.name, cp.name
                 written += [jp, cp]
         ip = out / "compare.json"
-        write_result_json(ip, _finite(index))
+        write_result_json(ip, _strict_json(index))
         written.append(ip)
         return written
 
 
-def _finite(doc: Any) -> Any:
+def _strict_json(doc: Any) -> Any:
     """NaN floats as None, recursively (strict JSON)."""
-    import math
-
     if isinstance(doc, dict):
-        return {k: _finite(v) for k, v in doc.items()}
+        return {k: _strict_json(v) for k, v in doc.items()}
     if isinstance(doc, list):
-        return [_finite(v) for v in doc]
-    if isinstance(doc, float) and not math.isfinite(doc):
-        return None
-    return doc
+        return [_strict_json(v) for v in doc]
+    return finite_or_none(doc) if isinstance(doc, float) else doc
 
 
 def compare(

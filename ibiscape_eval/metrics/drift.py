@@ -11,22 +11,17 @@ import numpy as np
 import numpy.typing as npt
 
 from ibiscape_eval.core import IbiscapeError, Trajectory
+from ibiscape_eval.core.numbers import finite_or_none
 
 from ._common import (
     MatchedResult,
     emit,
     frozen,
-    matched_fields,
-    nan_to_none,
-    pose_index,
+    prepare,
     relative_errors,
-    select,
-    stamps_synthetic,
 )
-from ._common import match as _match
 from ._stats import ErrorStats
 from .alignment import Alignment
-from .alignment import align as _align
 from .summary import summary_html, summary_repr
 
 if TYPE_CHECKING:
@@ -124,12 +119,12 @@ class DriftResult(MatchedResult):
         doc["n_segments"] = [int(x) for x in self.n_segments]
         doc["reached"] = [bool(x) for x in self.reached]
         doc["path_length_m"] = self.path_length_m
-        doc["translation_pct"] = [nan_to_none(float(x)) for x in self.translation_pct]
-        doc["rotation_deg_per_m"] = [nan_to_none(float(x)) for x in self.rotation_deg_per_m]
-        doc["mean_translation_pct"] = nan_to_none(self.mean_translation_pct)
-        doc["mean_rotation_deg_per_m"] = nan_to_none(self.mean_rotation_deg_per_m)
-        doc["translation_m"] = {k: nan_to_none(v) for k, v in self.translation_m.to_dict().items()}
-        doc["rotation_deg"] = {k: nan_to_none(v) for k, v in self.rotation_deg.to_dict().items()}
+        doc["translation_pct"] = [finite_or_none(float(x)) for x in self.translation_pct]
+        doc["rotation_deg_per_m"] = [finite_or_none(float(x)) for x in self.rotation_deg_per_m]
+        doc["mean_translation_pct"] = finite_or_none(self.mean_translation_pct)
+        doc["mean_rotation_deg_per_m"] = finite_or_none(self.mean_rotation_deg_per_m)
+        doc["translation_m"] = {k: finite_or_none(v) for k, v in self.translation_m.to_dict().items()}
+        doc["rotation_deg"] = {k: finite_or_none(v) for k, v in self.rotation_deg.to_dict().items()}
         return doc
 
 
@@ -168,23 +163,60 @@ def _segment_ends(
     return end
 
 
+def _segments(
+    cum: np.ndarray, lengths: np.ndarray, step_frames: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """First and last rows, length and length index of every segment that fits, length by
+    length (K lengths, a handful; each is vectorised over the start frames)."""
+    starts = np.arange(0, cum.shape[0], step_frames, dtype=np.intp)
+    firsts, seconds, seg_len = [], [], []
+    for L in lengths:
+        end = _segment_ends(cum, starts, float(L))
+        ok = end >= 0
+        firsts.append(starts[ok])
+        seconds.append(end[ok])
+        seg_len.append(np.full(int(ok.sum()), L))
+    which = np.repeat(np.arange(lengths.shape[0]), [f.shape[0] for f in firsts])
+    return np.concatenate(firsts), np.concatenate(seconds), np.concatenate(seg_len), which
+
+
+def _per_length(
+    which: np.ndarray, t_pct: np.ndarray, r_deg_m: np.ndarray, k: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Segments per length and their mean errors (NaN where no segment fits)."""
+    counts = np.bincount(which, minlength=k).astype(np.int64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        per_t = np.bincount(which, weights=t_pct, minlength=k) / counts
+        per_r = np.bincount(which, weights=r_deg_m, minlength=k) / counts
+    per_t[counts == 0] = math.nan
+    per_r[counts == 0] = math.nan
+    return counts, per_t, per_r
+
+
+def _unreached_notes(lengths: np.ndarray, counts: np.ndarray, path_m: float,
+                     none_fits: bool) -> list[str]:
+    """The warning naming the lengths no segment reaches (empty when all are reached)."""
+    unreached = lengths[counts == 0]
+    if not unreached.size:
+        return []
+    which_l = ", ".join(f"{v:g}" for v in unreached)
+    head = ("no drift segment fits" if none_fits
+            else f"{unreached.size} of {lengths.size} segment lengths were not reached")
+    return [
+        f"{head}: the matched reference path is {path_m:.1f} m long, so no segment spans "
+        f"{which_l} m (those rows have no errors, not a zero drift); use shorter lengths_m or "
+        "lengths relative to the path, e.g. lengths_pct=[10, 20, 30, 40, 50]"
+    ]
+
+
 def drift(
-    est: Trajectory,
-    ref: Trajectory,
-    *,
+    est: Trajectory, ref: Trajectory, *,
     lengths_m: Sequence[float] | None = KITTI_LENGTHS_M,
-    lengths_pct: Sequence[float] | None = None,
-    step_frames: int = 10,
-    align: str | Alignment = "none",
-    n_align: int | None = None,
-    max_diff_s: float = 0.01,
-    offset_s: float = 0.0,
-    estimate_offset: bool = False,
-    interpolate: bool = False,
-    match: str = "time",
-    t_start_s: float | None = None,
-    t_end_s: float | None = None,
-    downsample: int | None = None,
+    lengths_pct: Sequence[float] | None = None, step_frames: int = 10,
+    align: str | Alignment = "none", n_align: int | None = None,
+    max_diff_s: float = 0.01, offset_s: float = 0.0, estimate_offset: bool = False,
+    interpolate: bool = False, match: str = "time",
+    t_start_s: float | None = None, t_end_s: float | None = None, downsample: int | None = None,
     motion_filter: tuple[float, float] | None = None,
 ) -> DriftResult:
     """Translation and rotation drift over segments of the reference path (KITTI devkit).
@@ -218,54 +250,25 @@ def drift(
     """
     if int(step_frames) != step_frames or step_frames < 1:
         raise IbiscapeError(f"step_frames must be a positive integer, got {step_frames!r}")
-    est, ref = select(est, ref, t_start_s=t_start_s, t_end_s=t_end_s, downsample=downsample,
-                      motion_filter=motion_filter)
-    m = _match(est, ref, match=match, max_diff_s=max_diff_s, offset_s=offset_s,
-               estimate_offset=estimate_offset, interpolate=interpolate)
-    synthetic = stamps_synthetic(est, ref, m)
-    index = pose_index(ref, m)
-    al = _align(m.est, m.ref, method=align, n_align=n_align)
-    est_al = al.apply(m.est)
+    pre = prepare(est, ref, align=align, n_align=n_align, match=match, max_diff_s=max_diff_s,
+                  offset_s=offset_s, estimate_offset=estimate_offset, interpolate=interpolate,
+                  t_start_s=t_start_s, t_end_s=t_end_s, downsample=downsample,
+                  motion_filter=motion_filter)
+    m = pre.m
+    est_al = pre.al.apply(m.est)
     cum = m.ref.path_length_m()
     lengths = _lengths(lengths_m, lengths_pct, float(cum[-1]))
-    starts = np.arange(0, len(m.ref), int(step_frames), dtype=np.intp)
-    firsts, seconds, seg_len = [], [], []
-    for L in lengths:  # K lengths (a handful); each is vectorised over the start frames
-        end = _segment_ends(cum, starts, float(L))
-        ok = end >= 0
-        firsts.append(starts[ok])
-        seconds.append(end[ok])
-        seg_len.append(np.full(int(ok.sum()), L))
-    i = np.concatenate(firsts)
-    j = np.concatenate(seconds)
-    seg_l = np.concatenate(seg_len)
-    which = np.repeat(np.arange(lengths.shape[0]), [f.shape[0] for f in firsts])
+    i, j, seg_l, which = _segments(cum, lengths, int(step_frames))
     trans, rot = relative_errors(est_al, m.ref, i, j)
     rot_deg = np.degrees(rot)
     t_pct = trans / seg_l * 100.0
     r_deg_m = rot_deg / seg_l
-    counts = np.bincount(which, minlength=lengths.shape[0]).astype(np.int64)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        per_t = np.bincount(which, weights=t_pct, minlength=lengths.shape[0]) / counts
-        per_r = np.bincount(which, weights=r_deg_m, minlength=lengths.shape[0]) / counts
-    per_t[counts == 0] = math.nan
-    per_r[counts == 0] = math.nan
-    notes: list[str] = []
-    unreached = lengths[counts == 0]
-    if unreached.size:
-        which_l = ", ".join(f"{v:g}" for v in unreached)
-        head = ("no drift segment fits" if i.shape[0] == 0
-                else f"{unreached.size} of {lengths.size} segment lengths were not reached")
-        notes.append(
-            f"{head}: the matched reference path is {cum[-1]:.1f} m long, so no segment spans "
-            f"{which_l} m (those rows have no errors, not a zero drift); use shorter lengths_m or "
-            "lengths relative to the path, e.g. lengths_pct=[10, 20, 30, 40, 50]"
-        )
+    counts, per_t, per_r = _per_length(which, t_pct, r_deg_m, lengths.shape[0])
+    warned = emit(_unreached_notes(lengths, counts, float(cum[-1]), i.shape[0] == 0))
     if i.shape[0] == 0:
         mean_t = mean_r = math.nan
     else:
         mean_t, mean_r = float(np.mean(t_pct)), float(np.mean(r_deg_m))
-    warned = emit(notes)
     return DriftResult(
         lengths_m=frozen(lengths),
         translation_pct=frozen(per_t),
@@ -281,6 +284,5 @@ def drift(
         translation_m=ErrorStats.from_errors(trans),
         rotation_deg=ErrorStats.from_errors(rot_deg),
         step_frames=int(step_frames),
-        **matched_fields(m, al, est_al, synthetic=synthetic, warnings=warned,
-                         ref_pose_index=index),
+        **pre.fields(est_al, warned),
     )

@@ -17,18 +17,13 @@ from ._common import (
     check_unit,
     emit,
     frozen,
-    matched_fields,
-    pose_index,
+    prepare,
     relative_errors,
     scaled_stats,
-    select,
-    stamps_synthetic,
 )
-from ._common import match as _match
 from ._pairs import pairs_by_frames, pairs_by_steps
 from ._stats import ErrorStats
 from .alignment import Alignment, conditioning_warnings
-from .alignment import align as _align
 from .relations import check_plane, check_relation, relation_errors
 from .relations import project_to_plane as _project
 from .summary import summary_html, summary_repr
@@ -211,27 +206,46 @@ def select_pairs(
     return pairs_by_steps(steps, d, all_pairs=all_pairs, rel_tol=rel_tol)
 
 
+def _check_options(
+    delta: float, delta_unit: str, pairs: str, pose_relation: str,
+    project_to_plane: str | None, pairs_from: str, rel_tol: float,
+) -> tuple[float, str, str | None]:
+    """Validate the RPE options; return ``(delta, unit, plane)`` in canonical form."""
+    d, unit = _check_delta(delta, delta_unit)
+    if pairs not in PAIR_MODES:
+        raise IbiscapeError(f"unknown pair mode {pairs!r}; choose 'consecutive' or 'all'")
+    check_relation(pose_relation)
+    plane = check_plane(project_to_plane)
+    if pairs_from not in PAIRS_FROM:
+        raise IbiscapeError(f"unknown pairs_from {pairs_from!r}; choose 'est' or 'ref'")
+    if not (math.isfinite(rel_tol) and rel_tol >= 0.0):
+        raise IbiscapeError(f"rel_tol must be a non-negative number, got {rel_tol!r}")
+    return d, unit, plane
+
+
+def _no_pair_error(delta: float, unit: str, pairs: str, on: Trajectory,
+                   who: str) -> DegenerateInputError:
+    """The error for a ``delta`` that yields no pose pair on ``on`` (named ``who``)."""
+    extent = {
+        "frames": f"{len(on)} matched poses",
+        "seconds": f"{on.duration_s:.3f} s",
+        "metres": f"{on.path_length_m()[-1]:.3f} m of path",
+        "degrees": "its rotation",
+    }[unit]
+    return DegenerateInputError(
+        f"delta = {delta:g} {unit} gives no pose pair ({pairs} pairs) on the {who} "
+        f"({extent}); use a smaller --delta"
+    )
+
+
 def rpe(
-    est: Trajectory,
-    ref: Trajectory,
-    *,
-    delta: float = 1.0,
-    delta_unit: str = "frames",
-    pairs: str = "consecutive",
-    align: str | Alignment = "none",
-    n_align: int | None = None,
-    max_diff_s: float = 0.01,
-    offset_s: float = 0.0,
-    estimate_offset: bool = False,
-    interpolate: bool = False,
-    match: str = "time",
-    rel_tol: float = 0.1,
-    pose_relation: str = "trans",
-    project_to_plane: str | None = None,
-    pairs_from: str = "est",
-    t_start_s: float | None = None,
-    t_end_s: float | None = None,
-    downsample: int | None = None,
+    est: Trajectory, ref: Trajectory, *,
+    delta: float = 1.0, delta_unit: str = "frames", pairs: str = "consecutive",
+    align: str | Alignment = "none", n_align: int | None = None,
+    max_diff_s: float = 0.01, offset_s: float = 0.0, estimate_offset: bool = False,
+    interpolate: bool = False, match: str = "time", rel_tol: float = 0.1,
+    pose_relation: str = "trans", project_to_plane: str | None = None, pairs_from: str = "est",
+    t_start_s: float | None = None, t_end_s: float | None = None, downsample: int | None = None,
     motion_filter: tuple[float, float] | None = None,
 ) -> RpeResult:
     """Relative pose error of ``est`` against ``ref`` (evo's RPE).
@@ -275,23 +289,14 @@ def rpe(
     DegenerateInputError
         When ``delta`` yields no pair (the message gives the trajectory's extent).
     """
-    d, unit = _check_delta(delta, delta_unit)
-    if pairs not in PAIR_MODES:
-        raise IbiscapeError(f"unknown pair mode {pairs!r}; choose 'consecutive' or 'all'")
-    check_relation(pose_relation)
-    plane = check_plane(project_to_plane)
-    if pairs_from not in PAIRS_FROM:
-        raise IbiscapeError(f"unknown pairs_from {pairs_from!r}; choose 'est' or 'ref'")
-    if not (math.isfinite(rel_tol) and rel_tol >= 0.0):
-        raise IbiscapeError(f"rel_tol must be a non-negative number, got {rel_tol!r}")
-    est, ref = select(est, ref, t_start_s=t_start_s, t_end_s=t_end_s, downsample=downsample,
-                      motion_filter=motion_filter)
-    m = _match(est, ref, match=match, max_diff_s=max_diff_s, offset_s=offset_s,
-               estimate_offset=estimate_offset, interpolate=interpolate)
-    synthetic = stamps_synthetic(est, ref, m)
-    index = pose_index(ref, m)
-    al = _align(m.est, m.ref, method=align, n_align=n_align)
-    notes = emit(conditioning_warnings(al, who=est.describe("estimate")))
+    d, unit, plane = _check_options(delta, delta_unit, pairs, pose_relation, project_to_plane,
+                                    pairs_from, rel_tol)
+    pre = prepare(est, ref, align=align, n_align=n_align, match=match, max_diff_s=max_diff_s,
+                  offset_s=offset_s, estimate_offset=estimate_offset, interpolate=interpolate,
+                  t_start_s=t_start_s, t_end_s=t_end_s, downsample=downsample,
+                  motion_filter=motion_filter)
+    m, al = pre.m, pre.al
+    notes = emit(conditioning_warnings(al, who=pre.est.describe("estimate")))
     est_al = al.apply(m.est)
     if plane is not None:
         est_al = _project(est_al, plane)
@@ -299,35 +304,16 @@ def rpe(
     on = est_al if pairs_from == "est" else m.ref
     i, j = select_pairs(on, delta=d, delta_unit=unit, pairs=pairs, rel_tol=rel_tol)
     if i.shape[0] == 0:
-        extent = {
-            "frames": f"{len(on)} matched poses",
-            "seconds": f"{on.duration_s:.3f} s",
-            "metres": f"{on.path_length_m()[-1]:.3f} m of path",
-            "degrees": "its rotation",
-        }[unit]
-        raise DegenerateInputError(
-            f"delta = {delta:g} {unit} gives no pose pair ({pairs} pairs) on the "
-            f"{est.describe('estimate') if pairs_from == 'est' else ref.describe('reference')} "
-            f"({extent}); use a smaller --delta"
-        )
+        who = pre.est.describe("estimate") if pairs_from == "est" else pre.ref.describe("reference")
+        raise _no_pair_error(delta, unit, pairs, on, who)
     trans, rot = relative_errors(est_al, m.ref, i, j)
     rot_deg = np.degrees(rot, out=rot)
     return RpeResult(
-        stamps_ns=frozen(m.ref.stamps_ns[i], owned=True),
-        first_index=frozen(i, owned=True),
-        second_index=frozen(j, owned=True),
-        errors_m=frozen(trans, owned=True),
-        errors_deg=frozen(rot_deg, owned=True),
-        translation_m=ErrorStats.from_errors(trans),
-        rotation_deg=ErrorStats.from_errors(rot_deg),
-        n_pairs=int(i.shape[0]),
-        delta=d,
-        delta_unit=unit,
-        pairs=pairs,
-        pose_relation=pose_relation,
-        project_to_plane=plane,
-        pairs_from=pairs_from,
-        rel_tol=float(rel_tol),
-        **matched_fields(m, al, est_al, synthetic=synthetic, warnings=notes,
-                         ref_pose_index=index),
+        stamps_ns=frozen(m.ref.stamps_ns[i], owned=True), first_index=frozen(i, owned=True),
+        second_index=frozen(j, owned=True), errors_m=frozen(trans, owned=True),
+        errors_deg=frozen(rot_deg, owned=True), translation_m=ErrorStats.from_errors(trans),
+        rotation_deg=ErrorStats.from_errors(rot_deg), n_pairs=int(i.shape[0]),
+        delta=d, delta_unit=unit, pairs=pairs, pose_relation=pose_relation,
+        project_to_plane=plane, pairs_from=pairs_from, rel_tol=float(rel_tol),
+        **pre.fields(est_al, notes, m),
     )

@@ -7,7 +7,6 @@ local pool, a Dask worker); :func:`evaluate_runs` builds one job per run, runs t
 
 from __future__ import annotations
 
-import math
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -18,6 +17,7 @@ import numpy.typing as npt
 
 from ibiscape_eval.batch import ContentCache, Executor, Job, Progress, run_jobs
 from ibiscape_eval.core.errors import IbiscapeError, IbiscapeWarning
+from ibiscape_eval.core.numbers import finite_or_none
 
 from .runs import RunsLayout, RunSpec
 
@@ -147,10 +147,6 @@ def box_stats(values: npt.ArrayLike) -> dict[str, float] | None:
     return {"med": med, "q1": q1, "q3": q3, "whislo": float(lo.min()), "whishi": float(hi.max())}
 
 
-def _finite_or_none(x: float) -> float | None:
-    return x if math.isfinite(x) else None
-
-
 def evaluate_run(
     *,
     est: str,
@@ -210,8 +206,8 @@ def evaluate_run(
         doc["drift"] = {
             "lengths_m": [float(x) for x in d.lengths_m],
             "n_segments": [int(x) for x in d.n_segments],
-            "mean_translation_pct": _finite_or_none(float(d.mean_translation_pct)),
-            "mean_rotation_deg_per_m": _finite_or_none(float(d.mean_rotation_deg_per_m)),
+            "mean_translation_pct": finite_or_none(float(d.mean_translation_pct)),
+            "mean_rotation_deg_per_m": finite_or_none(float(d.mean_rotation_deg_per_m)),
         }
     pos = a.est_aligned.pos_m
     keep = np.unique(np.linspace(0, len(pos) - 1, min(len(pos), TRACK_POINTS)).round().astype(int))

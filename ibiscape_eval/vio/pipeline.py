@@ -8,7 +8,6 @@
 from __future__ import annotations
 
 import dataclasses
-import math
 import os
 import time
 from collections.abc import Callable
@@ -18,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from ibiscape_eval.core.errors import DegenerateInputError
+from ibiscape_eval.core.numbers import finite_or_none
 from ibiscape_eval.core.sequence import Sequence
 from ibiscape_eval.core.trajectory import Trajectory
 
@@ -29,10 +29,6 @@ __all__ = ["VioResult", "VioStats", "run_vio"]
 
 #: progress(frames_done, frames_total, speed_up_over_real_time)
 Progress = Callable[[int, int, float], None]
-
-
-def _finite(x: float) -> float | None:
-    return float(x) if math.isfinite(x) else None
 
 
 @dataclass(frozen=True)
@@ -77,7 +73,7 @@ class VioStats:
         d["failures"] = [f.to_dict() for f in self.failures]
         for k in ("mean_tracked", "mean_ms_per_frame", "max_ms_per_frame", "realtime_factor",
                   "cpu_realtime_factor"):
-            d[k] = _finite(d[k])
+            d[k] = finite_or_none(d[k])
         return d
 
 

@@ -203,3 +203,36 @@ def test_result_to_dict_is_strict_json() -> None:
         assert sum(p["count"] for p in doc["hot_pixels"]) == doc["n_discarded"]
         assert (doc["criteria"]["threshold"] is None) == ("n_sigma" not in kw)
         assert "hot pixels" in repr(res)
+
+
+@pytest.mark.parametrize("hot_fraction", [0.0, 0.3, 1.0])
+def test_threaded_count_and_filter_equal_the_one_thread_results(monkeypatch, hot_fraction):
+    """Counting into per-thread histograms and filtering slice by slice (the path of long
+    streams) give exactly the one-thread counts and filtered events, also when a slice ends
+    in discarded events or keeps none."""
+    from ibiscape_eval.events import hotpix
+
+    rng = np.random.default_rng(7)
+    n, w, h = 10_007, 37, 23
+    x = rng.integers(0, w, n).astype(np.uint16)
+    y = rng.integers(0, h, n).astype(np.uint16)
+    ev = Events(np.arange(n, dtype=np.int64) * 10, x, y, rng.random(n) < 0.5)
+    flat = np.unique(y.astype(np.int64) * w + x)
+    hot_flat = flat[rng.random(flat.size) < hot_fraction]
+    hot = np.stack([hot_flat % w, hot_flat // w], axis=1)
+    one_counts = count_events(x, y, sensor_size=(w, h))
+    one = filter_events(ev, hot, sensor_size=(w, h))
+    monkeypatch.setattr(hotpix, "_threads", lambda n_events: 3)
+    counts = count_events(x, y, sensor_size=(w, h))
+    many = filter_events(ev, hot, sensor_size=(w, h))
+    assert np.array_equal(counts, one_counts)
+    for f in ("t_ns", "x", "y", "p"):
+        assert np.array_equal(getattr(many, f), getattr(one, f))
+    keep = ~np.isin(y.astype(np.int64) * w + x, hot_flat)
+    assert np.array_equal(many.t_ns, ev.t_ns[keep])
+    bad_x = x.copy()
+    bad_x[n - 5] = w
+    with pytest.raises(IbiscapeError, match=f"event {n - 5} "):
+        count_events(bad_x, y, sensor_size=(w, h))
+    with pytest.raises(IbiscapeError, match=f"event {n - 5} "):
+        filter_events(Events(ev.t_ns, bad_x, y, ev.p), hot, sensor_size=(w, h))

@@ -8,7 +8,7 @@ instability.
 
 Measured (60 000 samples at 50 Hz, N = 0.01, K = 2e-3, seeds 1000..1029 x 6 axes; see also
 ``benchmarks/bench_allan.py --coverage`` for a flicker floor, where B's sigma needs the factor
-``BIAS_INSTABILITY_UNC_INFLATION``): N 1 sigma 68.9 %, 2 sigma 95.0 % (before issue 22 its
+``BIAS_INSTABILITY_UNC_INFLATION``): N 1 sigma 68.9 %, 2 sigma 95.0 % (an earlier version's
 uncertainty took the scatter of one point about the line for the fit's: 93 % / 100 %, z-scores
 of sd 0.54); K 72.7 % / 93.3 %; B 73.9 % / 94.4 % (B from the curve smoothed over three taus,
 its sigma x 1.05).  With the former 0.1-decade random-walk ranges K was within 2 sigma 81.4 %

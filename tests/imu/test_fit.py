@@ -48,7 +48,7 @@ def test_uncertainties_ranges_and_discrete_values(model_8h) -> None:
         assert a.walk_range_s is not None and a.walk_range_s[0] > a.white_range_s[1]
         assert a.discrete_sigma == pytest.approx(a.noise_density * math.sqrt(RATE))
         assert a.discrete_walk_sigma == pytest.approx(a.random_walk / math.sqrt(RATE))
-        # B: the curve minimum / 0.664 (of the curve smoothed over 3 taus, issue 22), between
+        # B: the curve minimum / 0.664 (of the curve smoothed over 3 taus), between
         # the two lines' crossing value and the curve
         j = NAMES.index(n)
         assert a.bias_instability * BIAS_INSTABILITY_FACTOR == pytest.approx(res.adev[:, j].min(),

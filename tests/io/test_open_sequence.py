@@ -56,7 +56,7 @@ def test_real_euroc_v1_01_opens_with_opencv_yaml_and_empty_ground_truth():
 
 
 def test_vio_on_the_real_euroc_excerpt_refuses_cleanly_and_writes_nothing(tmp_path):
-    """The issue's V1_01 folder (%YAML:1.0, empty ground truth) is read; its 4 frames are too few
+    """The real EuRoC V1_01 excerpt (%YAML:1.0, empty ground truth) is read; its 4 frames are too few
     to initialise, which the one line says."""
     out = tmp_path / "est.txt"
     res = CliRunner().invoke(cli, ["vio", str(EUROC_REAL), "-o", str(out)])

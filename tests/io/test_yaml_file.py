@@ -99,7 +99,7 @@ def test_orbslam3_settings_like_filestorage(tmp_path):
 
 
 def test_euroc_sensor_yaml_with_the_download_header(tmp_path):
-    """The issue's refusal: EuRoC's sensor.yaml with its ``%YAML:1.0`` first line (the download has
+    """EuRoC's sensor.yaml with its ``%YAML:1.0`` first line (the download has
     it; the repository copy in tests/data/real does not) reads the same as without it."""
     from ibiscape_eval.io.asl import read_asl_sensor_yaml
 

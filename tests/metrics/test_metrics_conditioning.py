@@ -1,5 +1,5 @@
 """Alignment conditioning: how well the alignment is determined, and the warning when the rotation
-error is the alignment's (issue 22: a 2 mm cloud printed a 34 deg rotation error without a word)."""
+error is the alignment's (a 2 mm cloud must not print a 34 deg rotation error without a word)."""
 
 from __future__ import annotations
 
@@ -39,7 +39,7 @@ def test_two_mm_cloud_warns_and_reports_its_conditioning() -> None:
     est, gt = _still_cloud()
     with pytest.warns(IbiscapeWarning, match="rotation of the se3 alignment is poorly determined"):
         res = ate(est, gt, align="se3")
-    # the confident wrong number of the issue: a large rotation error that is all alignment
+    # the confident wrong number: a large rotation error that is all alignment
     assert res.rotation_deg.rmse > 10.0
     cond = res.alignment.conditioning
     assert cond is not None and cond.method == "se3"

@@ -1,4 +1,4 @@
-"""Synthetic stamps (KITTI without times) and unreached drift lengths, in the library (issue 22)."""
+"""Synthetic stamps (KITTI without times) and unreached drift lengths, in the library."""
 
 from __future__ import annotations
 

@@ -19,8 +19,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from shared_data import TRAJECTORIES
 
-SHARED = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "trajectories"
+SHARED = TRAJECTORIES  # ../shared/data/trajectories or $IBISCAPE_SHARED_DATA/trajectories
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "io"))
 
 
@@ -140,7 +141,7 @@ def _imu_csv_seed(folder: Path) -> Path:
 
 
 def _imu_named_csv_seed(folder: Path) -> Path:
-    """Accelerometer first, columns found by header name, stamps in seconds (issue 22)."""
+    """Accelerometer first, columns found by header name, stamps in seconds."""
     s, g, a = _imu_arrays()
     p = folder / "imu_named.csv"
     rows = [f"{t // 10**9}.{t % 10**9:09d}," + ",".join(f"{v:.9g}" for v in (*ai, *gi))
@@ -150,7 +151,7 @@ def _imu_named_csv_seed(folder: Path) -> Path:
 
 
 def _imu_rostopic_seed(folder: Path) -> Path:
-    """A ``rostopic echo -p`` CSV: text frame_id, covariances, ns stamps (issue 22)."""
+    """A ``rostopic echo -p`` CSV: text frame_id, covariances, ns stamps."""
     s, g, a = _imu_arrays()
     p = folder / "imu_rostopic.csv"
     head = ["%time", "field.header.seq", "field.header.stamp", "field.header.frame_id",
@@ -473,7 +474,7 @@ FAMILIES: dict[str, Family] = {
                                    lambda p, o: _vio_argv(p.parent, o, None, "--imu", str(p))),
     "calib_target_yaml": Family(_calib_target_seed, lambda p, o: ["calib", str(p.parent), "--target",
                                                                   str(p), "--json"]),
-    # issue 22's IMU tables (after the others, so that their mutants keep their seeds)
+    # the foreign IMU tables (after the others, so that their mutants keep their seeds)
     "imu_named_csv": Family(_imu_named_csv_seed, lambda p, o: ["allan", str(p), "--json", "--csv",
                                                                str(o / "curves.csv")]),
     "imu_rostopic_csv": Family(_imu_rostopic_seed, lambda p, o: ["allan", str(p), "--json"]),

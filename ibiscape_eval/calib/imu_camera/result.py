@@ -12,6 +12,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ibiscape_eval.core.camera import CameraModel
+from ibiscape_eval.core.numbers import finite_or_none
 
 __all__ = ["CameraImuCalibration", "Excitation", "ImuCameraResult", "ResidualSeries"]
 
@@ -19,14 +20,9 @@ FloatArray = npt.NDArray[np.float64]
 AXES = ("x", "y", "z")
 
 
-def _f(v: float) -> float | None:
-    v = float(v)
-    return v if math.isfinite(v) else None
-
-
 def _l(a: Any) -> Any:
     arr = np.asarray(a, dtype=np.float64)
-    return [_l(x) for x in arr] if arr.ndim > 0 else _f(float(arr))
+    return [_l(x) for x in arr] if arr.ndim > 0 else finite_or_none(float(arr))
 
 
 def _a(doc: Any) -> FloatArray:
@@ -35,7 +31,7 @@ def _a(doc: Any) -> FloatArray:
 
 
 def _n(v: Any) -> float:
-    """A float back from :func:`_f` (``None`` -> NaN)."""
+    """A float back from :func:`finite_or_none` (``None`` -> NaN)."""
     return float("nan") if v is None else float(v)
 
 
@@ -110,12 +106,12 @@ class CameraImuCalibration(ValueEquality):
             "name": self.name,
             "camera": self.camera.to_kalibr(),
             "T_cam_imu": _l(self.T_cam_imu),
-            "timeshift_cam_imu_s": _f(self.timeshift_cam_imu_s),
+            "timeshift_cam_imu_s": finite_or_none(self.timeshift_cam_imu_s),
             "rotation_std_deg": _l(self.rotation_std_deg),
             "translation_std_m": _l(self.translation_std_m),
             "position_std_imu_m": _l(self.position_std_imu_m),
-            "timeshift_std_s": _f(self.timeshift_std_s),
-            "reprojection_rms_px": _f(self.reprojection_rms_px),
+            "timeshift_std_s": finite_or_none(self.timeshift_std_s),
+            "reprojection_rms_px": finite_or_none(self.reprojection_rms_px),
             "n_frames": self.n_frames,
             "n_corners": self.n_corners,
         }
@@ -162,7 +158,7 @@ class Excitation(ValueEquality):
 
     def to_dict(self) -> dict[str, Any]:
         return {"gyro_std_rad_s": _l(self.gyro_std_rad_s), "accel_std_m_s2": _l(self.accel_std_m_s2),
-                "duration_s": _f(self.duration_s), "min_rate_std_rad_s": self.min_rate_std_rad_s,
+                "duration_s": finite_or_none(self.duration_s), "min_rate_std_rad_s": self.min_rate_std_rad_s,
                 "weak_rotation_axes": list(self.weak_rotation_axes),
                 "translation_observable": self.translation_observable}
 
@@ -221,15 +217,15 @@ class ImuCameraResult(ValueEquality):
             "bias": {"t_s": _l(self.bias_t_s), "gyro_rad_s": _l(self.gyro_bias_rad_s),
                      "accel_m_s2": _l(self.accel_bias_m_s2)},
             "excitation": self.excitation.to_dict(),
-            "gyro_rms_rad_s": _f(self.gyro_rms_rad_s),
-            "accel_rms_m_s2": _f(self.accel_rms_m_s2),
-            "chi2_per_dof": _f(self.chi2_per_dof),
+            "gyro_rms_rad_s": finite_or_none(self.gyro_rms_rad_s),
+            "accel_rms_m_s2": finite_or_none(self.accel_rms_m_s2),
+            "chi2_per_dof": finite_or_none(self.chi2_per_dof),
             "iterations": self.iterations,
             "converged": self.converged,
             "forced": self.forced,
             "warnings": list(self.warnings),
             "knot_spacing_s": self.knot_spacing_s,
-            "runtime_s": _f(self.runtime_s),
+            "runtime_s": finite_or_none(self.runtime_s),
             "uncertainty": self.uncertainty,
         }
 

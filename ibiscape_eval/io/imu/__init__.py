@@ -163,25 +163,9 @@ def read_imu(
     if f != "rosbag":
         check_input(p, "file")
     gscale, ascale = parse_units(units)
-    cols = parse_columns(columns)
     scales = None if units is None else (gscale, ascale)
-    if f in ("euroc", "csv", "ibiscape"):
-        rec: ImuRecord = read_imu_csv(p, cols, spill_bytes, rate_hz,
-                                      signs=IBISCAPE_IMU_SIGNS if f == "ibiscape" else None,
-                                      units=scales)
-        scales = None  # applied while parsing
-    elif f == "npy":
-        rec = read_imu_npy(p, rate_hz)
-    elif f == "npz":
-        rec = read_imu_npz(p, rate_hz)
-    elif f == "parquet":
-        rec = read_imu_parquet(p, cols, rate_hz, units=scales)
-        scales = None
-    elif f == "rosbag":
-        stamps, data, topic = read_imu_bag(p, rostopic)
-        rec = record_from_parts(p, stamps, data, None, rostopic=topic)
-    else:
-        raise IbiscapeError(f"unknown IMU format {fmt!r}; use one of {', '.join(FORMATS)}")
+    rec, scales = _read_format(p, f, fmt, parse_columns(columns), scales, rostopic=rostopic,
+                               rate_hz=rate_hz, spill_bytes=spill_bytes)
     if scales is not None and scales != (1.0, 1.0):
         if rec.samples is None:
             raise IbiscapeError(f"{p}: --units is not supported for records read from disk in chunks")
@@ -195,6 +179,30 @@ def read_imu(
         stated = units is not None or (layout is not None and layout.accel_scale != 1.0)
         notes = check_sensor_layout(p, rec, layout, accel_unit_stated=stated)
     return with_layout(rec, None, notes)
+
+
+def _read_format(
+    p: Path, f: str, fmt: str | None, cols: Mapping[str, str | int],
+    scales: tuple[float, float] | None, *, rostopic: str | None, rate_hz: float | None,
+    spill_bytes: int,
+) -> tuple[ImuRecord, tuple[float, float] | None]:
+    """The record read by the reader of format ``f``, and the unit scales still to apply
+    (None when the reader applied them while parsing)."""
+    if f in ("euroc", "csv", "ibiscape"):
+        rec: ImuRecord = read_imu_csv(p, cols, spill_bytes, rate_hz,
+                                      signs=IBISCAPE_IMU_SIGNS if f == "ibiscape" else None,
+                                      units=scales)
+        return rec, None  # applied while parsing
+    if f == "npy":
+        return read_imu_npy(p, rate_hz), scales
+    if f == "npz":
+        return read_imu_npz(p, rate_hz), scales
+    if f == "parquet":
+        return read_imu_parquet(p, cols, rate_hz, units=scales), None
+    if f == "rosbag":
+        stamps, data, topic = read_imu_bag(p, rostopic)
+        return record_from_parts(p, stamps, data, None, rostopic=topic), scales
+    raise IbiscapeError(f"unknown IMU format {fmt!r}; use one of {', '.join(FORMATS)}")
 
 
 def _guess_format(p: Path) -> str:

@@ -164,6 +164,70 @@ def _stamps_ns(col: Any, unit: str) -> np.ndarray:
     return np.round(a.astype(np.float64) * f)
 
 
+def _first_row(p: Path, skip: int) -> str:
+    """The first data line (after ``skip`` header lines)."""
+    with open(p, encoding="utf-8", errors="replace") as fh:
+        for i, line in enumerate(fh):
+            if i == skip:
+                return line
+    raise FormatError(p, "no data rows; an Allan deviation needs thousands of samples")
+
+
+def _column_dtypes(first_row: str, t_col: int | None, first_t: np.ndarray,
+                   read_cols: list[int]) -> tuple[dict[int, Any], bool]:
+    """pandas dtypes of the read columns, and whether the stamps are decimal text."""
+    # integer stamps are parsed exactly (float64 would round 1.4e18 ns to 256 ns)
+    fields = first_row.split(",")
+    t_text = fields[t_col].strip() if t_col is not None else ""
+    # (only when the first thousands are all whole: "%g" writes 0, 0.005, ...)
+    int_time = (t_col is not None and t_text.isdigit()
+                and bool(np.all(first_t == np.round(first_t))))
+    # decimal stamps (seconds with 9 decimals) are parsed exactly from their text
+    dec_time = t_col is not None and _DECIMAL.fullmatch(t_text) is not None
+    dtypes: dict[int, Any] = {i: np.float64 for i in read_cols}
+    if int_time:
+        dtypes[t_col] = np.int64  # type: ignore[index]
+    elif dec_time:
+        dtypes[t_col] = str  # type: ignore[index]
+    return dtypes, dec_time
+
+
+def _chunk_arrays(chunk: Any, t_pos: int | None, unit: str,
+                  dec_time: bool) -> tuple[np.ndarray | None, np.ndarray]:
+    """Stamps (ns) and the float64 table of one pandas chunk (decimal stamp text replaced by 0
+    in the table); raises ValueError/TypeError on unparsable values."""
+    tcol = None if t_pos is None else _stamps_ns(chunk.iloc[:, t_pos], unit)
+    if dec_time:
+        chunk = chunk.drop(columns=chunk.columns[t_pos])
+        chunk.insert(t_pos, "t", 0.0)
+    return tcol, chunk.to_numpy(dtype=np.float64)
+
+
+def _layout(p: Path, cols: Mapping[str, str | int], names: list[str] | None, n_fields: int,
+            skip: int, units: tuple[float, float] | None) -> tuple[ImuLayout, np.ndarray]:
+    """The column layout (with the stated units and the stamp unit) and the first stamps."""
+    if names is not None and len(names) != n_fields:
+        names = None if len(names) < 7 and n_fields >= 7 else names
+    layout = resolve_columns(cols, names, n_fields, p)
+    if units is not None:
+        layout = override_units(layout, units)
+    first_t = np.zeros(0)
+    if layout.time_column is not None:
+        first_t = _first_stamps(p, skip, layout.time_column)
+        layout = _time_unit(p, layout, first_t)
+    return layout, first_t
+
+
+def _spill_writer(
+    p: Path, spill_bytes: int
+) -> tuple[tempfile.TemporaryDirectory[str] | None, NpyStreamWriter | None]:
+    """A temporary ``.npy`` writer (and its folder) for files larger than ``spill_bytes``."""
+    if p.stat().st_size <= spill_bytes:
+        return None, None
+    keep = tempfile.TemporaryDirectory(prefix="ibiscape-imu-")
+    return keep, NpyStreamWriter(os.path.join(keep.name, "imu.npy"), 6)
+
+
 def read_imu_csv(p: Path, cols: Mapping[str, str | int], spill_bytes: int,
                  rate_hz: float | None, *, signs: np.ndarray | None = None,
                  units: tuple[float, float] | None = None) -> ImuRecord:
@@ -172,25 +236,11 @@ def read_imu_csv(p: Path, cols: Mapping[str, str | int], spill_bytes: int,
     import pandas as pd
 
     skip, names = _header_lines(p)
-    with open(p, encoding="utf-8", errors="replace") as fh:
-        for i, line in enumerate(fh):
-            if i == skip:
-                first_row = line
-                break
-        else:
-            raise FormatError(p, "no data rows; an Allan deviation needs thousands of samples")
+    first_row = _first_row(p, skip)
     n_fields = len(first_row.rstrip("\r\n").rstrip().rstrip(",").split(","))
-    if names is not None and len(names) != n_fields:
-        names = None if len(names) < 7 and n_fields >= 7 else names
-    layout = resolve_columns(cols, names, n_fields, p)
-    if units is not None:
-        layout = override_units(layout, units)
+    layout, first_t = _layout(p, cols, names, n_fields, skip, units)
     t_col = layout.time_column
     axis_cols = list(layout.axis_columns)
-    first_t = np.zeros(0)
-    if t_col is not None:
-        first_t = _first_stamps(p, skip, t_col)
-        layout = _time_unit(p, layout, first_t)
     unit = layout.time_unit or "ns"
     used = sorted(set(layout.used_columns))
     # a file of numbers only is read whole (pandas checks every row's field count); a file with
@@ -200,32 +250,14 @@ def read_imu_csv(p: Path, cols: Mapping[str, str | int], spill_bytes: int,
     u_pos = [pos[c] for c in used]
     a_pos = [pos[c] for c in axis_cols]
     timing_acc = None if t_col is None else TimingAccumulator(str(p), first_line=skip + 1)
-    spill = p.stat().st_size > spill_bytes
-    keep: tempfile.TemporaryDirectory[str] | None = None
+    keep, writer = _spill_writer(p, spill_bytes)
     parts: list[np.ndarray] = []
-    writer = None
-    if spill:
-        keep = tempfile.TemporaryDirectory(prefix="ibiscape-imu-")
-        spill_path = os.path.join(keep.name, "imu.npy")
-        writer = NpyStreamWriter(spill_path, 6)
     n = 0
     scale = np.array([layout.gyro_scale] * 3 + [layout.accel_scale] * 3)
     if signs is not None:
         scale = scale * signs
     try:
-        # integer stamps are parsed exactly (float64 would round 1.4e18 ns to 256 ns)
-        fields = first_row.split(",")
-        t_text = fields[t_col].strip() if t_col is not None else ""
-        # (only when the first thousands are all whole: "%g" writes 0, 0.005, ...)
-        int_time = (t_col is not None and t_text.isdigit()
-                    and bool(np.all(first_t == np.round(first_t))))
-        # decimal stamps (seconds with 9 decimals) are parsed exactly from their text
-        dec_time = t_col is not None and _DECIMAL.fullmatch(t_text) is not None
-        dtypes: dict[int, Any] = {i: np.float64 for i in read_cols}
-        if int_time:
-            dtypes[t_col] = np.int64  # type: ignore[index]
-        elif dec_time:
-            dtypes[t_col] = str  # type: ignore[index]
+        dtypes, dec_time = _column_dtypes(first_row, t_col, first_t, read_cols)
         reader = pd.read_csv(p, header=None, skiprows=skip,
                              usecols=None if len(read_cols) == n_fields else read_cols,
                              dtype=dtypes, engine="c", chunksize=CHUNK_ROWS, skip_blank_lines=True)
@@ -239,11 +271,8 @@ def read_imu_csv(p: Path, cols: Mapping[str, str | int], spill_bytes: int,
             if chunk.shape[1] != len(read_cols):
                 raise _diagnose(p, skip + 1 + n, n_fields, used)
             try:
-                tcol = None if t_col is None else _stamps_ns(chunk.iloc[:, pos[t_col]], unit)
-                if dec_time:
-                    chunk = chunk.drop(columns=chunk.columns[pos[t_col]])  # type: ignore[index]
-                    chunk.insert(pos[t_col], "t", 0.0)  # type: ignore[index]
-                arr = chunk.to_numpy(dtype=np.float64)
+                tcol, arr = _chunk_arrays(chunk, None if t_col is None else pos[t_col], unit,
+                                          dec_time)
             except (ValueError, TypeError):
                 raise _diagnose(p, skip + 1 + n, n_fields, used) from None
             if not np.isfinite(arr[:, u_pos]).all():
@@ -271,12 +300,10 @@ def read_imu_csv(p: Path, cols: Mapping[str, str | int], spill_bytes: int,
     if writer is not None:
         writer.close()
         assert keep is not None
-        rec = finish_record(str(p), None, n, timing, rate_hz,
-                            _source=NpyRows(writer.path, keep=keep))
-    else:
-        samples = np.concatenate(parts, axis=0) if parts else np.zeros((0, 6))
-        rec = finish_record(str(p), samples, n, timing, rate_hz)
-    return with_layout(rec, layout)
+        return with_layout(finish_record(str(p), None, n, timing, rate_hz,
+                                         _source=NpyRows(writer.path, keep=keep)), layout)
+    samples = np.concatenate(parts, axis=0) if parts else np.zeros((0, 6))
+    return with_layout(finish_record(str(p), samples, n, timing, rate_hz), layout)
 
 
 def write_imu_csv(path: str | os.PathLike[str], stamps_ns: npt.ArrayLike, gyro_rad_s: npt.ArrayLike,

@@ -1,4 +1,5 @@
-"""Issue 15: every malformed input the mutation campaign found, one test per class."""
+"""Malformed inputs the mutation campaign found (trajectories, IMU tables, events, bags, YAML):
+each gives one error line naming the file, one test per class of defect."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from shared_data import require_shared
 
 from ibiscape_eval.cli.main import cli
 from ibiscape_eval.core.errors import FormatError, IbiscapeError, IbiscapeWarning
@@ -224,10 +226,8 @@ def test_events_npz_crc_damage(tmp_path: Path) -> None:
 def test_replayed_bag_mutants_give_one_line(tmp_path: Path) -> None:
     """The bag mutants that raised AssertionError / ReaderError / AnyReaderError before."""
     from campaign import run_one
-    from families import SHARED
 
-    if not SHARED.is_dir():
-        pytest.skip("needs ../shared/data")
+    require_shared("trajectories")  # the bag seeds: fails under CI when missing
     for fam, mut, idx in (("ros1_bag", "bit_flip", 3), ("ros1_bag", "bit_flip", 17),
                           ("ros2_bag", "bit_flip", 24), ("events_npz", "delete_bytes", 7),
                           ("imu_npz", "empty", 9)):
@@ -355,8 +355,7 @@ def test_interrupted_write_leaves_no_temporary(tmp_path: Path, monkeypatch) -> N
 def test_euroc_rows_with_16_or_18_columns_get_a_note(tmp_path: Path) -> None:
     from families import SHARED
 
-    if not SHARED.is_dir():
-        pytest.skip("needs ../shared/data")
+    require_shared("trajectories")  # fails under CI when missing
     lines = (SHARED / "V102_groundtruth.csv").read_text().splitlines()[:200]
     p = tmp_path / "data.csv"
     p.write_text("\n".join(lines) + "\n")
