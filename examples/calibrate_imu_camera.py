@@ -76,10 +76,11 @@ if __name__ == "__main__":
 
     # %% Kalibr's camchain-imucam.yaml and the figures
     from ibiscape_eval.calib.imu_camera.plots import figures
-    from ibiscape_eval.io.kalibr import write_camchain, write_figures
+    from ibiscape_eval.io.figure import save_figures
+    from ibiscape_eval.io.kalibr import write_camchain
 
     write_camchain(root / "camchain-imucam.yaml", camchain_imucam(res.result))
-    print("wrote", [str(p) for p in write_figures(root, figures(res.result))])
+    print("wrote", [str(p) for p in save_figures(root, figures(res.result))])
     print((root / "camchain-imucam.yaml").read_text()[:400])
 
     # %% the same drive on a flat road: refused with the measured numbers, then forced and marked

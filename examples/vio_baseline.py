@@ -87,7 +87,8 @@ print(f"  gyro variance {still.gyro_var_rad2_s2:.2e} (limit {still.gyro_var_limi
 print(detect_standstill(*seq.imu, t0, t0 + 2_000_000_000).still)
 
 # %% The top view: the ground truth is drawn over the estimate's span +- 1 s only
-from ibiscape_eval.vio.plots import save_figure, top_view_figure
+from ibiscape_eval.io.figure import save_figure
+from ibiscape_eval.vio.plots import top_view_figure
 
 if gt is not None:
     fig = top_view_figure(a.est_aligned, gt, title="VIO top view")

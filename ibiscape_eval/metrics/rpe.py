@@ -10,6 +10,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ibiscape_eval.core import DegenerateInputError, IbiscapeError, Trajectory
+from ibiscape_eval.core.errors import Remedy
 from ibiscape_eval.core.rotations import angle_rad_from_quat, quat_conjugate, quat_multiply
 
 from ._common import (
@@ -308,7 +309,7 @@ def rpe(
         raise DegenerateInputError(
             f"delta = {delta:g} {unit} gives no pose pair ({pairs} pairs) on the "
             f"{est.describe('estimate') if pairs_from == 'est' else ref.describe('reference')} "
-            f"({extent}); use a smaller --delta"
+            f"({extent}); use a smaller {{0}}", hint=(Remedy("delta"),)
         )
     trans, rot = relative_errors(est_al, m.ref, i, j)
     rot_deg = np.degrees(rot, out=rot)

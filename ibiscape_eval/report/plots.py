@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from ibiscape_eval.io.atomic import atomic_output_path
+from ibiscape_eval.io.figure import save_figure as write_figure
 
 if TYPE_CHECKING:
     from ibiscape_eval.core.trajectory import Trajectory
@@ -64,11 +64,7 @@ def plain_axes(fig: Any) -> None:
 def save_figure(fig: Any, path: str | os.PathLike[str]) -> None:
     """Write ``fig`` (PNG/PDF/SVG by extension) through the atomic writer, offsets removed."""
     plain_axes(fig)
-    with atomic_output_path(path) as tmp:
-        fig.savefig(tmp, dpi=150, bbox_inches="tight")
-
-
-_save = save_figure
+    write_figure(fig, path)
 
 
 def default_plot_plane(fmt: str | None) -> str:
