@@ -84,6 +84,7 @@ def check_sensor_layout(p: str | Path, rec: ImuRecord, layout: ImuLayout | None,
     g = STANDARD_GRAVITY_M_S2
     gn, an = m.gyro_norm_rad_s, m.accel_norm_m_s2
     if _near(gn, g) and an < 0.2 * g:
+        hint: tuple[Remedy, ...]
         if layout is not None:
             fix, hint = "read them the other way with {0}", (Remedy("columns", layout.swapped_option()),)
         else:
