@@ -153,7 +153,7 @@ def test_camera_calibration_result_plot() -> None:
 
     from ibiscape_eval.calib.calibrate import calibrate
 
-    target, _cams, _T10, _, _, obs = stereo_scene("checkerboard", n_views=6)
+    target, _cams, _T10, _, _, obs = stereo_scene("checkerboard", n_views=4)
     res = calibrate(target, obs)
     fig = res.plot(1)
     scatter = fig.axes[0].collections[0]
