@@ -7,6 +7,7 @@ Notebook-style: each block can be pasted into a cell.
 """
 
 # %% Imports
+import os
 import sys
 import tempfile
 from pathlib import Path
@@ -37,7 +38,9 @@ if len(sys.argv) > 1:
     seq = stereo_inputs(opened)
 else:
     root = Path(tempfile.mkdtemp(prefix="vio_example_"))
-    generate(preset("svi", "slam", "clear", duration_s=30, seed=1), root / "SVI_1_town")
+    scale = float(os.environ.get("IBISCAPE_EXAMPLE_SCALE", "1"))  # < 1: a shorter drive (tests)
+    generate(preset("svi", "slam", "clear", duration_s=max(8.0, 30 * scale), seed=1),
+             root / "SVI_1_town")
     seq = load_sequence(root / "SVI_1_town", require_images=False)
 print(seq, seq.rig)
 gt = seq.groundtruth
