@@ -161,10 +161,10 @@ def cli_terms(message: str) -> str:
 
 # A library option whose flag is not ``--`` + its name with dashes, and the placeholder shown when
 # a remedy suggests no value.
-_FLAG_NAMES = {"lengths_m": "--lengths", "apply_path": "--apply", "imu_yaml": "--imu", "topic_id": "--topic",
+_FLAG_NAMES = {"lengths_m": "--lengths", "apply_path": "--apply", "fmt": "--format", "imu_yaml": "--imu", "topic_id": "--topic",
                "align_by_algorithm": "--align", "sequences_dir": "--sequences"}
 _METAVARS = {"sensor_size": "WxH", "random_walk_fallback": "GYRO,ACCEL", "imu_yaml": "imu.yaml",
-             "calib": "camchain-imucam.yaml", "topic_id": "ID"}
+             "calib": "camchain-imucam.yaml", "topic_id": "ID", "target": "target.yaml"}
 
 
 def cli_flag(remedy: Remedy) -> str:

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from os import PathLike
 
 _SLOT = re.compile(r"\{(\d)\}")  # a remedy's place in a message: {0} ... {9}
+_NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
 
 __all__ = [
     "CalibrationError",
@@ -42,10 +43,14 @@ class Remedy:
     flag: bool = False
 
     def keyword(self) -> str:
-        """The remedy as a Python keyword argument: ``align="yaw"``, ``force=True``, ``offset_s``."""
+        """The remedy as a Python keyword argument: ``align="yaw"``, ``rate_hz=200``,
+        ``force=True``, or the bare name ``offset_s`` when no value is suggested."""
         if self.flag:
             return f"{self.option}=True"
-        return self.option if self.value is None else f'{self.option}="{self.value}"'
+        if self.value is None:
+            return self.option
+        return f"{self.option}={self.value}" if _NUMBER.fullmatch(self.value) else (
+            f'{self.option}="{self.value}"')
 
 
 class IbiscapeError(Exception):

@@ -73,11 +73,12 @@ def test_detect_generated(tmp_path):
         assert detect_trajectory_format(p) == fmt
     amb = tmp_path / "amb.csv"
     amb.write_text("1,0,0,0,0,0,0,1\n")
-    with pytest.raises(FormatError, match=r"--format"):
+    with pytest.raises(FormatError, match=r"explicitly with fmt \(one of") as ei:
         detect_trajectory_format(amb)
+    assert [r.option for r in ei.value.hint] == ["fmt"]
     folder = tmp_path / "folder"
     folder.mkdir()
-    with pytest.raises(FormatError, match=r"--format"):
+    with pytest.raises(FormatError, match=r"explicitly with fmt"):
         detect_trajectory_format(folder)
 
 
