@@ -1,4 +1,7 @@
-"""What every command shares: error mapping, warnings on stderr, JSON output, format options.
+"""What every command shares: error mapping (a library error's remedies printed as flags by
+:func:`cli_flag`), warnings on stderr, JSON output, and the options several commands take
+(trajectory inputs as one typed :class:`TrajectoryInputs`, alignments, event formats, sensor
+sizes).  Commands import this module and the library, never each other.
 
 No math here.  Commands parse options, call ``ibiscape_eval.io`` and one library function, print.
 """
