@@ -1,32 +1,43 @@
-"""What every command shares: error mapping, warnings on stderr, JSON output, format options.
+"""What every command shares: error mapping (a library error's remedies printed as flags by
+:func:`cli_flag`), warnings on stderr, JSON output, and the options several commands take
+(trajectory inputs as one typed :class:`TrajectoryInputs`, alignments, event formats, sensor
+sizes).  Commands import this module and the library, never each other.
 
 No math here.  Commands parse options, call ``ibiscape_eval.io`` and one library function, print.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import json
 import re
 import sys
 import warnings
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
 
 import click
 
-from ibiscape_eval.core.errors import IbiscapeError, IbiscapeWarning
+from ibiscape_eval.core.errors import IbiscapeError, IbiscapeWarning, Remedy
 
 F = TypeVar("F", bound=Callable[..., Any])
 
 __all__ = [
+    "ALIGNMENTS",
+    "EVENT_FORMAT_CHOICES",
+    "TrajectoryInputs",
+    "check_tf_topic",
+    "cli_flag",
     "cli_terms",
+    "collect",
     "echo_json",
     "fail",
     "info",
+    "parse_sensor_size",
     "read_trajectories",
-    "selection_kwargs",
     "show_doc_warnings",
     "strict_json",
     "trajectory_options",
@@ -66,7 +77,7 @@ def user_errors(func: F) -> F:
                 warnings.showwarning = _show_warning
                 return func(*args, **kwargs)
         except IbiscapeError as e:
-            fail(str(e))
+            fail(e.render(cli_flag))
         except FileNotFoundError as e:
             fail(f"{e.filename}: no such file or directory; check the path")
         except IsADirectoryError as e:
@@ -151,6 +162,53 @@ def cli_terms(message: str) -> str:
     return message
 
 
+# A library option whose flag is not ``--`` + its name with dashes, and the placeholder shown when
+# a remedy suggests no value.
+_FLAG_NAMES = {"lengths_m": "--lengths", "apply_path": "--apply", "fmt": "--format", "imu_yaml": "--imu", "topic_id": "--topic",
+               "align_by_algorithm": "--align", "sequences_dir": "--sequences"}
+_METAVARS = {"sensor_size": "WxH", "random_walk_fallback": "GYRO,ACCEL", "imu_yaml": "imu.yaml",
+             "calib": "camchain-imucam.yaml", "topic_id": "ID", "target": "target.yaml"}
+
+
+def cli_flag(remedy: Remedy) -> str:
+    """A library error's remedy as the command line's flag: ``Remedy("align", "yaw")`` ->
+    ``--align yaw``, ``Remedy("force", flag=True)`` -> ``--force``."""
+    flag = _FLAG_NAMES.get(remedy.option, "--" + remedy.option.replace("_", "-"))
+    value = remedy.value if remedy.value is not None else _METAVARS.get(remedy.option)
+    return flag if remedy.flag or value is None else f"{flag} {value}"
+
+
+#: the --align choices of every trajectory command
+ALIGNMENTS = ("none", "origin", "se3", "sim3", "yaw")
+#: the --format choices of the event commands
+EVENT_FORMAT_CHOICES = ("auto", "ibiscape", "npz", "text", "hdf5", "aedat4", "bag")
+
+
+def parse_sensor_size(text: str | None) -> tuple[int, int] | None:
+    """``--sensor-size "346x260"`` -> (346, 260)."""
+    if text is None:
+        return None
+    m = re.fullmatch(r"\s*(\d+)\s*[xX,]\s*(\d+)\s*", text)
+    if not m or int(m.group(1)) == 0 or int(m.group(2)) == 0:
+        raise IbiscapeError(f"--sensor-size must look like WIDTHxHEIGHT (e.g. 346x260), got {text!r}")
+    return int(m.group(1)), int(m.group(2))
+
+
+def check_tf_topic(src: Path, topic: str) -> None:
+    """A TF topic named without its frames (``--topic /tf``): one line suggesting the
+    ``/tf:parent.child`` forms the bag offers, instead of a list of message types."""
+    if ":" in topic or topic.rstrip("/").split("/")[-1] not in ("tf", "tf_static"):
+        return
+    from ibiscape_eval.io.bag import list_pose_topics
+
+    offered = [t for t in list_pose_topics(src) if t.startswith(topic.rstrip("/") + ":")]
+    if not offered:
+        return
+    raise IbiscapeError(
+        f"{src}: {topic} is a TF topic holding several transforms; name one as "
+        f"TOPIC:parent.child, e.g. --topic {offered[0]} (offered: {', '.join(offered)})")
+
+
 def _options(func: Callable[..., Any], opts: list[Any]) -> Callable[..., Any]:
     for opt in reversed(opts):
         func = opt(func)
@@ -166,14 +224,71 @@ def _motion(ctx: Any, param: Any, value: Any) -> tuple[float, float] | None:
     return float(d), float(a)
 
 
+def collect(cls: type[Any], name: str) -> Callable[[F], F]:
+    """Decorate a command: the parameters named like the fields of the dataclass ``cls`` reach
+    it as one ``cls`` object, keyword ``name`` (typed option groups instead of ``**kwargs``)."""
+    names = [f.name for f in dataclasses.fields(cls)]
+
+    def decorate(func: F) -> F:
+        @functools.wraps(func)
+        def wrapper(*args: Any, **kwargs: Any) -> Any:
+            group = cls(**{n: kwargs.pop(n) for n in names})
+            return func(*args, **kwargs, **{name: group})
+
+        return wrapper  # type: ignore[return-value]
+
+    return decorate
+
+
+@dataclass(frozen=True)
+class TrajectoryInputs:
+    """The reading, association and selection options of every trajectory command
+    (:func:`trajectory_options`)."""
+
+    fmt: str
+    format_est: str | None
+    format_ref: str | None
+    topic: str | None
+    topic_est: str | None
+    topic_ref: str | None
+    times_est: Path | None
+    times_ref: Path | None
+    max_diff_s: float
+    offset_s: float
+    estimate_offset: bool
+    interpolate: bool
+    n_align: int | None
+    t_start: float | None
+    t_end: float | None
+    downsample: int | None
+    motion_filter: tuple[float, float] | None
+    unit: str
+
+    def selection(self, match: str) -> dict[str, Any]:
+        """The library keyword arguments of association and selection."""
+        return {
+            "max_diff_s": self.max_diff_s,
+            "offset_s": self.offset_s,
+            "estimate_offset": self.estimate_offset,
+            "interpolate": self.interpolate,
+            "match": match,
+            "n_align": self.n_align,
+            "t_start_s": self.t_start,
+            "t_end_s": self.t_end,
+            "downsample": self.downsample,
+            "motion_filter": self.motion_filter,
+        }
+
+
 def trajectory_options(func: Callable[..., Any]) -> Callable[..., Any]:
     """Reading (formats, bag topics, KITTI times), association (max difference, offset,
     interpolation), evo's pose selection (time range, downsampling, motion filter), alignment
-    window and output unit: the options every trajectory metric command takes."""
+    window and output unit: the options every trajectory metric command takes, passed to the
+    command as ``inputs`` (:class:`TrajectoryInputs`)."""
     from ibiscape_eval.io.detect import TRAJECTORY_FORMATS
 
     formats = ("auto", *TRAJECTORY_FORMATS)
-    return _options(func, [
+    return _options(collect(TrajectoryInputs, "inputs")(func), [
         click.option("--format", "fmt", type=click.Choice(formats), default="auto",
                      show_default=True,
                      help="Format of every file (auto detects from name and content)."),
@@ -217,24 +332,8 @@ def trajectory_options(func: Callable[..., Any]) -> Callable[..., Any]:
     ])
 
 
-def selection_kwargs(o: dict[str, Any], match: str) -> dict[str, Any]:
-    """The library keyword arguments of the shared options (association and selection)."""
-    return {
-        "max_diff_s": o["max_diff_s"],
-        "offset_s": o["offset_s"],
-        "estimate_offset": o["estimate_offset"],
-        "interpolate": o["interpolate"],
-        "match": match,
-        "n_align": o["n_align"],
-        "t_start_s": o["t_start"],
-        "t_end_s": o["t_end"],
-        "downsample": o["downsample"],
-        "motion_filter": o["motion_filter"],
-    }
-
-
 def read_trajectories(
-    ests: Sequence[Path], ref: Path, o: dict[str, Any]
+    ests: Sequence[Path], ref: Path, o: TrajectoryInputs
 ) -> tuple[list[Any], Any, str, str, list[str]]:
     """Read the estimates and the reference with the shared options: say which formats were
     detected, warn when an estimate looks like the ground truth, choose time or index pairing.
@@ -247,21 +346,19 @@ def read_trajectories(
 
     from .startup import numba_startup
 
-    if o["times_est"] is not None and len(ests) > 1:
+    if o.times_est is not None and len(ests) > 1:
         raise click.UsageError("--times-est names the times of one estimate; give the "
                                "estimates one at a time, or convert them with their times first")
 
     def load(path: Path, side: str) -> tuple[Any, str, bool]:
-        fmt = o[f"format_{side}"] or o["fmt"]
+        fmt = getattr(o, f"format_{side}") or o.fmt
         if fmt == "auto":
             fmt = detect_trajectory_format(path)
             info(f"{path}: format {fmt} (detected; force another with --format-{side})")
-        times = o[f"times_{side}"]
-        topic = o[f"topic_{side}"] or o["topic"]
+        times = getattr(o, f"times_{side}")
+        topic = getattr(o, f"topic_{side}") or o.topic
         if fmt == "bag" and topic is not None:
-            from .convert import tf_hint
-
-            tf_hint(path, topic)
+            check_tf_topic(path, topic)
         traj = read_trajectory(path, fmt, topic=topic,
                                times_path=None if times is None else str(times), name=path.name)
         return traj, fmt, has_timestamps(fmt, times)

@@ -12,6 +12,7 @@ from ibiscape_eval.imu.gaps import MAX_MISSING_FRACTION
 from ibiscape_eval.io.imu import FORMATS as IMU_FORMATS
 
 from ._common import echo_json, fail, info, user_errors
+from .progress import progress_bar
 
 _GYRO_U = ("rad/s/sqrt(Hz)", "rad/s^2/sqrt(Hz)", "rad/s")
 _ACCEL_U = ("m/s^2/sqrt(Hz)", "m/s^3/sqrt(Hz)", "m/s^2")
@@ -111,9 +112,7 @@ def allan(imu: str, fmt: str | None, columns: str | None, units: str | None, ros
     as noise explains, the gyro mean stays below 0.2 rad/s, the accelerometer reads g (exit 2
     otherwise, or --force and a warning in every output).
     """
-    from ibiscape_eval.core.errors import IbiscapeError
-    from ibiscape_eval.imu import allan_deviation, check_gaps, check_still, fit_noise_model
-    from ibiscape_eval.io.imu import read_imu
+    from ibiscape_eval.imu import allan_deviation, fit_noise_model
 
     fallback = _pair(rw_fallback, "--random-walk-fallback")
     if not (math.isfinite(inflate) and inflate > 0):
@@ -122,6 +121,42 @@ def allan(imu: str, fmt: str | None, columns: str | None, units: str | None, ros
     kr = _range(walk_range, "--walk-range")
     if points_per_decade < 1:
         fail("--points-per-decade must be at least 1")
+    rec, tm, still = _read_still(imu, fmt, columns, units, rostopic, rate_hz, max_missing,
+                                 allow_gaps, force)
+    warning = still.warning
+    with progress_bar(rec.n_samples * rec.n_columns, "allan", unit="sample") as bar:
+        res = allan_deviation(rec, rec.rate_hz, points_per_decade=points_per_decade,
+                              names=rec.names, progress=bar.update)
+    model = fit_noise_model(res, white_range_s=wr, walk_range_s=kr)
+
+    _write_curves(res, model, csv_path, plot_path, warning)  # always meaningful: first
+    kalibr: dict[str, Any] = {
+        **model.kalibr(gyro=rec.names[:3], accel=rec.names[3:]),
+        "rostopic": rostopic or rec.rostopic or "/imu0",
+        "update_rate": rec.rate_hz,
+    }
+    for a in model.axes:
+        for note in a.notes:
+            info(f"note: {a.name}: {note}")
+
+    if as_json:
+        echo_json(_json_doc(imu, rec, tm, res, model, still, kalibr))
+    else:
+        if warning:
+            click.echo(warning)
+        _table(model, rec.rate_hz)
+
+    if yaml_path:
+        _write_yaml(yaml_path, imu, rec, model, fallback, inflate, warning, str(kalibr["rostopic"]))
+
+
+def _read_still(imu: str, fmt: str | None, columns: str | None, units: str | None,
+                rostopic: str | None, rate_hz: float | None, max_missing: float,
+                allow_gaps: bool, force: bool) -> tuple[Any, Any, Any]:
+    """Read the record, say its timing and notes, refuse gaps and motion (unless allowed)."""
+    from ibiscape_eval.imu import check_gaps, check_still
+    from ibiscape_eval.io.imu import read_imu
+
     rec = read_imu(imu, fmt=fmt, columns=columns, units=units, rostopic=rostopic, rate_hz=rate_hz)
     tm = rec.timing
     if tm.has_stamps:
@@ -135,18 +170,13 @@ def allan(imu: str, fmt: str | None, columns: str | None, units: str | None, ros
     still = check_still(rec, rec.rate_hz, path=imu, force=force)
     for note in still.notes:
         info(f"note: {note}")
-    warning = still.warning
-    if warning:
-        info(warning)
+    if still.warning:
+        info(still.warning)
+    return rec, tm, still
 
-    from .progress import progress_bar
 
-    with progress_bar(rec.n_samples * rec.n_columns, "allan", unit="sample") as bar:
-        res = allan_deviation(rec, rec.rate_hz, points_per_decade=points_per_decade,
-                              names=rec.names, progress=bar.update)
-    model = fit_noise_model(res, white_range_s=wr, walk_range_s=kr)
-
-    # outputs that are always meaningful first: the curves
+def _write_curves(res: Any, model: Any, csv_path: str | None, plot_path: str | None,
+                  warning: str | None) -> None:
     if csv_path:
         from ibiscape_eval.io.atomic import atomic_write
 
@@ -161,74 +191,68 @@ def allan(imu: str, fmt: str | None, columns: str | None, units: str | None, ros
         plot_allan(plot_path, res, model, title="overlapping Allan deviation" + (
             "\nNOT STILL: analysed with --force, the curves include the motion" if warning else ""))
 
-    kalibr: dict[str, Any] = {
-        **model.kalibr(gyro=rec.names[:3], accel=rec.names[3:]),
-        "rostopic": rostopic or rec.rostopic or "/imu0",
-        "update_rate": rec.rate_hz,
+
+def _json_doc(imu: str, rec: Any, tm: Any, res: Any, model: Any, still: Any,
+              kalibr: dict[str, Any]) -> dict[str, Any]:
+    warning = still.warning
+    return {
+        "file": imu,
+        "rate_hz": rec.rate_hz,
+        "n_samples": rec.n_samples,
+        "duration_s": res.duration_s,
+        "timing": dataclasses.asdict(tm),
+        "forced_not_still": bool(warning),
+        "warning": warning,
+        "stillness": still.to_dict(),
+        "layout": rec.layout.to_dict() if rec.layout is not None else None,
+        "notes": list(rec.notes),
+        "n_taus": int(res.taus_s.size),
+        "confidence": res.ci,
+        "edf_model": "white FM (NIST SP 1065 Table 5), chi-squared bounds",
+        "axes": {a.name: {**{k: getattr(a, k) for k in a.__dataclass_fields__ if k != "name"},
+                          "notes": list(a.notes)} for a in model.axes},
+        "kalibr": kalibr,
     }
-    for a in model.axes:
-        for note in a.notes:
-            info(f"note: {a.name}: {note}")
 
-    if as_json:
-        echo_json({
-            "file": imu,
-            "rate_hz": rec.rate_hz,
-            "n_samples": rec.n_samples,
-            "duration_s": res.duration_s,
-            "timing": dataclasses.asdict(tm),
-            "forced_not_still": bool(warning),
-            "warning": warning,
-            "stillness": still.to_dict(),
-            "layout": rec.layout.to_dict() if rec.layout is not None else None,
-            "notes": list(rec.notes),
-            "n_taus": int(res.taus_s.size),
-            "confidence": res.ci,
-            "edf_model": "white FM (NIST SP 1065 Table 5), chi-squared bounds",
-            "axes": {a.name: {**{k: getattr(a, k) for k in a.__dataclass_fields__ if k != "name"},
-                              "notes": list(a.notes)} for a in model.axes},
-            "kalibr": kalibr,
-        })
-    else:
-        if warning:
-            click.echo(warning)
-        _table(model, rec.rate_hz)
 
-    if yaml_path:
-        from ibiscape_eval.core.kalibr import ImuNoise
-        from ibiscape_eval.io.kalibr import write_imu_noise
+def _write_yaml(yaml_path: str, imu: str, rec: Any, model: Any, fallback: Any, inflate: float,
+                warning: str | None, rostopic: str) -> None:
+    """The Kalibr imu.yaml: the largest value over the three axes, with the per-sample sigmas."""
+    from ibiscape_eval.core.errors import IbiscapeError
+    from ibiscape_eval.core.kalibr import ImuNoise
+    from ibiscape_eval.io.kalibr import write_imu_noise
 
-        try:
-            vals, notes = model.kalibr_values(random_walk_fallback=fallback, inflate=inflate,
-                                              gyro=rec.names[:3], accel=rec.names[3:])
-        except IbiscapeError as e:
-            raise IbiscapeError(f"{yaml_path} not written: {e}") from None
-        rate = rec.rate_hz
-        root = math.sqrt(rate)
-        bad = [k for k, v in vals.items() if not (math.isfinite(v) and v > 0)]
-        if bad:
-            raise IbiscapeError(f"cannot write {yaml_path}: {', '.join(bad)} not determined (NaN); "
-                                "record longer or give the fit ranges")
-        noise = ImuNoise(accel_noise_density_m_s2_sqrt_hz=vals["accelerometer_noise_density"],
-                         accel_random_walk_m_s3_sqrt_hz=vals["accelerometer_random_walk"],
-                         gyro_noise_density_rad_s_sqrt_hz=vals["gyroscope_noise_density"],
-                         gyro_random_walk_rad_s2_sqrt_hz=vals["gyroscope_random_walk"],
-                         update_rate_hz=rate, rostopic=str(kalibr["rostopic"]))
-        write_imu_noise(
-            yaml_path, noise,
-            comments=[
-                f"ibiscape-eval allan {imu}: largest value over the three axes, continuous time",
-                *([warning] if warning else []),
-                *notes,
-                f"per-sample (discrete) sigmas at {rate:.6g} Hz:",
-                f"  gyroscope_noise_sigma: {vals['gyroscope_noise_density'] * root:.6g} rad/s",
-                f"  gyroscope_bias_step_sigma: {vals['gyroscope_random_walk'] / root:.6g} rad/s",
-                f"  accelerometer_noise_sigma: {vals['accelerometer_noise_density'] * root:.6g} "
-                "m/s^2",
-                f"  accelerometer_bias_step_sigma: {vals['accelerometer_random_walk'] / root:.6g} "
-                "m/s^2",
-            ],
-        )
+    try:
+        vals, notes = model.kalibr_values(random_walk_fallback=fallback, inflate=inflate,
+                                          gyro=rec.names[:3], accel=rec.names[3:])
+    except IbiscapeError as e:
+        raise IbiscapeError(f"{yaml_path} not written: {e.template}", hint=e.hint) from None
+    rate = rec.rate_hz
+    root = math.sqrt(rate)
+    bad = [k for k, v in vals.items() if not (math.isfinite(v) and v > 0)]
+    if bad:
+        raise IbiscapeError(f"cannot write {yaml_path}: {', '.join(bad)} not determined (NaN); "
+                            "record longer or give the fit ranges")
+    noise = ImuNoise(accel_noise_density_m_s2_sqrt_hz=vals["accelerometer_noise_density"],
+                     accel_random_walk_m_s3_sqrt_hz=vals["accelerometer_random_walk"],
+                     gyro_noise_density_rad_s_sqrt_hz=vals["gyroscope_noise_density"],
+                     gyro_random_walk_rad_s2_sqrt_hz=vals["gyroscope_random_walk"],
+                     update_rate_hz=rate, rostopic=rostopic)
+    write_imu_noise(
+        yaml_path, noise,
+        comments=[
+            f"ibiscape-eval allan {imu}: largest value over the three axes, continuous time",
+            *([warning] if warning else []),
+            *notes,
+            f"per-sample (discrete) sigmas at {rate:.6g} Hz:",
+            f"  gyroscope_noise_sigma: {vals['gyroscope_noise_density'] * root:.6g} rad/s",
+            f"  gyroscope_bias_step_sigma: {vals['gyroscope_random_walk'] / root:.6g} rad/s",
+            f"  accelerometer_noise_sigma: {vals['accelerometer_noise_density'] * root:.6g} "
+            "m/s^2",
+            f"  accelerometer_bias_step_sigma: {vals['accelerometer_random_walk'] / root:.6g} "
+            "m/s^2",
+        ],
+    )
 
 
 def _table(model: Any, rate_hz: float) -> None:

@@ -3,27 +3,58 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import click
 
-from ibiscape_eval.metrics.alignment import Alignment
 from ibiscape_eval.metrics.relations import PLANES, POSE_RELATIONS
 from ibiscape_eval.metrics.rpe import DELTA_UNITS, PAIR_MODES, PAIRS_FROM
 from ibiscape_eval.report.plots import PANELS, PLOT_PLANES
 
 from ._common import (
+    ALIGNMENTS,
+    TrajectoryInputs,
+    collect,
     echo_json,
     info,
     read_trajectories,
-    selection_kwargs,
     show_doc_warnings,
     trajectory_options,
     user_errors,
 )
 
-ALIGNMENTS = tuple(a.value for a in Alignment)
+
+@dataclass(frozen=True)
+class Outputs:
+    """Where the results of ate, rpe and drift go (besides the table)."""
+
+    as_json: bool
+    save_csv: Path | None
+    plot: Path | None
+    gps: Path | None
+
+
+@dataclass(frozen=True)
+class EvoOptions:
+    """evo's pose relation and projection, and the figure's plane and panels (ate, rpe)."""
+
+    pose_relation: str
+    project_to_plane: str | None
+    plot_plane: str | None
+    plot_panels: str | None
+
+
+@dataclass(frozen=True)
+class _Pair:
+    """The estimate and the reference as read, their pairing, REF's format and the warnings."""
+
+    est: Any
+    ref: Any
+    match: str
+    ref_fmt: str
+    notes: list[str]
 
 
 def _input_options(func: Callable[..., Any]) -> Callable[..., Any]:
@@ -53,6 +84,7 @@ def _input_options(func: Callable[..., Any]) -> Callable[..., Any]:
             help="GNSS csv (IBISCape gnss.csv) to overlay on the plot.",
         ),
     ]
+    func = collect(Outputs, "out")(func)
     for opt in reversed(opts):
         func = opt(func)
     return func
@@ -88,6 +120,7 @@ def _evo_options(func: Callable[..., Any]) -> Callable[..., Any]:
             help=f"Comma-separated panels of the figure, from {','.join(PANELS)} (default all).",
         ),
     ]
+    func = collect(EvoOptions, "evo")(func)
     for opt in reversed(opts):
         func = opt(func)
     return func
@@ -106,16 +139,10 @@ def _panels(text: str | None) -> list[str] | None:
     return names
 
 
-def _read_pair(est: Path, ref: Path, o: dict[str, Any]) -> tuple[Any, Any, str]:
-    """Read both trajectories (``_common.read_trajectories``); keeps the reference's format
-    (for the default plot plane) and the reading warnings (for the JSON) in ``o``."""
-    ests, ref_t, match, ref_fmt, notes = read_trajectories([est], ref, o)
-    o["_ref_fmt"], o["_notes"] = ref_fmt, notes
-    return ests[0], ref_t, match
-
-
-def _assoc_kwargs(o: dict[str, Any], match: str) -> dict[str, Any]:
-    return selection_kwargs(o, match)
+def _read_pair(est: Path, ref: Path, inputs: TrajectoryInputs) -> _Pair:
+    """Read both trajectories (``_common.read_trajectories``)."""
+    ests, ref_t, match, ref_fmt, notes = read_trajectories([est], ref, inputs)
+    return _Pair(ests[0], ref_t, match, ref_fmt, notes)
 
 
 def _report_counts(doc: dict[str, Any]) -> None:
@@ -145,21 +172,20 @@ def relation_line(doc: dict[str, Any]) -> str | None:
             f"max {e['max']:.6g}")
 
 
-def _finish(result: Any, est: Path, ref: Path, o: dict[str, Any], *,
+def _finish(result: Any, est: Path, ref: Path, pair: _Pair, unit: str, out: Outputs, *,
             plot: Callable[[Path], None], table: Callable[[dict[str, Any]], str]) -> None:
     """The ending the three commands share: counts, --save-csv, --plot, then JSON or the table."""
     from ibiscape_eval.report import format_header
 
-    unit = o["unit"]
     doc = show_doc_warnings(result.to_dict(**({"unit": unit} if unit != "m" else {})),
-                            o.get("_notes", ()))
-    if o["as_json"]:  # the table's header line says the same on stdout
+                            pair.notes)
+    if out.as_json:  # the table's header line says the same on stdout
         _report_counts(doc)
-    if o["save_csv"]:
-        _write_csv(o["save_csv"], result.to_frame(**({"unit": unit} if unit != "m" else {})))
-    if o["plot"]:
-        plot(o["plot"])
-    if o["as_json"]:
+    if out.save_csv:
+        _write_csv(out.save_csv, result.to_frame(**({"unit": unit} if unit != "m" else {})))
+    if out.plot:
+        plot(out.plot)
+    if out.as_json:
         echo_json(doc)
     else:
         click.echo(format_header(doc, est.name, ref.name))
@@ -210,19 +236,15 @@ def _gps_positions(path: Path | None, ref: Any) -> Any:
     return gnss_in_reference_frame(fixes.stamps_ns, fixes.lat_deg, fixes.lon_deg, fixes.alt_m, ref)
 
 
-def plot_plane(o: dict[str, Any]) -> str:
-    """``--plot-plane``, or the default of the reference's format (KITTI: xz)."""
-    from ibiscape_eval.report.plots import default_plot_plane
+def _plot_errors(path: Path, result: Any, pair: _Pair, unit: str, gps: Path | None,
+                 evo: EvoOptions, title: str) -> None:
+    """The error figure; its plane is ``--plot-plane`` or the default of REF's format."""
+    from ibiscape_eval.report.plots import default_plot_plane, metric_figure, save_figure
 
-    return o["plot_plane"] or default_plot_plane(o.get("_ref_fmt"))
-
-
-def _plot_errors(path: Path, result: Any, ref_full: Any, o: dict[str, Any], title: str) -> None:
-    from ibiscape_eval.report.plots import metric_figure, save_figure
-
-    fig = metric_figure(result, unit=o["unit"], title=title,
-                        gps_xyz_m=_gps_positions(o["gps"], ref_full), plane=plot_plane(o),
-                        panels=_panels(o["plot_panels"]))
+    fig = metric_figure(result, unit=unit, title=title,
+                        gps_xyz_m=_gps_positions(gps, pair.ref),
+                        plane=evo.plot_plane or default_plot_plane(pair.ref_fmt),
+                        panels=_panels(evo.plot_panels))
     save_figure(fig, path)
 
 
@@ -244,7 +266,8 @@ def _plot_errors(path: Path, result: Any, ref_full: Any, o: dict[str, Any], titl
     help="Write the whole estimate, aligned, as TUM.",
 )
 @user_errors
-def ate(est: Path, ref: Path, alignment: str, save_aligned: Path | None, **o: Any) -> None:
+def ate(est: Path, ref: Path, alignment: str, save_aligned: Path | None,
+        inputs: TrajectoryInputs, out: Outputs, evo: EvoOptions) -> None:
     """Absolute trajectory error of EST against the reference REF.
 
     Poses are associated by timestamp, EST is aligned to REF (Umeyama on positions), and the
@@ -263,17 +286,18 @@ def ate(est: Path, ref: Path, alignment: str, save_aligned: Path | None, **o: An
     """
     from ibiscape_eval.metrics import ate as ate_fn
 
-    _panels(o["plot_panels"])  # checked before any work
-    est_t, ref_t, match = _read_pair(est, ref, o)
-    result = ate_fn(est_t, ref_t, align=alignment, pose_relation=o["pose_relation"],
-                    project_to_plane=o["project_to_plane"], **_assoc_kwargs(o, match))
+    _panels(evo.plot_panels)  # checked before any work
+    pair = _read_pair(est, ref, inputs)
+    result = ate_fn(pair.est, pair.ref, align=alignment, pose_relation=evo.pose_relation,
+                    project_to_plane=evo.project_to_plane, **inputs.selection(pair.match))
     if save_aligned:
         from ibiscape_eval.io import write_trajectory
 
-        write_trajectory(save_aligned, result.alignment.apply(est_t), "tum")
+        write_trajectory(save_aligned, result.alignment.apply(pair.est), "tum")
     _finish(
-        result, est, ref, o,
-        plot=lambda p: _plot_errors(p, result, ref_t, o, "absolute trajectory error"),
+        result, est, ref, pair, inputs.unit, out,
+        plot=lambda p: _plot_errors(p, result, pair, inputs.unit, out.gps, evo,
+                                    "absolute trajectory error"),
         table=lambda doc: error_table(doc, "absolute trajectory error (ATE)"),
     )
 
@@ -328,7 +352,7 @@ def ate(est: Path, ref: Path, alignment: str, save_aligned: Path | None, **o: An
 @user_errors
 def rpe(
     est: Path, ref: Path, delta: float, delta_unit: str, pairs: str, alignment: str,
-    pairs_from: str, delta_tol: float, **o: Any
+    pairs_from: str, delta_tol: float, inputs: TrajectoryInputs, out: Outputs, evo: EvoOptions
 ) -> None:
     """Relative pose error of EST against REF over pose pairs DELTA apart.
 
@@ -344,25 +368,25 @@ def rpe(
         delta_unit = "metres"
     if delta_unit == "frames" and delta != int(delta):
         raise click.BadParameter("a delta in frames must be a whole number", param_hint="--delta")
-    _panels(o["plot_panels"])  # checked before any work
-    est_t, ref_t, match = _read_pair(est, ref, o)
+    _panels(evo.plot_panels)  # checked before any work
+    pair = _read_pair(est, ref, inputs)
     result = rpe_fn(
-        est_t,
-        ref_t,
+        pair.est,
+        pair.ref,
         delta=delta,
         delta_unit=delta_unit,
         pairs=pairs,
         align=alignment,
-        pose_relation=o["pose_relation"],
-        project_to_plane=o["project_to_plane"],
+        pose_relation=evo.pose_relation,
+        project_to_plane=evo.project_to_plane,
         pairs_from=pairs_from,
         rel_tol=delta_tol,
-        **_assoc_kwargs(o, match),
+        **inputs.selection(pair.match),
     )
     _finish(
-        result, est, ref, o,
+        result, est, ref, pair, inputs.unit, out,
         plot=lambda p: _plot_errors(
-            p, result, ref_t, o,
+            p, result, pair, inputs.unit, out.gps, evo,
             f"relative pose error, delta {delta:g} {delta_unit} ({pairs} pairs from {pairs_from})"),
         table=lambda doc: error_table(
             doc,
@@ -415,7 +439,8 @@ def drift(
     lengths_pct: str | None,
     step_frames: int,
     alignment: str,
-    **o: Any,
+    inputs: TrajectoryInputs,
+    out: Outputs,
 ) -> None:
     """KITTI-style drift of EST against REF: relative error over segment lengths, in %% and deg/m.
 
@@ -429,27 +454,28 @@ def drift(
     """
     from ibiscape_eval.metrics import drift as drift_fn
 
-    if o["unit"] != "m":
+    if inputs.unit != "m":
         raise click.BadParameter("drift reports percent and deg/m; --change-unit applies to "
                                  "ate, rpe and compare", param_hint="--change-unit")
     lengths_m = _float_list(lengths)
     pct = _float_list(lengths_pct)
-    est_t, ref_t, match = _read_pair(est, ref, o)
+    pair = _read_pair(est, ref, inputs)
     result = drift_fn(
-        est_t,
-        ref_t,
+        pair.est,
+        pair.ref,
         lengths_m=lengths_m or (),
         lengths_pct=pct,
         step_frames=step_frames,
         align=alignment,
-        **_assoc_kwargs(o, match),
+        **inputs.selection(pair.match),
     )
+
     def plot(path: Path) -> None:
         from ibiscape_eval.report.plots import plot_drift
 
         plot_drift(path, result, title="drift per segment length")
 
-    _finish(result, est, ref, o, plot=plot, table=drift_table)
+    _finish(result, est, ref, pair, inputs.unit, out, plot=plot, table=drift_table)
 
 
 __all__ = ["ate", "drift", "rpe"]

@@ -7,7 +7,7 @@ from typing import Any
 
 import click
 
-from ._common import echo_json, info, user_errors
+from ._common import echo_json, info, parse_sensor_size, user_errors
 
 MODEL_CHOICES = ("pinhole-radtan", "pinhole-equi")
 RECON_CHOICES = ("auto", "log-intensity", "accumulate-signed", "accumulate", "time-surface")
@@ -106,22 +106,15 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
       ibiscape-eval calib calib.bag --target april_6x6.yaml --topic /cam0/image_raw --topic /cam1/image_raw
     """
     from ibiscape_eval.calib.pipeline import calibrate_cameras
-    from ibiscape_eval.calib.report import format_report
-    from ibiscape_eval.core.errors import IbiscapeError
     from ibiscape_eval.core.kalibr import CameraChain
     from ibiscape_eval.io.kalibr import read_camchain, read_target, write_camchain
     from ibiscape_eval.io.open_sequence import open_sequence
 
-    from .hotpix import parse_sensor_size
-
-    if imu_yaml is None and (cams_path or imu_data or force or frame_step != 1):
-        raise IbiscapeError("--cams, --imu-data, --force and --frame-step belong to the camera-IMU "
-                            "calibration: add --imu imu.yaml")
+    _check_options(seq, image_specs, check_path, imu_yaml, cams_path, imu_data, force, frame_step)
     names = [c.strip() for c in cameras.split(",") if c.strip()] if cameras else None
     target = read_target(target_path) if target_path is not None else None
     if imu_yaml is not None:
-        if seq is None or image_specs or check_path is not None:
-            raise IbiscapeError("--imu calibrates a sequence folder: give SEQ (not --images or --check)")
+        assert seq is not None
         from .calib_imu import run_sequence
 
         opened = open_sequence(seq, cameras=names, image_topics=topics or None, imu_topic=imu_topic)
@@ -129,10 +122,6 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
                      imu_data=imu_data, target=target, force=force, frame_step=frame_step, yaml_path=yaml_out, json_out=as_json,
                      plot_dir=plot_dir, workers=workers)
         return
-    if seq is None and not image_specs:
-        raise IbiscapeError("give a sequence folder SEQ or --images NAME=GLOB per camera")
-    if seq is not None and image_specs:
-        raise IbiscapeError("give either SEQ or --images, not both")
     opened = open_sequence(seq, images=image_specs or None, cameras=names,
                            image_topics=topics or None, imu_topic=imu_topic)
     check_chain = read_camchain(check_path) if check_path is not None else None
@@ -151,21 +140,8 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
                             "reconstruction": recon_used}
 
     if run.check is not None:
-        doc = {**base, "check": str(check_path), **run.check}
-        if as_json:
-            echo_json(doc)
-            return
-        click.echo(f"checking     {check_path} on {doc['n_views']} views")
-        for c in doc["cameras"]:
-            r = c["reprojection_error"]
-            click.echo(f"{c['name']:<12} {c['reprojection_error_kalibr']} px   rms {r['rms_px']:.4f} px "
-                       f"({r['n_views']} views, {r['n_corners']} corners)")
-        click.echo(f"rms          {doc['rms_px']:.4f} px")
-        click.echo(f"outlier views (rms > {doc['outlier_px']} px): {len(doc['outlier_views'])}")
-        for o in doc["outlier_views"][:20]:
-            click.echo(f"  {o['camera']} view {o['view']}: rms {o['rms_px']:.3f} px")
+        _print_check({**base, "check": str(check_path), **run.check}, check_path, as_json)
         return
-
     result, truth = run.result, run.truth
     assert result is not None
     topics_out = run.rostopics()
@@ -173,17 +149,62 @@ def calib(seq: Path | None, target_path: Path | None, model: str, image_specs: t
         write_camchain(yaml_out, CameraChain.from_relative(tuple(c.name for c in result.cameras),
                                                            tuple(c.camera for c in result.cameras),
                                                            result.T_cn_cnm1, topics_out))
-    plots: list[str] = []
-    if plot_dir is not None:
-        from ibiscape_eval.calib.plots import calibration_figures
-        from ibiscape_eval.io.kalibr import write_figures
-
-        plots = [str(p) for p in write_figures(plot_dir, calibration_figures(result))]
+    plots = _save_plots(plot_dir, result)
     doc = {**base, **result.to_dict(), "ground_truth": None if truth is None else truth.to_dict(),
            "outputs": {"yaml": None if yaml_out is None else str(yaml_out), "plots": plots}}
     if as_json:
         echo_json(doc)
         return
+    _print_result(run, yaml_out)
+
+
+def _check_options(seq: Path | None, image_specs: tuple[str, ...], check_path: Path | None,
+                   imu_yaml: str | None, cams_path: Path | None, imu_data: Path | None,
+                   force: bool, frame_step: int) -> None:
+    """Refuse options that belong to another mode (camera-IMU, images, sequence)."""
+    from ibiscape_eval.core.errors import IbiscapeError
+
+    if imu_yaml is None and (cams_path or imu_data or force or frame_step != 1):
+        raise IbiscapeError("--cams, --imu-data, --force and --frame-step belong to the camera-IMU "
+                            "calibration: add --imu imu.yaml")
+    if imu_yaml is not None:
+        if seq is None or image_specs or check_path is not None:
+            raise IbiscapeError("--imu calibrates a sequence folder: give SEQ (not --images or --check)")
+        return
+    if seq is None and not image_specs:
+        raise IbiscapeError("give a sequence folder SEQ or --images NAME=GLOB per camera")
+    if seq is not None and image_specs:
+        raise IbiscapeError("give either SEQ or --images, not both")
+
+
+def _save_plots(plot_dir: Path | None, result: Any) -> list[str]:
+    if plot_dir is None:
+        return []
+    from ibiscape_eval.calib.plots import calibration_figures
+    from ibiscape_eval.io.figure import save_figures
+
+    return [str(p) for p in save_figures(plot_dir, calibration_figures(result))]
+
+
+def _print_check(doc: dict[str, Any], check_path: Path | None, as_json: bool) -> None:
+    if as_json:
+        echo_json(doc)
+        return
+    click.echo(f"checking     {check_path} on {doc['n_views']} views")
+    for c in doc["cameras"]:
+        r = c["reprojection_error"]
+        click.echo(f"{c['name']:<12} {c['reprojection_error_kalibr']} px   rms {r['rms_px']:.4f} px "
+                   f"({r['n_views']} views, {r['n_corners']} corners)")
+    click.echo(f"rms          {doc['rms_px']:.4f} px")
+    click.echo(f"outlier views (rms > {doc['outlier_px']} px): {len(doc['outlier_views'])}")
+    for o in doc["outlier_views"][:20]:
+        click.echo(f"  {o['camera']} view {o['view']}: rms {o['rms_px']:.3f} px")
+
+
+def _print_result(run: Any, yaml_out: Path | None) -> None:
+    from ibiscape_eval.calib.report import format_report
+
+    result, truth, summary, recon_used = run.result, run.truth, run.detection, run.reconstruction
     refined = summary.extra.get("event_corner_refinement") or {}
     for name, r in recon_used.items():
         st = refined.get(name) or {}

@@ -42,9 +42,9 @@ def run_sequence(seq: Any, imu_yaml: Path | None, *, camchain: Path | None, imu_
     plots: list[str] = []
     if plot_dir is not None:
         from ibiscape_eval.calib.imu_camera.plots import figures
-        from ibiscape_eval.io.kalibr import write_figures
+        from ibiscape_eval.io.figure import save_figures
 
-        plots = [str(p) for p in write_figures(plot_dir, figures(res.result))]
+        plots = [str(p) for p in save_figures(plot_dir, figures(res.result))]
     if json_out:
         echo_json({**res.to_dict(), "outputs": {"yaml": None if yaml_path is None else str(yaml_path),
                                                "plots": plots}})
@@ -125,9 +125,9 @@ def run_imu_camera(observations: Sequence[Any], imu: Any, imu_yaml: str, corners
                               comments=["camera-IMU calibration by ibiscape-eval calib --imu"])
     if plot_dir:
         from ibiscape_eval.calib.imu_camera.plots import figures
-        from ibiscape_eval.io.kalibr import write_figures
+        from ibiscape_eval.io.figure import save_figures
 
-        written = write_figures(Path(plot_dir), figures(result))
+        written = save_figures(Path(plot_dir), figures(result))
         info(f"wrote {len(written)} figure(s) to {plot_dir}")
     if json_out:
         doc = result.to_dict()

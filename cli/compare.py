@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import click
 
@@ -12,15 +11,15 @@ from ibiscape_eval.metrics.rpe import DELTA_UNITS, PAIR_MODES, PAIRS_FROM
 from ibiscape_eval.report.plots import PLOT_PLANES
 
 from ._common import (
+    ALIGNMENTS,
+    TrajectoryInputs,
     cli_terms,
     echo_json,
     info,
     read_trajectories,
-    selection_kwargs,
     trajectory_options,
     user_errors,
 )
-from .ate import ALIGNMENTS
 
 
 @click.command()
@@ -58,7 +57,8 @@ from .ate import ALIGNMENTS
 def compare(paths: tuple[Path, ...], labels: str | None, alignment: str, rpe_align: str | None,
             delta: float, delta_unit: str, delta_tol: float, pairs: str, pairs_from: str,
             pose_relation: str, project_to_plane: str | None, save_results: Path | None,
-            plot: Path | None, plot_plane: str | None, as_json: bool, **o: Any) -> None:
+            plot: Path | None, plot_plane: str | None, as_json: bool,
+            inputs: TrajectoryInputs) -> None:
     """ATE and RPE of several estimates EST... against one reference REF, in one table.
 
     The reference comes LAST, as in `ate EST REF`: the estimates first, then the reference.
@@ -87,14 +87,14 @@ def compare(paths: tuple[Path, ...], labels: str | None, alignment: str, rpe_ali
         if len(names) != len(estimates) or not all(names):
             raise click.BadParameter(
                 f"got {len(names)} labels for {len(estimates)} estimates", param_hint="--labels")
-    ests, ref_t, match, ref_fmt, notes = read_trajectories(estimates, ref, o)
-    unit = o["unit"]
+    ests, ref_t, match, ref_fmt, notes = read_trajectories(estimates, ref, inputs)
+    unit = inputs.unit
     with numba_startup():
         result = compare_fn(
             ref_t, ests, labels=names, ref_file=ref.name, est_files=[p.name for p in estimates],
             align=alignment, rpe_align=rpe_align, delta=delta, delta_unit=delta_unit,
             pairs=pairs, pairs_from=pairs_from, pose_relation=pose_relation,
-            project_to_plane=project_to_plane, rel_tol=delta_tol, **selection_kwargs(o, match))
+            project_to_plane=project_to_plane, rel_tol=delta_tol, **inputs.selection(match))
     if save_results is not None:
         written = result.save(save_results)
         info(f"wrote {len(written)} files to {save_results}")

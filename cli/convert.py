@@ -6,11 +6,10 @@ from pathlib import Path
 
 import click
 
-from ibiscape_eval.core.errors import IbiscapeError
 from ibiscape_eval.io.detect import TRAJECTORY_FORMATS
 from ibiscape_eval.io.trajectory import WRITABLE_FORMATS
 
-from ._common import echo_json, info, user_errors
+from ._common import check_tf_topic, echo_json, info, user_errors
 
 
 @click.command()
@@ -64,7 +63,7 @@ def convert(
         src_fmt = detect_trajectory_format(src)
         info(f"{src}: format {src_fmt} (detected; force another with --from)")
     if src_fmt == "bag" and topic is not None:
-        tf_hint(src, topic)
+        check_tf_topic(src, topic)
     traj = read_trajectory(
         src, src_fmt, topic=topic, times_path=None if times is None else str(times)
     )
@@ -83,18 +82,3 @@ def convert(
                    "stamps": "synthetic" if traj.stamps_synthetic else "measured",
                    "start_ns": int(traj.stamps_ns[0]) if len(traj) else None,
                    "end_ns": int(traj.stamps_ns[-1]) if len(traj) else None})
-
-
-def tf_hint(src: Path, topic: str) -> None:
-    """A TF topic named without its frames (``--topic /tf``): one line suggesting the
-    ``/tf:parent.child`` forms the bag offers, instead of a list of message types."""
-    if ":" in topic or topic.rstrip("/").split("/")[-1] not in ("tf", "tf_static"):
-        return
-    from ibiscape_eval.io.bag import list_pose_topics
-
-    offered = [t for t in list_pose_topics(src) if t.startswith(topic.rstrip("/") + ":")]
-    if not offered:
-        return
-    raise IbiscapeError(
-        f"{src}: {topic} is a TF topic holding several transforms; name one as "
-        f"TOPIC:parent.child, e.g. --topic {offered[0]} (offered: {', '.join(offered)})")

@@ -8,8 +8,7 @@ import click
 
 from ibiscape_eval.events.frames import KINDS as FRAME_KINDS
 
-from ._common import echo_json, info, user_errors
-from .hotpix import FORMAT_CHOICES, parse_sensor_size
+from ._common import EVENT_FORMAT_CHOICES, echo_json, info, parse_sensor_size, user_errors
 from .progress import progress_bar
 
 
@@ -41,7 +40,7 @@ def events() -> None:
               show_default=True, help="Time-surface decay constant, ms.")
 @click.option("--sensor-size", default=None, metavar="WxH",
               help="Sensor size in pixels (default: from the file or the data).")
-@click.option("--format", "fmt", type=click.Choice(FORMAT_CHOICES), default="auto", show_default=True,
+@click.option("--format", "fmt", type=click.Choice(EVENT_FORMAT_CHOICES), default="auto", show_default=True,
               help="Input format.")
 @click.option("--topic", default=None, metavar="NAME",
               help="ROS bag: the dvs_msgs/EventArray topic; AEDAT4: the event stream id; "

@@ -2,30 +2,13 @@
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 from typing import Any
 
 import click
 
-from ibiscape_eval.io.events import FORMATS as EVENT_FORMATS
-
-from ._common import echo_json, info, user_errors
+from ._common import EVENT_FORMAT_CHOICES, echo_json, info, parse_sensor_size, user_errors
 from .progress import progress_bar
-
-FORMAT_CHOICES = ("auto", *EVENT_FORMATS)
-
-
-def parse_sensor_size(text: str | None) -> tuple[int, int] | None:
-    """``"346x260"`` -> (346, 260)."""
-    from ibiscape_eval.core.errors import IbiscapeError
-
-    if text is None:
-        return None
-    m = re.fullmatch(r"\s*(\d+)\s*[xX,]\s*(\d+)\s*", text)
-    if not m or int(m.group(1)) == 0 or int(m.group(2)) == 0:
-        raise IbiscapeError(f"--sensor-size must look like WIDTHxHEIGHT (e.g. 346x260), got {text!r}")
-    return int(m.group(1)), int(m.group(2))
 
 
 @click.command(context_settings={"help_option_names": ["-h", "--help"]})
@@ -50,7 +33,7 @@ def parse_sensor_size(text: str | None) -> tuple[int, int] | None:
 @click.option("--filtered-out", type=click.Path(path_type=Path), default=None,
               help="Write the events without the hot pixels here, in the input's format "
               "(a new folder for an IBISCape DVS folder).")
-@click.option("--format", "fmt", type=click.Choice(FORMAT_CHOICES), default="auto", show_default=True,
+@click.option("--format", "fmt", type=click.Choice(EVENT_FORMAT_CHOICES), default="auto", show_default=True,
               help="Input format (auto: folder -> ibiscape (a ROS 2 bag folder -> bag), .npz, "
               ".txt -> text, .h5 -> hdf5, .aedat4, .bag/.db3/.mcap -> bag).")
 @click.option("--topic", default=None, metavar="NAME",
@@ -96,78 +79,25 @@ def hotpix(
       ibiscape-eval hotpix dvxplorer.aedat4 --top-n 10 --hot-out hot_pixels.txt
       ibiscape-eval hotpix recording.bag --topic /dvs/events --n-sigma 5
     """
-    import numpy as np
+    from ibiscape_eval.events.pipeline import HotPixelCriteria, hot_pixels
+    from ibiscape_eval.io.events import open_events
 
-    from ibiscape_eval.core.errors import FormatError, IbiscapeError
-    from ibiscape_eval.events.hotpix import PixelCounter, filter_events, hot_pixels_from_counts
-    from ibiscape_eval.io.atomic import atomic_output_path
-    from ibiscape_eval.io.events import (
-        iter_event_chunks,
-        open_events,
-        read_hot_pixels,
-        write_filtered_events,
-        write_hot_pixels,
-    )
-
-    if apply_path is not None and (top_n is not None or n_sigma is not None or rate_min_events):
-        raise IbiscapeError("--apply uses a given hot-pixel list; drop --top-n/--n-sigma/--rate-*")
-    if (rate_min_events is None) != (rate_window_ms is None):
-        raise IbiscapeError("the rate criterion needs both --rate-min-events and --rate-window-ms")
+    criteria = HotPixelCriteria(top_n=top_n, n_sigma=n_sigma, rate_min_events=rate_min_events,
+                                rate_window_ms=rate_window_ms, per_polarity=per_polarity)
+    criteria.check(applied=apply_path is not None)
     size = parse_sensor_size(sensor_size)
     src = open_events(events, fmt=None if fmt == "auto" else fmt, topic=topic)
-    size = size or src.sensor_size
-    applied = read_hot_pixels(apply_path) if apply_path is not None else None
-
-    counter = PixelCounter(
-        sensor_size=size,
-        per_polarity=per_polarity,
-        rate_min_events=rate_min_events,
-        rate_window_ns=None if rate_window_ms is None else round(rate_window_ms * 1e6),
-    )
     with progress_bar(src.n_events, "counting", unit="ev") as bar:
-        for chunk in iter_event_chunks(src, reuse_buffers=True):  # the counter keeps nothing
-            counter.add(chunk.events, chunk)
-            bar.update(len(chunk.events))
-    size = counter.sensor_size
-    if parse_sensor_size(sensor_size) is None and src.sensor_size is None:
-        info(f"note: {events}: sensor size {size[0]}x{size[1]} inferred from the largest event "
+        run = hot_pixels(src, criteria, sensor_size=size, apply_path=apply_path,
+                         progress=bar.update)
+    w, h = run.sensor_size
+    if run.size_inferred:
+        info(f"note: {events}: sensor size {w}x{h} inferred from the largest event "
              "coordinates (the file does not say); give --sensor-size WxH if the sensor is larger")
-    if applied is not None:
-        w, h = size
-        out = (applied[:, 0] >= w) | (applied[:, 1] >= h)
-        if out.any():
-            i = int(np.flatnonzero(out)[0])
-            raise FormatError(
-                apply_path, f"hot pixel ({applied[i, 0]}, {applied[i, 1]}) lies outside the {w}x{h} "
-                "sensor; is it the list of this camera? (or pass --sensor-size WxH)",
-                line=None,
-            )
-        result = hot_pixels_from_counts(counter.count_map, extra_pixels=applied)
-    else:
-        result = counter.result(top_n=top_n, n_sigma=n_sigma)
-
-    if hot_out is not None:
-        write_hot_pixels(hot_out, result.pixels)
-    n_written = None
-    if filtered_out is not None:
-        pixels = result.pixels
-
-        def keep(ev: Any) -> Any:
-            return filter_events(ev, pixels, sensor_size=size)
-
-        with progress_bar(counter.n_events, "filtering", unit="ev") as bar:
-            _, n_written = write_filtered_events(src, filtered_out, keep, progress=bar.update)
-    if plot is not None:
-        from ibiscape_eval.events.plots import hot_pixel_figure
-
-        fig = hot_pixel_figure(result, title="events per pixel before and after hot-pixel removal")
-        with atomic_output_path(plot) as tmp:
-            fig.savefig(tmp, dpi=110)
-
-    doc: dict[str, Any] = {"input": str(events), "format": src.fmt, **result.to_dict()}
-    doc["sensor_size"] = list(size)
-    doc["sensor_size_from"] = ("--sensor-size" if parse_sensor_size(sensor_size) is not None
-                               else src.size_from or "the largest event coordinates")
+    outputs = _write_outputs(run, hot_out, filtered_out, plot)
+    doc: dict[str, Any] = {"input": str(events), "format": src.fmt, **run.result.to_dict()}
+    doc["sensor_size"] = [w, h]
+    doc["sensor_size_from"] = "--sensor-size" if size is not None else run.size_from
     doc["criteria"] = {
         "applied_list": None if apply_path is None else str(apply_path),
         **doc["criteria"],
@@ -175,17 +105,46 @@ def hotpix(
         "rate_min_events": rate_min_events,
         "rate_window_ms": rate_window_ms,
     }
-    doc["outputs"] = {
+    doc["outputs"] = outputs
+    if as_json:
+        echo_json(doc)
+    else:
+        _print_table(events, run, doc)
+
+
+def _write_outputs(run: Any, hot_out: Path | None, filtered_out: Path | None,
+                   plot: Path | None) -> dict[str, Any]:
+    """Write the hot-pixel list, the filtered events and the figure that were asked for."""
+    from ibiscape_eval.events.hotpix import filter_events
+    from ibiscape_eval.io.events import write_filtered_events, write_hot_pixels
+    from ibiscape_eval.io.figure import save_figure
+
+    result = run.result
+    if hot_out is not None:
+        write_hot_pixels(hot_out, result.pixels)
+    n_written = None
+    if filtered_out is not None:
+        def keep(ev: Any) -> Any:
+            return filter_events(ev, result.pixels, sensor_size=run.sensor_size)
+
+        with progress_bar(result.n_events, "filtering", unit="ev") as bar:
+            _, n_written = write_filtered_events(run.source, filtered_out, keep,
+                                                 progress=bar.update)
+    if plot is not None:
+        save_figure(run.plot(), plot)
+    return {
         "hot_pixels": None if hot_out is None else str(hot_out),
         "filtered": None if filtered_out is None else str(filtered_out),
         "n_written": n_written,
         "plot": None if plot is None else str(plot),
     }
-    if as_json:
-        echo_json(doc)
-        return
-    w, h = size
-    click.echo(f"input        {events} ({src.fmt}, {w}x{h} px)")
+
+
+def _print_table(events: Path, run: Any, doc: dict[str, Any]) -> None:
+    import numpy as np
+
+    result, (w, h) = run.result, run.sensor_size
+    click.echo(f"input        {events} ({run.source.fmt}, {w}x{h} px)")
     click.echo(f"events       {result.n_events:,} on {doc['n_pixels_fired']:,} pixels")
     if np.isfinite(result.threshold):
         click.echo(f"threshold    {result.threshold:.1f} events (mean {result.mean:.1f} + "

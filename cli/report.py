@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import click
 
-from ._common import echo_json, fail, info, user_errors
+from ._common import ALIGNMENTS, echo_json, fail, info, user_errors
 
-_ALIGNMENTS = ("none", "origin", "se3", "sim3", "yaw")
 _PLANES = ("xy", "xz", "yz")
 
 
@@ -19,8 +19,8 @@ def _alignments(values: tuple[str, ...]) -> tuple[str, tuple[tuple[str, str], ..
     named: list[tuple[str, str]] = []
     for v in values:
         name, eq, al = v.rpartition("=")
-        if al not in _ALIGNMENTS:
-            raise click.BadParameter(f"{al!r} in {v!r} is not one of {', '.join(_ALIGNMENTS)}",
+        if al not in ALIGNMENTS:
+            raise click.BadParameter(f"{al!r} in {v!r} is not one of {', '.join(ALIGNMENTS)}",
                                      param_hint="--align")
         if not eq:
             if default is not None:
@@ -140,16 +140,7 @@ def report(
     if out is not None and out.exists() and not out.is_dir():
         fail(f"{out}: exists and is a file; --out needs a folder")
     layout = discover_runs(runs_dir, sequences_dir=sequences_dir)
-    for path, why in layout.ignored:
-        info(f"ignored {path}: {why}")
-    from ibiscape_eval.report.evaluate import resolve_alignments
-
-    aligns = resolve_alignments(layout, options)  # refuses unknown names before any work
-    if len({a for a, _ in aligns.values()}) > 1 or any(s != "default" for _, s in aligns.values()):
-        info("alignment: " + ", ".join(f"{alg} {a} ({s})" for alg, (a, s) in aligns.items()))
-    info(f"{len(layout.runs)} runs: {len(layout.sequences)} sequences x "
-         f"{len(layout.algorithms)} algorithms"
-         + (f" on the Dask scheduler {scheduler}" if scheduler else ""))
+    _print_plan(layout, options, scheduler)
     executor = make_executor(scheduler=scheduler, workers=workers)
     cache = None if no_cache else ContentCache(cache_dir or default_cache_dir())
     from .progress import BatchBar
@@ -161,17 +152,7 @@ def report(
     finally:
         bar.close()
         executor.close()
-    s = evaluation.summary
-    info(f"{s['n_ok']} runs evaluated ({s['n_cached']} from the cache), {s['n_failed']} failed")
-    for r in evaluation.runs:
-        for w in r.get("warnings") or ():
-            info(f"warning: run {r['sequence']}/{r['algorithm']}/{r['trial']}: {w}")
-        if r["status"] != "ok":
-            info(f"warning: run {r['sequence']}/{r['algorithm']}/{r['trial']} failed: "
-                 f"{r['error']}")
-    if s["n_ok"] == 0:
-        first = evaluation.runs[0]
-        fail(f"every run failed (first: {first['path']}: {first['error']}); nothing written")
+    _print_outcome(evaluation)
     table = PaperTable.from_runs(evaluation.runs)
     if out is not None:
         from ibiscape_eval.report.batch_report import write_report
@@ -184,3 +165,33 @@ def report(
         echo_json(doc)
     else:
         click.echo(table.to_markdown(), nl=False)
+
+
+def _print_plan(layout: Any, options: Any, scheduler: str | None) -> None:
+    """Say what is ignored, the alignment of each algorithm (refusing unknown names before any
+    work) and how many runs go where."""
+    from ibiscape_eval.report.evaluate import resolve_alignments
+
+    for path, why in layout.ignored:
+        info(f"ignored {path}: {why}")
+    aligns = resolve_alignments(layout, options)
+    if len({a for a, _ in aligns.values()}) > 1 or any(s != "default" for _, s in aligns.values()):
+        info("alignment: " + ", ".join(f"{alg} {a} ({s})" for alg, (a, s) in aligns.items()))
+    info(f"{len(layout.runs)} runs: {len(layout.sequences)} sequences x "
+         f"{len(layout.algorithms)} algorithms"
+         + (f" on the Dask scheduler {scheduler}" if scheduler else ""))
+
+
+def _print_outcome(evaluation: Any) -> None:
+    """One line of counts, one per warning or failed run; exit 2 when every run failed."""
+    s = evaluation.summary
+    info(f"{s['n_ok']} runs evaluated ({s['n_cached']} from the cache), {s['n_failed']} failed")
+    for r in evaluation.runs:
+        for w in r.get("warnings") or ():
+            info(f"warning: run {r['sequence']}/{r['algorithm']}/{r['trial']}: {w}")
+        if r["status"] != "ok":
+            info(f"warning: run {r['sequence']}/{r['algorithm']}/{r['trial']} failed: "
+                 f"{r['error']}")
+    if s["n_ok"] == 0:
+        first = evaluation.runs[0]
+        fail(f"every run failed (first: {first['path']}: {first['error']}); nothing written")

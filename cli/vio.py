@@ -118,7 +118,8 @@ def vio(sequence: Path, out: Path, calib: Path | None, imu_yaml: Path | None,
         except IbiscapeError as e:  # degenerate alignment (a straight path): report, go on
             info(f"note: no ATE ({' '.join(str(e).split())})")
     if plot is not None:
-        from ibiscape_eval.vio.plots import save_figure, top_view_figure
+        from ibiscape_eval.io.figure import save_figure
+        from ibiscape_eval.vio.plots import top_view_figure
 
         est = ate_res.est_aligned if ate_res is not None else res.trajectory
         fig = top_view_figure(est, seq.groundtruth, res.stats.failures,

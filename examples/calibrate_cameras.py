@@ -18,6 +18,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 from pathlib import Path
 
 import numpy as np
@@ -54,7 +55,8 @@ def main() -> None:
     a = ap.parse_args()
 
     # 1. a sequence with known truth
-    seq = render_sequence(a.out / f"stereo_{a.target}", a.target)
+    scale = float(os.environ.get("IBISCAPE_EXAMPLE_SCALE", "1"))  # < 1: fewer views (tests: 0.1)
+    seq = render_sequence(a.out / f"stereo_{a.target}", a.target, n_views=max(6, round(16 * scale)))
     print(f"rendered {seq}")
 
     # 2. the library, step by step

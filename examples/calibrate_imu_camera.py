@@ -17,6 +17,7 @@ Run:  .venv/bin/python examples/calibrate_imu_camera.py   (a few minutes; writes
 # %% a short calibration drive with planted clock offsets
 from __future__ import annotations
 
+import os
 from dataclasses import replace
 from pathlib import Path
 
@@ -58,8 +59,10 @@ def make_sequence(out: str | Path, *, duration_s: float = 12.0, size: int = 384,
 if __name__ == "__main__":
     root = Path("imucam_example")
     seq = root / "SVI_calib_imu"
+    # < 1: shorter drives (the tests run 0.1; 12 s is about the shortest that calibrates)
+    duration_s = max(12.0, 24.0 * float(os.environ.get("IBISCAPE_EXAMPLE_SCALE", "1")))
     if not seq.exists():
-        make_sequence(seq, duration_s=24.0)
+        make_sequence(seq, duration_s=duration_s)
 
     # %% calibrate both cameras in one problem
     res = calibrate_sequence(seq, seq / "imu.yaml", SequenceOptions(camchain=seq / "camchain.yaml"))
@@ -76,16 +79,17 @@ if __name__ == "__main__":
 
     # %% Kalibr's camchain-imucam.yaml and the figures
     from ibiscape_eval.calib.imu_camera.plots import figures
-    from ibiscape_eval.io.kalibr import write_camchain, write_figures
+    from ibiscape_eval.io.figure import save_figures
+    from ibiscape_eval.io.kalibr import write_camchain
 
     write_camchain(root / "camchain-imucam.yaml", camchain_imucam(res.result))
-    print("wrote", [str(p) for p in write_figures(root, figures(res.result))])
+    print("wrote", [str(p) for p in save_figures(root, figures(res.result))])
     print((root / "camchain-imucam.yaml").read_text()[:400])
 
     # %% the same drive on a flat road: refused with the measured numbers, then forced and marked
     flat = root / "SVI_calib_flat"
     if not flat.exists():
-        make_sequence(flat, duration_s=24.0, bumps=False)
+        make_sequence(flat, duration_s=duration_s, bumps=False)
     try:
         calibrate_sequence(flat, flat / "imu.yaml", SequenceOptions(camchain=flat / "camchain.yaml"))
     except CalibrationError as e:

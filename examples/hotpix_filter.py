@@ -20,11 +20,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ibiscape_eval import detect_hot_pixels, hot_pixel_mask
+from ibiscape_eval import detect_hot_pixels, hot_pixel_mask, hot_pixels
 from ibiscape_eval.events import accumulate_frames, filter_events, synthetic_events
-from ibiscape_eval.events.plots import hot_pixel_figure
-from ibiscape_eval.io.atomic import atomic_output_path
+from ibiscape_eval.events.pipeline import HotPixelCriteria
 from ibiscape_eval.io.events import read_events, write_events, write_hot_pixels
+from ibiscape_eval.io.figure import save_figure
 
 ap = argparse.ArgumentParser(description=__doc__)
 ap.add_argument("--out", type=Path, default=Path(tempfile.mkdtemp(prefix="hotpix_demo_")))
@@ -58,10 +58,14 @@ write_hot_pixels(out / "hot_pixels.txt", by_sigma.pixels)
 write_events(out / "davisL_filtered", clean, fmt="ibiscape")
 
 # %% 4. The paper's histogram figure and a sensor heat map; accumulation frames before/after
-fig = hot_pixel_figure(by_sigma, title="synthetic DVS stream with 12 planted hot pixels")
-with atomic_output_path(out / "hotpix.png") as tmp:
-    fig.savefig(tmp, dpi=110)
+save_figure(by_sigma.plot(title="synthetic DVS stream with 12 planted hot pixels"), out / "hotpix.png")
 before = accumulate_frames(ev, sensor_size=sensor, rate_hz=10, signed=False)
 after = accumulate_frames(clean, sensor_size=sensor, rate_hz=10, signed=False)
 print(f"frame 0: {int(before.frames[0].sum())} events before, {int(after.frames[0].sum())} after")
 print(f"outputs in {out}: davisL/, davisL_filtered/, hot_pixels.txt, hotpix.png")
+
+# %% 5. The whole command in one call, streamed (recordings larger than memory): what
+# ``ibiscape-eval hotpix DIR/davisL --n-sigma 5`` runs
+run = hot_pixels(out / "davisL", HotPixelCriteria(n_sigma=5))
+print(run.result, "sensor size from", run.size_from)
+assert {tuple(p) for p in run.result.pixels.tolist()} == {tuple(p) for p in by_sigma.pixels.tolist()}

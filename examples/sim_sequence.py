@@ -6,6 +6,7 @@ Notebook-style: each block can be pasted into a cell.
 """
 
 # %% Imports and output folder
+import os
 import sys
 import tempfile
 from pathlib import Path
@@ -19,11 +20,13 @@ from ibiscape_eval.sim import generate, preset
 from ibiscape_eval.sim.generator import roll_pitch_rad
 
 root = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(tempfile.mkdtemp(prefix="sim_example_"))
+SCALE = float(os.environ.get("IBISCAPE_EXAMPLE_SCALE", "1"))  # < 1: shorter data (the tests run 0.1)
 
 # %% A 20 s SVI calibration run toward the AprilGrid, and a 30 s SVI SLAM run in dynamic weather
-calib = generate(preset("svi", "calibration", "clear", duration_s=20, seed=1, target="aprilgrid"),
+calib = generate(preset("svi", "calibration", "clear", duration_s=20 * SCALE, seed=1,
+                        target="aprilgrid"),
                  root / "SVI_1_calib", overwrite=True)
-slam = generate(preset("svi", "slam", "dynamic", duration_s=30, seed=2), root / "SVI_2_town",
+slam = generate(preset("svi", "slam", "dynamic", duration_s=30 * SCALE, seed=2), root / "SVI_2_town",
                 overwrite=True)
 
 # %% Read them back with the project's readers and summarise

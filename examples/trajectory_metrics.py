@@ -66,16 +66,10 @@ print(f"10..40 s, a pose every 5 cm / 5 deg: {w.n_matched} matched, "
 k = drift(est, gt, align="yaw")
 print(k.to_frame()[["length_m", "reached", "n_segments"]].head(3), list(k.warnings)[:1])
 
-# %% Plot (matplotlib, no display needed).
-import matplotlib
+# %% Plots: every result draws itself on a new matplotlib Figure (no display, pyplot untouched);
+# in a notebook the Figure shows itself, in a script save it.
+from ibiscape_eval.io.figure import save_figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
-
-fig, ax = plt.subplots(figsize=(6, 5))
-ax.plot(res.ref.pos_m[:, 0], res.ref.pos_m[:, 1], "k-", label="ground truth")
-ax.plot(res.est_aligned.pos_m[:, 0], res.est_aligned.pos_m[:, 1], label="estimate (yaw-aligned)")
-ax.set_aspect("equal")
-ax.legend()
-fig.savefig("trajectory_metrics_example.png", dpi=100)
-print("wrote trajectory_metrics_example.png")
+save_figure(res.plot(), "trajectory_metrics_example.png")  # trajectory, error over time, histogram
+save_figure(k.plot(), "drift_example.png")                  # drift per segment length
+print("wrote trajectory_metrics_example.png, drift_example.png")

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -34,6 +34,9 @@ from ibiscape_eval.core.errors import CalibrationError, IbiscapeError
 from ibiscape_eval.core.kalibr import CalibrationTarget
 
 from .detect import Detection
+
+if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.figure import Figure
 
 __all__ = [
     "MIN_VIEW_SPREAD_DEG",
@@ -192,6 +195,14 @@ class CalibrationResult:
                 "rms_px": self.rms_px, "n_views": self.n_views,
                 "renumbered_views": self.renumbered_views, "iterations": self.iterations,
                 **self.extra}
+
+    def plot(self, camera: int = 0, *, kind: str = "residuals") -> Figure:
+        """The ``kind`` figure (``residuals``: reprojection residual scatter, ``coverage``: corner
+        heat map) of the ``camera``-th camera; a new Figure."""
+        from .plots import calibration_figures
+
+        figures = dict(calibration_figures(self))
+        return figures[f"{self.cameras[camera].name}_{kind}.png"]
 
     def __repr__(self) -> str:
         b = ", ".join(f"{1e3 * v:.2f} mm" for v in self.baselines_m)

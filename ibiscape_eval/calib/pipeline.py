@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from ibiscape_eval.core.errors import CalibrationError, IbiscapeError
+from ibiscape_eval.core.errors import CalibrationError, IbiscapeError, Remedy
 from ibiscape_eval.core.kalibr import CalibrationTarget
 
 from .calibrate import CalibrationResult, Observations, calibrate, evaluate
@@ -271,7 +271,8 @@ def sequence_target(seq: Recording, target: CalibrationTarget | None = None) -> 
     where = "" if seq.layout == "images" else (
         f"; {seq.path}/sequence.yaml has no 'target'" if seq.layout == "ibiscape"
         else f"; a {seq.layout} recording names none")
-    raise IbiscapeError(f"no target description: give --target target.yaml (Kalibr's format){where}")
+    raise IbiscapeError(f"no target description: give {{0}} (Kalibr's format){where}",
+                        hint=(Remedy("target"),))
 
 
 def camera_frames(seq: Recording, target: CalibrationTarget, *, reconstruction: str = "auto",
@@ -295,7 +296,7 @@ def camera_frames(seq: Recording, target: CalibrationTarget, *, reconstruction: 
         size = sensor_size or cam.sensor_size
         if size is None:
             raise IbiscapeError(f"{cam.root}: sensor size unknown (the recording does not state it); "
-                                "pass --sensor-size WxH")
+                                "pass {0}", hint=(Remedy("sensor_size"),))
         if cam.windows_ns is None:
             raise IbiscapeError(f"{cam.root}: camera {cam.name}: event windows are needed to build "
                                 "frames (an IBISCape DVS folder with timestamps.csv)")

@@ -25,19 +25,24 @@ def lazy_exports(module_name: str, exports: Mapping[str, str], *, relative: bool
     """The ``__getattr__`` and ``__dir__`` of the package ``module_name``.
 
     ``exports`` maps a public name to the module defining it: a submodule name (``"renderer"``,
-    ``relative=True``) or a full module path (``relative=False``).  A loaded name is cached in
-    the package's namespace, so the next access does not come back here.
+    ``relative=True``) or a full module path (``relative=False``), optionally followed by
+    ``:attribute`` when the module names the object differently (``"sim.generator:generate"``).
+    A loaded name is cached in the package's namespace, so the next access does not come back
+    here.  ``dir()`` lists the exports and the package's public dunders (``__version__``), not
+    the names the package module itself imported (``annotations``, ``TYPE_CHECKING`` ...).
     """
 
     def get_attr(name: str) -> Any:
         if name in exports:
-            target = f"{module_name}.{exports[name]}" if relative else exports[name]
-            value = getattr(importlib.import_module(target), name)
+            where, _, attr = exports[name].partition(":")
+            target = f"{module_name}.{where}" if relative else where
+            value = getattr(importlib.import_module(target), attr or name)
             setattr(sys.modules[module_name], name, value)
             return value
         raise AttributeError(f"module {module_name!r} has no attribute {name!r}")
 
     def dir_names() -> list[str]:
-        return sorted(set(vars(sys.modules[module_name])) | set(exports))
+        own = {n for n in vars(sys.modules[module_name]) if n in ("__version__", "__all__")}
+        return sorted(own | set(exports))
 
     return get_attr, dir_names

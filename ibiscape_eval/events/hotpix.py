@@ -23,12 +23,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from ibiscape_eval.core.errors import FormatError, IbiscapeError
+from ibiscape_eval.core.errors import FormatError, IbiscapeError, Remedy
 from ibiscape_eval.core.events import EventChunk, Events
 from ibiscape_eval.core.numbers import finite_or_none
 
 if TYPE_CHECKING:
     import pandas as pd
+    from matplotlib.figure import Figure
 
 __all__ = [
     "HotPixelResult",
@@ -71,7 +72,7 @@ def _coords(x: npt.ArrayLike, y: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]
 def _outside(x: np.ndarray, y: np.ndarray, i: int, w: int, h: int) -> IbiscapeError:
     return IbiscapeError(
         f"event {i} at pixel (x={int(x[i])}, y={int(y[i])}) lies outside the {w}x{h} sensor; "
-        "pass the right sensor size (--sensor-size WxH)"
+        "pass the right sensor size ({0})", hint=(Remedy("sensor_size"),)
     )
 
 
@@ -239,6 +240,12 @@ class HotPixelResult:
                 for (x, y), c in zip(self.pixels, self.counts, strict=True)
             ],
         }
+
+    def plot(self, *, title: str = "") -> Figure:
+        """Count histograms before / after removal and the sensor heat map (a new Figure)."""
+        from .plots import hot_pixel_figure
+
+        return hot_pixel_figure(self, title=title)
 
     def __repr__(self) -> str:
         w, h = self.sensor_size
@@ -639,12 +646,13 @@ class PixelCounter:
             i = bad
             msg = (
                 f"pixel (x={int(events.x[i])}, y={int(events.y[i])}) lies outside the "
-                f"{self.w}x{self.h} sensor; pass the right --sensor-size WxH"
+                f"{self.w}x{self.h} sensor; pass the right {{0}}"
             )
+            hint = (Remedy("sensor_size"),)
             if chunk is not None:
                 path, line, what = chunk.where(i)
-                raise FormatError(path, f"{what}: {msg}", line=line)
-            raise IbiscapeError(f"event {self.n_events + i}: {msg}")
+                raise FormatError(path, f"{what}: {msg}", line=line, hint=hint)
+            raise IbiscapeError(f"event {self.n_events + i}: {msg}", hint=hint)
         if part is None:
             self._acc_n += n
         else:

@@ -27,6 +27,9 @@ from ibiscape_eval.core.numbers import finite_or_none
 
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
+    from matplotlib.figure import Figure
+
+    from .fit import NoiseModel
 
 __all__ = [
     "ONE_SIGMA_CI",
@@ -127,6 +130,16 @@ class AllanResult:
     def duration_s(self) -> float:
         """Length of the record, s."""
         return self.n_samples / self.rate_hz
+
+    def plot(self, model: NoiseModel | None = None, *, title: str = "overlapping Allan deviation"
+             ) -> Figure:
+        """The Allan deviation curves with their bands and the noise fit ``model`` (fitted with
+        the defaults of :func:`~ibiscape_eval.imu.fit_noise_model` when not given); a new Figure."""
+        from ibiscape_eval.report.plots import allan_figure
+
+        from .fit import fit_noise_model
+
+        return allan_figure(self, model or fit_noise_model(self), title=title)
 
     def __repr__(self) -> str:
         t = self.taus_s

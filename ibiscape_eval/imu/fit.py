@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ibiscape_eval.core.errors import IbiscapeError
+from ibiscape_eval.core.errors import IbiscapeError, Remedy
 from ibiscape_eval.core.numbers import finite_or_none
 
 from .allan import AllanResult
@@ -162,7 +162,7 @@ class NoiseModel:
         for key in ("gyroscope_noise_density", "accelerometer_noise_density"):
             if not math.isfinite(vals[key]):
                 raise IbiscapeError(f"{key} could not be determined (no slope -1/2 region); "
-                                    "give --white-range")
+                                    "give {0}", hint=(Remedy("white_range"),))
         missing = [k for k in ("gyroscope_random_walk", "accelerometer_random_walk")
                    if not math.isfinite(vals[k])]
         if missing:
@@ -170,7 +170,8 @@ class NoiseModel:
                 raise IbiscapeError(
                     f"{', '.join(missing)} could not be determined (the record of "
                     f"{self.duration_s:.4g} s is too short to show the random walk): record "
-                    "longer, give --walk-range, or set it with --random-walk-fallback GYRO,ACCEL")
+                    "longer, give {0}, or set it with {1}",
+                    hint=(Remedy("walk_range"), Remedy("random_walk_fallback")))
             fb = dict(zip(("gyroscope_random_walk", "accelerometer_random_walk"),
                           random_walk_fallback, strict=True))
             for k in missing:

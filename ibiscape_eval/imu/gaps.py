@@ -11,7 +11,7 @@ from __future__ import annotations
 import os
 import warnings
 
-from ibiscape_eval.core.errors import FormatError, IbiscapeWarning
+from ibiscape_eval.core.errors import FormatError, IbiscapeWarning, Remedy
 from ibiscape_eval.core.imu import ImuTiming
 
 __all__ = ["LONGEST_GAP_INTERVALS", "MAX_MISSING_FRACTION", "check_gaps"]
@@ -46,8 +46,8 @@ def check_gaps(timing: ImuTiming, path: str | os.PathLike[str], *,
             path,
             f"{timing.n_gaps} gap(s) in the timestamps, {100 * timing.missing_fraction:.3g} % of "
             f"the samples missing, longest {timing.largest_gap_s:.4g} s (first gap here): the "
-            "Allan deviation assumes equal spacing; cut the record or pass --allow-gaps",
-            line=timing.first_gap_line,
+            "Allan deviation assumes equal spacing; cut the record or pass {0}",
+            line=timing.first_gap_line, hint=(Remedy("allow_gaps", flag=True),),
         )
     if timing.n_gaps and allow_gaps:
         warnings.warn("gaps are ignored (samples treated as equally spaced)", IbiscapeWarning,

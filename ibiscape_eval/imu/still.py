@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from ibiscape_eval.core.errors import DegenerateInputError
+from ibiscape_eval.core.errors import DegenerateInputError, Remedy
 
 from .allan import ChunkedSamples
 
@@ -130,7 +130,7 @@ class StillnessReport:
         head = f"{os.fspath(path)}: " if path is not None else ""
         return (f"{head}not a still IMU record: {'; '.join(self.reasons)}; an Allan deviation "
                 "of a moving IMU reads the motion as noise: record the IMU at rest, cut the "
-                "moving part, or pass --force to analyse anyway")
+                "moving part, or pass {0} to analyse anyway")
 
     @property
     def warning(self) -> str | None:
@@ -298,12 +298,13 @@ def check_still(samples: np.ndarray | ChunkedSamples, rate_hz: float, *,
     Raises
     ------
     DegenerateInputError
-        One line: the file, what was measured against what a still IMU shows, and ``--force``.
+        One line: the file, what was measured against what a still IMU shows, and the hint ``force``.
     """
     rep = assess_stillness(samples, rate_hz, **kwargs)
     if not rep.still and not force:
         raise DegenerateInputError(rep.message(path if path is not None
-                                               else getattr(samples, "path", None)))
+                                               else getattr(samples, "path", None)),
+                                   hint=(Remedy("force", flag=True),))
     return rep
 
 

@@ -28,7 +28,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ibiscape_eval.core.cpus import usable_cpus
-from ibiscape_eval.core.errors import FormatError
+from ibiscape_eval.core.errors import FormatError, Remedy
 
 __all__ = ["Table", "decimal_to_ns", "format_lines", "map_bytes", "parse_table", "read_bytes",
            "write_table"]
@@ -103,7 +103,8 @@ def _text_path(path: str | os.PathLike[str]) -> Path:
 
     p = Path(path)
     if p.is_dir():
-        raise FormatError(p, "is a folder, expected a text file (a ROS 2 bag? use --format bag)")
+        raise FormatError(p, "is a folder, expected a text file (a ROS 2 bag? use {0})",
+                          hint=(Remedy("fmt", "bag"),))
     return check_input(p)
 
 

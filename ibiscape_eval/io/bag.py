@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from ibiscape_eval.core.errors import FormatError, IbiscapeError, IbiscapeWarning
+from ibiscape_eval.core.errors import FormatError, IbiscapeError, IbiscapeWarning, Remedy
 from ibiscape_eval.core.trajectory import Trajectory
 
 from ._poses import finish_trajectory
@@ -168,8 +168,8 @@ def _read(reader: Any, p: Path, topic: str | None, name: str | None) -> Trajecto
             if not choices:
                 raise FormatError(p, "no pose topics (PoseStamped, PoseWithCovarianceStamped, "
                                      "TransformStamped, Odometry, TFMessage) in the bag")
-            raise FormatError(p, "several pose topics; choose one with --topic: "
-                                 + ", ".join(choices))
+            raise FormatError(p, "several pose topics; choose one with {0}: "
+                                 + ", ".join(choices), hint=(Remedy("topic"),))
     tf = _split_tf_id(topic) if topic not in reader.topics else None
     rows: list[tuple[int, float, float, float, float, float, float, float]] = []
     if tf is not None:
@@ -240,7 +240,8 @@ def read_imu_bag(path: str | os.PathLike[str],
         if rostopic is None:
             if len(imu_topics) != 1:
                 raise FormatError(p, f"{len(imu_topics)} sensor_msgs/Imu topics "
-                                  f"({', '.join(imu_topics) or 'none'}); choose one with --rostopic")
+                                  f"({', '.join(imu_topics) or 'none'}); choose one with {{0}}",
+                                  hint=(Remedy("rostopic"),))
             rostopic = imu_topics[0]
         conns = [c for c in reader.connections if c.topic == rostopic]
         if not conns:

@@ -18,7 +18,7 @@ from __future__ import annotations
 import os
 import re
 
-from ibiscape_eval.core.errors import FormatError
+from ibiscape_eval.core.errors import FormatError, Remedy
 
 from .bag import BAG_SUFFIXES
 
@@ -26,7 +26,8 @@ __all__ = ["TRAJECTORY_FORMATS", "detect_trajectory_format"]
 
 TRAJECTORY_FORMATS: tuple[str, ...] = ("tum", "kitti", "euroc", "ibiscape", "bag")
 
-_HINT = "; give the format explicitly with --format (one of tum, kitti, euroc, ibiscape, bag)"
+_HINT = "; give the format explicitly with {0} (one of tum, kitti, euroc, ibiscape, bag)"
+_FORMAT = (Remedy("fmt"),)
 
 
 def _names(header: str) -> list[str]:
@@ -60,13 +61,15 @@ def detect_trajectory_format(path: str | os.PathLike[str]) -> str:
     if p.is_dir():
         if (p / "metadata.yaml").is_file():
             return "bag"
-        raise FormatError(p, "is a folder without metadata.yaml, not a ROS 2 bag" + _HINT)
+        raise FormatError(p, "is a folder without metadata.yaml, not a ROS 2 bag" + _HINT,
+                          hint=_FORMAT)
     if p.suffix.lower() in BAG_SUFFIXES:
         return "bag"
     with open(p, "rb") as f:
         head = f.read(65536)
     if b"\x00" in head:
-        raise FormatError(p, "binary data (NUL byte); expected a text trajectory file" + _HINT)
+        raise FormatError(p, "binary data (NUL byte); expected a text trajectory file" + _HINT,
+                          hint=_FORMAT)
     if head.startswith(b"#ROSBAG"):
         return "bag"
     text = head.decode("utf-8", errors="replace")
@@ -95,7 +98,8 @@ def detect_trajectory_format(path: str | os.PathLike[str]) -> str:
         if len(names) == 8 and _is_q(names[4], "x") and _is_q(names[7], "w"):
             return "tum"
     if first is None:
-        raise FormatError(p, "no data rows found (empty file or only comments)" + _HINT)
+        raise FormatError(p, "no data rows found (empty file or only comments)" + _HINT,
+                          hint=_FORMAT)
     tokens = [t for t in re.split(r"[\s,]+", first) if t]
     if len(tokens) == 12:
         return "kitti"
@@ -104,4 +108,4 @@ def detect_trajectory_format(path: str | os.PathLike[str]) -> str:
     raise FormatError(
         p, f"cannot tell the format from a first row of {len(tokens)} "
         f"{'comma-separated ' if ',' in first else ''}columns"
-        + (" without a header" if header is None else "") + _HINT)
+        + (" without a header" if header is None else "") + _HINT, hint=_FORMAT)

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from ibiscape_eval.core.errors import FormatError, IbiscapeError
+from ibiscape_eval.core.errors import FormatError, IbiscapeError, Remedy
 from ibiscape_eval.core.events import Events
 
 __all__ = ["AEDAT4_MAGIC", "Aedat4Writer", "iter_aedat4_events", "open_aedat4"]
@@ -119,7 +119,7 @@ def open_aedat4(path: Path, stream: str | None = None) -> dict[str, Any]:
         raise FormatError(path, f"no polarity-event stream (EVTS); the file's streams: {found}")
     elif len(ev) > 1:
         raise FormatError(path, f"several event streams ({', '.join(map(str, ev))}); choose one "
-                          "with --topic ID")
+                          "with {0}", hint=(Remedy("topic_id"),))
     else:
         sid = ev[0]
     w, h = int(streams[sid].get("width", 0)), int(streams[sid].get("height", 0))

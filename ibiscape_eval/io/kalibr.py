@@ -27,7 +27,6 @@ import json
 import math
 import os
 from collections.abc import Mapping, Sequence
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -37,7 +36,7 @@ from ibiscape_eval.core.camera import CameraModel
 from ibiscape_eval.core.errors import FormatError, IbiscapeError
 from ibiscape_eval.core.kalibr import CalibrationTarget, CameraChain, ChainCamera, ImuNoise
 
-from .atomic import atomic_output_path, atomic_write
+from .atomic import atomic_write
 from .yaml_file import read_yaml_mapping
 
 __all__ = [
@@ -46,8 +45,6 @@ __all__ = [
     "read_imu_noise",
     "read_target",
     "write_camchain",
-    "write_figure",
-    "write_figures",
     "write_imu_noise",
     "write_json",
     "write_target",
@@ -260,18 +257,3 @@ def write_json(path: str | os.PathLike[str], doc: Any) -> None:
         f.write(text + "\n")
 
 
-def write_figure(path: str | os.PathLike[str], fig: Any, *, dpi: int = 110) -> None:
-    """Save a matplotlib ``Figure`` atomically (format from the suffix)."""
-    with atomic_output_path(path) as tmp:
-        fig.savefig(tmp, dpi=dpi, format=Path(path).suffix.lstrip(".") or "png")
-
-
-def write_figures(folder: str | os.PathLike[str], figures: Sequence[tuple[str, Any]]) -> list[Path]:
-    """Save ``(file name, Figure)`` pairs into ``folder`` (created), each atomically."""
-    out = Path(folder)
-    out.mkdir(parents=True, exist_ok=True)
-    paths = []
-    for name, fig in figures:
-        write_figure(out / name, fig)
-        paths.append(out / name)
-    return paths

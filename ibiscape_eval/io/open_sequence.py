@@ -43,7 +43,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ibiscape_eval.core.camera import CameraModel
-from ibiscape_eval.core.errors import FormatError, IbiscapeError
+from ibiscape_eval.core.errors import FormatError, IbiscapeError, Remedy
 from ibiscape_eval.core.sequence import CameraStream, ImuStream, Lazy, Sequence
 from ibiscape_eval.core.transforms import invert_transforms
 
@@ -355,7 +355,7 @@ def _bag(p: Path, image_topics: Seq[str] | None, imu_topic: str | None,
         need(imu_topic, (IMU_MSGTYPE,), "sensor_msgs/Imu")
     elif len(imus) > 1:
         raise FormatError(p, f"{len(imus)} sensor_msgs/Imu topics ({', '.join(imus)}); choose one "
-                          "with --imu-topic")
+                          "with {0}", hint=(Remedy("imu_topic"),))
     else:
         imu_topic = imus[0] if imus else None
     if not chosen and not chosen_ev:

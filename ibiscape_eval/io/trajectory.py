@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import os
 
-from ibiscape_eval.core.errors import IbiscapeError
+from ibiscape_eval.core.errors import IbiscapeError, Remedy
 from ibiscape_eval.core.trajectory import Trajectory
 
 from .detect import TRAJECTORY_FORMATS, detect_trajectory_format
@@ -71,7 +71,8 @@ def read_trajectory(
         raise IbiscapeError(f"unknown trajectory format {fmt!r}; use one of "
                             f"{', '.join(TRAJECTORY_FORMATS)} or auto")
     if topic is not None and fmt != "bag":
-        raise IbiscapeError(f"--topic applies to bags only, but {path} is {fmt}")
+        raise IbiscapeError(f"{{0}} applies to bags only, but {path} is {fmt}",
+                            hint=(Remedy("topic"),))
     if times_path is not None and fmt != "kitti":
         raise IbiscapeError(f"a times file applies to KITTI poses only, but {path} is {fmt}")
     if fmt == "tum":

@@ -12,6 +12,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ibiscape_eval.core import DegenerateInputError, IbiscapeError, IbiscapeWarning, Trajectory
+from ibiscape_eval.core.errors import Remedy
 from ibiscape_eval.core.numbers import finite_or_none
 from ibiscape_eval.core.rotations import quat_from_matrix
 from ibiscape_eval.core.transforms import invert_transforms
@@ -23,7 +24,7 @@ __all__ = ["Alignment", "AlignmentConditioning", "AlignmentResult", "align", "co
 
 FloatArray = npt.NDArray[np.float64]
 
-_DEGENERATE_HINT = "use --align yaw or --align origin"
+_DEGENERATE_HINT = (Remedy("align", "yaw"), Remedy("align", "origin"))  # "use {0} or {1}"
 _EYE4 = np.eye(4)
 
 
@@ -252,14 +253,13 @@ def _check_scatter(
     if sv[0] <= tiny:
         raise DegenerateInputError(
             f"cannot align with {method}: all {n} {what} of the {who} are equal; "
-            f"{_DEGENERATE_HINT}"
-        )
+            "use {0} or {1}", hint=_DEGENERATE_HINT)
     # Squared values resolve a ratio down to ~1e-8; 1e-6 is a micrometre per metre.
     if not planar and (n < 3 or sv[1] <= 1e-6 * sv[0]):
         raise DegenerateInputError(
             f"cannot align with {method}: the {n} positions of the {who} are "
-            f"collinear, so the rotation about that line is undetermined; {_DEGENERATE_HINT}"
-        )
+            "collinear, so the rotation about that line is undetermined; use {0} or {1}",
+            hint=_DEGENERATE_HINT)
 
 
 def umeyama(
@@ -451,7 +451,7 @@ def align(
     ------
     DegenerateInputError
         All positions equal or collinear (``se3``/``sim3``), all horizontal positions equal
-        (``yaw``); the message suggests ``--align yaw`` or ``--align origin``.
+        (``yaw``); the error's hint suggests ``align="yaw"`` or ``align="origin"``.
 
     References
     ----------
@@ -482,8 +482,7 @@ def align(
     R, t, c = _umeyama(mo, with_scale=m is Alignment.SIM3)
     if not (math.isfinite(c) and c > 0.0):
         raise DegenerateInputError(
-            f"sim3 alignment gave an invalid scale {c!r}; {_DEGENERATE_HINT}"
-        )
+            f"sim3 alignment gave an invalid scale {c!r}; use {{0}} or {{1}}", hint=_DEGENERATE_HINT)
     return AlignmentResult(m.value, _se3(R, t), c, n_used, conditioning=_conditioning(
         mo, m.value, R, c, _residual_rho(x, y, R, t, c)))
 

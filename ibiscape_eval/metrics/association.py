@@ -10,6 +10,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ibiscape_eval.core import DegenerateInputError, IbiscapeError, Trajectory
+from ibiscape_eval.core.errors import Remedy
 from ibiscape_eval.core.rotations import quat_slerp
 
 from ._fast import nearest, take, trusted
@@ -27,7 +28,8 @@ def choose_match(est_timed: bool, ref_timed: bool) -> str:
     :func:`ibiscape_eval.io.has_timestamps`)."""
     return "time" if est_timed and ref_timed else "index"
 
-_HINT = "try a larger --max-diff-s, an --offset-s or --estimate-offset"
+_HINT = (Remedy("max_diff_s"), Remedy("offset_s"), Remedy("estimate_offset", flag=True))
+_HINT_TEXT = "try a larger {0}, an {1} or {2}"
 
 
 @dataclass(frozen=True)
@@ -125,8 +127,7 @@ def _check_count(n: int, est: Trajectory, ref: Trajectory, how: str) -> None:
         raise DegenerateInputError(
             f"only {n} pose(s) matched {how} ({est.describe('estimate')} has {len(est)}, "
             f"{ref.describe('reference')} {len(ref)}); "
-            f"at least {MIN_MATCHES} are needed: {_HINT}"
-        )
+            f"at least {MIN_MATCHES} are needed: {_HINT_TEXT}", hint=_HINT)
 
 
 def _checked_stamps(est: Trajectory, ref: Trajectory, max_diff_s: float,
@@ -149,8 +150,7 @@ def _checked_stamps(est: Trajectory, ref: Trajectory, max_diff_s: float,
         raise IbiscapeError(
             f"estimate {est.name!r} spans {_span(est_ns)}{shift} and reference {ref.name!r} spans "
             f"{_span(ref_ns)}: the time ranges do not overlap; check the files' time units or "
-            "give an --offset-s"
-        )
+            "give an {0}", hint=(Remedy("offset_s"),))
     return max_diff_ns, offset_ns, est_ns
 
 

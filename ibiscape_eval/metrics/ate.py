@@ -28,6 +28,7 @@ from .summary import summary_html, summary_repr
 
 if TYPE_CHECKING:
     import pandas as pd
+    from matplotlib.figure import Figure
 
 __all__ = ["AteResult", "ate"]
 
@@ -73,6 +74,14 @@ class AteResult(MatchedResult):
     def stats(self) -> ErrorStats:
         """Statistics of :attr:`errors`."""
         return ErrorStats.from_errors(self.errors)
+
+    def plot(self, **kw: Any) -> Figure:
+        """The figure of the absolute errors (a new Figure): the trajectory coloured by the error, the error over time and
+        distance, the histogram.  ``kw``: ``unit``, ``plane``, ``panels``, ``title``,
+        ``gps_xyz_m`` of :func:`ibiscape_eval.report.plots.metric_figure`."""
+        from ibiscape_eval.report.plots import metric_figure
+
+        return metric_figure(self, **{"title": "absolute trajectory error", **kw})
 
     def __repr__(self) -> str:
         return summary_repr(self, "AteResult")

@@ -30,6 +30,7 @@ from .rpe import RpeResult, rpe
 
 if TYPE_CHECKING:
     import pandas as pd
+    from matplotlib.figure import Figure
 
 __all__ = ["CompareEntry", "CompareResult", "compare", "safe_label"]
 
@@ -87,6 +88,13 @@ class CompareResult:
         """Strict-JSON index document (what ``compare.json`` holds, without file names)."""
         return {"metric": "compare", "ref_file": self.ref_file, "options": dict(self.options),
                 "estimates": [e.to_dict() for e in self.entries]}
+
+    def plot(self, *, plane: str = "xy", title: str = "") -> Figure:
+        """Every aligned estimate over the reference and their error bars (a new Figure)."""
+        from ibiscape_eval.report.plots import compare_figure
+
+        return compare_figure(self, plane=plane,
+                              title=title or f"{len(self.entries)} estimates against the reference")
 
     def __repr__(self) -> str:
         rows = [f"CompareResult(ref={self.ref_file!r}, {len(self.entries)} estimates"]

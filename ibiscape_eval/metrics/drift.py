@@ -26,6 +26,7 @@ from .summary import summary_html, summary_repr
 
 if TYPE_CHECKING:
     import pandas as pd
+    from matplotlib.figure import Figure
 
 __all__ = ["KITTI_LENGTHS_M", "DriftResult", "drift"]
 
@@ -78,6 +79,12 @@ class DriftResult(MatchedResult):
     translation_m: ErrorStats
     rotation_deg: ErrorStats
     step_frames: int
+
+    def plot(self, *, title: str = "drift per segment length") -> Figure:
+        """Translation [%] and rotation [deg/m] drift per segment length (a new Figure)."""
+        from ibiscape_eval.report.plots import drift_figure
+
+        return drift_figure(self, title=title)
 
     def __repr__(self) -> str:
         return summary_repr(self, "DriftResult")

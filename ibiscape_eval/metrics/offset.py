@@ -8,6 +8,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ibiscape_eval.core import DegenerateInputError, IbiscapeError, Trajectory
+from ibiscape_eval.core.errors import Remedy
 from ibiscape_eval.core.rotations import angle_rad_from_quat, quat_conjugate, quat_multiply
 
 __all__ = ["estimate_time_offset"]
@@ -50,8 +51,8 @@ def _coarse_offset(
         if not np.isfinite(rate).all() or float(np.ptp(rate)) < 1e-6:
             raise DegenerateInputError(
                 f"cannot estimate the time offset: the {name} has no rotation to correlate "
-                "(its angular rate is constant); give the offset with --offset-s instead"
-            )
+                "(its angular rate is constant); give the offset with {0} instead",
+                hint=(Remedy("offset_s"),))
     h = float(min(np.median(np.diff(e_mid)), np.median(np.diff(r_mid))))
     lo = min(e_mid[0], r_mid[0])
     hi = max(e_mid[-1], r_mid[-1])
@@ -90,8 +91,7 @@ def _coarse_offset(
         raise IbiscapeError(
             f"cannot estimate the time offset: the trajectories do not overlap enough in time "
             f"within ±{max_offset_s} s of {center_s:+.6f} s; widen max_offset_s or give "
-            "--offset-s"
-        )
+            "{0}", hint=(Remedy("offset_s"),))
     k = int(np.argmax(score))
     frac = 0.0
     if 0 < k < lags.shape[0] - 1 and np.isfinite(score[k - 1]) and np.isfinite(score[k + 1]):

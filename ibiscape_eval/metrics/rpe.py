@@ -10,6 +10,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ibiscape_eval.core import DegenerateInputError, IbiscapeError, Trajectory
+from ibiscape_eval.core.errors import Remedy
 from ibiscape_eval.core.rotations import angle_rad_from_quat, quat_conjugate, quat_multiply
 
 from ._common import (
@@ -30,6 +31,7 @@ from .summary import summary_html, summary_repr
 
 if TYPE_CHECKING:
     import pandas as pd
+    from matplotlib.figure import Figure
 
 __all__ = ["DELTA_UNITS", "PAIRS_FROM", "PAIR_MODES", "RpeResult", "rpe", "select_pairs"]
 
@@ -107,6 +109,14 @@ class RpeResult(MatchedResult):
     def stats(self) -> ErrorStats:
         """Statistics of :attr:`errors`."""
         return ErrorStats.from_errors(self.errors)
+
+    def plot(self, **kw: Any) -> Figure:
+        """The figure of the relative errors (a new Figure): the trajectory coloured by the error, the error over time and
+        distance, the histogram.  ``kw``: ``unit``, ``plane``, ``panels``, ``title``,
+        ``gps_xyz_m`` of :func:`ibiscape_eval.report.plots.metric_figure`."""
+        from ibiscape_eval.report.plots import metric_figure
+
+        return metric_figure(self, **{"title": "relative pose error", **kw})
 
     def __repr__(self) -> str:
         return summary_repr(self, "RpeResult")
@@ -234,7 +244,7 @@ def _no_pair_error(delta: float, unit: str, pairs: str, on: Trajectory,
     }[unit]
     return DegenerateInputError(
         f"delta = {delta:g} {unit} gives no pose pair ({pairs} pairs) on the {who} "
-        f"({extent}); use a smaller --delta"
+        f"({extent}); use a smaller {{0}}", hint=(Remedy("delta"),)
     )
 
 

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from ibiscape_eval.batch.files import atomic_output_dir
-from ibiscape_eval.core.errors import IbiscapeError, IbiscapeWarning
+from ibiscape_eval.core.errors import IbiscapeError, IbiscapeWarning, Remedy
 
 from .evaluate import RunsEvaluation
 from .paper_table import PaperTable
@@ -88,12 +88,12 @@ def sequence_figures(
     (:func:`ibiscape_eval.report.plots.default_plot_plane`: x-z for KITTI, x-y otherwise).
     """
     from ibiscape_eval.io import detect_trajectory_format, read_gnss, read_trajectory
+    from ibiscape_eval.io.figure import figure_png
 
     from ..metrics.gnss import gnss_in_reference_frame
     from .figures import (
         algorithm_colors,
         error_boxplot_figure,
-        figure_png,
         representative_runs,
         sequence_trajectories_figure,
     )
@@ -163,7 +163,7 @@ def _shown_options(evaluation: RunsEvaluation) -> dict[str, Any]:
 
 def _check_out(out: Path) -> None:
     if out.exists() and not out.is_dir():
-        raise IbiscapeError(f"{out}: exists and is a file; --out needs a folder")
+        raise IbiscapeError(f"{out}: exists and is a file; {{0}} needs a folder", hint=(Remedy("out"),))
     if out.is_dir() and any(out.iterdir()) and not (out / "report.json").is_file():
         raise IbiscapeError(
             f"{out}: folder exists, is not empty and holds no earlier report (report.json); "

@@ -16,7 +16,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ibiscape_eval.batch import ContentCache, Executor, Job, Progress, run_jobs
-from ibiscape_eval.core.errors import IbiscapeError, IbiscapeWarning
+from ibiscape_eval.core.errors import IbiscapeError, IbiscapeWarning, Remedy
 from ibiscape_eval.core.numbers import finite_or_none
 
 from .runs import RunsLayout, RunSpec
@@ -107,9 +107,8 @@ def resolve_alignments(
     unknown = [n for n in by_name if n not in algs]
     if unknown:
         raise IbiscapeError(
-            f"--align {unknown[0]}={by_name[unknown[0]]}: no algorithm {unknown[0]!r} in "
-            f"{layout.root} (algorithms: {', '.join(algs)})"
-        )
+            f"{{0}}: no algorithm {unknown[0]!r} in {layout.root} (algorithms: {', '.join(algs)})",
+            hint=(Remedy("align_by_algorithm", f"{unknown[0]}={by_name[unknown[0]]}"),))
     out: dict[str, tuple[str, str]] = {}
     for alg in algs:
         if alg in by_name:
@@ -125,8 +124,8 @@ def resolve_alignments(
                 f"{rs[0].meta_path or rs[0].key + ', the default'})" for a, rs in asked.items())
             raise IbiscapeError(
                 f"algorithm {alg}: its runs ask for different alignments ({what}); one alignment "
-                f"per algorithm: fix the run.yaml files or give --align {alg}=A"
-            )
+                "per algorithm: fix the run.yaml files or give {0}",
+                hint=(Remedy("align_by_algorithm", f"{alg}=A"),))
         ((align, runs),) = asked.items()
         meta = next((r.meta_path for r in runs if r.align is not None and r.meta_path), None)
         out[alg] = (align, meta or "default")

@@ -7,12 +7,11 @@
 
 Each algorithm is drawn from its *representative* trial (:func:`representative_runs`: the
 successful trial with the median ATE), so several trials do not clutter the picture.
-:func:`figure_png` renders a figure to PNG bytes (Agg canvas, no display).
+:func:`ibiscape_eval.io.figure.figure_png` renders one to PNG bytes for the HTML report.
 """
 
 from __future__ import annotations
 
-import io
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -28,7 +27,6 @@ if TYPE_CHECKING:
 __all__ = [
     "algorithm_colors",
     "error_boxplot_figure",
-    "figure_png",
     "representative_runs",
     "sequence_trajectories_figure",
 ]
@@ -160,10 +158,3 @@ def error_boxplot_figure(
     fig.legend([Patch(facecolor=c, alpha=0.75) for c in colors_], algs, fontsize=8,
                loc="outside lower center", ncols=min(len(algs), 6))
     return fig
-
-
-def figure_png(fig: Figure, *, dpi: int = 110) -> bytes:
-    """The figure as PNG bytes."""
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
-    return buf.getvalue()

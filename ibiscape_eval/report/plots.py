@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from ibiscape_eval.io.atomic import atomic_output_path
+from ibiscape_eval.io.figure import save_figure as write_figure
 
 if TYPE_CHECKING:
     from ibiscape_eval.core.trajectory import Trajectory
@@ -64,11 +64,7 @@ def plain_axes(fig: Any) -> None:
 def save_figure(fig: Any, path: str | os.PathLike[str]) -> None:
     """Write ``fig`` (PNG/PDF/SVG by extension) through the atomic writer, offsets removed."""
     plain_axes(fig)
-    with atomic_output_path(path) as tmp:
-        fig.savefig(tmp, dpi=150, bbox_inches="tight")
-
-
-_save = save_figure
+    write_figure(fig, path)
 
 
 def default_plot_plane(fmt: str | None) -> str:
@@ -131,17 +127,8 @@ def trajectory_errors_figure(
     replaces the time axis by a "pose index" axis: for synthetic stamps (KITTI without times,
     pairing by index), which are not times.
     """
-    from matplotlib.collections import LineCollection
-
     err = np.asarray(errors_m if errors is None else errors, dtype=np.float64)
-    if panels is None:
-        panels = [p for p in PANELS if p != "distance" or distance_m is not None]
-    panels = list(panels)
-    for p in panels:
-        if p not in PANELS:
-            raise ValueError(f"unknown panel {p!r}; choose from {', '.join(PANELS)}")
-    if "distance" in panels and distance_m is None:
-        panels.remove("distance")
+    panels = _chosen_panels(panels, distance_m is not None)
     n = len(panels)
     cols = 1 if n == 1 else 2
     rows = (n + cols - 1) // cols
@@ -149,65 +136,88 @@ def trajectory_errors_figure(
     axs = np.atleast_1d(fig.subplots(rows, cols)).ravel()
     for extra in axs[n:]:
         extra.remove()
-    unit = f" [{error_unit}]" if error_unit else ""
-    t_s = (np.asarray(stamps_ns) - ref.stamps_ns[0]) / 1e9
+    label = f"{error_label} [{error_unit}]" if error_unit else error_label
     for ax, panel in zip(axs, panels, strict=False):
         if panel == "trajectory":
-            a, b = _plane_axes(plane)
-            ax.plot(ref.pos_m[:, a], ref.pos_m[:, b], "--", color="0.45", lw=1.0,
-                    label=ref_label)
-            idx = np.arange(len(err)) if color_index is None else np.asarray(color_index)
-            pts = est_aligned.pos_m[:, [a, b]]
-            # colour each estimate segment by the error at its start pose
-            seg_err = np.full(len(pts), np.nan)
-            seg_err[idx] = err
-            seg_err = _fill_forward(seg_err)
-            segs = np.stack([pts[:-1], pts[1:]], axis=1)
-            lc = LineCollection(list(segs), cmap="jet", linewidths=1.8)
-            lc.set_array(seg_err[:-1])
-            if np.isfinite(seg_err).any():
-                lc.set_clim(float(np.nanmin(seg_err)), float(np.nanmax(seg_err)))
-            ax.add_collection(lc)
             state = "not aligned" if aligned in ("", "none") else f"aligned ({aligned})"
-            ax.plot([], [], "-", color=lc.cmap(0.75), lw=1.8,
-                    label=f"{est_label}, {state} (colour: error)")
-            if gps_xyz_m is not None and len(gps_xyz_m):
-                ax.plot(gps_xyz_m[:, a], gps_xyz_m[:, b], ".", color="tab:green", ms=3,
-                        label="GNSS")
-            ax.plot(ref.pos_m[0, a], ref.pos_m[0, b], "ko", ms=5, label="start")
-            ax.autoscale_view()
-            ax.set_aspect("equal", adjustable="datalim")
-            ax.set_xlabel(f"{plane[0]} [m]")
-            ax.set_ylabel(f"{plane[1]} [m]")
-            fig.colorbar(lc, ax=ax, label=f"{error_label}{unit}")
-            ax.legend(loc="best", fontsize=8)
+            _trajectory_panel(fig, ax, est_aligned, ref, err, plane=plane, label=label,
+                              est_label=f"{est_label}, {state} (colour: error)",
+                              ref_label=ref_label, gps_xyz_m=gps_xyz_m, color_index=color_index)
         elif panel == "time":
-            x = t_s if pose_index is None else np.asarray(pose_index)
+            x = ((np.asarray(stamps_ns) - ref.stamps_ns[0]) / 1e9 if pose_index is None
+                 else np.asarray(pose_index))
             ax.plot(x, err, color="0.2", lw=0.8, label=error_label)
             _stat_lines(ax, err, error_unit)
             ax.set_xlabel("time since start [s]" if pose_index is None
                           else "pose index (no timestamps)")
-            ax.set_ylabel(f"{error_label}{unit}")
+            ax.set_ylabel(label)
             ax.legend(loc="upper right", fontsize=8)
         elif panel == "distance":
-            assert distance_m is not None
             ax.plot(distance_m, err, color="0.2", lw=0.8)
             ax.set_xlabel("distance travelled [m]")
-            ax.set_ylabel(f"{error_label}{unit}")
+            ax.set_ylabel(label)
         else:
-            bins = max(10, min(100, int(np.sqrt(max(len(err), 1)))))
-            ax.hist(err, bins=bins, color="tab:red", alpha=0.8, label=error_label)
-            ax.set_xlabel(f"{error_label}{unit}")
-            ax.set_ylabel("count")
-            if len(err):
-                rmse = float(np.sqrt(np.mean(err**2)))
-                ax.axvline(rmse, color="k", ls="--", lw=1, label=f"rmse {rmse:.4g} {error_unit}")
-            ax.legend(fontsize=8)
+            _histogram_panel(ax, err, error_label, error_unit)
         ax.grid(alpha=0.3)
     if title:
         fig.suptitle(title)
     plain_axes(fig)
     return fig
+
+
+def _chosen_panels(panels: Sequence[str] | None, with_distance: bool) -> list[str]:
+    """The panels asked for (default all, ``distance`` only with distances), checked."""
+    if panels is None:
+        return [p for p in PANELS if p != "distance" or with_distance]
+    for p in panels:
+        if p not in PANELS:
+            raise ValueError(f"unknown panel {p!r}; choose from {', '.join(PANELS)}")
+    return [p for p in panels if p != "distance" or with_distance]
+
+
+def _trajectory_panel(fig: Any, ax: Any, est_aligned: Trajectory, ref: Trajectory,
+                      err: npt.NDArray[np.float64], *, plane: str, label: str, est_label: str,
+                      ref_label: str, gps_xyz_m: npt.NDArray[np.float64] | None,
+                      color_index: npt.NDArray[np.intp] | None) -> None:
+    """The reference in grey and the estimate coloured by its error, with a colour bar."""
+    from matplotlib.collections import LineCollection
+
+    a, b = _plane_axes(plane)
+    ax.plot(ref.pos_m[:, a], ref.pos_m[:, b], "--", color="0.45", lw=1.0, label=ref_label)
+    idx = np.arange(len(err)) if color_index is None else np.asarray(color_index)
+    pts = est_aligned.pos_m[:, [a, b]]
+    # colour each estimate segment by the error at its start pose
+    seg_err = np.full(len(pts), np.nan)
+    seg_err[idx] = err
+    seg_err = _fill_forward(seg_err)
+    segs = np.stack([pts[:-1], pts[1:]], axis=1)
+    lc = LineCollection(list(segs), cmap="jet", linewidths=1.8)
+    lc.set_array(seg_err[:-1])
+    if np.isfinite(seg_err).any():
+        lc.set_clim(float(np.nanmin(seg_err)), float(np.nanmax(seg_err)))
+    ax.add_collection(lc)
+    ax.plot([], [], "-", color=lc.cmap(0.75), lw=1.8, label=est_label)
+    if gps_xyz_m is not None and len(gps_xyz_m):
+        ax.plot(gps_xyz_m[:, a], gps_xyz_m[:, b], ".", color="tab:green", ms=3, label="GNSS")
+    ax.plot(ref.pos_m[0, a], ref.pos_m[0, b], "ko", ms=5, label="start")
+    ax.autoscale_view()
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel(f"{plane[0]} [m]")
+    ax.set_ylabel(f"{plane[1]} [m]")
+    fig.colorbar(lc, ax=ax, label=label)
+    ax.legend(loc="best", fontsize=8)
+
+
+def _histogram_panel(ax: Any, err: npt.NDArray[np.float64], error_label: str,
+                     error_unit: str) -> None:
+    bins = max(10, min(100, int(np.sqrt(max(len(err), 1)))))
+    ax.hist(err, bins=bins, color="tab:red", alpha=0.8, label=error_label)
+    ax.set_xlabel(f"{error_label} [{error_unit}]" if error_unit else error_label)
+    ax.set_ylabel("count")
+    if len(err):
+        rmse = float(np.sqrt(np.mean(err**2)))
+        ax.axvline(rmse, color="k", ls="--", lw=1, label=f"rmse {rmse:.4g} {error_unit}")
+    ax.legend(fontsize=8)
 
 
 def _fill_forward(a: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:

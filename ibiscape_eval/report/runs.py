@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ibiscape_eval.core.errors import IbiscapeError
+from ibiscape_eval.core.errors import IbiscapeError, Remedy
 from ibiscape_eval.io.run_meta import RUN_META_NAME, read_run_meta
 
 __all__ = ["RunSpec", "RunsLayout", "SequenceTruth", "discover_runs", "natural_key"]
@@ -177,7 +177,8 @@ def discover_runs(
                             "<trial>/<trajectory file>")
     seq_root = None if sequences_dir is None else Path(sequences_dir)
     if seq_root is not None and not seq_root.is_dir():
-        raise IbiscapeError(f"{seq_root}: --sequences is not a folder of IBISCape sequences")
+        raise IbiscapeError(f"{seq_root}: {{0}} is not a folder of IBISCape sequences",
+                            hint=(Remedy("sequences_dir"),))
     runs: list[RunSpec] = []
     truths: dict[str, SequenceTruth] = {}
     ignored: list[tuple[str, str]] = []
@@ -248,11 +249,11 @@ def discover_runs(
         if seq_root is not None:
             where += f" or {seq_root}/<sequence>/{IBISCAPE_GT.as_posix()}"
         else:
-            where += " (or give --sequences DIR of IBISCape sequences)"
+            where += " (or give {0}, a folder of IBISCape sequences)"
         raise IbiscapeError(
             f"no ground truth for sequence{'s' if len(missing) > 1 else ''} "
-            f"{', '.join(missing[:10])}{' ...' if len(missing) > 10 else ''}; expected {where}"
-        )
+            f"{', '.join(missing[:10])}{' ...' if len(missing) > 10 else ''}; expected {where}",
+            hint=() if seq_root is not None else (Remedy("sequences_dir"),))
     if not runs:
         detail = "; ".join(f"{p}: {why}" for p, why in ignored[:3])
         raise IbiscapeError(

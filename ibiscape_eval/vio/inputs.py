@@ -30,7 +30,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ibiscape_eval.core.camera import CameraModel
-from ibiscape_eval.core.errors import CalibrationError, FormatError, IbiscapeError
+from ibiscape_eval.core.errors import CalibrationError, FormatError, IbiscapeError, Remedy
 from ibiscape_eval.core.kalibr import ImuNoise
 from ibiscape_eval.core.sequence import Sequence
 from ibiscape_eval.core.trajectory import Trajectory
@@ -42,6 +42,10 @@ __all__ = ["StereoSequence", "load_sequence", "stereo_inputs"]
 FloatArray = npt.NDArray[np.float64]
 #: reader(i) -> (left, right) grey images of stereo pair i
 FrameReader = Callable[[int], tuple[npt.NDArray[np.uint8], npt.NDArray[np.uint8]]]
+
+# the options that supply what a sequence lacks (an error's hint)
+_CALIB = (Remedy("calib"),)
+_IMU = (Remedy("imu_yaml"),)
 
 
 @dataclass(frozen=True, eq=False)
@@ -179,7 +183,7 @@ def _load_ibiscape(seq: Sequence, calib: Any, imu_yaml: Any, require_images: boo
     else:
         if not cams:
             raise CalibrationError(f"{p}: no calibration (sequence.yaml has no cameras); give "
-                                   "--calib camchain-imucam.yaml")
+                                   "{0}", hint=_CALIB)
         left_name, right_name = _stereo_names(p, cams)
         rig = _checked_rig(p / "sequence.yaml",
                            _camera(cams[left_name], p / "sequence.yaml", left_name),
@@ -197,7 +201,7 @@ def _load_ibiscape(seq: Sequence, calib: Any, imu_yaml: Any, require_images: boo
     elif imu_entry:
         noise = ImuNoise.from_kalibr(imu_entry, source=f"{p / 'sequence.yaml'}: imus")
     else:
-        raise IbiscapeError(f"{p}: no IMU noise (sequence.yaml has no imus); give --imu imu.yaml")
+        raise IbiscapeError(f"{p}: no IMU noise (sequence.yaml has no imus); give {{0}}", hint=_IMU)
     # frames
     frames, lf, rf, reader = _frames(seq, left_name, right_name, "timestamps.csv", require_images)
     weather = (doc.get("weather") or {}).get("preset") if doc else None
@@ -225,7 +229,7 @@ def _T(entry: Any, key: str, where: Path, name: str) -> FloatArray:
     from ibiscape_eval.core.kalibr import rigid_transform_problem
 
     if not isinstance(entry, dict) or key not in entry:
-        raise CalibrationError(f"{where}: {name} lacks {key}; give --calib")
+        raise CalibrationError(f"{where}: {name} lacks {key}; give {{0}}", hint=_CALIB)
     try:
         T = np.asarray(entry[key], dtype=float)
     except (TypeError, ValueError, OverflowError):
@@ -233,7 +237,7 @@ def _T(entry: Any, key: str, where: Path, name: str) -> FloatArray:
     problem = ("must be a 4x4 matrix of numbers" if T.shape != (4, 4)
                else rigid_transform_problem(T))
     if problem:
-        raise CalibrationError(f"{where}: {name}.{key} {problem}; fix it or give --calib")
+        raise CalibrationError(f"{where}: {name}.{key} {problem}; fix it or give {{0}}", hint=_CALIB)
     return T
 
 
@@ -331,7 +335,7 @@ def _load_asl(seq: Sequence, calib: Any, imu_yaml: Any, require_images: bool) ->
                  else c.root if seq.layout == "rosbag" else c.root / "sensor.yaml")
             if not c.entry or c.T_body_cam is None:
                 what = "missing" if seq.layout != "rosbag" else "the bag holds no calibration"
-                raise CalibrationError(f"{f}: {what}; give --calib camchain-imucam.yaml")
+                raise CalibrationError(f"{f}: {what}; give {{0}}", hint=_CALIB)
             cams.append((_camera(c.entry, f, c.name), np.asarray(c.T_body_cam, dtype=np.float64)))
         where = Path(right.calibration_source) if right.calibration_source else right.root
         rig = _checked_rig(where, cams[0][0], cams[1][0], cams[0][1], cams[1][1])
@@ -348,7 +352,7 @@ def _load_asl(seq: Sequence, calib: Any, imu_yaml: Any, require_images: bool) ->
     else:
         where = m / "imu0" / "sensor.yaml" if seq.layout != "rosbag" else seq.path
         raise IbiscapeError(f"{where}: {'missing' if seq.layout != 'rosbag' else 'no IMU noise'}; "
-                            "give --imu imu.yaml")
+                            "give {0}", hint=_IMU)
     frames, lf, rf, reader = _frames(seq, left.name, right.name, "data.csv", require_images)
     return StereoSequence(str(m), seq.layout, rig, noise, stamps, gyro, acc, T_body_imu, frames, lf,
                           rf, seq.ground_truth(), None, reader)
@@ -418,4 +422,4 @@ def _check_coverage(seq: StereoSequence) -> None:
             if img.shape != (h, w):
                 raise CalibrationError(
                     f"{label}: image is {img.shape[1]}x{img.shape[0]} px but the calibration "
-                    f"says {w}x{h}; give the matching --calib (or rescale the intrinsics)")
+                    f"says {w}x{h}; give the matching {{0}} (or rescale the intrinsics)", hint=_CALIB)

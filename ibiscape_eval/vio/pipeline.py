@@ -12,7 +12,7 @@ import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -24,6 +24,9 @@ from ibiscape_eval.core.trajectory import Trajectory
 from .estimator import Estimator, FailureSpan
 from .inputs import StereoSequence
 from .params import VioParams
+
+if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.figure import Figure
 
 __all__ = ["VioResult", "VioStats", "run_vio"]
 
@@ -86,6 +89,13 @@ class VioResult:
 
     def to_dict(self) -> dict[str, Any]:
         return {"poses": len(self.trajectory), **self.stats.to_dict()}
+
+    def plot(self, ref: Trajectory | None = None, *, title: str = "") -> Figure:
+        """Top view of the estimate (the ground truth ``ref`` over its span, already in the same
+        frame, if given) with the tracking failures in red; a new Figure."""
+        from .plots import top_view_figure
+
+        return top_view_figure(self.trajectory, ref, self.stats.failures, title=title)
 
     def __repr__(self) -> str:
         s = self.stats

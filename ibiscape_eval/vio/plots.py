@@ -7,7 +7,6 @@ side (:func:`ground_truth_in_span`): a 5 s estimate on a 145 s recording stays v
 
 from __future__ import annotations
 
-import os
 from collections.abc import Sequence
 from typing import Any
 
@@ -17,11 +16,9 @@ from ibiscape_eval.core.trajectory import Trajectory
 
 # the project's atomic writer (renamed ibiscape_eval.io.atomic by a pending refactor): the one
 # place this package imports it
-from ibiscape_eval.io.atomic import atomic_output_path
-
 from .estimator import FailureSpan
 
-__all__ = ["GT_MARGIN_S", "ground_truth_in_span", "save_figure", "top_view_figure"]
+__all__ = ["GT_MARGIN_S", "ground_truth_in_span", "top_view_figure"]
 
 #: ground truth kept before the first and after the last estimated pose, seconds
 GT_MARGIN_S = 1.0
@@ -69,9 +66,3 @@ def top_view_figure(est: Trajectory, ref: Trajectory | None = None,
     if title:
         ax.set_title(title, fontsize=10)
     return fig
-
-
-def save_figure(fig: Any, path: str | os.PathLike[str]) -> None:
-    """Write ``fig`` (PNG/PDF/SVG by extension) atomically."""
-    with atomic_output_path(path) as tmp:
-        fig.savefig(tmp, dpi=120, bbox_inches="tight", format=os.path.splitext(str(path))[1][1:] or "png")

@@ -6,7 +6,6 @@ from pathlib import Path
 
 import numpy as np
 
-SHARED = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "trajectories"
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "data"
 
 

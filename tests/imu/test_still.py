@@ -44,7 +44,7 @@ def test_generated_drive_is_refused_with_numbers(tmp_path: Path) -> None:
     with pytest.raises(DegenerateInputError) as e:
         check_still(rec, rec.rate_hz, path=p)
     msg = str(e.value)
-    assert str(p) in msg and "not a still IMU" in msg and "--force" in msg
+    assert str(p) in msg and "not a still IMU" in msg and "force=True" in msg
     assert "x what a still IMU with this noise shows" in msg and "\n" not in msg
     forced = check_still(rec, rec.rate_hz, path=p, force=True)
     assert not forced.still and forced.reasons

@@ -38,7 +38,7 @@ def test_bag_topic_errors(tmp_path):
     pos, q = np.zeros((2, 3)), np.tile([0.0, 0, 0, 1], (2, 1))
     p = write_bag(tmp_path / "two.bag", 1, {"/a": (MSGTYPES[0], st_ns, pos, q),
                                              "/b": (MSGTYPES[3], st_ns, pos, q)})
-    with pytest.raises(FormatError, match=r"several pose topics; choose one with --topic: /a, /b"):
+    with pytest.raises(FormatError, match=r"several pose topics; choose one with topic: /a, /b"):
         read_trajectory(p)
     with pytest.raises(FormatError, match=r"no topic '/c'"):
         read_trajectory(p, topic="/c")
@@ -73,11 +73,12 @@ def test_detect_generated(tmp_path):
         assert detect_trajectory_format(p) == fmt
     amb = tmp_path / "amb.csv"
     amb.write_text("1,0,0,0,0,0,0,1\n")
-    with pytest.raises(FormatError, match=r"--format"):
+    with pytest.raises(FormatError, match=r"explicitly with fmt \(one of") as ei:
         detect_trajectory_format(amb)
+    assert [r.option for r in ei.value.hint] == ["fmt"]
     folder = tmp_path / "folder"
     folder.mkdir()
-    with pytest.raises(FormatError, match=r"--format"):
+    with pytest.raises(FormatError, match=r"explicitly with fmt"):
         detect_trajectory_format(folder)
 
 

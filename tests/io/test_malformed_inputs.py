@@ -162,7 +162,7 @@ def test_rate_hz_ignored_warns_and_zero_is_explained(tmp_path: Path) -> None:
         read_imu(p, rate_hz=100.0)
     q = tmp_path / "six.npy"
     np.save(q, np.column_stack([g, a]))
-    with pytest.raises(FormatError, match=r"--rate-hz 0 is not a positive number of Hz"):
+    with pytest.raises(FormatError, match=r"rate_hz=0 is not a positive number of Hz"):
         read_imu(q, rate_hz=0.0)
     one_error(run("allan", q, "--rate-hz", "0"), "six.npy", "positive number")
 

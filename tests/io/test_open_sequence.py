@@ -267,7 +267,7 @@ def test_vio_on_a_ros2_bag_with_calib_and_imu_yaml(street_euroc, tmp_path):
 
     seq_dir, euroc = street_euroc
     bag = bag_from_euroc(euroc, tmp_path / "street_ros2", ros2=True, compressed_right=False)
-    with pytest.raises(CalibrationError, match="the bag holds no calibration; give --calib"):
+    with pytest.raises(CalibrationError, match="the bag holds no calibration; give calib"):
         run_vio(door(bag))
     calib, imu = seq_dir / "camchain-imucam.yaml", seq_dir / "imu.yaml"
     a = run_vio(door(euroc), calib=calib, imu_yaml=imu, max_frames=20)

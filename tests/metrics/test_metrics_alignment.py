@@ -141,7 +141,7 @@ def _line(n: int = 20, *, vertical: bool = False) -> Trajectory:
 @pytest.mark.parametrize("method", ["se3", "sim3"])
 def test_collinear_positions_are_degenerate(method: str) -> None:
     line = _line()
-    with pytest.raises(DegenerateInputError, match=r"collinear.*--align yaw or --align origin"):
+    with pytest.raises(DegenerateInputError, match=r'collinear.*use align="yaw" or align="origin"'):
         align(line, line, method=method)
 
 

@@ -68,9 +68,10 @@ def test_fewer_than_three_matches_suggests_options() -> None:
     ref = _traj(ns_from_s(np.arange(10) * 0.1))
     est = _traj(ns_from_s(np.array([0.0, 0.305, 0.555, 0.9])))
     with pytest.raises(DegenerateInputError,
-                       match=r"only 2 pose\(s\) matched.*--max-diff-s.*--offset-s.*"
-                             r"--estimate-offset"):
+                       match=r"only 2 pose\(s\) matched.*max_diff_s.*offset_s.*"
+                             r"estimate_offset=True") as ei:
         associate(est, ref, max_diff_s=0.001)
+    assert [r.option for r in ei.value.hint] == ["max_diff_s", "offset_s", "estimate_offset"]
     assert associate(est, ref, max_diff_s=0.01).n_matched == 3  # 0.555 is 45 ms off
 
 

@@ -75,7 +75,7 @@ def test_offset_estimation_recovers_planted_shift(shift_s: float) -> None:
 def test_offset_estimation_without_rotation_fails_clearly() -> None:
     t = np.arange(0, 10, 0.05)
     flat = Trajectory(ns_from_s(t), np.stack([t, 0 * t, 0 * t], 1), quat_from_yaw(0 * t))
-    with pytest.raises(DegenerateInputError, match=r"no rotation to correlate.*--offset-s"):
+    with pytest.raises(DegenerateInputError, match=r"no rotation to correlate.*offset_s"):
         estimate_time_offset(flat, flat)
     with pytest.raises(DegenerateInputError, match="at least 4"):
         estimate_time_offset(flat.take(np.arange(3)), flat)

@@ -82,7 +82,7 @@ def test_paths_outside_the_layout_are_listed_with_reasons(tmp_path) -> None:
 def test_sequences_without_ground_truth_are_an_error(tmp_path) -> None:
     runs, _seqs = build_runs(tmp_path)
     with pytest.raises(IbiscapeError, match=r"no ground truth for sequence seq2; expected .*"
-                                            r"groundtruth\.<ext> \(or give --sequences"):
+                                            r"groundtruth\.<ext> \(or give sequences_dir"):
         discover_runs(runs)
     res = CliRunner().invoke(cli, ["report", str(runs), "--no-cache"])
     line = _one_error_line(res)

@@ -55,7 +55,7 @@ import os
 from collections.abc import Mapping
 from pathlib import Path
 
-from ibiscape_eval.core.errors import FormatError, IbiscapeError
+from ibiscape_eval.core.errors import FormatError, IbiscapeError, Remedy
 from ibiscape_eval.core.imu import AXES, ImuRecord, ImuTiming
 
 from ..bag import read_imu_bag
@@ -215,8 +215,8 @@ def _guess_format(p: Path) -> str:
         return suf[1:]
     if suf == ".pq":
         return "parquet"
-    raise FormatError(p, f"cannot tell the format from the suffix {suf!r}; give --format "
-                      f"({', '.join(FORMATS)})")
+    raise FormatError(p, f"cannot tell the format from the suffix {suf!r}; give {{0}} "
+                      f"({', '.join(FORMATS)})", hint=(Remedy("fmt"),))
 
 
 def _in_ibiscape_sequence(p: Path) -> bool:

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from ibiscape_eval.core.errors import FormatError
+from ibiscape_eval.core.errors import FormatError, Remedy
 from ibiscape_eval.core.imu import ImuRecord
 
 from .columns import ImuLayout
@@ -84,18 +84,19 @@ def check_sensor_layout(p: str | Path, rec: ImuRecord, layout: ImuLayout | None,
     g = STANDARD_GRAVITY_M_S2
     gn, an = m.gyro_norm_rad_s, m.accel_norm_m_s2
     if _near(gn, g) and an < 0.2 * g:
+        hint: tuple[Remedy, ...]
         if layout is not None:
-            fix = f"read them the other way with --columns {layout.swapped_option()}"
+            fix, hint = "read them the other way with {0}", (Remedy("columns", layout.swapped_option()),)
         else:
-            fix = "store the gyro (rad/s) before the accelerometer (m/s^2)"
+            fix, hint = "store the gyro (rad/s) before the accelerometer (m/s^2)", ()
         raise FormatError(
             p, f"the columns read as gyro average {gn:.4g} in norm, like gravity in m/s^2, and "
             f"those read as accelerometer {an:.3g}: gyro and accelerometer look swapped "
-            f"(an accelerometer-first file?); {fix}")
+            f"(an accelerometer-first file?); {fix}", hint=hint)
     if not accel_unit_stated and _near(an, 1.0) and gn < 0.5:
         raise FormatError(
             p, f"the accelerometer averages {an:.4g} in norm: that is gravity in g, not m/s^2; "
-            "give --units accel=g (and gyro=deg/s if the gyro is in deg/s)")
+            "give {0} (and gyro=deg/s if the gyro is in deg/s)", hint=(Remedy("units", "accel=g"),))
     notes: list[str] = []
     if an < NO_GRAVITY_M_S2:
         notes.append(f"the accelerometer averages {an:.3g} m/s^2 in norm, not g: gravity removed "

@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from ibiscape_eval.core.errors import FormatError
+from ibiscape_eval.core.errors import FormatError, Remedy
 from ibiscape_eval.core.imu import AXES, ImuRecord, ImuTiming
 
 __all__ = ["MAX_ABS_SAMPLE", "TimingAccumulator", "check_samples", "check_stamp_dtype",
@@ -122,10 +122,12 @@ def check_stamp_dtype(p: str | Path, stamps: np.ndarray) -> None:
 
 def no_stamp_timing(path: str, rate_hz: float | None, what: str) -> ImuTiming:
     if rate_hz is None:
-        raise FormatError(path, f"{what} has no timestamps; give the sample rate (--rate-hz)")
+        raise FormatError(path, f"{what} has no timestamps; give the sample rate ({{0}})",
+                          hint=(Remedy("rate_hz"),))
     if not (rate_hz > 0 and math.isfinite(rate_hz)):
-        raise FormatError(path, f"{what} has no timestamps and --rate-hz {rate_hz:g} is not a "
-                          "positive number of Hz; give the sample rate, e.g. --rate-hz 200")
+        raise FormatError(path, f"{what} has no timestamps and {{0}} is not a positive number of "
+                          "Hz; give the sample rate, e.g. {1}",
+                          hint=(Remedy("rate_hz", f"{rate_hz:g}"), Remedy("rate_hz", "200")))
     return ImuTiming(has_stamps=False, median_dt_s=1.0 / rate_hz)
 
 

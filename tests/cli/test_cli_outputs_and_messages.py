@@ -1,4 +1,7 @@
-"""Issue 14 on the command line: evo's options, compare, lossless CSVs, helpful messages."""
+"""Command-line options borrowed from evo (pose relation, projection, panels, RPE pairs from the
+reference), ``compare``'s table, figure and saved results, full-precision CSVs, and the messages
+for swapped arguments, short IMU records, inferred sensor sizes and TF topics named without
+their frames."""
 
 from __future__ import annotations
 
@@ -9,6 +12,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from _cli_data import assert_one_error_line, write_tum
+from shared_data import require_shared
 
 
 def test_ate_pose_relation_and_projection(run_cli, tum_pair) -> None:
@@ -130,10 +134,6 @@ def test_allan_csv_full_precision(run_cli, tmp_path: Path) -> None:
     assert max(digits) >= 16
 
 
-def test_assert_helper_is_importable() -> None:
-    assert callable(assert_one_error_line)
-
-
 def _short_imu(tmp_path: Path) -> Path:
     from ibiscape_eval.io.imu import write_imu_csv
     from ibiscape_eval.sim.noise import imu_noise
@@ -197,11 +197,7 @@ def test_events_frames_sorted_names_and_inferred_size_note(run_cli, tmp_path: Pa
 
 
 def test_convert_tf_topic_hint_and_json(run_cli, tmp_path: Path) -> None:
-    from _cli_data import SHARED
-
-    bag = SHARED / "tf_example_ros2"
-    if not bag.exists():
-        pytest.skip("shared ROS 2 bag missing")
+    bag = require_shared("trajectories", "tf_example_ros2")
     res = run_cli("convert", bag, tmp_path / "o.txt", "--topic", "/tf")
     assert_one_error_line(res, "/tf:odom.base_footprint", "TOPIC:parent.child")
     assert "unsupported" not in res.stderr

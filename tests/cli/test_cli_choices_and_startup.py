@@ -1,4 +1,6 @@
-"""Decisions a notebook user needs too live in the library; the CLI's choices are its lists."""
+"""Decisions a notebook user needs too live in the library (time or index pairing), the commands'
+choices are the library's lists, and the start-up tweaks of the trajectory commands leave the
+process as they found it."""
 
 from __future__ import annotations
 
@@ -18,7 +20,7 @@ def test_pairing_by_index_only_without_real_stamps() -> None:
 
 
 def test_option_choices_are_the_library_lists() -> None:
-    from ibiscape_eval.cli import allan, ate, convert, hotpix, sim
+    from ibiscape_eval.cli import allan, ate, compare, convert, events, hotpix, sim
     from ibiscape_eval.io.detect import TRAJECTORY_FORMATS
     from ibiscape_eval.io.events import FORMATS as EVENT_FORMATS
     from ibiscape_eval.io.imu import FORMATS as IMU_FORMATS
@@ -34,6 +36,8 @@ def test_option_choices_are_the_library_lists() -> None:
     assert choices(allan.allan, "fmt") == IMU_FORMATS
     assert choices(hotpix.hotpix, "fmt") == ("auto", *EVENT_FORMATS)
     assert choices(sim.sim, "scenario") == SCENARIOS and choices(sim.sim, "target") == TARGETS
+    assert choices(compare.compare, "alignment") == tuple(a.value for a in Alignment)
+    assert choices(events.frames, "fmt") == ("auto", *EVENT_FORMATS)
 
 
 def test_startup_tweaks_restore_the_process_state() -> None:

@@ -1,6 +1,6 @@
-"""Issue 22 on the command line: no confident wrong number from ``ate``, ``rpe``, ``drift``,
-``compare``: the alignment's conditioning, synthetic stamps, unreached drift lengths, swapped
-arguments, one argument order, and evo's remaining options."""
+"""No confident wrong number from ``ate``, ``rpe``, ``drift``, ``compare``: warnings for a poorly
+conditioned alignment, synthetic (KITTI) stamps, unreached drift lengths and swapped arguments;
+one argument order (estimates, then the reference); the unit and selection options."""
 
 from __future__ import annotations
 
@@ -10,8 +10,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from _cli_data import SHARED, write_tum
+from _cli_data import write_tum
 from scipy.spatial.transform import Rotation
+from shared_data import require_shared
 
 import ibiscape_eval.report.plots as plots
 
@@ -36,7 +37,7 @@ def test_two_mm_cloud_warns_in_text_and_json(run_cli, tmp_path: Path) -> None:
     assert "--align yaw" in line[0] and 'align="' not in line[0]  # said in CLI terms
     res = run_cli("ate", est, gt, "--json")
     doc = json.loads(res.stdout)
-    assert doc["rotation_deg"]["rmse"] > 10  # the number the issue calls confident and wrong
+    assert doc["rotation_deg"]["rmse"] > 10  # a confident, wrong rotation error
     assert len(doc["warnings"]) == 1 and "--align yaw" in doc["warnings"][0]
     assert doc["alignment_conditioning"]["rotation_sigma_total_deg"] > 5
     assert max(doc["alignment_conditioning"]["spread_m"]) < 0.002
@@ -213,12 +214,11 @@ def test_swap_warning_for_a_denser_smoother_estimate(run_cli, tmp_path: Path) ->
     ("V102.txt", "V102_groundtruth.csv"),
 ])
 def test_no_swap_warning_on_real_data_in_the_right_order(run_cli, est: str, gt: str) -> None:
-    if not (SHARED / est).exists():
-        pytest.skip("shared real data missing")
-    res = run_cli("ate", SHARED / est, SHARED / gt, "--align", "sim3", "--json")
+    shared = require_shared("trajectories")
+    res = run_cli("ate", shared / est, shared / gt, "--align", "sim3", "--json")
     assert res.exit_code == 0, res.output
     assert "looks like the ground truth" not in res.stderr
-    bad = run_cli("ate", SHARED / gt, SHARED / est, "--align", "sim3", "--json")
+    bad = run_cli("ate", shared / gt, shared / est, "--align", "sim3", "--json")
     assert "looks like the ground truth" in bad.stderr
 
 
