@@ -344,51 +344,51 @@ def _span(values: list[Any]) -> list[float] | None:
 
 def benchmark_numbers(report_json: Path) -> dict[str, Any]:
     """The benchmark's measured numbers (ranges over its jobs) from its ``report.json``."""
-    doc = json.loads(report_json.read_text(encoding="utf-8"))
-    steps = doc["steps"]
-    out: dict[str, Any] = {"scale": doc["scale"], "n_jobs": doc["summary"]["n_jobs"],
-                           "n_failed": doc["summary"]["n_failed"], "steps": {}}
-    for name, wall in doc["wall_s"].items():
-        recs = steps.get(name, [])
-        out["steps"][name] = {"wall_s": wall, "jobs": len(recs),
-                              "failed": sum(r["status"] != "ok" for r in recs)}
-    out["total_wall_s"] = sum(doc["wall_s"].values())
-    ok = {k: [r["value"] for r in v if r["status"] == "ok" and r["value"]]
-          for k, v in steps.items()}
+    from ibiscape_eval.benchmark import BenchmarkResult
+
+    res = BenchmarkResult.from_dict(json.loads(report_json.read_text(encoding="utf-8")))
+    st = res.steps
+    recs = dict(st.items())
+    out: dict[str, Any] = {"scale": res.scale, "n_jobs": res.n_jobs, "n_failed": res.n_failed,
+                           "steps": {}}
+    for name, wall in res.wall_s.items():
+        out["steps"][name] = {"wall_s": wall, "jobs": len(recs.get(name, ())),
+                              "failed": sum(not r.ok for r in recs.get(name, ()))}
+    out["total_wall_s"] = sum(res.wall_s.values())
     cams: dict[str, Any] = {}
-    for v in ok.get("camera_calibration", []):
-        t = cams.setdefault(str(v.get("target")), {"focal": [], "principal": [], "baseline": [],
-                                                   "rms": []})
-        for c in v["cameras"]:
-            t["focal"] += [c["fx_error_px"], c["fy_error_px"]]
-            t["principal"] += [c["cx_error_px"], c["cy_error_px"]]
-        t["baseline"] += [c["baseline_error_mm"] for c in v["chain"]]
-        t["rms"].append(v.get("rms_px"))
+    for cal in (r.value for r in st.camera_calibration if r.ok and r.value):
+        t = cams.setdefault(str(cal.target), {"focal": [], "principal": [], "baseline": [],
+                                              "rms": []})
+        for c in cal.cameras:
+            t["focal"] += [c.fx_error_px, c.fy_error_px]
+            t["principal"] += [c.cx_error_px, c.cy_error_px]
+        t["baseline"] += [p.baseline_error_mm for p in cal.chain]
+        t["rms"].append(cal.rms_px)
     out["camera_calibration"] = {
         target: {"focal_error_px": _span(t["focal"]), "principal_error_px": _span(t["principal"]),
                  "baseline_error_mm": _span(t["baseline"]), "rms_px": _span(t["rms"])}
         for target, t in cams.items()}
-    imucam = [c for v in ok.get("imu_camera", []) for c in v["cameras"]]
+    imucam = [c for r in st.imu_camera if r.ok and r.value for c in r.value.cameras]
     out["imu_camera"] = {
-        "rotation_error_deg": _span([c["rotation_error_deg"] for c in imucam]),
-        "translation_error_mm": _span([c["translation_error_mm"] for c in imucam]),
-        "timeshift_error_ms": _span([c["timeshift_error_ms"] for c in imucam])}
-    noise = ok.get("imu_noise", [])
+        "rotation_error_deg": _span([c.rotation_error_deg for c in imucam]),
+        "translation_error_mm": _span([c.translation_error_mm for c in imucam]),
+        "timeshift_error_ms": _span([c.timeshift_error_ms for c in imucam])}
+    noise = [r.value for r in st.imu_noise if r.ok and r.value]
     if noise:
-        out["imu_noise"] = {"duration_h": noise[0]["duration_h"],
-                            "error_pct": {k["key"]: k["error_pct"] for k in noise[0]["rows"]}}
-    hot = ok.get("hot_pixels", [])
-    out["hot_pixels"] = {"removed_pct": _span([100 * (v["fraction_removed"] or 0.0) for v in hot]),
-                         "precision": _span([v["precision"] for v in hot]),
-                         "recall": _span([v["recall"] for v in hot])}
-    vio = [v.get("stats") or {} for v in ok.get("vio", [])]
-    out["vio"] = {"frames": _span([st.get("frames") for st in vio]),
-                  "frames_estimated": _span([st.get("frames_estimated") for st in vio]),
-                  "failure_spans": sum(len(st.get("failures") or []) for st in vio)}
-    ev = ok.get("evaluation", [])
-    out["evaluation"] = {"ate_m": _span([v["ate_rmse_m"] for v in ev]),
-                         "rpe_m": _span([v["rpe_m"] for v in ev]),
-                         "rpe_deg": _span([v["rpe_deg"] for v in ev])}
+        out["imu_noise"] = {"duration_h": noise[0].duration_h,
+                            "error_pct": {k.key: k.error_pct for k in noise[0].rows}}
+    hot = [r.value for r in st.hot_pixels if r.ok and r.value]
+    out["hot_pixels"] = {"removed_pct": _span([100 * (v.fraction_removed or 0.0) for v in hot]),
+                         "precision": _span([v.precision for v in hot]),
+                         "recall": _span([v.recall for v in hot])}
+    vio = [r.value.stats for r in st.vio if r.ok and r.value]
+    out["vio"] = {"frames": _span([s.get("frames") for s in vio]),
+                  "frames_estimated": _span([s.get("frames_estimated") for s in vio]),
+                  "failure_spans": sum(len(s.get("failures") or []) for s in vio)}
+    ev = [r.value for r in st.evaluation if r.ok and r.value]
+    out["evaluation"] = {"ate_m": _span([v.ate_rmse_m for v in ev]),
+                         "rpe_m": _span([v.rpe_m for v in ev]),
+                         "rpe_deg": _span([v.rpe_deg for v in ev])}
     return out
 
 

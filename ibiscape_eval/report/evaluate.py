@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import math
 import warnings
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -22,7 +21,6 @@ from ibiscape_eval.core.errors import IbiscapeError, IbiscapeWarning
 from .runs import RunsLayout, RunSpec
 
 __all__ = [
-    "EVALUATE_RUN",
     "EvaluationOptions",
     "RunsEvaluation",
     "box_stats",
@@ -32,7 +30,6 @@ __all__ = [
     "run_job_for",
 ]
 
-EVALUATE_RUN = "ibiscape_eval.report.evaluate:evaluate_run"
 ALIGNMENTS = ("none", "origin", "se3", "sim3", "yaw")
 TRACK_POINTS = 400  # aligned estimate positions kept per run for the trajectory figures
 
@@ -230,7 +227,7 @@ def run_job_for(run: RunSpec, groundtruth: str, options: EvaluationOptions) -> J
     inputs = [run.path, groundtruth] + ([run.times_path] if run.times_path else [])
     return Job(
         key=run.key,
-        func=EVALUATE_RUN,
+        func=evaluate_run,
         params={"est": run.path, "ref": groundtruth, "times_est": run.times_path,
                 "options": options.to_dict()},
         inputs=tuple(inputs),
@@ -329,7 +326,3 @@ def evaluate_runs(
         runs.append(rec)
     return RunsEvaluation(layout, o, tuple(runs), summary.to_dict(), aligns)
 
-
-def ok_runs(runs: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
-    """The successful runs."""
-    return [r for r in runs if r["status"] == "ok"]
