@@ -57,6 +57,10 @@ class LogLines:
     def set_postfix_str(self, s: str = "", refresh: bool = True) -> None:
         self.postfix = s
 
+    def reset(self, total: int | None = None) -> None:
+        """Start counting again (over ``total`` units)."""
+        self.n, self.total = 0, total
+
     def update(self, n: float = 1) -> None:
         self.n += int(n)
         now = time.monotonic()

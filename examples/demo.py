@@ -392,9 +392,19 @@ def benchmark_numbers(report_json: Path) -> dict[str, Any]:
     return out
 
 
+def _cpu_s() -> float:
+    """CPU seconds of this process and its finished children (the commands, their workers)."""
+    import resource
+
+    own, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(
+        resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+
+
 def write_numbers(out: Path, steps_wall_s: dict[str, float], complete: bool,
-                  load_start: float | None) -> Path:
-    """``out/numbers.json``: what this demo run measured (see the module docstring)."""
+                  load_start: float | None, cpu_s: dict[str, float] | None = None) -> Path:
+    """``out/numbers.json``: what this demo run measured (see the module docstring); ``cpu_s``
+    is the CPU time of each step (stable on a busy machine, where wall times are not)."""
     from ibiscape_eval.io.atomic import atomic_write
 
     doc: dict[str, Any] = {
@@ -405,6 +415,7 @@ def write_numbers(out: Path, steps_wall_s: dict[str, float], complete: bool,
         "complete": complete,
         "steps": list(steps_wall_s),
         "wall_s": dict(steps_wall_s),
+        "cpu_s": dict(cpu_s or {}),
     }
     if complete:  # the whole demo's time only from a whole run
         doc["wall_s"]["total"] = sum(steps_wall_s.values())
@@ -457,13 +468,16 @@ def main() -> None:
     t0 = time.perf_counter()
     load_start = _load()
     walls: dict[str, float] = {}
+    cpus: dict[str, float] = {}
     for name, step in STEPS:
         if args.only is None or name in args.only:
-            t_step = time.perf_counter()
+            t_step, c_step = time.perf_counter(), _cpu_s()
             step(args.out)
             walls[name] = round(time.perf_counter() - t_step, 1)
+            cpus[name] = round(_cpu_s() - c_step, 1)
     banner(f"demo finished in {time.perf_counter() - t0:.1f} s; figures and files in {args.out}/")
-    numbers = write_numbers(args.out, walls, complete=args.only is None, load_start=load_start)
+    numbers = write_numbers(args.out, walls, complete=args.only is None, load_start=load_start,
+                            cpu_s=cpus)
     print(f"measured numbers: {numbers} (README: benchmarks/update_readme_numbers.py --from "
           f"{numbers})")
     for p in sorted(args.out.iterdir()):
