@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import shutil
-import tomllib
 from pathlib import Path
 
 import _batch_jobs as jobs_mod
+import tomllib
 
 import ibiscape_eval.sim
 from ibiscape_eval.batch import ContentCache, Job, LocalExecutor, code_version, run_jobs
