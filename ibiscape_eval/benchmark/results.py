@@ -25,6 +25,8 @@ from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, Generic, TypeVar
 
+from ibiscape_eval.core.errors import IbiscapeError
+
 __all__ = [
     "STEP_VALUES",
     "BenchmarkSteps",
@@ -97,7 +99,7 @@ class JsonRecord:
     sorted_keys: ClassVar[bool] = True
 
     def to_dict(self) -> dict[str, Any]:
-        """The JSON object (keys in field order)."""
+        """The JSON object (keys sorted; in field order for ``sorted_keys = False``)."""
         out: dict[str, Any] = {}
         for f in dataclasses.fields(self):
             v = getattr(self, f.name)
@@ -110,9 +112,14 @@ class JsonRecord:
     def from_dict(cls: type[R], doc: Mapping[str, Any]) -> R:
         """Read :meth:`to_dict`'s JSON object back (missing optional keys take their defaults)."""
         hints = _hints(typing.cast(Any, cls))
-        kw = {f.name: _from_json(hints[f.name], doc[_json_name(f)])
-              for f in dataclasses.fields(cls) if _json_name(f) in doc}
-        return cls(**kw)
+        fields = dataclasses.fields(cls)
+        missing = [_json_name(f) for f in fields if _json_name(f) not in doc
+                   and f.default is dataclasses.MISSING]
+        if missing:
+            raise IbiscapeError(f"{cls.__name__}: no {', '.join(missing)} in {sorted(doc)}; not "
+                                "the JSON of this ibiscape-eval version's benchmark result")
+        return cls(**{f.name: _from_json(hints[f.name], doc[_json_name(f)])
+                      for f in fields if _json_name(f) in doc})
 
 
 # --------------------------------------------------------------------------------------------

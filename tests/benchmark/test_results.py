@@ -80,3 +80,12 @@ def test_a_whole_result_round_trips() -> None:
     assert back == res and back.to_dict() == doc
     assert list(doc["steps"]) == list(STEP_VALUES)
     assert back.n_failed == len(STEP_VALUES) and back.steps.vio[0].value == recs["vio"][0].value
+
+
+def test_a_document_of_another_shape_is_refused_naming_the_keys() -> None:
+    from ibiscape_eval.core.errors import IbiscapeError
+
+    doc = HotPixelsResult("s", "davisL", 1, 0, 0, None, None, None).to_dict()
+    del doc["n_events"]
+    with pytest.raises(IbiscapeError, match="HotPixelsResult: no n_events"):
+        HotPixelsResult.from_dict(doc)
