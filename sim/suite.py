@@ -265,7 +265,7 @@ def suite_jobs(entries: Sequence[SuiteEntry], out_dir: str | os.PathLike[str], *
     from ibiscape_eval.batch import Job
 
     root = Path(out_dir)
-    return [Job(e.name, "ibiscape_eval.sim.suite:generate_entry",
+    return [Job(e.name, generate_entry,
                 {"entry": e.to_dict(), "out": str(root / e.name), "render": bool(render)})
             for e in entries]
 

@@ -4,13 +4,13 @@ content.
 ::
 
     from ibiscape_eval.batch import Job, ContentCache, LocalExecutor, DaskExecutor, run_jobs
-    jobs = [Job(f"run{i}", "mypkg.evaluate:one_run", {"path": p}, inputs=(p,))
-            for i, p in enumerate(paths)]
+    from mypkg.evaluate import one_run
+    jobs = [Job(f"run{i}", one_run, {"path": p}, inputs=(p,)) for i, p in enumerate(paths)]
     results, summary = run_jobs(jobs, LocalExecutor(), cache=ContentCache(".cache"))
     results, summary = run_jobs(jobs, DaskExecutor("tcp://10.0.0.5:8786"))   # same results
 
-A job names its function by import path and carries JSON parameters, so it is hashed for the cache,
-sent to a cluster and recorded as JSON without pickling any user data.  A job that raises is
+A job holds a module-level function (sent to a worker by its import path) and JSON parameters, so
+it is hashed for the cache, sent to a cluster and recorded as JSON without pickling any user data.  A job that raises is
 recorded as failed with its message; the other jobs carry on.
 """
 
@@ -26,7 +26,7 @@ from .executors import (
     make_executor,
     run_jobs,
 )
-from .jobs import Job, JobResult, canonical_json, run_job
+from .jobs import Job, JobFunction, JobResult, canonical_json, run_job
 
 __all__ = [
     "BatchSummary",
@@ -34,6 +34,7 @@ __all__ = [
     "DaskExecutor",
     "Executor",
     "Job",
+    "JobFunction",
     "JobResult",
     "LocalExecutor",
     "Progress",

@@ -2,7 +2,7 @@
 
 The key of a job is the SHA-256 of its function name, its parameters, the SHA-256 of every input
 file's bytes (folders: of every file below them, with their relative names) and a code version
-(the package version and the hash of the job function's source file), so editing an input, an
+(the package version and the hash of every source file the job can reach, :func:`code_files`), so editing an input, an
 option or the code that computes the result invalidates exactly the affected entries.  Entries are
 JSON files (``<dir>/<k[:2]>/<k>.json``), written atomically; nothing is pickled.  Only successful
 results are stored: failed jobs run again next time.
@@ -20,9 +20,9 @@ from pathlib import Path
 from typing import Any
 
 from .files import atomic_write
-from .jobs import Job, JobResult, canonical_json, resolve
+from .jobs import Job, JobFunction, JobResult, canonical_json, function_name
 
-__all__ = ["ContentCache", "code_version", "default_cache_dir"]
+__all__ = ["MAPPED_PACKAGES", "ContentCache", "code_files", "code_version", "default_cache_dir"]
 
 _CHUNK = 1 << 20
 
@@ -35,25 +35,56 @@ def _file_sha256(path: Path) -> str:
     return h.hexdigest()
 
 
-def code_version(func: str) -> str:
-    """``"<package version>+<hash>"``: the hash covers every ``.py`` file of the package that
-    defines ``func`` (and of ``ibiscape_eval``), so any change to the code that computes a result
-    (the job function or the metrics it calls) invalidates the cached results."""
-    import importlib
+#: Packages of this project that live outside the ``ibiscape_eval/`` folder (``package-dir`` of
+#: pyproject.toml: the simulator in ``sim/``, the command line in ``cli/``); their code computes
+#: results too (``sim suite`` jobs, the benchmark's suite step), so it is part of the code version.
+MAPPED_PACKAGES = ("ibiscape_eval.sim", "ibiscape_eval.cli")
 
+
+def _package_dirs(name: str) -> list[Path]:
+    """The folders of package ``name`` (its ``__path__``; a plain module: its file)."""
+    import importlib
+    import importlib.util
+    import sys
+
+    mod = sys.modules.get(name)
+    if mod is not None:
+        paths = getattr(mod, "__path__", None)
+        file = getattr(mod, "__file__", None)
+    else:  # not imported yet: locate it without running it
+        spec = importlib.util.find_spec(name)
+        paths = None if spec is None else spec.submodule_search_locations
+        file = None if spec is None else spec.origin
+    if paths:
+        return [Path(p) for p in paths]
+    return [Path(file)] if file else []
+
+
+def code_files(func: JobFunction) -> dict[str, Path]:
+    """Every ``.py`` file a job function can reach in this project, by its name relative to the
+    folder above its package: its own package (all of it) and ``ibiscape_eval`` with the packages
+    mapped from other folders (:data:`MAPPED_PACKAGES`)."""
+    top = function_name(func).partition(":")[0].split(".", 1)[0]
+    roots: list[Path] = []
+    for name in sorted({top, "ibiscape_eval"}) + list(MAPPED_PACKAGES):
+        roots += [d for d in _package_dirs(name) if d not in roots]
+    files: dict[str, Path] = {}
+    for r in roots:
+        for f in sorted(r.rglob("*.py")) if r.is_dir() else [r]:
+            files.setdefault(f.relative_to(r.parent).as_posix(), f)
+    return files
+
+
+def code_version(func: JobFunction) -> str:
+    """``"<package version>+<hash>"``: the hash covers every file of :func:`code_files` (names
+    and bytes), so any change to the code that computes a result (the job function, the metrics
+    it calls, the simulator that wrote its inputs) invalidates the cached results."""
     from ibiscape_eval import __version__
 
-    resolve(func)  # fails clearly for a job function that cannot be imported
     h = hashlib.sha256()
-    for top in sorted({func.partition(":")[0].split(".", 1)[0], "ibiscape_eval"}):
-        root = getattr(importlib.import_module(top), "__file__", None)
-        if not root:
-            continue
-        base = Path(root).parent
-        files = sorted(base.rglob("*.py")) if Path(root).name == "__init__.py" else [Path(root)]
-        for f in files:
-            h.update(f.relative_to(base.parent).as_posix().encode() + b"\0")
-            h.update(f.read_bytes())
+    for name, f in code_files(func).items():
+        h.update(name.encode() + b"\0")
+        h.update(f.read_bytes())
     return f"{__version__}+{h.hexdigest()[:16]}"
 
 
@@ -110,13 +141,14 @@ class ContentCache:
 
     def key(self, job: Job) -> str:
         """The content key of ``job`` (hex SHA-256)."""
-        if job.func not in self._versions:
-            self._versions[job.func] = code_version(job.func)
+        name = job.func_name
+        if name not in self._versions:
+            self._versions[name] = code_version(job.func)
         doc = {
-            "func": job.func,
+            "func": name,
             "params": dict(job.params),
             "inputs": [self.file_hash(p) for p in job.inputs],
-            "code": self._versions[job.func],
+            "code": self._versions[name],
         }
         return hashlib.sha256(canonical_json(doc).encode()).hexdigest()
 

@@ -1,10 +1,11 @@
 """The job model every batch command shares (``report``, and later ``sim suite`` and ``benchmark``).
 
-A :class:`Job` names a function by its import path (``"package.module:function"``), the JSON
-parameters it is called with, and the input files whose bytes determine its result.  Nothing in a
-job is a Python object that would have to be pickled: a job can be written to JSON, hashed for the
-content cache (:mod:`ibiscape_eval.batch.cache`), run in this process, in a pool of local processes
-or on a Dask cluster, and gives the same :class:`JobResult` wherever it runs.
+A :class:`Job` holds a module-level function (a reference, checked by mypy; it travels by its
+import path ``"package.module:function"``, :attr:`Job.func_name`), the JSON parameters it is called
+with, and the input files whose bytes determine its result.  Nothing else in a job is a Python
+object: a job can be written to JSON, hashed for the content cache
+(:mod:`ibiscape_eval.batch.cache`), run in this process, in a pool of local processes or on a Dask
+cluster, and gives the same :class:`JobResult` wherever it runs.
 
 A job function takes keyword arguments (the job's ``params``) and returns a JSON-compatible
 ``dict``.  An exception it raises is caught where it runs and recorded as a failed result with its
@@ -19,13 +20,16 @@ import json
 import math
 import time
 import traceback
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
 from ibiscape_eval.core.errors import IbiscapeError
 
-__all__ = ["Job", "JobResult", "canonical_json", "run_job"]
+__all__ = ["Job", "JobFunction", "JobResult", "canonical_json", "function_name", "run_job"]
+
+#: A job function: keyword arguments (the job's JSON parameters) in, a JSON-compatible dict out.
+JobFunction = Callable[..., Mapping[str, Any]]
 
 
 def _check_json(value: Any, where: str) -> None:
@@ -62,8 +66,9 @@ class Job:
     key : str
         Unique, human-readable name within a batch (``"V1/orbslam3/trial_2"``); results are
         returned under it.
-    func : str
-        ``"package.module:function"``: imported and called where the job runs.
+    func : callable
+        A module-level function (:data:`JobFunction`); it travels by its import path
+        (:attr:`func_name`) and is imported where the job runs.
     params : dict
         Keyword arguments of ``func``, JSON-compatible.
     inputs : tuple of str
@@ -71,28 +76,32 @@ class Job:
     """
 
     key: str
-    func: str
+    func: JobFunction
     params: Mapping[str, Any] = field(default_factory=dict)
     inputs: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if not self.key:
             raise IbiscapeError("a job needs a non-empty key")
-        module, sep, name = self.func.partition(":")
-        if not (module and sep and name):
-            raise IbiscapeError(
-                f"job {self.key}: func must be 'package.module:function', got {self.func!r}"
-            )
+        name = function_name(self.func)
+        if resolve(name) is not self.func:
+            raise IbiscapeError(f"job {self.key}: {name} is not importable by that name (a job "
+                                "function must be defined at the top level of a module)")
         _check_json(dict(self.params), f"job {self.key} params")
         object.__setattr__(self, "inputs", tuple(str(p) for p in self.inputs))
 
+    @property
+    def func_name(self) -> str:
+        """``"package.module:function"``, the function's import path."""
+        return function_name(self.func)
+
     def to_dict(self) -> dict[str, Any]:
-        """JSON form: ``key, func, params, inputs``."""
-        return {"key": self.key, "func": self.func, "params": dict(self.params),
+        """JSON form: ``key, func`` (the import path), ``params, inputs``."""
+        return {"key": self.key, "func": self.func_name, "params": dict(self.params),
                 "inputs": list(self.inputs)}
 
     def __repr__(self) -> str:
-        return f"Job({self.key!r}, {self.func})"
+        return f"Job({self.key!r}, {self.func_name})"
 
 
 @dataclass(frozen=True)
@@ -133,6 +142,14 @@ class JobResult:
 
     def __repr__(self) -> str:
         return f"JobResult({self.key!r}, {self.status}{', cached' if self.cached else ''})"
+
+
+def function_name(func: JobFunction) -> str:
+    """``"package.module:qualified.name"`` of a function."""
+    module, name = getattr(func, "__module__", None), getattr(func, "__qualname__", None)
+    if not (module and name) or "<" in name:
+        raise IbiscapeError(f"{func!r} is not a module-level function; a job needs one")
+    return f"{module}:{name}"
 
 
 def resolve(func: str) -> Any:
@@ -177,15 +194,15 @@ def run_job(job: Job) -> JobResult:
     t0 = time.perf_counter()
     try:
         with _single_threaded_kernels():
-            value = resolve(job.func)(**dict(job.params))
+            value = job.func(**dict(job.params))
         if not isinstance(value, Mapping):
             raise IbiscapeError(
-                f"job function {job.func} returned {type(value).__name__}, expected a dict"
+                f"job function {job.func_name} returned {type(value).__name__}, expected a dict"
             )
         try:  # json's own checks (C speed): NaN/Infinity and non-JSON types are refused
             text = canonical_json(value)
         except (TypeError, ValueError) as e:
-            raise IbiscapeError(f"job function {job.func} returned a value that is not strict "
+            raise IbiscapeError(f"job function {job.func_name} returned a value that is not strict "
                                 f"JSON ({e}); return None instead of NaN") from None
         value = json.loads(text)
     except Exception as e:  # a job's failure is data, not a crash of the batch

@@ -9,11 +9,13 @@
 
 Every step runs as :mod:`ibiscape_eval.batch` jobs (local pool or Dask cluster); see
 :mod:`ibiscape_eval.benchmark.run` for the steps and :mod:`ibiscape_eval.benchmark.steps` for the
-job functions.
+job functions; their typed results are in :mod:`ibiscape_eval.benchmark.results`.
 """
 
 from __future__ import annotations
 
+from .results import BenchmarkSteps, StepRecord
 from .run import STEPS, BenchmarkResult, benchmark_jobs, run_benchmark
 
-__all__ = ["STEPS", "BenchmarkResult", "benchmark_jobs", "run_benchmark"]
+__all__ = ["STEPS", "BenchmarkResult", "BenchmarkSteps", "StepRecord", "benchmark_jobs",
+           "run_benchmark"]

@@ -1,7 +1,8 @@
 """The benchmark's job functions: one per step and sequence (JSON in, JSON out).
 
-Each function is a :class:`~ibiscape_eval.batch.Job` target (named by import path), so it runs in
-this process, in a local pool or on a Dask worker and gives the same result everywhere.  Each
+Each function is a :class:`~ibiscape_eval.batch.Job` target, so it runs in this process, in a
+local pool or on a Dask worker and gives the same result everywhere; it returns the JSON form
+(``to_dict()``) of its typed result in :mod:`ibiscape_eval.benchmark.results`.  Each
 reads one sequence of the suite, calls the library that does the work and compares the result
 with the truth the simulator wrote into ``sequence.yaml``:
 
@@ -27,6 +28,18 @@ from typing import Any
 
 from ibiscape_eval.core.errors import IbiscapeError
 from ibiscape_eval.core.numbers import finite_or_none
+
+from .results import (
+    CameraCalibrationResult,
+    CameraError,
+    HotPixelsResult,
+    ImuCameraError,
+    ImuCameraResult,
+    ImuNoiseResult,
+    NoiseRow,
+    PairError,
+    VioResult,
+)
 
 __all__ = [
     "camera_calibration",
@@ -95,16 +108,14 @@ def _camera_calibration(seq: str, cameras: Sequence[str], model: str, max_views:
     cams = []
     for c in (truth.cameras if truth is not None else []):
         err = c["error"]
-        cams.append({"camera": c["name"], "fx_error_px": err["fx"], "fy_error_px": err["fy"],
-                     "cx_error_px": err["cx"], "cy_error_px": err["cy"],
-                     "distortion_max_error": max(abs(v) for v in err["distortion_coeffs"]),
-                     "fx_px": c["estimate"]["fx"], "fx_truth_px": c["truth"]["fx"]})
-    chain = [{"from": c["from"], "to": c["to"], "baseline_error_mm": c["baseline_error_mm"],
-              "baseline_truth_m": c["baseline_truth_m"], "rotation_error_deg": c["rotation_error_deg"]}
-             for c in (truth.chain if truth is not None else [])]
-    return {"sequence": Path(seq).name, "target": target.to_kalibr().get("target_type"),
-            "model": model, "cameras": cams, "chain": chain, "rms_px": finite_or_none(rd.get("rms_px")),
-            "n_views": rd.get("n_views"), "reconstruction": recon}
+        cams.append(CameraError(c["name"], err["fx"], err["fy"], err["cx"], err["cy"],
+                                max(abs(v) for v in err["distortion_coeffs"]),
+                                c["estimate"]["fx"], c["truth"]["fx"]))
+    chain = [PairError(c["from"], c["to"], c["baseline_error_mm"], c["baseline_truth_m"],
+                       c["rotation_error_deg"]) for c in (truth.chain if truth is not None else [])]
+    return CameraCalibrationResult(
+        Path(seq).name, target.to_kalibr().get("target_type"), model, tuple(cams), tuple(chain),
+        finite_or_none(rd.get("rms_px")), rd.get("n_views"), recon).to_dict()
 
 
 def imu_camera_calibration(seq: str, cameras: Sequence[str]) -> dict[str, Any]:
@@ -130,17 +141,17 @@ def imu_camera_calibration(seq: str, cameras: Sequence[str]) -> dict[str, Any]:
     rows = []
     for c in res.result.cameras:
         er = res.errors_vs_truth.get(c.name, {})
-        rows.append({"camera": c.name,
-                     "rotation_error_deg": finite_or_none(er.get("rotation_error_deg")),
-                     "translation_error_mm": finite_or_none(1e3 * er.get("translation_error_m", math.nan)),
-                     "timeshift_error_ms": finite_or_none(1e3 * er.get("timeshift_error_s", math.nan)),
-                     "timeshift_ms": finite_or_none(1e3 * c.timeshift_cam_imu_s),
-                     "timeshift_truth_ms": finite_or_none(
-                         1e3 * res.truth.get(c.name, {}).get("timeshift_cam_imu", math.nan)),
-                     "reprojection_rms_px": finite_or_none(c.reprojection_rms_px)})
-    return {"sequence": Path(seq).name, "cameras": rows, "forced": bool(res.result.forced),
-            "warnings": list(res.result.warnings),
-            "method": "calibrate_sequence: detected corners, B-spline camera-IMU solve"}
+        rows.append(ImuCameraError(
+            c.name, finite_or_none(er.get("rotation_error_deg")),
+            finite_or_none(1e3 * er.get("translation_error_m", math.nan)),
+            finite_or_none(1e3 * er.get("timeshift_error_s", math.nan)),
+            finite_or_none(1e3 * c.timeshift_cam_imu_s),
+            finite_or_none(1e3 * res.truth.get(c.name, {}).get("timeshift_cam_imu", math.nan)),
+            finite_or_none(c.reprojection_rms_px)))
+    return ImuCameraResult(Path(seq).name, tuple(rows), bool(res.result.forced),
+                           tuple(res.result.warnings),
+                           "calibrate_sequence: detected corners, B-spline camera-IMU solve"
+                           ).to_dict()
 
 
 # ---------------------------------------------------------------------------------------------
@@ -169,10 +180,10 @@ def imu_noise(seq: str) -> dict[str, Any]:
     rows = []
     for key in KALIBR_NOISE_KEYS:
         t, v = finite_or_none(imu0.get(key)), finite_or_none(est.get(key))
-        rows.append({"key": key, "truth": t, "estimate": v,
-                     "error_pct": None if t in (None, 0.0) or v is None else 100.0 * (v / t - 1.0)})
-    return {"sequence": Path(seq).name, "n_samples": int(rec.n_samples),
-            "duration_h": rec.n_samples / rec.rate_hz / 3600.0, "rate_hz": rec.rate_hz, "rows": rows}
+        rows.append(NoiseRow(key, t, v, None if t in (None, 0.0) or v is None
+                             else 100.0 * (v / t - 1.0)))
+    return ImuNoiseResult(Path(seq).name, int(rec.n_samples),
+                          rec.n_samples / rec.rate_hz / 3600.0, rec.rate_hz, tuple(rows)).to_dict()
 
 
 # ---------------------------------------------------------------------------------------------
@@ -211,11 +222,9 @@ def hot_pixels(seq: str, camera: str, n_sigma: float = 5.0) -> dict[str, Any]:
     a = {tuple(p) for p in found.tolist()}
     b = {tuple(p) for p in planted.reshape(-1, 2).tolist()}
     tp = len(a & b)
-    return {"sequence": Path(seq).name, "camera": camera, "n_events": int(res.n_events),
-            "n_hot_pixels": len(a), "n_noisy_pixels": len(b),
-            "fraction_removed": finite_or_none(res.fraction_discarded),
-            "precision": tp / len(a) if a and b else None,
-            "recall": tp / len(b) if b else None}
+    return HotPixelsResult(Path(seq).name, camera, int(res.n_events), len(a), len(b),
+                           finite_or_none(res.fraction_discarded), tp / len(a) if a and b else None,
+                           tp / len(b) if b else None).to_dict()
 
 
 # ---------------------------------------------------------------------------------------------
@@ -240,7 +249,7 @@ def vio(seq: str, max_frames: int | None = None) -> dict[str, Any]:
         write_trajectory(p, res.trajectory, "tum")
         text = p.read_text(encoding="utf-8")
     stats = res.to_dict()
-    keep = {k: stats[k] for k in ("frames", "keyframes", "frames_estimated", "failures",
-                                  "init_method", "cpu_realtime_factor") if k in stats}
-    return {"sequence": Path(seq).name, "stats": keep, "n_poses": len(res.trajectory),
-            "estimate_tum": text}
+    keep: dict[str, Any] = {k: stats[k] for k in ("frames", "keyframes", "frames_estimated",
+                                                  "failures", "init_method",
+                                                  "cpu_realtime_factor") if k in stats}
+    return VioResult(Path(seq).name, keep, len(res.trajectory), text).to_dict()

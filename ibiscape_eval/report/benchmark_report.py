@@ -19,6 +19,7 @@ from .html import _CSS
 
 if TYPE_CHECKING:
     from ibiscape_eval.benchmark import BenchmarkResult
+    from ibiscape_eval.benchmark.results import StepRecord
 
 __all__ = ["Table", "benchmark_html", "benchmark_markdown", "benchmark_tables",
            "write_benchmark_report"]
@@ -79,109 +80,122 @@ def _f(v: Any, fmt: str = ".3f") -> str:
         return str(v)
 
 
-def _failed(rec: dict[str, Any]) -> str:
-    return f"FAILED: {rec['error']}"
+def _failed(rec: StepRecord[Any]) -> str:
+    return f"FAILED: {rec.error}"
+
+
+def _camera_tables(res: BenchmarkResult) -> list[Table]:
+    intr: list[tuple[str, ...]] = []
+    pairs: list[tuple[str, ...]] = []
+    for r in res.steps.camera_calibration:
+        v = r.value
+        if not r.ok or v is None:
+            intr.append((r.key, "", _failed(r), "", "", "", "", "", ""))
+            continue
+        for c in v.cameras:
+            intr.append((r.key, c.camera, str(v.target), _f(c.fx_error_px), _f(c.fy_error_px),
+                         _f(c.cx_error_px), _f(c.cy_error_px), _f(c.distortion_max_error, ".4f"),
+                         _f(v.rms_px)))
+        for p in v.chain:
+            pairs.append((r.key, f"{p.from_camera} → {p.to_camera}", _f(p.baseline_truth_m),
+                          _f(p.baseline_error_mm, ".2f"), _f(p.rotation_error_deg, ".4f")))
+    return [
+        Table("camera_intrinsics", "Camera calibration: intrinsics against the truth",
+              "Errors of the estimate minus the simulated camera (table:camerasintrinsics); "
+              "model pinhole-radtan; RMS reprojection error of the whole solve.",
+              ("sequence", "camera", "target", "fx err [px]", "fy err [px]", "cx err [px]",
+               "cy err [px]", "max |dist err|", "RMS [px]"), tuple(intr)),
+        Table("baselines", "Camera calibration: stereo baselines against the truth",
+              "table:baselines: baseline error [mm] and relative rotation error [deg].",
+              ("sequence", "pair", "true baseline [m]", "baseline err [mm]",
+               "rotation err [deg]"), tuple(pairs))]
+
+
+def _imu_camera_table(res: BenchmarkResult) -> Table:
+    rows: list[tuple[str, ...]] = []
+    for r in res.steps.imu_camera:
+        if not r.ok or r.value is None:
+            rows.append((r.key, "", _failed(r), "", "", ""))
+            continue
+        for c in r.value.cameras:
+            rows.append((r.key, c.camera, _f(c.rotation_error_deg, ".4f"),
+                         _f(c.translation_error_mm, ".2f"), _f(c.timeshift_error_ms, ".4f"),
+                         _f(c.reprojection_rms_px)))
+    return Table("imu_camera", "Camera-IMU calibration against the truth",
+                 "T_cam_imu rotation and translation errors, time offset error.",
+                 ("sequence", "camera", "rotation err [deg]", "translation err [mm]",
+                  "time offset err [ms]", "RMS [px]"), tuple(rows))
+
+
+def _imu_noise_table(res: BenchmarkResult) -> Table:
+    rows: list[tuple[str, ...]] = []
+    for r in res.steps.imu_noise:
+        v = r.value
+        if not r.ok or v is None:
+            rows.append((r.key, _failed(r), "", "", ""))
+            continue
+        for k in v.rows:
+            rows.append((f"{r.key} ({_f(v.duration_h, '.2f')} h)", k.key, _f(k.truth, ".4g"),
+                         _f(k.estimate, ".4g"), _f(k.error_pct, "+.1f")))
+    return Table("imu_noise", "IMU noise (Allan deviation) against the configured truth",
+                 "table:imuvalues: Kalibr densities (largest of the three axes), continuous time.",
+                 ("sequence", "Kalibr key", "truth", "estimate", "error [%]"), tuple(rows))
+
+
+def _hot_pixels_table(res: BenchmarkResult) -> Table:
+    rows: list[tuple[str, ...]] = []
+    for r in res.steps.hot_pixels:
+        v = r.value
+        if not r.ok or v is None:
+            rows.append((r.key, _failed(r), "", "", "", "", ""))
+            continue
+        rows.append((r.key, f"{v.n_events:,}", str(v.n_hot_pixels), str(v.n_noisy_pixels),
+                     _f(100 * (v.fraction_removed or 0.0), ".2f"), _f(v.precision),
+                     _f(v.recall)))
+    return Table("hot_pixels", "DVS hot pixels (n-sigma 5)",
+                 "Fraction of events removed; precision and recall of the detected pixels "
+                 "against the pixels the simulated rain and fog made noisy (– in clear weather: "
+                 "none planted).",
+                 ("sequence/camera", "events", "hot pixels", "noisy pixels (truth)",
+                  "removed [%]", "precision", "recall"), tuple(rows))
+
+
+def _vio_table(res: BenchmarkResult) -> Table:
+    rows: list[tuple[str, ...]] = []
+    ev = {r.sequence: r for r in res.steps.evaluation}
+    for r in res.steps.vio:
+        if not r.ok:
+            rows.append((r.key, _failed(r), "", "", "", ""))
+            continue
+        s = r.value.stats if r.value is not None else {}
+        n_poses = r.value.n_poses if r.value is not None else None
+        e = ev.get(r.key)
+        sc = e.value if e is not None and e.ok else None
+        ate = (None, None, None) if sc is None else (sc.ate_rmse_m, sc.rpe_m, sc.rpe_deg)
+        rows.append((r.key, f"{s.get('frames_estimated', n_poses)}/{s.get('frames')}",
+                     str(len(s.get("failures") or [])), *(_f(x) for x in ate)))
+    for sk in res.skipped:
+        if sk["step"] == "vio":
+            rows.append((sk["sequence"], f"not applicable: {sk['reason']}", "", "", "", ""))
+    return Table("vio", "VIO baseline on the SLAM sequences",
+                 "table:evaluation: ATE RMSE [m] after 4-DoF (position + yaw) alignment, RPE over "
+                 "1 s (mean).",
+                 ("sequence", "frames estimated", "failure spans", "ATE [m]", "RPE [m]",
+                  "RPE [deg]"), tuple(rows))
+
+
+def _timing_table(res: BenchmarkResult) -> Table:
+    recs = dict(res.steps.items())
+    rows = tuple((k, _f(v, ".1f"), str(len(recs.get(k, ()))),
+                  str(sum(not r.ok for r in recs.get(k, ())))) for k, v in res.wall_s.items())
+    return Table("timing", "Wall time per step", "Seconds of wall clock for each step's batch.",
+                 ("step", "wall [s]", "jobs", "failed"), rows)
 
 
 def benchmark_tables(res: BenchmarkResult) -> list[Table]:
     """The report's tables, in the paper's order."""
-    t: list[Table] = []
-    st = res.steps
-    rows: list[tuple[str, ...]] = []
-    for r in st.get("camera_calibration", []):
-        v = r["value"]
-        if r["status"] != "ok" or not v:
-            rows.append((r["key"], "", _failed(r), "", "", "", "", "", ""))
-            continue
-        for c in v["cameras"]:
-            rows.append((r["key"], c["camera"], str(v.get("target")), _f(c["fx_error_px"]),
-                         _f(c["fy_error_px"]), _f(c["cx_error_px"]), _f(c["cy_error_px"]),
-                         _f(c["distortion_max_error"], ".4f"), _f(v.get("rms_px"))))
-    t.append(Table("camera_intrinsics", "Camera calibration: intrinsics against the truth",
-                   "Errors of the estimate minus the simulated camera (table:camerasintrinsics); "
-                   "model pinhole-radtan; RMS reprojection error of the whole solve.",
-                   ("sequence", "camera", "target", "fx err [px]", "fy err [px]", "cx err [px]",
-                    "cy err [px]", "max |dist err|", "RMS [px]"), tuple(rows)))
-    rows = []
-    for r in st.get("camera_calibration", []):
-        v = r["value"]
-        if r["status"] == "ok" and v:
-            for c in v["chain"]:
-                rows.append((r["key"], f"{c['from']} → {c['to']}", _f(c["baseline_truth_m"]),
-                             _f(c["baseline_error_mm"], ".2f"), _f(c["rotation_error_deg"], ".4f")))
-    t.append(Table("baselines", "Camera calibration: stereo baselines against the truth",
-                   "table:baselines: baseline error [mm] and relative rotation error [deg].",
-                   ("sequence", "pair", "true baseline [m]", "baseline err [mm]",
-                    "rotation err [deg]"), tuple(rows)))
-    rows = []
-    for r in st.get("imu_camera", []):
-        v = r["value"]
-        if r["status"] != "ok" or not v:
-            rows.append((r["key"], "", _failed(r), "", "", ""))
-            continue
-        for c in v["cameras"]:
-            rows.append((r["key"], c["camera"], _f(c["rotation_error_deg"], ".4f"),
-                         _f(c["translation_error_mm"], ".2f"), _f(c["timeshift_error_ms"], ".4f"),
-                         _f(c["reprojection_rms_px"])))
-    t.append(Table("imu_camera", "Camera-IMU calibration against the truth",
-                   "T_cam_imu rotation and translation errors, time offset error.",
-                   ("sequence", "camera", "rotation err [deg]", "translation err [mm]",
-                    "time offset err [ms]", "RMS [px]"), tuple(rows)))
-    rows = []
-    for r in st.get("imu_noise", []):
-        v = r["value"]
-        if r["status"] != "ok" or not v:
-            rows.append((r["key"], _failed(r), "", "", ""))
-            continue
-        for k in v["rows"]:
-            rows.append((f"{r['key']} ({_f(v['duration_h'], '.2f')} h)", k["key"],
-                         _f(k["truth"], ".4g"), _f(k["estimate"], ".4g"),
-                         _f(k["error_pct"], "+.1f")))
-    t.append(Table("imu_noise", "IMU noise (Allan deviation) against the configured truth",
-                   "table:imuvalues: Kalibr densities (largest of the three axes), continuous time.",
-                   ("sequence", "Kalibr key", "truth", "estimate", "error [%]"), tuple(rows)))
-    rows = []
-    for r in st.get("hot_pixels", []):
-        v = r["value"]
-        if r["status"] != "ok" or not v:
-            rows.append((r["key"], _failed(r), "", "", "", "", ""))
-            continue
-        rows.append((r["key"], f"{v['n_events']:,}", str(v["n_hot_pixels"]),
-                     str(v["n_noisy_pixels"]), _f(100 * (v["fraction_removed"] or 0.0), ".2f"),
-                     _f(v["precision"]), _f(v["recall"])))
-    t.append(Table("hot_pixels", "DVS hot pixels (n-sigma 5)",
-                   "Fraction of events removed; precision and recall of the detected pixels "
-                   "against the pixels the simulated rain and fog made noisy (– in clear weather: "
-                   "none planted).",
-                   ("sequence/camera", "events", "hot pixels", "noisy pixels (truth)",
-                    "removed [%]", "precision", "recall"), tuple(rows)))
-    rows = []
-    ev = {r["sequence"]: r for r in st.get("evaluation", [])}
-    for r in st.get("vio", []):
-        v = r["value"] or {}
-        e = ev.get(r["key"])
-        if r["status"] != "ok":
-            rows.append((r["key"], _failed(r), "", "", "", ""))
-            continue
-        s = v.get("stats", {})
-        ate = e["value"] if e and e["status"] == "ok" else {}
-        rows.append((r["key"], f"{s.get('frames_estimated', v.get('n_poses'))}/{s.get('frames')}",
-                     str(len(s.get("failures") or [])), _f(ate.get("ate_rmse_m")),
-                     _f(ate.get("rpe_m")), _f(ate.get("rpe_deg"))))
-    for s in res.skipped:
-        if s["step"] == "vio":
-            rows.append((s["sequence"], f"not applicable: {s['reason']}", "", "", "", ""))
-    t.append(Table("vio", "VIO baseline on the SLAM sequences",
-                   "table:evaluation: ATE RMSE [m] after 4-DoF (position + yaw) alignment, RPE over "
-                   "1 s (mean).",
-                   ("sequence", "frames estimated", "failure spans", "ATE [m]", "RPE [m]",
-                    "RPE [deg]"), tuple(rows)))
-    rows = [(k, _f(v, ".1f"), str(len(res.steps.get(k, []))),
-             str(sum(r["status"] != "ok" for r in res.steps.get(k, []))))
-            for k, v in res.wall_s.items()]
-    t.append(Table("timing", "Wall time per step", "Seconds of wall clock for each step's batch.",
-                   ("step", "wall [s]", "jobs", "failed"), tuple(rows)))
-    return t
+    return [*_camera_tables(res), _imu_camera_table(res), _imu_noise_table(res),
+            _hot_pixels_table(res), _vio_table(res), _timing_table(res)]
 
 
 def _meta(res: BenchmarkResult) -> str:

@@ -8,7 +8,6 @@ local pool, a Dask worker); :func:`evaluate_runs` builds one job per run, runs t
 from __future__ import annotations
 
 import warnings
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -22,7 +21,6 @@ from ibiscape_eval.core.numbers import finite_or_none
 from .runs import RunsLayout, RunSpec
 
 __all__ = [
-    "EVALUATE_RUN",
     "EvaluationOptions",
     "RunsEvaluation",
     "box_stats",
@@ -32,7 +30,6 @@ __all__ = [
     "run_job_for",
 ]
 
-EVALUATE_RUN = "ibiscape_eval.report.evaluate:evaluate_run"
 ALIGNMENTS = ("none", "origin", "se3", "sim3", "yaw")
 TRACK_POINTS = 400  # aligned estimate positions kept per run for the trajectory figures
 
@@ -225,7 +222,7 @@ def run_job_for(run: RunSpec, groundtruth: str, options: EvaluationOptions) -> J
     inputs = [run.path, groundtruth] + ([run.times_path] if run.times_path else [])
     return Job(
         key=run.key,
-        func=EVALUATE_RUN,
+        func=evaluate_run,
         params={"est": run.path, "ref": groundtruth, "times_est": run.times_path,
                 "options": options.to_dict()},
         inputs=tuple(inputs),
@@ -324,7 +321,3 @@ def evaluate_runs(
         runs.append(rec)
     return RunsEvaluation(layout, o, tuple(runs), summary.to_dict(), aligns)
 
-
-def ok_runs(runs: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
-    """The successful runs."""
-    return [r for r in runs if r["status"] == "ok"]

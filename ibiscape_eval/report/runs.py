@@ -148,6 +148,87 @@ def _truth_in_runs(seq_dir: Path) -> list[Path]:
             and (e.name == GROUNDTRUTH_STEM or e.name.split(".", 1)[0] == GROUNDTRUTH_STEM)]
 
 
+def _algorithm_runs(seq: str, alg_dir: Path, ignored: list[tuple[str, str]]) -> list[RunSpec]:
+    """The runs of one ``<sequence>/<algorithm>/`` folder (their alignment from ``run.yaml``)."""
+    alg_meta = alg_dir / RUN_META_NAME
+    alg_align = read_run_meta(alg_meta).align if alg_meta.is_file() else None
+    runs: list[RunSpec] = []
+    for trial_dir in _visible(alg_dir):
+        if trial_dir == alg_meta:
+            continue
+        if not trial_dir.is_dir():
+            ignored.append((str(trial_dir), "a file in an algorithm folder (expected "
+                                            "<trial>/ folders holding one trajectory)"))
+            continue
+        found = _trial_file(trial_dir, ignored)
+        if found is None:
+            continue
+        est, times = found
+        align, meta = alg_align, (str(alg_meta) if alg_align else None)
+        trial_meta = trial_dir / RUN_META_NAME
+        if trial_meta.is_file() and not _is_bag_folder(trial_dir):
+            own = read_run_meta(trial_meta).align
+            if own is not None:
+                align, meta = own, str(trial_meta)
+        runs.append(RunSpec(seq, alg_dir.name, trial_dir.name, str(est),
+                            None if times is None else str(times), align, meta))
+    return runs
+
+
+def _sequence_runs(seq_dir: Path, gts: list[Path], ignored: list[tuple[str, str]]
+                   ) -> list[RunSpec]:
+    """Every run of one ``<sequence>/`` folder (its ground truth and GNSS files skipped)."""
+    runs: list[RunSpec] = []
+    for alg_dir in _visible(seq_dir):
+        if alg_dir in gts or alg_dir == seq_dir / GNSS_NAME:
+            continue
+        if not alg_dir.is_dir():
+            ignored.append((str(alg_dir), "a file in a sequence folder that is neither "
+                                          "groundtruth.<ext> nor gnss.csv"))
+            continue
+        runs += _algorithm_runs(seq_dir.name, alg_dir, ignored)
+    return runs
+
+
+def _sequence_truth(seq_dir: Path, gts: list[Path], seq_root: Path | None) -> SequenceTruth | None:
+    """The ground truth of a sequence with runs: ``groundtruth.<ext>`` beside them, else the
+    IBISCape sequence under ``seq_root``; None when neither exists."""
+    seq, gnss = seq_dir.name, seq_dir / GNSS_NAME
+    if len(gts) > 1:
+        raise IbiscapeError(
+            f"{seq_dir}: {len(gts)} ground-truth files ({', '.join(g.name for g in gts)}); "
+            "keep exactly one groundtruth.<ext> per sequence"
+        )
+    seq_gt = seq_root / seq if seq_root is not None else None
+    if gts:
+        return SequenceTruth(seq, str(gts[0]), str(gnss) if gnss.is_file() else None)
+    if seq_gt is not None and (seq_gt / IBISCAPE_GT).is_file():
+        g = gnss if gnss.is_file() else seq_gt / IBISCAPE_GNSS
+        return SequenceTruth(seq, str(seq_gt / IBISCAPE_GT), str(g) if g.is_file() else None)
+    return None
+
+
+def _check_found(root: Path, seq_root: Path | None, runs: list[RunSpec], missing: list[str],
+                 ignored: list[tuple[str, str]]) -> None:
+    """Refuse sequences without ground truth, and a folder without runs."""
+    if missing:
+        where = f"{root}/<sequence>/groundtruth.<ext>"
+        if seq_root is not None:
+            where += f" or {seq_root}/<sequence>/{IBISCAPE_GT.as_posix()}"
+        else:
+            where += " (or give {0}, a folder of IBISCape sequences)"
+        raise IbiscapeError(
+            f"no ground truth for sequence{'s' if len(missing) > 1 else ''} "
+            f"{', '.join(missing[:10])}{' ...' if len(missing) > 10 else ''}; expected {where}",
+            hint=() if seq_root is not None else (Remedy("sequences_dir"),))
+    if not runs:
+        detail = "; ".join(f"{p}: {why}" for p, why in ignored[:3])
+        raise IbiscapeError(
+            f"{root}: no runs found; expected RUNS_DIR/<sequence>/<algorithm>/<trial>/"
+            f"<trajectory file>" + (f" (ignored: {detail})" if detail else "")
+        )
+
+
 def discover_runs(
     runs_dir: str | os.PathLike[str], *, sequences_dir: str | os.PathLike[str] | None = None
 ) -> RunsLayout:
@@ -192,74 +273,19 @@ def discover_runs(
             ignored.append((str(seq_dir), "an ibiscape-eval report folder (--out), not a "
                                           "sequence"))
             continue
-        seq = seq_dir.name
         gts = _truth_in_runs(seq_dir)
-        gnss = seq_dir / GNSS_NAME
-        seq_runs: list[RunSpec] = []
-        for alg_dir in _visible(seq_dir):
-            if alg_dir in gts or alg_dir == gnss:
-                continue
-            if not alg_dir.is_dir():
-                ignored.append((str(alg_dir), "a file in a sequence folder that is neither "
-                                              "groundtruth.<ext> nor gnss.csv"))
-                continue
-            alg_meta = alg_dir / RUN_META_NAME
-            alg_align = read_run_meta(alg_meta).align if alg_meta.is_file() else None
-            for trial_dir in _visible(alg_dir):
-                if trial_dir == alg_meta:
-                    continue
-                if not trial_dir.is_dir():
-                    ignored.append((str(trial_dir), "a file in an algorithm folder (expected "
-                                                    "<trial>/ folders holding one trajectory)"))
-                    continue
-                found = _trial_file(trial_dir, ignored)
-                if found is not None:
-                    est, times = found
-                    align, meta = alg_align, (str(alg_meta) if alg_align else None)
-                    trial_meta = trial_dir / RUN_META_NAME
-                    if trial_meta.is_file() and not _is_bag_folder(trial_dir):
-                        own = read_run_meta(trial_meta).align
-                        if own is not None:
-                            align, meta = own, str(trial_meta)
-                    seq_runs.append(RunSpec(seq, alg_dir.name, trial_dir.name, str(est),
-                                            None if times is None else str(times), align, meta))
+        seq_runs = _sequence_runs(seq_dir, gts, ignored)
         if not seq_runs:
             ignored.append((str(seq_dir), "sequence folder without any <algorithm>/<trial>/"
                                           "<trajectory> run"))
             continue
         runs.extend(seq_runs)
-        if len(gts) > 1:
-            raise IbiscapeError(
-                f"{seq_dir}: {len(gts)} ground-truth files ({', '.join(g.name for g in gts)}); "
-                "keep exactly one groundtruth.<ext> per sequence"
-            )
-        seq_gt = seq_root / seq if seq_root is not None else None
-        if gts:
-            truths[seq] = SequenceTruth(seq, str(gts[0]), str(gnss) if gnss.is_file() else None)
-        elif seq_gt is not None and (seq_gt / IBISCAPE_GT).is_file():
-            g = seq_gt / IBISCAPE_GNSS
-            if gnss.is_file():
-                g = gnss
-            truths[seq] = SequenceTruth(seq, str(seq_gt / IBISCAPE_GT),
-                                        str(g) if g.is_file() else None)
+        truth = _sequence_truth(seq_dir, gts, seq_root)
+        if truth is None:
+            missing.append(seq_dir.name)
         else:
-            missing.append(seq)
-    if missing:
-        where = f"{root}/<sequence>/groundtruth.<ext>"
-        if seq_root is not None:
-            where += f" or {seq_root}/<sequence>/{IBISCAPE_GT.as_posix()}"
-        else:
-            where += " (or give {0}, a folder of IBISCape sequences)"
-        raise IbiscapeError(
-            f"no ground truth for sequence{'s' if len(missing) > 1 else ''} "
-            f"{', '.join(missing[:10])}{' ...' if len(missing) > 10 else ''}; expected {where}",
-            hint=() if seq_root is not None else (Remedy("sequences_dir"),))
-    if not runs:
-        detail = "; ".join(f"{p}: {why}" for p, why in ignored[:3])
-        raise IbiscapeError(
-            f"{root}: no runs found; expected RUNS_DIR/<sequence>/<algorithm>/<trial>/"
-            f"<trajectory file>" + (f" (ignored: {detail})" if detail else "")
-        )
+            truths[seq_dir.name] = truth
+    _check_found(root, seq_root, runs, missing, ignored)
     runs.sort(key=lambda r: (natural_key(r.sequence), natural_key(r.algorithm),
                              natural_key(r.trial)))
     return RunsLayout(str(root), tuple(runs), truths, tuple(ignored))

@@ -5,8 +5,10 @@ from __future__ import annotations
 import itertools
 import json
 import math
+import os
 import time
 
+import _batch_jobs as jobs_mod
 import pytest
 
 from ibiscape_eval.batch import (
@@ -20,35 +22,38 @@ from ibiscape_eval.batch import (
 )
 from ibiscape_eval.core.errors import IbiscapeError
 
-M = "_batch_jobs"
-
 
 def sq(i: float) -> Job:
-    return Job(f"sq{i}", f"{M}:square", {"x": i})
+    return Job(f"sq{i}", jobs_mod.square, {"x": i})
 
 
 def test_job_validation() -> None:
-    with pytest.raises(IbiscapeError, match=r"package\.module:function"):
-        Job("a", "no_colon", {})
+    with pytest.raises(IbiscapeError, match="not a module-level function"):
+        Job("a", lambda: {}, {})
+
+    def local(**_: object) -> dict[str, object]:
+        return {}
+
+    with pytest.raises(IbiscapeError, match="not a module-level function"):
+        Job("a", local, {})
     with pytest.raises(IbiscapeError, match="NaN"):
-        Job("a", f"{M}:square", {"x": math.nan})
+        Job("a", jobs_mod.square, {"x": math.nan})
     with pytest.raises(IbiscapeError, match="not JSON-compatible"):
-        Job("a", f"{M}:square", {"x": object()})
+        Job("a", jobs_mod.square, {"x": object()})
     with pytest.raises(IbiscapeError, match="non-empty key"):
-        Job("", f"{M}:square", {})
+        Job("", jobs_mod.square, {})
     assert json.loads(json.dumps(sq(2).to_dict()))["params"] == {"x": 2}
 
 
 def test_run_job_ok_and_failures() -> None:
     assert run_job(sq(3)).value == {"x": 3, "y": 9}
-    r = run_job(Job("b", f"{M}:boom", {"x": 1}))
+    r = run_job(Job("b", jobs_mod.boom, {"x": 1}))
     assert (r.status, r.error) == ("failed", "ValueError: no square for 1")
-    r = run_job(Job("c", f"{M}:not_a_dict", {"x": 1}))
+    r = run_job(Job("c", jobs_mod.not_a_dict, {"x": 1}))
     assert r.status == "failed" and "expected a dict" in (r.error or "")
-    r = run_job(Job("n", f"{M}:nan_result", {"x": 1}))
+    r = run_job(Job("n", jobs_mod.nan_result, {"x": 1}))
     assert r.status == "failed" and "not strict JSON" in (r.error or "")
-    r = run_job(Job("d", "no_such_module_xyz:f", {}))
-    assert r.status == "failed" and "cannot import" in (r.error or "")
+    assert sq(2).to_dict()["func"] == "_batch_jobs:square"
 
 
 def test_canonical_json_is_order_independent() -> None:
@@ -59,7 +64,7 @@ def test_canonical_json_is_order_independent() -> None:
 
 def test_local_pool_runs_all_and_isolates_failures() -> None:
     jobs = [sq(i) for i in range(6)]
-    jobs.insert(2, Job("bad", f"{M}:boom", {"x": 7}))
+    jobs.insert(2, Job("bad", jobs_mod.boom, {"x": 7}))
     seen: list[tuple[int, int, int]] = []
     results, summary = run_jobs(jobs, LocalExecutor(2),
                                 progress=lambda d, f, r: seen.append((d, f, r)))
@@ -73,7 +78,7 @@ def test_local_pool_runs_all_and_isolates_failures() -> None:
 
 def test_a_crashing_worker_fails_its_job_only() -> None:
     jobs = [sq(i) for i in range(40)]
-    jobs.insert(17, Job("die", f"{M}:die", {"x": 0}))
+    jobs.insert(17, Job("die", jobs_mod.die, {"x": 0}))
     results, summary = run_jobs(jobs, LocalExecutor(2))
     assert results["die"].status == "failed" and "WorkerDied" in (results["die"].error or "")
     assert list(results) == [j.key for j in jobs]
@@ -100,7 +105,7 @@ def test_cache_skips_finished_jobs_and_invalidates_by_content(tmp_path) -> None:
         files.append(f)
 
     def jobs(extra: int = 0) -> list[Job]:
-        return [Job(f"f{i}", f"{M}:file_size", {"path": str(f), "log": str(log), "extra": extra}
+        return [Job(f"f{i}", jobs_mod.file_size, {"path": str(f), "log": str(log), "extra": extra}
                     if extra else {"path": str(f), "log": str(log)}, inputs=(str(f),))
                 for i, f in enumerate(files)]
 
@@ -133,7 +138,7 @@ def test_cache_skips_finished_jobs_and_invalidates_by_content(tmp_path) -> None:
 
 def test_failed_jobs_are_not_cached(tmp_path) -> None:
     cache = ContentCache(tmp_path / "c")
-    job = Job("b", f"{M}:boom", {"x": 1})
+    job = Job("b", jobs_mod.boom, {"x": 1})
     run_jobs([job], LocalExecutor(1), cache=cache)
     results, summary = run_jobs([job], LocalExecutor(1), cache=ContentCache(tmp_path / "c"))
     assert summary.n_cached == 0 and results["b"].status == "failed"
@@ -144,8 +149,8 @@ def test_same_bytes_elsewhere_hit_the_cache(tmp_path) -> None:
     a.write_text("same")
     b.write_text("same")
     c = ContentCache(tmp_path / "c")
-    ja = Job("k", f"{M}:square", {"x": 2}, inputs=(str(a),))
-    jb = Job("k", f"{M}:square", {"x": 2}, inputs=(str(b),))
+    ja = Job("k", jobs_mod.square, {"x": 2}, inputs=(str(a),))
+    jb = Job("k", jobs_mod.square, {"x": 2}, inputs=(str(b),))
     assert c.key(ja) == c.key(jb)
     b.write_text("diff")
     assert c.key(ja) != c.key(jb)
@@ -155,9 +160,12 @@ def test_mtime_index_detects_changed_files(tmp_path) -> None:
     f = tmp_path / "a.txt"
     f.write_text("one")
     c = ContentCache(tmp_path / "c")
+    os.utime(f, ns=(1_000_000_000, 1_000_000_000))
     h1 = c.file_hash(f)
-    time.sleep(0.01)
-    f.write_text("two")
+    f.write_text("two")  # same size
+    os.utime(f, ns=(1_000_000_000, 1_000_000_000))
+    assert c.file_hash(f) == h1  # same size and mtime: the index's hash, not re-read
+    os.utime(f, ns=(2_000_000_000, 2_000_000_000))
     assert c.file_hash(f) != h1
 
 
@@ -177,7 +185,9 @@ def test_code_version_follows_the_source(tmp_path, monkeypatch) -> None:
     (pkg / "helper.py").write_text("K = 1\n")
     (pkg / "jobs.py").write_text("def f(**_):\n    return {}\n")
     monkeypatch.syspath_prepend(str(tmp_path))
-    v1 = code_version("mypkg_cv.jobs:f")
-    assert v1 == code_version("mypkg_cv.jobs:f")
+    from mypkg_cv.jobs import f  # type: ignore[import-not-found]
+
+    v1 = code_version(f)
+    assert v1 == code_version(f)
     (pkg / "helper.py").write_text("K = 2\n")  # a module the job may call, not the job's own
-    assert code_version("mypkg_cv.jobs:f") != v1
+    assert code_version(f) != v1

@@ -211,12 +211,13 @@ def test_failing_steps_are_recorded_and_the_rest_continue(bench, tmp_path) -> No
     shutil.rmtree(suite / "SVI_slam_clear_1" / "vehicle_gt")
     res = run_benchmark(tmp_path / "b", suite_dir=suite, executor=LocalExecutor(1),
                         sequences=["IMU_calib_1", "ESVI_slam_dyn_1", "SVI_slam_clear_1"])
-    imu_rec = res.steps["imu_noise"][0]
-    assert imu_rec["status"] == "failed" and "imu.csv" in imu_rec["error"]
-    vio_rec = res.steps["vio"][0]
-    assert vio_rec["status"] == "failed"
-    assert "groundtruth_sync.csv: no ground truth" in vio_rec["error"]
-    assert all(r["status"] == "ok" for r in res.steps["hot_pixels"])
+    (imu_rec,) = res.steps.imu_noise
+    assert imu_rec.status == "failed" and "imu.csv" in (imu_rec.error or "")
+    (vio_rec,) = res.steps.vio
+    assert vio_rec.status == "failed" and vio_rec.value is None
+    assert "groundtruth_sync.csv: no ground truth" in (vio_rec.error or "")
+    assert res.steps.hot_pixels and all(r.ok for r in res.steps.hot_pixels)
+    assert all(r.value is not None and r.value.n_events > 0 for r in res.steps.hot_pixels)
     assert res.evaluation is None and res.n_failed == 2
     assert {f["step"] for f in res.failed()} == {"imu_noise", "vio"}
     files = write_benchmark_report(tmp_path / "report", res)

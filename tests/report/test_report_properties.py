@@ -13,6 +13,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from ibiscape_eval.batch import ContentCache, Job, JobResult
+from ibiscape_eval.report.evaluate import box_stats
 from ibiscape_eval.report.paper_table import DECIMALS, METRICS, PaperTable
 
 finite = st.floats(min_value=0.0, max_value=1e4, allow_nan=False, allow_infinity=False)
@@ -82,7 +83,7 @@ json_values = st.recursive(
 def test_cache_returns_exactly_what_it_stored(value) -> None:
     with tempfile.TemporaryDirectory() as d:
         cache = ContentCache(d)
-        job = Job("k", "ibiscape_eval.report.evaluate:box_stats", {"values": [1.0]})
+        job = Job("k", box_stats, {"values": [1.0]})
         key = cache.key(job)
         cache.put(key, job, JobResult("k", "ok", value=value))
         hit = ContentCache(d).get(job, key)
