@@ -16,7 +16,6 @@ shadow rays, ``_kernels.finish`` after them) and one for the sensor (``_kernels.
 from __future__ import annotations
 
 import threading
-import warnings
 from dataclasses import dataclass, fields
 from typing import Any
 
@@ -242,22 +241,11 @@ class Renderer:
         if self.options.noise:
             key = int(np.random.default_rng([self.seed, 0x5E75, noise_key, int(t_ns) & 0xFFFFFFFFFFFF])
                       .integers(0, 2**63))
-        with warnings.catch_warnings():
-            warnings.filterwarnings("ignore", message=".*TBB threading layer.*")
-            rgb = sensor_output(rad, lighting(w).gain, key, noise=self.options.noise)
+        rgb = sensor_output(rad, lighting(w).gain, key, noise=self.options.noise)
         return RenderedView(rgb, depth, labels, rad)
 
     # ------------------------------------------------------------------------------ internals
     def _radiance_image(self, model: CameraModel, T: np.ndarray, t_ns: int,
-                        weather: WeatherState | None = None, *, rain: bool = True
-                        ) -> tuple[F32, F32, npt.NDArray[np.uint8]]:
-        # numba tries the TBB threading layer first and warns (once) that this machine's TBB is
-        # too old before falling back to OpenMP: nothing a user can act on
-        with warnings.catch_warnings():
-            warnings.filterwarnings("ignore", message=".*TBB threading layer.*")
-            return self._radiance_image_impl(model, T, t_ns, weather, rain=rain)
-
-    def _radiance_image_impl(self, model: CameraModel, T: np.ndarray, t_ns: int,
                              weather: WeatherState | None = None, *, rain: bool = True
                              ) -> tuple[F32, F32, npt.NDArray[np.uint8]]:
         H, W = model.height_px, model.width_px
@@ -346,15 +334,16 @@ class Renderer:
             b2, n2 = m["primitive_uvs"].numpy(), m["primitive_normals"].numpy()
         sun = np.asarray(light.sun_dir, np.float32)
         shadows = self.options.shadows and light.e_sun > 0.0
-        grid, a0, b0, cell, e1, e2 = self._sun_grid(t_ns, sun, movers is not None and shadows)
+        grid = self._sun_grid(t_ns, sun, movers is not None and shadows)
         targets = self.static.targets
         flip = np.array([not t.z_toward_observer for t in targets] or [False], bool)
-        args = (r["t_hit"].numpy(), r["primitive_ids"].numpy(), r["primitive_uvs"].numpy(),
-                r["primitive_normals"].numpy(), rays, map2, t2, p2, b2, n2,
-                st.material, st.variant, st.label, st.uv_m, mt.material, mt.variant, mt.label, mt.uv_m,
-                self.static.n_triangles, flip, *kernel_tables(self.static.ground),
-                sun, shadows, np.float32(_SHADOW_EPS_M), grid, a0, b0, cell, e1, e2)
-        depth, mat, var, labels, uv, front, alb, paved, ndl, amb, srays, spix, smov, count = surfaces(*args)
+        r_hits = (r["t_hit"].numpy(), r["primitive_ids"].numpy(), r["primitive_uvs"].numpy(),
+                  r["primitive_normals"].numpy())
+        depth, mat, var, labels, uv, front, alb, paved, ndl, amb, srays, spix, smov, count = surfaces(
+            rays, r_hits, (map2, t2, p2, b2, n2), (st.material, st.variant, st.label, st.uv_m,
+                                                   self.static.n_triangles),
+            (mt.material, mt.variant, mt.label, mt.uv_m), flip, kernel_tables(self.static.ground),
+            (sun, shadows, np.float32(_SHADOW_EPS_M)), grid)
         if targets:
             board_albedo(mat, uv, var, targets, front, alb)
         if count:
