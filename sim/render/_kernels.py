@@ -243,41 +243,6 @@ def _mover_colour(m, v, vi, cars, clothes):
     return r, g, b
 
 
-@nb.njit(cache=True, inline="always")
-def _albedo_at(i, m, vi, u, v, tex, col, labels, paved):
-    """Albedo of hit ``i`` (material ``m``, variant ``vi``, texture coordinates ``u, v`` [m])
-    into ``col[i]``, the ground map's label correction into ``labels[i]`` and the paved weight
-    into ``paved[i]``; ``tex`` is :func:`~ibiscape_eval.sim.render.textures.kernel_tables`."""
-    tab, fine_per_m, coarse_per_m, gmap, gx0, gy0, gres, plain, amp_f, amp_c = tex[:10]
-    facades, cars, clothes, crowns = tex[10:]
-    if m == 0 or m == _TARGET:  # sky; boards are looked up by the caller
-        col[i, 0] = col[i, 1] = col[i, 2] = 0.0
-        paved[i] = 0.0
-        return
-    lab = 0
-    pv = 0.0
-    fine = _noise(tab, u * fine_per_m, v * fine_per_m)
-    coarse = _noise(tab, u * coarse_per_m + 97.0, v * coarse_per_m + 31.0)
-    mod = min(max(1.0 + amp_f[m] * fine + amp_c[m] * coarse, 0.15), 2.5)
-    r, g, b = plain[m, 0], plain[m, 1], plain[m, 2]
-    if m == _GROUND:
-        r, g, b, pv, lab = _ground_colour(u, v, coarse, gmap, gx0, gy0, gres)
-    elif m == _SIDEWALK:
-        if min(_frac(u * 2.0), _frac(v * 2.0)) < 0.04:  # 0.5 m paving slabs, dark joints
-            r, g, b = 0.6 * r, 0.6 * g, 0.6 * b
-    elif m == _FACADE:
-        r, g, b = _facade_colour(u, v, vi, facades)
-    elif m == _CROWN:
-        k = vi % crowns.shape[0]
-        r, g, b = crowns[k, 0], crowns[k, 1], crowns[k, 2]
-    elif m == _CAR or m == _CAR_ROOF or m == _PED:  # noqa: SIM109 (numba: plain comparisons)
-        r, g, b = _mover_colour(m, v, vi, cars, clothes)
-    col[i, 0], col[i, 1], col[i, 2] = r * mod, g * mod, b * mod
-    if lab > 0:
-        labels[i] = lab
-    paved[i] = pv
-
-
 @nb.njit(cache=True, nogil=True)
 def albedo_into(mat, var, uv, tex, col, labels, paved):
     """Albedo into ``col`` (N, 3), the ground map's label corrections into ``labels`` (N,) (left
@@ -285,8 +250,37 @@ def albedo_into(mat, var, uv, tex, col, labels, paved):
     ``textures.albedo``; the sky and calibration boards get black: the caller looks boards up).
     ``tex`` is the tuple of :func:`~ibiscape_eval.sim.render.textures.kernel_tables` (the noise
     table's sides must be powers of two)."""
+    tab, fine_per_m, coarse_per_m, gmap, gx0, gy0, gres, plain, amp_f, amp_c = tex[:10]
+    facades, cars, clothes, crowns = tex[10:]
     for i in range(mat.shape[0]):
-        _albedo_at(i, mat[i], var[i], uv[i, 0], uv[i, 1], tex, col, labels, paved)
+        m = mat[i]
+        if m == 0 or m == _TARGET:  # sky; boards are looked up by the caller
+            col[i, 0] = col[i, 1] = col[i, 2] = 0.0
+            paved[i] = 0.0
+            continue
+        u, v, vi = uv[i, 0], uv[i, 1], var[i]
+        lab = 0
+        pv = 0.0
+        fine = _noise(tab, u * fine_per_m, v * fine_per_m)
+        coarse = _noise(tab, u * coarse_per_m + 97.0, v * coarse_per_m + 31.0)
+        mod = min(max(1.0 + amp_f[m] * fine + amp_c[m] * coarse, 0.15), 2.5)
+        r, g, b = plain[m, 0], plain[m, 1], plain[m, 2]
+        if m == _GROUND:
+            r, g, b, pv, lab = _ground_colour(u, v, coarse, gmap, gx0, gy0, gres)
+        elif m == _SIDEWALK:
+            if min(_frac(u * 2.0), _frac(v * 2.0)) < 0.04:  # 0.5 m paving slabs, dark joints
+                r, g, b = 0.6 * r, 0.6 * g, 0.6 * b
+        elif m == _FACADE:
+            r, g, b = _facade_colour(u, v, vi, facades)
+        elif m == _CROWN:
+            k = vi % crowns.shape[0]
+            r, g, b = crowns[k, 0], crowns[k, 1], crowns[k, 2]
+        elif m == _CAR or m == _CAR_ROOF or m == _PED:  # noqa: SIM109 (numba: plain comparisons)
+            r, g, b = _mover_colour(m, v, vi, cars, clothes)
+        col[i, 0], col[i, 1], col[i, 2] = r * mod, g * mod, b * mod
+        if lab > 0:
+            labels[i] = lab
+        paved[i] = pv
 
 
 @nb.njit(cache=True, nogil=True)
@@ -409,7 +403,7 @@ def surfaces(rays, hits, hits2, tables, tables2, board_flip, tex, light, grid):
             _shadow_ray(i, count, rays[i, 0] + ti * dx + eps * nx, rays[i, 1] + ti * dy + eps * ny,
                         rays[i, 2] + ti * dz + eps * nz, sun, grid, srays, spix, smov)
             count += 1
-        _albedo_at(i, m, vi, uv[i, 0], uv[i, 1], tex, alb, lab, paved)
+    albedo_into(mat, var, uv, tex, alb, lab, paved)
     return depth, mat, var, lab, uv, front, alb, paved, ndl_out, amb, srays, spix, smov, count
 
 
