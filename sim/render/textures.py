@@ -21,7 +21,7 @@ import numpy.typing as npt
 
 from .scene import MAT, GroundMap
 
-__all__ = ["TARGET_PX_PER_M", "albedo", "board_albedo", "kernel_tables", "noise_table", "sample_bilinear"]
+__all__ = ["TARGET_PX_PER_M", "albedo", "board_albedo", "board_tables", "kernel_tables", "noise_table", "sample_bilinear"]
 
 F32 = npt.NDArray[np.float32]
 
@@ -131,14 +131,15 @@ def board_albedo(mat: np.ndarray, uv: np.ndarray, var: np.ndarray, targets: tupl
     from ._kernels import board_texels
 
     if targets:
-        board_texels(mat, np.ascontiguousarray(uv, dtype=np.float32), var, front, _board_tables(targets),
+        board_texels(mat, np.ascontiguousarray(uv, dtype=np.float32), var, front, board_tables(targets),
                      col)
 
 
 @functools.lru_cache(maxsize=8)
-def _board_tables(targets: tuple[Any, ...]) -> tuple[tuple[Any, ...], ...]:
-    # per board: texture, the texture's first column / row edge [m], row direction, texels per
-    # metre (the arithmetic of Target.texture_px_from_target)
+def board_tables(targets: tuple[Any, ...]) -> tuple[tuple[Any, ...], ...]:
+    """The ``boards`` argument of ``_kernels.board_texels``: per board its texture, the
+    texture's first column / row edge [m], row direction and texels per metre (the arithmetic of
+    ``Target.texture_px_from_target``)."""
     out = []
     for t in targets:
         flipped = bool(t.z_toward_observer)  # y up as seen: rows grow with decreasing y
