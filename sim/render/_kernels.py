@@ -425,12 +425,17 @@ def surfaces(rays, hits, hits2, tables, tables2, board_flip, tex, light, grid):
 
 
 @nb.njit(cache=True, nogil=True)
-def finish(alb, ndl, amb, depth, rays, paved, uv, tab, e_sun, e_sky, zenith, horizon, overcast, cloud,
-           sky_level, wet, puddle_level, beta, airlight, sky_distance, scale):
+def finish(alb, ndl, amb, depth, rays, paved, uv, tab, sky, optics, scale):
     """Radiance (N, 3) times ``scale``: lit surfaces ``albedo (1 - 0.45 wet paved) (e_sun n.s V +
     e_sky (0.6 + 0.4 n_z))`` (``ndl`` already 0 in shadow), the sky gradient where nothing was hit,
     puddles on paved ground mirroring the sky (where a coarse noise exceeds ``puddle_level``; none
-    when it is ``inf``), then Koschmieder fog ``J t + A (1 - t)`` (no fog when ``beta`` is 0)."""
+    when it is ``inf``), then Koschmieder fog ``J t + A (1 - t)`` (no fog when ``beta`` is 0).
+
+    ``sky`` is ``(e_sun, e_sky, zenith (3,), horizon (3,), overcast (3,), cloud, sky_level)``,
+    ``optics`` is ``(wet, puddle_level, beta [1/m], airlight (3,), sky_distance [m])``; ``tab`` is
+    the noise table."""
+    e_sun, e_sky, zenith, horizon, overcast, cloud, sky_level = sky
+    wet, puddle_level, beta, airlight, sky_distance = optics
     n = depth.shape[0]
     out = np.empty((n, 3), np.float32)
     puddling = np.isfinite(puddle_level)

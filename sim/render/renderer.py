@@ -408,11 +408,12 @@ class Renderer:
         if not (optics and w.precipitation_deposits > 0):
             puddle_level = np.inf
         beta = fog_beta_per_m(w.fog_density) if optics else 0.0
-        return finish(alb, ndl, amb, depth, rays, paved, uv, kernel_tables(self.static.ground)[0],
-                      np.float32(light.e_sun), np.float32(light.e_sky), _ZENITH, _HORIZON, _OVERCAST,
-                      np.float32(w.cloudiness / 100.0), np.float32(1.6 * light.e_sky + 0.25 * light.e_sun),
-                      np.float32(wet), np.float32(puddle_level), np.float32(beta), horizon_radiance(w, light),
-                      np.float32(_SKY_DISTANCE_M), np.float32(scale))
+        sky = (np.float32(light.e_sun), np.float32(light.e_sky), _ZENITH, _HORIZON, _OVERCAST,
+               np.float32(w.cloudiness / 100.0), np.float32(1.6 * light.e_sky + 0.25 * light.e_sun))
+        wet_fog = (np.float32(wet), np.float32(puddle_level), np.float32(beta), horizon_radiance(w, light),
+                   np.float32(_SKY_DISTANCE_M))
+        return finish(alb, ndl, amb, depth, rays, paved, uv, kernel_tables(self.static.ground)[0], sky,
+                      wet_fog, np.float32(scale))
 
     def _occluded(self, rays: F32, mover_may: npt.NDArray[np.bool_], t_ns: int) -> npt.NDArray[np.bool_]:
         """Shadow rays (N, 6) that hit something; the movers' scene is asked only for the rays

@@ -125,10 +125,10 @@ def test_finish_equals_the_reference_stages(weather: dict) -> None:
     level = 1.6 - 2.2 * w.precipitation_deposits / 100.0 if w.precipitation_deposits > 0 else np.inf
     beta = fog_beta_per_m(w.fog_density)
     scale = 255.0 * light.gain
-    got = finish(alb, ndl, amb, depth, rays, paved, uv, noise_table(), np.float32(light.e_sun),
-                   np.float32(light.e_sky), _ZENITH, _HORIZON, _OVERCAST, np.float32(w.cloudiness / 100.0),
-                   np.float32(1.6 * light.e_sky + 0.25 * light.e_sun), np.float32(wet), np.float32(level),
-                   np.float32(beta), horizon_radiance(w, light), np.float32(1000.0), np.float32(scale))
+    sky = (np.float32(light.e_sun), np.float32(light.e_sky), _ZENITH, _HORIZON, _OVERCAST,
+           np.float32(w.cloudiness / 100.0), np.float32(1.6 * light.e_sky + 0.25 * light.e_sun))
+    optics = (np.float32(wet), np.float32(level), np.float32(beta), horizon_radiance(w, light), np.float32(1000.0))
+    got = finish(alb, ndl, amb, depth, rays, paved, uv, noise_table(), sky, optics, np.float32(scale))
     # the reference, stage by stage (numpy)
     dn = np.linalg.norm(rays[:, 3:], axis=1)
     ref = shade(alb * (1.0 - 0.45 * wet * paved)[:, None], nrm, visible, light)
