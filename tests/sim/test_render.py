@@ -138,9 +138,9 @@ def test_labels_of_known_surfaces() -> None:
     assert np.isfinite(v.depth_m[v.labels != TAG["Sky"]]).all()
 
 
-def test_movers_without_rebuilding_the_static_scene() -> None:
-    world = build_world(kind="slam", seed=3, scene="dynamic", town_blocks=2)
-    r = Renderer(world, options=RenderOptions(noise=False))
+def test_movers_without_rebuilding_the_static_scene(town_dynamic: Renderer) -> None:
+    r = town_dynamic
+    world = r.world
     static = r.static
     t0 = 1_000_000_000_000
     pos, yaw = world.agents.poses_at(np.array([t0, t0 + 4_000_000_000]))

@@ -11,7 +11,7 @@ import pytest
 from scipy import stats
 
 from ibiscape_eval.core.camera import CameraModel
-from ibiscape_eval.sim.render import Renderer, RenderOptions
+from ibiscape_eval.sim.render import Renderer
 from ibiscape_eval.sim.render._kernels import finish
 from ibiscape_eval.sim.render.labels import TAG
 from ibiscape_eval.sim.render.optics import (
@@ -34,7 +34,6 @@ from ibiscape_eval.sim.render.shading import (
     sky_radiance,
 )
 from ibiscape_eval.sim.render.textures import noise_table, sample_bilinear
-from ibiscape_eval.sim.world import build_world
 
 T0 = 1_000_000_000_000
 
@@ -143,9 +142,8 @@ def test_finish_equals_the_reference_stages(weather: dict) -> None:
 
 # ------------------------------------------------------------------------- work the renderer skips
 @pytest.fixture(scope="module")
-def dynamic() -> Renderer:
-    world = build_world(kind="slam", seed=3, scene="dynamic", town_blocks=2)
-    return Renderer(world, options=RenderOptions(noise=False, target_supersample=1))
+def dynamic(town_dynamic: Renderer) -> Renderer:
+    return town_dynamic
 
 
 def _look(eye: np.ndarray, target: np.ndarray) -> np.ndarray:
