@@ -112,8 +112,6 @@ def _stages(r: Any, step: Callable[[], None], repeat: int) -> list[tuple[str, fl
                (renderer.Renderer, "_mover_pixels", "movers' pixels"),
                (renderer.Renderer, "_radiance", "per-ray work (casts + kernels)"),
                (renderer.Renderer, "_supersample_targets", "target supersampling (all of it)"),
-               (renderer.Renderer, "_board_plane_radiance", "  board-plane supersamples (no cast)"),
-               (_kernels, "board_plane_hits", "numba: board-plane hits"),
                (_kernels, "board_texels", "numba: board texels"),
                (renderer.Renderer, "render_pose", "whole view")]
     import cv2

@@ -319,23 +319,6 @@ def board_texels(mat, uv, var, front, boards, col):
     return col
 
 
-@nb.njit(cache=True, nogil=True)
-def board_plane_hits(rays, board, T_world_target, depth, uv):
-    """Where rays (N, 6) meet the plane ``z = 0`` of board ``board[i]`` (poses ``T_world_target``
-    (B, 4, 4) float64): the distance along the ray into ``depth`` (N,) (the z-depth for camera
-    rays ``R (x, y, 1)``) and the target-frame ``x, y`` [m] (the boards' texture coordinates)
-    into ``uv`` (N, 2); in float64."""
-    for i in range(rays.shape[0]):
-        T = T_world_target[board[i]]
-        ox, oy, oz = rays[i, 0] - T[0, 3], rays[i, 1] - T[1, 3], rays[i, 2] - T[2, 3]
-        dx, dy, dz = np.float64(rays[i, 3]), np.float64(rays[i, 4]), np.float64(rays[i, 5])
-        t = -(ox * T[0, 2] + oy * T[1, 2] + oz * T[2, 2]) / (dx * T[0, 2] + dy * T[1, 2] + dz * T[2, 2])
-        px, py, pz = ox + t * dx, oy + t * dy, oz + t * dz
-        depth[i] = t
-        uv[i, 0] = px * T[0, 0] + py * T[1, 0] + pz * T[2, 0]
-        uv[i, 1] = px * T[0, 1] + py * T[1, 1] + pz * T[2, 1]
-
-
 @nb.njit(cache=True, inline="always")
 def _shadow_ray(i, count, ox, oy, oz, sun, grid, srays, spix, smov):
     # shadow ray ``count`` from the (lifted) surface point toward the sun, its pixel and whether

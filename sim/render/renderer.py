@@ -38,7 +38,7 @@ from .shading import (
     horizon_radiance,
     lighting,
 )
-from .textures import board_albedo, board_tables, kernel_tables
+from .textures import board_albedo, kernel_tables
 
 __all__ = ["RenderCamera", "RenderOptions", "RenderedView", "Renderer"]
 
@@ -253,10 +253,10 @@ class Renderer:
         light = lighting(w)
         rays = world_rays(camera_rays(model).reshape(-1, 3), T)
         scale = 255.0 * light.gain
-        rad, depth, mat, labels, surf = self._radiance(rays, t_ns, w, light,
-                                                       self._mover_pixels(model, T, t_ns), scale=scale)
+        rad, depth, mat, labels = self._radiance(rays, t_ns, w, light, self._mover_pixels(model, T, t_ns),
+                                                 scale=scale)
         if self.options.target_supersample > 1 and self.static.targets:
-            self._supersample_targets(model, T, t_ns, w, light, scale, rad, mat, surf)
+            self._supersample_targets(model, T, t_ns, w, light, scale, rad, mat)
         img = rad.reshape(H, W, 3)
         depth = depth.reshape(H, W)
         if rain and self.options.weather_optics and w.precipitation > 0:
@@ -276,16 +276,11 @@ class Renderer:
         return img, depth, labels.reshape(H, W)
 
     def _supersample_targets(self, model: CameraModel, T: np.ndarray, t_ns: int, w: WeatherState,
-                             light: Lighting, scale: float, rad: F32, mat: npt.NDArray[np.uint8],
-                             surf: tuple[np.ndarray, ...]) -> None:
+                             light: Lighting, scale: float, rad: F32, mat: npt.NDArray[np.uint8]) -> None:
         """Replace ``rad`` (H W, 3) in place by the mean of ``s x s`` rays where a pixel that sees
         a calibration board may cover an edge: the board's outline, or a 3x3 neighbourhood whose
         centre samples differ (inside a printed square the pixel's average equals its centre
-        sample).
-
-        Pixels whose 3x3 neighbourhood sees one board, all lit alike (no outline, no shadow
-        edge), take their sub-samples on the board's plane (:meth:`_board_plane_radiance`);
-        the others are cast into the whole scene."""
+        sample)."""
         import cv2
 
         H, W = model.height_px, model.width_px
@@ -296,44 +291,11 @@ class Renderer:
         k = np.ones((3, 3), np.uint8)
         g = (rad @ GRAY_WEIGHTS).reshape(H, W)
         spread = cv2.dilate(g, k) - cv2.erode(g, k)
-        inner = cv2.erode(on, k) > 0
-        edge = (cv2.dilate(on, k) > 0) & ((spread > 0.004 * scale) | ~inner)
-        var, front, ndl, amb = (a.reshape(H, W) for a in surf)
-        lit = ndl.astype(np.float32)
-        same = (inner & (cv2.dilate(var, k) == cv2.erode(var, k))
-                & (cv2.dilate(lit, k) == cv2.erode(lit, k)) & (cv2.dilate(amb, k) == cv2.erode(amb, k)))
-        rows, cols = np.nonzero(edge & ~same)
-        if rows.size:
-            sub = world_rays(subpixel_rays(model, rows, cols, s), T).reshape(-1, 6)
-            rs = self._radiance(sub, t_ns, w, light, scale=scale)[0]
-            rad[rows * W + cols] = rs.reshape(len(rows), s * s, 3).mean(axis=1)
-        rows, cols = np.nonzero(edge & same)
-        if rows.size:
-            sub = world_rays(subpixel_rays(model, rows, cols, s), T).reshape(-1, 6)
-            pix = rows * W + cols
-            rs = self._board_plane_radiance(sub, s * s, var.ravel()[pix], front.ravel()[pix],
-                                            ndl.ravel()[pix], amb.ravel()[pix], w, light, scale)
-            rad[pix] = rs.reshape(len(rows), s * s, 3).mean(axis=1)
-
-    def _board_plane_radiance(self, rays: F32, per_pixel: int, board: np.ndarray, front: np.ndarray,
-                              ndl: F32, amb: F32, w: WeatherState, light: Lighting, scale: float) -> F32:
-        """Radiance (N, 3) of rays (N, 6), ``per_pixel`` consecutive rays per pixel, that hit the
-        plane of calibration board ``board`` (per pixel) on the side ``front``, with the
-        pixel's sun and sky terms ``ndl`` (0 in shadow) and ``amb``: the ray's intersection with
-        the plane (no cast), the board's texel there, then the shading of ``_kernels.finish``."""
-        from ._kernels import board_plane_hits, board_texels
-
-        n = len(rays)
-        depth = np.empty(n, np.float32)
-        uv = np.empty((n, 2), np.float32)
-        var = np.repeat(board, per_pixel).astype(np.uint8)
-        poses = np.array([t.T_world_target for t in self.static.targets], np.float64)
-        board_plane_hits(rays, var, poses, depth, uv)
-        alb = np.zeros((n, 3), np.float32)
-        board_texels(np.full(n, MAT["target"], np.uint8), uv, var, np.repeat(front, per_pixel),
-                     board_tables(self.static.targets), alb)
-        return self._finish(alb, np.repeat(ndl, per_pixel), np.repeat(amb, per_pixel), depth, rays,
-                            np.zeros(n, np.float32), uv, w, light, scale)
+        edge = (cv2.dilate(on, k) > 0) & ((spread > 0.004 * scale) | (cv2.erode(on, k) == 0))
+        rows, cols = np.nonzero(edge)
+        sub = world_rays(subpixel_rays(model, rows, cols, s), T).reshape(-1, 6)
+        rs = self._radiance(sub, t_ns, w, light, scale=scale)[0]
+        rad[rows * W + cols] = rs.reshape(len(rows), s * s, 3).mean(axis=1)
 
     def _mover_scene(self, t_ns: int) -> tuple[Any, TriangleTables] | None:
         if len(self.world.agents) == 0:
@@ -348,10 +310,9 @@ class Renderer:
 
     def _radiance(self, rays: F32, t_ns: int, w: WeatherState, light: Lighting,
                   mover_rays: npt.NDArray[np.bool_] | None = None, *, scale: float = 1.0
-                  ) -> tuple[F32, F32, npt.NDArray[np.uint8], npt.NDArray[np.uint8], tuple[np.ndarray, ...]]:
+                  ) -> tuple[F32, F32, npt.NDArray[np.uint8], npt.NDArray[np.uint8]]:
         """Radiance (N, 3) times ``scale`` of rays (N, 6) with shadows, fog and wet road; the
-        z-depth (``inf``: sky), material and label of every ray, and its board variant, observed
-        side (uint8), sun term (0 in shadow) and sky term.
+        z-depth (``inf``: sky), material and label of every ray.
 
         ``mover_rays`` (N,) bool limits the movers' cast to the rays that may see one (the renderer
         passes the pixels inside the movers' projected outlines); ``None`` casts all.
@@ -395,7 +356,7 @@ class Renderer:
             occ = self._occluded(srays[:count], smov[:count], t_ns)
             ndl[spix[:count][occ]] = 0.0
         rad = self._finish(alb, ndl, amb, depth, rays, paved, uv, w, light, scale)
-        return rad, depth, mat, labels, (var, front.view(np.uint8), ndl, amb)
+        return rad, depth, mat, labels
 
     def _finish(self, alb: F32, ndl: F32, amb: F32, depth: F32, rays: F32, paved: F32, uv: F32,
                 w: WeatherState, light: Lighting, scale: float) -> F32:

@@ -220,61 +220,6 @@ def test_bad_render_options(bad: dict) -> None:
         RenderOptions(**bad)
 
 
-def test_board_plane_supersamples_equal_the_scene_cast(calib, monkeypatch: pytest.MonkeyPatch) -> None:
-    """Supersamples inside a board meet its plane analytically (#25); the image equals the one
-    whose every supersample is cast into the scene, up to ties at texel edges (a few DN on a
-    handful of pixels), and the plane path is really taken."""
-    r, target = calib
-    model = CameraModel.from_fov(192, 192, 90.0)
-    T = look_at_board(target, 5.0, 20.0, -10.0, 5.0)
-    taken: list[int] = []
-    plane = Renderer._board_plane_radiance
-
-    def counted(self, rays, *a, **k):  # type: ignore[no-untyped-def]
-        taken.append(len(rays))
-        return plane(self, rays, *a, **k)
-
-    monkeypatch.setattr(Renderer, "_board_plane_radiance", counted)
-    fast = r.render_pose(model, T, weather=DAY).radiance
-    assert taken and taken[0] > 1000
-
-    def cast(self, rays, per_pixel, board, front, ndl, amb, w, light, scale):  # type: ignore[no-untyped-def]
-        return self._radiance(rays, 0, w, light, scale=scale)[0]
-
-    monkeypatch.setattr(Renderer, "_board_plane_radiance", cast)
-    ref = r.render_pose(model, T, weather=DAY).radiance
-    diff = np.abs(fast - ref).max(axis=-1)
-    assert diff.max() < 3.0
-    assert np.count_nonzero(diff > 0.01) < 0.002 * diff.size
-
-
-def test_board_plane_hits_equal_the_cast(calib) -> None:
-    """The numba plane intersection against open3d's cast: z-depth and target coordinates."""
-    from ibiscape_eval.sim.render._kernels import board_plane_hits
-    from ibiscape_eval.sim.render.rays import camera_rays, world_rays
-    from ibiscape_eval.sim.render.scene import MAT, tensor
-
-    r, target = calib
-    k = r.static.targets.index(target)
-    T = look_at_board(target, 6.0, -25.0, 10.0, 0.0)
-    rays = world_rays(camera_rays(CameraModel.from_fov(64, 64, 60.0)).reshape(-1, 3), T)
-    cast = r.static.scene.cast_rays(tensor(rays), nthreads=0)
-    prim = np.minimum(cast["primitive_ids"].numpy(), r.static.n_triangles)
-    on = (r.static.tables.material[prim] == MAT["target"]) & (r.static.tables.variant[prim] == k)
-    assert on.mean() > 0.2
-    rays = rays[on]
-    hit = cast["t_hit"].numpy()[on]
-    depth = np.empty(len(rays), np.float32)
-    uv = np.empty((len(rays), 2), np.float32)
-    poses = np.array([t.T_world_target for t in r.static.targets])
-    board_plane_hits(rays, np.full(len(rays), k, np.uint8), poses, depth, uv)
-    np.testing.assert_allclose(depth, hit, rtol=1e-5)
-    p = rays[:, :3] + depth[:, None] * rays[:, 3:]
-    xy = (p - target.T_world_target[:3, 3]) @ target.T_world_target[:3, :3]
-    np.testing.assert_allclose(uv, xy[:, :2], atol=1e-4)
-    np.testing.assert_allclose(xy[:, 2], 0.0, atol=1e-4)
-
-
 def test_a_render_warns_nothing(calib) -> None:
     """The renderer no longer filters warnings around each render (#23: the filter list is
     process-global); no kernel runs in parallel, so nothing warns."""
