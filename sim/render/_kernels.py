@@ -39,6 +39,23 @@ def transform_rays(dirs, R, origin, out):
 
 
 @nb.njit(cache=True, nogil=True)
+def pinhole_subpixel_dirs(rows, cols, off, fx, fy, cx, cy, out):
+    """``out[k, i s + j] = ((cols[k] + off[j] - cx) / fx, (rows[k] + off[i] - cy) / fy, 1)`` (float64
+    arithmetic, stored as float32): the undistorted directions through an s x s grid in each pixel
+    (``CameraModel.unproject`` of a model without distortion)."""
+    s = off.shape[0]
+    for k in range(rows.shape[0]):
+        for i in range(s):
+            y = (rows[k] + off[i] - cy) / fy
+            for j in range(s):
+                q = i * s + j
+                out[k, q, 0] = (cols[k] + off[j] - cx) / fx
+                out[k, q, 1] = y
+                out[k, q, 2] = 1.0
+    return out
+
+
+@nb.njit(cache=True, nogil=True)
 def rect_mask(dirs, rects, mask):
     """``mask[i] |= (x_i, y_i)`` inside any rectangle ``[x0, x1, y0, y1]`` of ``rects`` (K, 4),
     for camera-frame directions ``(x, y, 1)`` (N, 3) (normalised image coordinates)."""
