@@ -205,3 +205,19 @@ def test_mover_shadows_equal_casting_every_shadow_ray(dynamic: Renderer, monkeyp
     none = dynamic.render_pose(model, T, T0, weather=w).radiance
     np.testing.assert_array_equal(limited, all_rays)
     assert (np.abs(none - limited).max(axis=2) > 5.0).sum() > 100
+
+
+def test_pinhole_subpixel_rays_equal_unproject_bit_for_bit() -> None:
+    """The numba supersample directions of an undistorted camera are CameraModel.unproject's,
+    bit for bit (so the rendered images do not change, #25)."""
+    from ibiscape_eval.sim.render.rays import subpixel_rays
+
+    model = CameraModel(97, 61, 80.5, 81.25, 48.3, 29.9)
+    rows, cols = np.meshgrid(np.arange(61), np.arange(97), indexing="ij")
+    rows, cols = rows.ravel(), cols.ravel()
+    for s in (2, 5, 6):
+        off = (np.arange(s) + 0.5) / s - 0.5
+        du, dv = np.meshgrid(off, off)
+        uv = np.stack([cols[:, None] + du.ravel()[None, :], rows[:, None] + dv.ravel()[None, :]], axis=-1)
+        ref = model.unproject(uv)[0].astype(np.float32)
+        assert np.array_equal(subpixel_rays(model, rows, cols, s), ref)
