@@ -21,6 +21,14 @@ writing included) in fresh processes, once for 0.5 s and once for ``--svi-second
 is the cost per stereo frame, the short run the fixed cost (imports, world, scene), and a 60 s
 sequence (1201 frames) extrapolates to fixed + 1201 x per frame.  ISSUE TARGETS: a stereo step at
 1024 x 1024 <= 0.3 s, a 60 s SVI sequence at 1024 x 1024 <= 10 min.
+
+The calibration-drive row (``--calib-seconds S``) runs ``ibiscape-eval sim --setup svi --kind
+calibration --resolution 384 --duration-s S`` (the shuttle drive, the board in view all the time,
+PNG writing included) in a fresh process: wall, CPU, peak RSS and CPU per stereo frame, against
+the peer's raw cast of the same 384 x 384 stereo rays (per frame, measured in this run).
+``--cli PATH`` times another build's ``ibiscape-eval`` for the same row (a before/after pair:
+``--cli /path/to/old/.venv/bin/ibiscape-eval``).  ISSUE TARGET (#25): a 30 s drive at least 2x
+faster than 196 s; a 1024 x 1024 stereo step within 1.5x the raw cast.
 """
 
 from __future__ import annotations
@@ -103,6 +111,8 @@ def _stages(r: Any, step: Callable[[], None], repeat: int) -> list[tuple[str, fl
                (renderer.Renderer, "_occluded", "shadow rays (static + movers)"),
                (renderer.Renderer, "_mover_pixels", "movers' pixels"),
                (renderer.Renderer, "_radiance", "per-ray work (casts + kernels)"),
+               (renderer.Renderer, "_supersample_targets", "target supersampling (all of it)"),
+               (_kernels, "board_texels", "numba: board texels"),
                (renderer.Renderer, "render_pose", "whole view")]
     import cv2
 
@@ -142,6 +152,49 @@ def _svi(seconds: float) -> tuple[float, float, float, int]:
     return res.wall_s, cpu, res.peak_mb, frames
 
 
+def _calib_drive(cli: str, seconds: float) -> tuple[float, float, float, int]:
+    """Wall, CPU [s], peak RSS [MB] and stereo frames of a 384 px SVI calibration drive."""
+    with tempfile.TemporaryDirectory(prefix="bench_render_calib_") as d:
+        out = Path(d) / "calib"
+        ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        res = run([cli, "sim", "--setup", "svi", "--kind", "calibration", "--duration-s", str(seconds),
+                   "--resolution", "384", "--seed", "1", "--out", str(out)])
+        ru1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+        if not res.ok:
+            raise SystemExit(f"{cli} sim --setup svi --kind calibration failed")
+        frames = len(list((out / "rgbL" / "frames").glob("*.png")))
+    cpu = (ru1.ru_utime - ru0.ru_utime) + (ru1.ru_stime - ru0.ru_stime)
+    return res.wall_s, cpu, res.peak_mb, frames
+
+
+def _calib_rows(seconds: float, clis: list[str], repeat: int) -> None:
+    """The calibration-drive rows: every ``cli`` against the raw cast of the drive's rays."""
+    from ibiscape_eval.core.camera import CameraModel
+    from ibiscape_eval.sim.render import Renderer
+    from ibiscape_eval.sim.render.rays import camera_rays, world_rays
+    from ibiscape_eval.sim.render.scene import tensor
+    from ibiscape_eval.sim.world import build_world
+
+    r = Renderer(build_world(kind="calibration", seed=1, scene="clear"))
+    model = CameraModel.from_fov(384, 384, 90.0)
+    rays = [tensor(world_rays(camera_rays(model), T).reshape(-1, 6)) for T in _stereo_poses("calibration")]
+
+    def cast() -> None:
+        for rt in rays:
+            r.static.scene.cast_rays(rt, nthreads=0)
+
+    t_cast, c_cast = _time(cast, repeat)
+    print(f"\nSVI calibration drive, 384x384, {seconds:g} s (fresh process, PNG writing included); peer: "
+          f"open3d raw cast of one 384x384 stereo step {1000 * t_cast:.1f} ms wall, {1000 * c_cast:.1f} ms CPU")
+    print(f"{'ibiscape-eval':<44} {'frames':>6} {'wall [s]':>9} {'cpu [s]':>8} {'peak [MB]':>10} "
+          f"{'cpu/frame [ms]':>15} {'RATIO cpu':>10}")
+    for cli in clis:
+        wall, cpu, peak, frames = _calib_drive(cli, seconds)
+        per = cpu / max(frames, 1)
+        print(f"{cli[-44:]:<44} {frames:>6} {wall:>9.1f} {cpu:>8.1f} {peak:>10.0f} {1000 * per:>15.1f} "
+              f"{per / c_cast:>10.1f}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", default="256,512,1024")
@@ -149,7 +202,15 @@ def main() -> None:
     ap.add_argument("--stages", action="store_true", help="CPU time per stage of the largest step")
     ap.add_argument("--svi-seconds", type=float, default=10.0,
                     help="duration of the rendered SVI sequence (0: skip)")
+    ap.add_argument("--calib-seconds", type=float, default=0.0,
+                    help="duration of the 384 px SVI calibration drive row (0: skip)")
+    ap.add_argument("--cli", action="append", default=[],
+                    help="another ibiscape-eval to time on the calibration drive (repeatable)")
     a = ap.parse_args()
+    if a.calib_seconds > 0:
+        _calib_rows(a.calib_seconds, [CLI, *a.cli], a.repeat)
+    if not a.sizes:
+        return
 
     from ibiscape_eval.core.camera import CameraModel
     from ibiscape_eval.sim.render import Renderer

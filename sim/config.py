@@ -327,25 +327,7 @@ def validate(cfg: SimConfig) -> None:
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
         raise IbiscapeError(f"config: sensor names must be unique, repeated: {', '.join(dup)}")
-    for s in cfg.imus:
-        _positive(s.rate_hz, f"imus.{s.name}.rate_hz")
-        _vec3(s.position_m, f"imus.{s.name}.position_m")
-        _vec3(s.rpy_deg, f"imus.{s.name}.rpy_deg")
-    for c in cfg.cameras:
-        _choice(c.kind, CAMERA_KINDS, f"cameras.{c.name}.kind")
-        _positive(c.rate_hz, f"cameras.{c.name}.rate_hz")
-        _positive(c.width_px, f"cameras.{c.name}.width_px")
-        _positive(c.height_px, f"cameras.{c.name}.height_px")
-        if not 0 < c.fov_deg < 180:
-            raise IbiscapeError(f"config: cameras.{c.name}.fov_deg must be in (0, 180), got {c.fov_deg!r}")
-        _vec3(c.position_m, f"cameras.{c.name}.position_m")
-        _vec3(c.rpy_deg, f"cameras.{c.name}.rpy_deg")
-        _check_camera_optics(c)
-        ts = c.timeshift_cam_imu_s
-        if not (isinstance(ts, int | float) and not isinstance(ts, bool) and math.isfinite(ts)
-                and abs(ts) <= MAX_TIMESHIFT_S):
-            raise IbiscapeError(f"config: cameras.{c.name}.timeshift_cam_imu_s must be a number of "
-                                f"seconds within +-{MAX_TIMESHIFT_S:g}, got {ts!r}")
+    _validate_sensors(cfg)
     g = cfg.gnss
     _positive(g.rate_hz, "gnss.rate_hz")
     _nonneg(g.sigma_horizontal_m, "gnss.sigma_horizontal_m")
@@ -387,6 +369,29 @@ def validate(cfg: SimConfig) -> None:
 
 #: smallest and largest image side the renderer accepts [px]
 MIN_SIDE_PX, MAX_SIDE_PX = 8, 8192
+
+
+def _validate_sensors(cfg: SimConfig) -> None:
+    """The IMUs' and cameras' rates, poses, sizes, optics and clock offsets."""
+    for s in cfg.imus:
+        _positive(s.rate_hz, f"imus.{s.name}.rate_hz")
+        _vec3(s.position_m, f"imus.{s.name}.position_m")
+        _vec3(s.rpy_deg, f"imus.{s.name}.rpy_deg")
+    for c in cfg.cameras:
+        _choice(c.kind, CAMERA_KINDS, f"cameras.{c.name}.kind")
+        _positive(c.rate_hz, f"cameras.{c.name}.rate_hz")
+        _positive(c.width_px, f"cameras.{c.name}.width_px")
+        _positive(c.height_px, f"cameras.{c.name}.height_px")
+        if not 0 < c.fov_deg < 180:
+            raise IbiscapeError(f"config: cameras.{c.name}.fov_deg must be in (0, 180), got {c.fov_deg!r}")
+        _vec3(c.position_m, f"cameras.{c.name}.position_m")
+        _vec3(c.rpy_deg, f"cameras.{c.name}.rpy_deg")
+        _check_camera_optics(c)
+        ts = c.timeshift_cam_imu_s
+        if not (isinstance(ts, int | float) and not isinstance(ts, bool) and math.isfinite(ts)
+                and abs(ts) <= MAX_TIMESHIFT_S):
+            raise IbiscapeError(f"config: cameras.{c.name}.timeshift_cam_imu_s must be a number of "
+                                f"seconds within +-{MAX_TIMESHIFT_S:g}, got {ts!r}")
 
 
 def _check_camera_optics(c: CameraSpec) -> None:

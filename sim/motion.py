@@ -361,14 +361,7 @@ def plan_motion(
     VehicleMotion
         ``end_ns = start_ns + round(duration_s * 1e9)``.
     """
-    if not (isinstance(duration_s, (int, float)) and math.isfinite(duration_s) and duration_s > 0):
-        raise IbiscapeError(f"duration_s must be a positive number of seconds, got {duration_s!r}")
-    if not (isinstance(max_speed_m_s, (int, float)) and math.isfinite(max_speed_m_s) and max_speed_m_s > 0):
-        raise IbiscapeError(f"max_speed_m_s must be a positive speed, got {max_speed_m_s!r}")
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise IbiscapeError(f"seed must be a non-negative integer, got {seed!r}")
-    if target not in TARGET_KINDS:
-        raise IbiscapeError(f"target {target!r} is unknown; use one of {TARGET_KINDS}")
+    _check_motion_args(duration_s, max_speed_m_s, seed, target)
     end_ns = int(start_ns) + round(duration_s * 1e9)
     if world.kind == "still":
         return VehicleMotion(kind="still", start_ns=start_ns, end_ns=end_ns)
@@ -389,19 +382,7 @@ def plan_motion(
         if start_distance_m:
             raise IbiscapeError("motion.start_distance_m applies to the loop drive; the shuttle drive "
                                 "starts in front of the board (set calibration_drive: loop or remove it)")
-        legs = shuttle_route(world, target=target, max_speed_m_s=max_speed_m_s,
-                             length_m=SHUTTLE_LENGTH_M_PER_S * (duration_s + 2.0) + 20.0)
-        paths = [smooth_path(r.waypoints_m, r.cut_m) for r, _ in legs]
-        t_parts, s_parts = [], []
-        t_off = s_off = 0.0
-        for p, (r, _) in zip(paths, legs, strict=True):
-            tk, sk = _time_profile(p, r, exact_end=True)
-            t_parts.append(tk + t_off)
-            s_parts.append(sk + s_off)
-            t_off += float(tk[-1])
-            s_off += p.total_length_m
-        t_knots, s_knots = np.concatenate(t_parts), np.concatenate(s_parts)
-        path = LegPath(paths, [rev for _, rev in legs])
+        path, t_knots, s_knots = _shuttle_knots(world, target, max_speed_m_s, duration_s)
     else:
         if world.kind == "slam":
             route = town_route(world, length_m=length, rng=rng, max_speed_m_s=max_speed_m_s)
@@ -410,8 +391,47 @@ def plan_motion(
                                       max_speed_m_s=max_speed_m_s, start_distance_m=start_distance_m)
         path = smooth_path(route.waypoints_m, route.cut_m)
         t_knots, s_knots = _time_profile(path, route)
+    t, s_t = _smoothed_progress(t_knots, s_knots, duration_s)
+    from scipy.interpolate import make_interp_spline
 
-    # s(t) on the grid, smoothed by a Hann window (monotone; stops stay exactly still inside)
+    spline = make_interp_spline(t, _body_states(world, path, s_t), k=5)
+    return VehicleMotion(kind=world.kind, start_ns=start_ns, end_ns=end_ns, spline=spline, path=path)
+
+
+def _check_motion_args(duration_s: float, max_speed_m_s: float, seed: int, target: str) -> None:
+    if not (isinstance(duration_s, (int, float)) and math.isfinite(duration_s) and duration_s > 0):
+        raise IbiscapeError(f"duration_s must be a positive number of seconds, got {duration_s!r}")
+    if not (isinstance(max_speed_m_s, (int, float)) and math.isfinite(max_speed_m_s) and max_speed_m_s > 0):
+        raise IbiscapeError(f"max_speed_m_s must be a positive speed, got {max_speed_m_s!r}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise IbiscapeError(f"seed must be a non-negative integer, got {seed!r}")
+    if target not in TARGET_KINDS:
+        raise IbiscapeError(f"target {target!r} is unknown; use one of {TARGET_KINDS}")
+
+
+def _shuttle_knots(world: World, target: str, max_speed_m_s: float, duration_s: float
+                   ) -> tuple[LegPath, FloatArray, FloatArray]:
+    """The shuttle drive's legs as one path and its time profile: knots ``t [s]`` and ``s [m]``
+    along the concatenated legs."""
+    legs = shuttle_route(world, target=target, max_speed_m_s=max_speed_m_s,
+                         length_m=SHUTTLE_LENGTH_M_PER_S * (duration_s + 2.0) + 20.0)
+    paths = [smooth_path(r.waypoints_m, r.cut_m) for r, _ in legs]
+    t_parts, s_parts = [], []
+    t_off = s_off = 0.0
+    for p, (r, _) in zip(paths, legs, strict=True):
+        tk, sk = _time_profile(p, r, exact_end=True)
+        t_parts.append(tk + t_off)
+        s_parts.append(sk + s_off)
+        t_off += float(tk[-1])
+        s_off += p.total_length_m
+    return LegPath(paths, [rev for _, rev in legs]), np.concatenate(t_parts), np.concatenate(s_parts)
+
+
+def _smoothed_progress(t_knots: FloatArray, s_knots: FloatArray, duration_s: float
+                       ) -> tuple[FloatArray, FloatArray]:
+    """Times ``t`` [s] of the 1 kHz grid (0.1 s beyond both ends) and the distance along the
+    path ``s(t)`` [m] there, smoothed by a Hann window (monotone; stops stay exactly still
+    inside)."""
     n = math.ceil(duration_s * GRID_HZ)
     margin = 100  # 0.1 s of fitted spline beyond both ends
     half = int(SMOOTH_WINDOW_S * GRID_HZ) // 2
@@ -419,8 +439,12 @@ def plan_motion(
     s_raw = np.interp(k / GRID_HZ, t_knots, s_knots)
     kernel = np.hanning(2 * half + 3)[1:-1]
     s_t = _fft_convolve(s_raw[:, None], kernel / kernel.sum())[2 * half : len(s_raw), 0]
-    t = np.arange(-margin, n + margin + 1) / GRID_HZ
+    return np.arange(-margin, n + margin + 1) / GRID_HZ, s_t
 
+
+def _body_states(world: World, path: SmoothPath | LegPath, s_t: FloatArray) -> FloatArray:
+    """``(N, 7)`` x, y, z, yaw, pitch, roll, s of the body at path distances ``s_t`` (N,): the
+    terrain under the four wheels through the suspension."""
     xy = path.xy_m(s_t)
     yaw = path.heading_rad(s_t)
     # wheel contact points: front/rear at +-wheelbase/2, left/right at +-track/2
@@ -438,8 +462,4 @@ def plan_motion(
         (h.mean(axis=0), -np.arctan((front - rear) / WHEELBASE_M), np.arctan((lft - rgt) / TRACK_M)), -1
     )
     body = _suspension(u)
-    from scipy.interpolate import make_interp_spline
-
-    Y = np.column_stack((xy, body[:, 0], yaw, body[:, 1], body[:, 2], s_t))
-    spline = make_interp_spline(t, Y, k=5)
-    return VehicleMotion(kind=world.kind, start_ns=start_ns, end_ns=end_ns, spline=spline, path=path)
+    return np.column_stack((xy, body[:, 0], yaw, body[:, 1], body[:, 2], s_t))

@@ -451,12 +451,49 @@ def _agents(
 
 def _town_world(seed: int, scene: str, n: int, bumps: bool) -> dict[str, Any]:
     rng = np.random.default_rng([seed, 2])
-    B = BLOCK_M
-    extent = n * B
+    lanes, roads = _town_lanes_and_roads(n)
+    rows: dict[str, list[tuple[Any, ...]]] = {k: [] for k in
+                                               ("blocks", "sidewalks", "buildings", "poles", "trees", "parked")}
+    inner = BLOCK_M - 2 * ROAD_HALF_WIDTH_M  # block incl. sidewalks
+    for bi in range(n):
+        for bj in range(n):
+            cx, cy = (bi + 0.5) * BLOCK_M, (bj + 0.5) * BLOCK_M
+            rows["blocks"].append((cx, cy, 0.0, inner - 2 * SIDEWALK_M, inner - 2 * SIDEWALK_M, 0.15, 0.0, 0))
+            for k in range(4):
+                _block_edge(rng, rows, cx, cy, 0.5 * math.pi * k, inner)
+    bump_list = _town_bumps(rng, n) if bumps else []
+    car_loops, ped_loops = [], []
+    for bi in range(n):
+        for bj in range(n):
+            x0, y0 = bi * BLOCK_M, bj * BLOCK_M
+            car_loops.append(((x0 + LANE_OFFSET_M, y0 + LANE_OFFSET_M),
+                              (x0 + BLOCK_M - LANE_OFFSET_M, y0 + BLOCK_M - LANE_OFFSET_M)))
+            off = ROAD_HALF_WIDTH_M + 0.5 * SIDEWALK_M
+            ped_loops.append(((x0 + off, y0 + off), (x0 + BLOCK_M - off, y0 + BLOCK_M - off)))
+    n_cars, n_ped = {"clear": (0, 0), "moderate": (4, 8), "dynamic": (4 * n, 8 * n)}[scene]
+    return {
+        "terrain": Terrain(tuple(bump_list)),
+        "lanes": tuple(lanes),
+        "roads": Boxes.from_rows(roads),
+        "blocks": Boxes.from_rows(rows["blocks"]),
+        "sidewalks": Boxes.from_rows(rows["sidewalks"]),
+        "buildings": Boxes.from_rows(rows["buildings"]),
+        "poles": Boxes.from_rows(rows["poles"]),
+        "trees": Boxes.from_rows(rows["trees"]),
+        "parked_cars": Boxes.from_rows(rows["parked"]),
+        "targets": (),
+        "agents": _agents(rng, scene, n_cars, n_ped, car_loops=car_loops, ped_loops=ped_loops),
+        "routes": {},
+    }
+
+
+def _town_lanes_and_roads(n: int) -> tuple[list[FloatArray], list[tuple[Any, ...]]]:
+    """The lanes (two per direction per street) and road boxes of an ``n x n`` block grid."""
+    extent = n * BLOCK_M
     lanes: list[FloatArray] = []
     roads = []
     for j in range(n + 1):
-        c = j * B
+        c = j * BLOCK_M
         # along x at y = c: eastbound lane south of the centreline, westbound north of it
         lanes.append(np.array([[0.0, c - LANE_OFFSET_M], [extent, c - LANE_OFFSET_M]]))
         lanes.append(np.array([[extent, c + LANE_OFFSET_M], [0.0, c + LANE_OFFSET_M]]))
@@ -467,89 +504,69 @@ def _town_world(seed: int, scene: str, n: int, bumps: bool) -> dict[str, Any]:
                       0.0, ROAD_ASPHALT))
         roads.append((c, 0.5 * extent, 0.0, extent + 2 * ROAD_HALF_WIDTH_M, 2 * ROAD_HALF_WIDTH_M, 0.0,
                       0.5 * math.pi, ROAD_ASPHALT))
-    blocks, sidewalks, buildings, poles, trees, parked = [], [], [], [], [], []
-    inner = B - 2 * ROAD_HALF_WIDTH_M  # block incl. sidewalks
-    for bi in range(n):
-        for bj in range(n):
-            cx, cy = (bi + 0.5) * B, (bj + 0.5) * B
-            blocks.append((cx, cy, 0.0, inner - 2 * SIDEWALK_M, inner - 2 * SIDEWALK_M, 0.15, 0.0, 0))
-            for k in range(4):
-                yaw = 0.5 * math.pi * k
-                ux, uy = math.cos(yaw), math.sin(yaw)
-                nx, ny = -uy, ux  # normal of this block edge, pointing from the block to the road
-                ox, oy = cx + (0.5 * inner - 0.5 * SIDEWALK_M) * nx, cy + (0.5 * inner - 0.5 * SIDEWALK_M) * ny
-                sidewalks.append((ox, oy, 0.0, inner, SIDEWALK_M, 0.15, yaw, 0))
-                # buildings along this edge, set back behind the sidewalk
-                along = -0.5 * inner + SIDEWALK_M + 1.0
-                while True:
-                    front = float(rng.uniform(10.0, 20.0))
-                    if along + front > 0.5 * inner - SIDEWALK_M - 1.0:
-                        break
-                    depth = float(rng.uniform(10.0, 16.0))
-                    back = 0.5 * inner - SIDEWALK_M - 1.0 - 0.5 * depth
-                    mid = along + 0.5 * front
-                    buildings.append((cx + mid * ux + back * nx, cy + mid * uy + back * ny, 0.0, front, depth,
-                                      float(rng.uniform(8.0, 30.0)), yaw, int(rng.integers(N_FACADES))))
-                    along += front + float(rng.uniform(0.0, 3.0))
-                # street lights and trees on the sidewalk's road side
-                for a in np.arange(-0.5 * inner + 6.0, 0.5 * inner - 5.0, 22.0):
-                    d = 0.5 * inner - 0.5
-                    poles.append((cx + a * ux + d * nx, cy + a * uy + d * ny, 0.0, 0.2, 0.2, 6.5, 0.0,
-                                  POLE_STREETLIGHT))
-                for a in np.arange(-0.5 * inner + 13.0, 0.5 * inner - 8.0, 15.0):
-                    if rng.random() < 0.7:
-                        d = 0.5 * inner - 1.5
-                        trees.append((cx + a * ux + d * nx, cy + a * uy + d * ny, 0.0, 2.5, 2.5,
-                                      float(rng.uniform(4.0, 8.0)), 0.0, int(rng.integers(N_TREE_KINDS))))
-                # parked cars in the parking strip next to this block (traffic-aligned: block on the
-                # right of the lane next to it, so they face clockwise round the block)
-                for a in np.arange(-0.5 * inner + 8.0, 0.5 * inner - 8.0, 6.5):
-                    if rng.random() < 0.35:
-                        d = 0.5 * inner + 0.5 * PARKING_WIDTH_M
-                        parked.append((cx + a * ux + d * nx, cy + a * uy + d * ny, 0.0, 4.5, 1.9, 1.5,
-                                       yaw, int(rng.integers(N_CAR_COLOURS))))
+    return lanes, roads
+
+
+def _block_edge(rng: np.random.Generator, rows: dict[str, list[tuple[Any, ...]]], cx: float, cy: float,
+                yaw: float, inner: float) -> None:
+    """The sidewalk, buildings, street lights, trees and parked cars along one edge of the block
+    centred at ``(cx, cy)`` (edge direction ``yaw``), appended to ``rows``."""
+    ux, uy = math.cos(yaw), math.sin(yaw)
+    nx, ny = -uy, ux  # normal of this block edge, pointing from the block to the road
+    ox, oy = cx + (0.5 * inner - 0.5 * SIDEWALK_M) * nx, cy + (0.5 * inner - 0.5 * SIDEWALK_M) * ny
+    rows["sidewalks"].append((ox, oy, 0.0, inner, SIDEWALK_M, 0.15, yaw, 0))
+    # buildings along this edge, set back behind the sidewalk
+    along = -0.5 * inner + SIDEWALK_M + 1.0
+    while True:
+        front = float(rng.uniform(10.0, 20.0))
+        if along + front > 0.5 * inner - SIDEWALK_M - 1.0:
+            break
+        depth = float(rng.uniform(10.0, 16.0))
+        back = 0.5 * inner - SIDEWALK_M - 1.0 - 0.5 * depth
+        mid = along + 0.5 * front
+        rows["buildings"].append((cx + mid * ux + back * nx, cy + mid * uy + back * ny, 0.0, front, depth,
+                                  float(rng.uniform(8.0, 30.0)), yaw, int(rng.integers(N_FACADES))))
+        along += front + float(rng.uniform(0.0, 3.0))
+    # street lights and trees on the sidewalk's road side
+    for a in np.arange(-0.5 * inner + 6.0, 0.5 * inner - 5.0, 22.0):
+        d = 0.5 * inner - 0.5
+        rows["poles"].append((cx + a * ux + d * nx, cy + a * uy + d * ny, 0.0, 0.2, 0.2, 6.5, 0.0,
+                              POLE_STREETLIGHT))
+    for a in np.arange(-0.5 * inner + 13.0, 0.5 * inner - 8.0, 15.0):
+        if rng.random() < 0.7:
+            d = 0.5 * inner - 1.5
+            rows["trees"].append((cx + a * ux + d * nx, cy + a * uy + d * ny, 0.0, 2.5, 2.5,
+                                  float(rng.uniform(4.0, 8.0)), 0.0, int(rng.integers(N_TREE_KINDS))))
+    # parked cars in the parking strip next to this block (traffic-aligned: block on the right of
+    # the lane next to it, so they face clockwise round the block)
+    for a in np.arange(-0.5 * inner + 8.0, 0.5 * inner - 8.0, 6.5):
+        if rng.random() < 0.35:
+            d = 0.5 * inner + 0.5 * PARKING_WIDTH_M
+            rows["parked"].append((cx + a * ux + d * nx, cy + a * uy + d * ny, 0.0, 4.5, 1.9, 1.5,
+                                   yaw, int(rng.integers(N_CAR_COLOURS))))
+
+
+def _town_bumps(rng: np.random.Generator, n: int) -> list[Bump]:
+    """Speed bumps (waves across both lanes) and small bubbles on a quarter of the street edges."""
     bump_list: list[Bump] = []
-    if bumps:
-        # speed bumps (waves across both lanes) and small bubbles on a quarter of the street edges
-        for j in range(n + 1):
-            for i in range(n):
-                for horizontal in (True, False):
-                    if rng.random() >= 0.25:
-                        continue
-                    a = (i + 0.5) * B + float(rng.uniform(-15.0, 15.0))
-                    c = j * B
-                    centre = (a, c) if horizontal else (c, a)
-                    head = 0.0 if horizontal else 0.5 * math.pi
-                    if rng.random() < 0.6:
-                        bump_list.append(Bump("wave", centre, 0.08, width_m=1.2, length_m=2 * LANE_WIDTH_M,
-                                              heading_rad=head))
-                    else:
-                        lane = LANE_OFFSET_M * (1 if rng.random() < 0.5 else -1) + 0.8 * (
-                            1 if rng.random() < 0.5 else -1)
-                        pos = (a, c + lane) if horizontal else (c + lane, a)
-                        bump_list.append(Bump("bubble", pos, 0.07, radius_m=0.8))
-    car_loops, ped_loops = [], []
-    for bi in range(n):
-        for bj in range(n):
-            x0, y0 = bi * B, bj * B
-            car_loops.append(((x0 + LANE_OFFSET_M, y0 + LANE_OFFSET_M), (x0 + B - LANE_OFFSET_M, y0 + B - LANE_OFFSET_M)))
-            off = ROAD_HALF_WIDTH_M + 0.5 * SIDEWALK_M
-            ped_loops.append(((x0 + off, y0 + off), (x0 + B - off, y0 + B - off)))
-    n_cars, n_ped = {"clear": (0, 0), "moderate": (4, 8), "dynamic": (4 * n, 8 * n)}[scene]
-    return {
-        "terrain": Terrain(tuple(bump_list)),
-        "lanes": tuple(lanes),
-        "roads": Boxes.from_rows(roads),
-        "blocks": Boxes.from_rows(blocks),
-        "sidewalks": Boxes.from_rows(sidewalks),
-        "buildings": Boxes.from_rows(buildings),
-        "poles": Boxes.from_rows(poles),
-        "trees": Boxes.from_rows(trees),
-        "parked_cars": Boxes.from_rows(parked),
-        "targets": (),
-        "agents": _agents(rng, scene, n_cars, n_ped, car_loops=car_loops, ped_loops=ped_loops),
-        "routes": {},
-    }
+    for j in range(n + 1):
+        for i in range(n):
+            for horizontal in (True, False):
+                if rng.random() >= 0.25:
+                    continue
+                a = (i + 0.5) * BLOCK_M + float(rng.uniform(-15.0, 15.0))
+                c = j * BLOCK_M
+                centre = (a, c) if horizontal else (c, a)
+                head = 0.0 if horizontal else 0.5 * math.pi
+                if rng.random() < 0.6:
+                    bump_list.append(Bump("wave", centre, 0.08, width_m=1.2, length_m=2 * LANE_WIDTH_M,
+                                          heading_rad=head))
+                else:
+                    lane = LANE_OFFSET_M * (1 if rng.random() < 0.5 else -1) + 0.8 * (
+                        1 if rng.random() < 0.5 else -1)
+                    pos = (a, c + lane) if horizontal else (c + lane, a)
+                    bump_list.append(Bump("bubble", pos, 0.07, radius_m=0.8))
+    return bump_list
 
 
 def build_world(

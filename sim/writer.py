@@ -87,10 +87,41 @@ def sequence_document(cfg: SimConfig, *, world: dict[str, Any] | None, target: d
     """
     from ibiscape_eval import __version__
 
+    rendered = rendered or {}
+    cams = _camera_entries(cfg, rendered)
+    imus = _imu_entries(cfg)
+    g = cfg.gnss
+    T_bg = np.eye(4)
+    T_bg[:3, 3] = g.position_m
+    doc: dict[str, Any] = {
+        "generator": {"name": "ibiscape-eval sim", "version": __version__, "seed": cfg.seed,
+                      "setup": cfg.setup, "kind": cfg.kind, "scenario": cfg.scenario,
+                      "ideal": cfg.ideal, "duration_s": cfg.duration_s, "start_ns": cfg.start_ns,
+                      "gt_rate_hz": cfg.gt_rate_hz, "rendered": bool(rendered)},
+        "conventions": CONVENTIONS,
+        "files": files,
+        "cameras": cams,
+        "imus": imus,
+        "gnss": {"reference": {"latitude_deg": g.ref_lat_deg, "longitude_deg": g.ref_lon_deg,
+                               "altitude_m": g.ref_alt_m, "datum": "WGS84",
+                               "local_frame": "ENU (world x east, y north, z up)"},
+                 "sigma_horizontal_m": 0.0 if cfg.ideal else g.sigma_horizontal_m,
+                 "sigma_vertical_m": 0.0 if cfg.ideal else g.sigma_vertical_m,
+                 "rate_hz": g.rate_hz, "T_body_gnss": T_bg},
+        "weather": {"preset": cfg.weather, "file": files.get("weather"),
+                    "averages": weather_averages},
+        "target": target,
+        "scenario": scenario,
+        "world": world,
+        "config": cfg.to_dict(),
+    }
+    return doc
+
+
+def _camera_entries(cfg: SimConfig, rendered: dict[str, dict[str, Any]]) -> dict[str, Any]:
+    """``sequence.yaml`` ``cameras``: Kalibr camchain fields, the rig pose, what was rendered."""
     from .dvs import dvs_config_of
     from .render.rays import camera_model
-
-    rendered = rendered or {}
 
     imu0 = next(s for s in cfg.imus if s.name == "imu0")
     T_b_imu0 = T_body_imu(imu0)
@@ -121,6 +152,11 @@ def sequence_document(cfg: SimConfig, *, world: dict[str, Any] | None, target: d
             entry["T_cn_cnm1"] = np.linalg.inv(T_bc) @ prev
         prev = T_bc
         cams[c.name] = entry
+    return cams
+
+
+def _imu_entries(cfg: SimConfig) -> dict[str, Any]:
+    """``sequence.yaml`` ``imus``: Kalibr imu fields and the simulator's noise per sample."""
     names = imu_file_names(cfg)
     imus: dict[str, Any] = {}
     for s in cfg.imus:
@@ -143,32 +179,7 @@ def sequence_document(cfg: SimConfig, *, world: dict[str, Any] | None, target: d
             "accelerometer_turn_on_bias_sigma": p.turn_on_bias_sigma[3],
             "gyroscope_constant_bias": p.constant_bias[0],
         }
-    g = cfg.gnss
-    T_bg = np.eye(4)
-    T_bg[:3, 3] = g.position_m
-    doc: dict[str, Any] = {
-        "generator": {"name": "ibiscape-eval sim", "version": __version__, "seed": cfg.seed,
-                      "setup": cfg.setup, "kind": cfg.kind, "scenario": cfg.scenario,
-                      "ideal": cfg.ideal, "duration_s": cfg.duration_s, "start_ns": cfg.start_ns,
-                      "gt_rate_hz": cfg.gt_rate_hz, "rendered": bool(rendered)},
-        "conventions": CONVENTIONS,
-        "files": files,
-        "cameras": cams,
-        "imus": imus,
-        "gnss": {"reference": {"latitude_deg": g.ref_lat_deg, "longitude_deg": g.ref_lon_deg,
-                               "altitude_m": g.ref_alt_m, "datum": "WGS84",
-                               "local_frame": "ENU (world x east, y north, z up)"},
-                 "sigma_horizontal_m": 0.0 if cfg.ideal else g.sigma_horizontal_m,
-                 "sigma_vertical_m": 0.0 if cfg.ideal else g.sigma_vertical_m,
-                 "rate_hz": g.rate_hz, "T_body_gnss": T_bg},
-        "weather": {"preset": cfg.weather, "file": files.get("weather"),
-                    "averages": weather_averages},
-        "target": target,
-        "scenario": scenario,
-        "world": world,
-        "config": cfg.to_dict(),
-    }
-    return doc
+    return imus
 
 
 def prepare_output(out: str | os.PathLike[str], *, overwrite: bool) -> Path:

@@ -341,6 +341,29 @@ def _accumulate(ev: Events, shape: tuple[int, int]) -> npt.NDArray[np.uint8]:
     return frame_to_uint8(f, kind="accumulate", signed=True)
 
 
+def _window_events(sim: DvsSimulator, render_gray: RenderGray, a: int, b: int, dt: int,
+                   cfg: DvsConfig) -> tuple[Events, int, int]:
+    """The scene's events in the window ``(a, b]`` [ns], rendering every ``dt`` ns (adapted to the
+    brightness change when ``cfg.adaptive``); returns the events, the next ``dt`` and the number
+    of renders."""
+    min_dt = max(1, round(1e9 / cfg.max_internal_rate_hz))
+    c_min = min(cfg.positive_threshold, cfg.negative_threshold)
+    parts: list[Events] = []
+    t = a
+    while t < b:
+        t_next = min(t + dt, b)
+        ev, dmax = sim.step(t_next, render_gray(t_next))
+        parts.append(ev)
+        if cfg.adaptive:
+            rate = dmax / (t_next - t)  # that quantile of |dL/dt|, per ns
+            want = cfg.adaptive_fraction * c_min / rate if rate > 0 else float(b - a)
+            dt = int(min(max(want, min_dt), b - a))
+        else:
+            dt = min_dt
+        t = t_next
+    return Events.concatenate(parts), dt, len(parts)
+
+
 def write_dvs_camera(render_gray: RenderGray, camera: CameraSpec, frame_stamps_ns: npt.ArrayLike,
                      out_dir: str | os.PathLike[str], *, dvs_config: DvsConfig | None = None,
                      weather: WeatherLog | None = None, rng: np.random.Generator | None = None,
@@ -384,29 +407,14 @@ def write_dvs_camera(render_gray: RenderGray, camera: CameraSpec, frame_stamps_n
     levels = weather_level(weather, (st[:-1] + st[1:]) // 2)
     noise = _WeatherNoise(shape, cfg, rng, active=bool(np.any(levels > 0)))
     writer = DvsFolderWriter(out_dir, frames=cfg.frames)
-    min_dt = max(1, round(1e9 / cfg.max_internal_rate_hz))
-    c_min = min(cfg.positive_threshold, cfg.negative_threshold)
     sim.reset(int(st[0]), render_gray(int(st[0])))
     n_renders = 1
-    dt = min_dt
+    dt = max(1, round(1e9 / cfg.max_internal_rate_hz))
     n_scene = n_noise = n_hot = n_pos = 0
     for i in range(1, st.size):
         a, b = int(st[i - 1]), int(st[i])
-        parts: list[Events] = []
-        t = a
-        while t < b:
-            t_next = min(t + dt, b)
-            ev, dmax = sim.step(t_next, render_gray(t_next))
-            n_renders += 1
-            parts.append(ev)
-            if cfg.adaptive:
-                rate = dmax / (t_next - t)  # that quantile of |dL/dt|, per ns
-                want = cfg.adaptive_fraction * c_min / rate if rate > 0 else float(b - a)
-                dt = int(min(max(want, min_dt), b - a))
-            else:
-                dt = min_dt
-            t = t_next
-        scene = Events.concatenate(parts)
+        scene, dt, renders = _window_events(sim, render_gray, a, b, dt, cfg)
+        n_renders += renders
         extra, hot = noise.events(a, b, len(scene), float(levels[i - 1]))
         ev = _merge(scene, extra)
         n_scene += len(scene)

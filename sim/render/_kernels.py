@@ -39,6 +39,23 @@ def transform_rays(dirs, R, origin, out):
 
 
 @nb.njit(cache=True, nogil=True)
+def pinhole_subpixel_dirs(rows, cols, off, fx, fy, cx, cy, out):
+    """``out[k, i s + j] = ((cols[k] + off[j] - cx) / fx, (rows[k] + off[i] - cy) / fy, 1)`` (float64
+    arithmetic, stored as float32): the undistorted directions through an s x s grid in each pixel
+    (``CameraModel.unproject`` of a model without distortion)."""
+    s = off.shape[0]
+    for k in range(rows.shape[0]):
+        for i in range(s):
+            y = (rows[k] + off[i] - cy) / fy
+            for j in range(s):
+                q = i * s + j
+                out[k, q, 0] = (cols[k] + off[j] - cx) / fx
+                out[k, q, 1] = y
+                out[k, q, 2] = 1.0
+    return out
+
+
+@nb.njit(cache=True, nogil=True)
 def rect_mask(dirs, rects, mask):
     """``mask[i] |= (x_i, y_i)`` inside any rectangle ``[x0, x1, y0, y1]`` of ``rects`` (K, 4),
     for camera-frame directions ``(x, y, 1)`` (N, 3) (normalised image coordinates)."""
@@ -170,21 +187,95 @@ def _frac(x):
     return x - np.floor(x)
 
 
+@nb.njit(cache=True, inline="always")
+def _ground_colour(u, v, coarse, gmap, gx0, gy0, gres):
+    # asphalt, calibration pad and markings of the ground map (bilinear), grass elsewhere:
+    # (r, g, b, paved weight, label)
+    gh, gw = gmap.shape[0], gmap.shape[1]
+    fx = min(max((u - gx0) / gres - 0.5, 0.0), gw - 1.0)
+    fy = min(max((v - gy0) / gres - 0.5, 0.0), gh - 1.0)
+    x0 = int(fx)
+    y0 = int(fy)
+    x1 = min(x0 + 1, gw - 1)
+    y1 = min(y0 + 1, gh - 1)
+    ax = fx - x0
+    ay = fy - y0
+    w00 = (1.0 - ax) * (1.0 - ay)
+    w01 = ax * (1.0 - ay)
+    w10 = (1.0 - ax) * ay
+    w11 = ax * ay
+    asphalt = (gmap[y0, x0, 0] * w00 + gmap[y0, x1, 0] * w01 + gmap[y1, x0, 0] * w10
+               + gmap[y1, x1, 0] * w11) / 255.0
+    pad = (gmap[y0, x0, 1] * w00 + gmap[y0, x1, 1] * w01 + gmap[y1, x0, 1] * w10
+           + gmap[y1, x1, 1] * w11) / 255.0
+    mark = (gmap[y0, x0, 2] * w00 + gmap[y0, x1, 2] * w01 + gmap[y1, x0, 2] * w10
+            + gmap[y1, x1, 2] * w11) / 255.0
+    road = max(asphalt, pad)
+    gr = 1.0 + 0.25 * coarse
+    r = 0.22 * gr * (1.0 - road) + 0.19 * asphalt + 0.46 * pad
+    g = 0.29 * gr * (1.0 - road) + 0.19 * asphalt + 0.45 * pad
+    b = 0.13 * gr * (1.0 - road) + 0.20 * asphalt + 0.42 * pad
+    r = r * (1.0 - mark) + 0.85 * mark
+    g = g * (1.0 - mark) + 0.85 * mark
+    b = b * (1.0 - mark) + 0.80 * mark
+    lab = _TAG_ROADLINE if mark > 0.5 else (_TAG_ROAD if road > 0.5 else _TAG_TERRAIN)
+    return r, g, b, road, lab
+
+
+@nb.njit(cache=True, inline="always")
+def _facade_colour(u, v, vi, facades):
+    # a facade colour per variant with doors, glass panes and window frames on a grid
+    k = vi % facades.shape[0]
+    r, g, b = facades[k, 0], facades[k, 1], facades[k, 2]
+    pitch = 2.6 + 0.3 * (vi % 3)
+    fu = _frac(u / pitch)
+    fv = _frac(v / 3.1)
+    if v < 2.2 and abs(_frac(u / 9.0) - 0.5) < 0.07:  # doors
+        return 0.18, 0.12, 0.08
+    if v > 2.0 and abs(fu - 0.5) < 0.24 and abs(fv - 0.55) < 0.24:  # glass, pane to pane
+        pane = (np.floor(u / pitch) * 7 + np.floor(v / 3.1) * 13) % 5
+        return 0.05 + 0.03 * pane, 0.07 + 0.03 * pane, 0.10 + 0.035 * pane
+    if v > 2.0 and abs(fu - 0.5) < 0.29 and abs(fv - 0.55) < 0.29:  # window frames
+        return 0.80, 0.80, 0.78
+    return r, g, b
+
+
+@nb.njit(cache=True, inline="always")
+def _mover_colour(m, v, vi, cars, clothes):
+    # cars: body colour, windows all round the cabin (variant >= 100), a dark bumper band;
+    # pedestrians: clothes, skin above 1.5 m, dark trousers below 0.85 m
+    if m == _PED:
+        k = vi % clothes.shape[0]
+        if v > 1.5:
+            return 0.55, 0.40, 0.32
+        if v < 0.85:
+            return 0.12, 0.12, 0.16
+        return clothes[k, 0], clothes[k, 1], clothes[k, 2]
+    k = (vi % 100) % cars.shape[0]
+    r, g, b = cars[k, 0], cars[k, 1], cars[k, 2]
+    if m == _CAR and vi >= 100:
+        return 0.06, 0.07, 0.09
+    if m == _CAR and abs(v - 0.18) < 0.08:
+        return 0.25 * r, 0.25 * g, 0.25 * b
+    return r, g, b
+
+
 @nb.njit(cache=True, nogil=True)
-def albedo_into(mat, var, uv, tab, fine_per_m, coarse_per_m, gmap, gx0, gy0, gres, plain, amp_f, amp_c,
-                facades, cars, clothes, crowns, col, labels, paved):
+def albedo_into(mat, var, uv, tex, col, labels, paved):
     """Albedo into ``col`` (N, 3), the ground map's label corrections into ``labels`` (N,) (left
     alone elsewhere) and the paved weight into ``paved`` (N,) of every hit (see
     ``textures.albedo``; the sky and calibration boards get black: the caller looks boards up).
-    The noise table's sides must be powers of two."""
+    ``tex`` is the tuple of :func:`~ibiscape_eval.sim.render.textures.kernel_tables` (the noise
+    table's sides must be powers of two)."""
+    tab, fine_per_m, coarse_per_m, gmap, gx0, gy0, gres, plain, amp_f, amp_c = tex[:10]
+    facades, cars, clothes, crowns = tex[10:]
     for i in range(mat.shape[0]):
         m = mat[i]
-        if m == 0 or m == _TARGET:
+        if m == 0 or m == _TARGET:  # sky; boards are looked up by the caller
             col[i, 0] = col[i, 1] = col[i, 2] = 0.0
             paved[i] = 0.0
             continue
-        u, v = uv[i, 0], uv[i, 1]
-        vi = var[i]
+        u, v, vi = uv[i, 0], uv[i, 1], var[i]
         lab = 0
         pv = 0.0
         fine = _noise(tab, u * fine_per_m, v * fine_per_m)
@@ -192,68 +283,17 @@ def albedo_into(mat, var, uv, tab, fine_per_m, coarse_per_m, gmap, gx0, gy0, gre
         mod = min(max(1.0 + amp_f[m] * fine + amp_c[m] * coarse, 0.15), 2.5)
         r, g, b = plain[m, 0], plain[m, 1], plain[m, 2]
         if m == _GROUND:
-            gh, gw = gmap.shape[0], gmap.shape[1]
-            fx = min(max((u - gx0) / gres - 0.5, 0.0), gw - 1.0)
-            fy = min(max((v - gy0) / gres - 0.5, 0.0), gh - 1.0)
-            x0 = int(fx)
-            y0 = int(fy)
-            x1 = min(x0 + 1, gw - 1)
-            y1 = min(y0 + 1, gh - 1)
-            ax = fx - x0
-            ay = fy - y0
-            w00 = (1.0 - ax) * (1.0 - ay)
-            w01 = ax * (1.0 - ay)
-            w10 = (1.0 - ax) * ay
-            w11 = ax * ay
-            asphalt = (gmap[y0, x0, 0] * w00 + gmap[y0, x1, 0] * w01 + gmap[y1, x0, 0] * w10
-                       + gmap[y1, x1, 0] * w11) / 255.0
-            pad = (gmap[y0, x0, 1] * w00 + gmap[y0, x1, 1] * w01 + gmap[y1, x0, 1] * w10
-                   + gmap[y1, x1, 1] * w11) / 255.0
-            mark = (gmap[y0, x0, 2] * w00 + gmap[y0, x1, 2] * w01 + gmap[y1, x0, 2] * w10
-                    + gmap[y1, x1, 2] * w11) / 255.0
-            road = max(asphalt, pad)
-            gr = 1.0 + 0.25 * coarse
-            r = 0.22 * gr * (1.0 - road) + 0.19 * asphalt + 0.46 * pad
-            g = 0.29 * gr * (1.0 - road) + 0.19 * asphalt + 0.45 * pad
-            b = 0.13 * gr * (1.0 - road) + 0.20 * asphalt + 0.42 * pad
-            r = r * (1.0 - mark) + 0.85 * mark
-            g = g * (1.0 - mark) + 0.85 * mark
-            b = b * (1.0 - mark) + 0.80 * mark
-            pv = road
-            lab = _TAG_ROADLINE if mark > 0.5 else (_TAG_ROAD if road > 0.5 else _TAG_TERRAIN)
+            r, g, b, pv, lab = _ground_colour(u, v, coarse, gmap, gx0, gy0, gres)
         elif m == _SIDEWALK:
             if min(_frac(u * 2.0), _frac(v * 2.0)) < 0.04:  # 0.5 m paving slabs, dark joints
                 r, g, b = 0.6 * r, 0.6 * g, 0.6 * b
         elif m == _FACADE:
-            k = vi % facades.shape[0]
-            r, g, b = facades[k, 0], facades[k, 1], facades[k, 2]
-            pitch = 2.6 + 0.3 * (vi % 3)
-            fu = _frac(u / pitch)
-            fv = _frac(v / 3.1)
-            if v < 2.2 and abs(_frac(u / 9.0) - 0.5) < 0.07:  # doors
-                r, g, b = 0.18, 0.12, 0.08
-            elif v > 2.0 and abs(fu - 0.5) < 0.24 and abs(fv - 0.55) < 0.24:  # glass, pane to pane
-                pane = (np.floor(u / pitch) * 7 + np.floor(v / 3.1) * 13) % 5
-                r, g, b = 0.05 + 0.03 * pane, 0.07 + 0.03 * pane, 0.10 + 0.035 * pane
-            elif v > 2.0 and abs(fu - 0.5) < 0.29 and abs(fv - 0.55) < 0.29:  # window frames
-                r, g, b = 0.80, 0.80, 0.78
+            r, g, b = _facade_colour(u, v, vi, facades)
         elif m == _CROWN:
             k = vi % crowns.shape[0]
             r, g, b = crowns[k, 0], crowns[k, 1], crowns[k, 2]
-        elif m == _CAR or m == _CAR_ROOF:  # noqa: SIM109 (numba: plain comparisons)
-            k = (vi % 100) % cars.shape[0]
-            r, g, b = cars[k, 0], cars[k, 1], cars[k, 2]
-            if m == _CAR and vi >= 100:  # windows all round the cabin
-                r, g, b = 0.06, 0.07, 0.09
-            elif m == _CAR and abs(v - 0.18) < 0.08:  # dark bumper band
-                r, g, b = 0.25 * r, 0.25 * g, 0.25 * b
-        elif m == _PED:
-            k = vi % clothes.shape[0]
-            r, g, b = clothes[k, 0], clothes[k, 1], clothes[k, 2]
-            if v > 1.5:
-                r, g, b = 0.55, 0.40, 0.32
-            elif v < 0.85:
-                r, g, b = 0.12, 0.12, 0.16
+        elif m == _CAR or m == _CAR_ROOF or m == _PED:  # noqa: SIM109 (numba: plain comparisons)
+            r, g, b = _mover_colour(m, v, vi, cars, clothes)
         col[i, 0], col[i, 1], col[i, 2] = r * mod, g * mod, b * mod
         if lab > 0:
             labels[i] = lab
@@ -261,29 +301,66 @@ def albedo_into(mat, var, uv, tab, fine_per_m, coarse_per_m, gmap, gx0, gy0, gre
 
 
 @nb.njit(cache=True, nogil=True)
-def albedo_all(mat, var, uv, tab, fine_per_m, coarse_per_m, gmap, gx0, gy0, gres, plain, amp_f, amp_c,
-               facades, cars, clothes, crowns):
+def albedo_all(mat, var, uv, tex):
     """Albedo (N, 3), label corrections (N,) (0: keep) and paved weight (N,) of every hit
     (:func:`albedo_into` into new arrays)."""
     n = mat.shape[0]
     col = np.empty((n, 3), np.float32)
     lab = np.zeros(n, np.uint8)
     paved = np.empty(n, np.float32)
-    albedo_into(mat, var, uv, tab, fine_per_m, coarse_per_m, gmap, gx0, gy0, gres, plain, amp_f, amp_c,
-                facades, cars, clothes, crowns, col, lab, paved)
+    albedo_into(mat, var, uv, tex, col, lab, paved)
     return col, lab, paved
 
 
 @nb.njit(cache=True, nogil=True)
-def surfaces(t, prim, bary, normal, rays, map2, t2, prim2, bary2, normal2,
-             material, variant, label, uv_m, material2, variant2, label2, uv_m2, sentinel, board_flip,
-             tab, fine_per_m, coarse_per_m, gmap, gx0, gy0, gres, plain, amp_f, amp_c,
-             facades, cars, clothes, crowns, sun, shadows, eps, sgrid, sa0, sb0, scell, e1, e2):
-    """Everything of the hits the shading needs, in one pass over the rays (N).
+def board_texels(mat, uv, var, front, boards, col):
+    """Fill ``col`` (N, 3) where ``mat`` is a calibration board: the nearest texel of board
+    ``var``'s printed texture on its observed side (``front``), grey 0.35 on its back.
 
-    The second scene (movers) was cast for a subset of the rays: ray ``i`` is its row ``map2[i]``
-    (-1: not cast).  ``board_flip[var]`` says for each calibration board whether its triangle
-    normal points away from the observed side.
+    ``boards`` is a tuple per board of ``(texture (H, W) float32, x0, y0 [m] of the texture's
+    first column / row edge, row sign (+1: rows grow with y, -1: with decreasing y), texels per
+    metre)``, the float64 arithmetic of ``Target.texture_px_from_target`` (texel centres at
+    integers, every printed edge on a texel edge)."""
+    for i in range(mat.shape[0]):
+        if mat[i] != _TARGET:
+            continue
+        if not front[i]:
+            col[i, 0] = col[i, 1] = col[i, 2] = np.float32(0.35)
+            continue
+        tex, x0, y0, sign, ppm = boards[var[i]]
+        cf = (np.float64(uv[i, 0]) - x0) * ppm - 0.5
+        rf = (np.float64(uv[i, 1]) - y0) * ppm - 0.5 if sign > 0 else (y0 - np.float64(uv[i, 1])) * ppm - 0.5
+        c = min(max(int(np.floor(cf + 0.5)), 0), tex.shape[1] - 1)
+        r = min(max(int(np.floor(rf + 0.5)), 0), tex.shape[0] - 1)
+        col[i, 0] = col[i, 1] = col[i, 2] = tex[r, c]
+    return col
+
+
+@nb.njit(cache=True, inline="always")
+def _shadow_ray(i, count, ox, oy, oz, sun, grid, srays, spix, smov):
+    # shadow ray ``count`` from the (lifted) surface point toward the sun, its pixel and whether
+    # the point's cell in the movers' sun raster says a mover may shade it
+    sgrid, sa0, sb0, scell, e1, e2 = grid
+    srays[count, 0], srays[count, 1], srays[count, 2] = ox, oy, oz
+    srays[count, 3], srays[count, 4], srays[count, 5] = sun[0], sun[1], sun[2]
+    spix[count] = i
+    ga = int(np.floor((ox * e1[0] + oy * e1[1] + oz * e1[2] - sa0) / scell))
+    gb = int(np.floor((ox * e2[0] + oy * e2[1] + oz * e2[2] - sb0) / scell))
+    smov[count] = 0 <= ga < sgrid.shape[1] and 0 <= gb < sgrid.shape[0] and sgrid[gb, ga]
+
+
+@nb.njit(cache=True, nogil=True)
+def surfaces(rays, hits, hits2, tables, tables2, board_flip, tex, light, grid):
+    """Everything of the hits the shading needs, in one pass over the rays (N, 6).
+
+    ``hits`` are the static scene's ``(t_hit, primitive_ids, primitive_uvs, primitive_normals)``,
+    ``tables`` its triangle tables ``(material, variant, label, uv_m, sentinel row)``.  The
+    second scene (movers) was cast for a subset of the rays: ``hits2 = (map2, t, ids, uvs,
+    normals)`` with ray ``i`` its row ``map2[i]`` (-1: not cast), ``tables2`` its tables.
+    ``board_flip[var]`` says for each calibration board whether its triangle normal points away
+    from the observed side; ``tex`` are the albedo tables (``textures.kernel_tables``), ``light``
+    is ``(sun direction, shadows, lift eps [m])`` and ``grid`` the movers' outlines seen along
+    the sun ``(raster, a0, b0, cell, e1, e2)`` (``a = p.e1``, ``b = p.e2``).
 
     Returns
     -------
@@ -292,25 +369,20 @@ def surfaces(t, prim, bary, normal, rays, map2, t2, prim2, bary2, normal2,
     black: the caller looks them up), paved (N,), ndl (N,) ``max(0, n.s)`` of the unit normal
     facing the viewer, amb (N,) ``0.6 + 0.4 n_z``, shadow rays (N, 6) of which the first
     ``count`` are used (the lit pixels facing the sun, when ``shadows``), their pixels (N,),
-    whether a mover may shade them (N,) (the point's cell in ``sgrid``, a raster of the movers'
-    outlines seen along the sun: ``a = p.e1``, ``b = p.e2``), and ``count``.
+    whether a mover may shade them (N,), and ``count``.
     """
+    t, prim, bary, normal = hits
+    map2, t2, prim2, bary2, normal2 = hits2
+    material, variant, label, uv_m, sentinel = tables
+    material2, variant2, label2, uv_m2 = tables2
+    sun, shadows, eps = light
     n = t.shape[0]
-    depth = np.empty(n, np.float32)
-    mat = np.empty(n, np.uint8)
-    var = np.empty(n, np.uint8)
-    lab = np.empty(n, np.uint8)
-    uv = np.empty((n, 2), np.float32)
-    front = np.empty(n, np.bool_)
-    alb = np.empty((n, 3), np.float32)
-    paved = np.empty(n, np.float32)
-    ndl_out = np.empty(n, np.float32)
-    amb = np.empty(n, np.float32)
-    srays = np.empty((n, 6), np.float32)
-    spix = np.empty(n, np.int32)
-    smov = np.empty(n, np.bool_)
-    sx, sy, sz = sun[0], sun[1], sun[2]
-    gh, gw = sgrid.shape[0], sgrid.shape[1]
+    depth, ndl_out, amb, paved = (np.empty(n, np.float32), np.empty(n, np.float32),
+                                  np.empty(n, np.float32), np.empty(n, np.float32))
+    mat, var, lab = np.empty(n, np.uint8), np.empty(n, np.uint8), np.empty(n, np.uint8)
+    uv, alb = np.empty((n, 2), np.float32), np.empty((n, 3), np.float32)
+    front, smov = np.empty(n, np.bool_), np.empty(n, np.bool_)
+    srays, spix = np.empty((n, 6), np.float32), np.empty(n, np.int32)
     has2 = map2.shape[0] > 1
     count = 0
     for i in range(n):
@@ -320,8 +392,7 @@ def surfaces(t, prim, bary, normal, rays, map2, t2, prim2, bary2, normal2,
             ti, p, b1, b2 = t2[j], prim2[j], bary2[j, 0], bary2[j, 1]
             nx, ny, nz = normal2[j, 0], normal2[j, 1], normal2[j, 2]
             m, vi, lb = material2[p], variant2[p], label2[p]
-            u0, v0 = uv_m2[p, 0, 0], uv_m2[p, 0, 1]
-            u1, v1 = uv_m2[p, 1, 0], uv_m2[p, 1, 1]
+            u0, v0, u1, v1 = uv_m2[p, 0, 0], uv_m2[p, 0, 1], uv_m2[p, 1, 0], uv_m2[p, 1, 1]
             u2, v2 = uv_m2[p, 2, 0], uv_m2[p, 2, 1]
         else:
             ti = t[i]
@@ -329,50 +400,42 @@ def surfaces(t, prim, bary, normal, rays, map2, t2, prim2, bary2, normal2,
             b1, b2 = bary[i, 0], bary[i, 1]
             nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
             m, vi, lb = material[p], variant[p], label[p]
-            u0, v0 = uv_m[p, 0, 0], uv_m[p, 0, 1]
-            u1, v1 = uv_m[p, 1, 0], uv_m[p, 1, 1]
+            u0, v0, u1, v1 = uv_m[p, 0, 0], uv_m[p, 0, 1], uv_m[p, 1, 0], uv_m[p, 1, 1]
             u2, v2 = uv_m[p, 2, 0], uv_m[p, 2, 1]
-        depth[i] = ti
-        mat[i] = m
-        var[i] = vi
+        depth[i], mat[i], var[i], lab[i] = ti, m, vi, lb
         b0 = 1.0 - b1 - b2
         u = b0 * u0 + b1 * u1 + b2 * u2
         v = b0 * v0 + b1 * v1 + b2 * v2
-        uv[i, 0] = u
-        uv[i, 1] = v
+        uv[i, 0], uv[i, 1] = u, v
         f = nx * dx + ny * dy + nz * dz < 0.0
         s = 1.0 if f else -1.0
         nx, ny, nz = s * nx, s * ny, s * nz
         front[i] = f != board_flip[vi] if m == _TARGET else f
-        lab[i] = lb
         amb[i] = 0.6 + 0.4 * nz
-        ndl = nx * sx + ny * sy + nz * sz
+        ndl = nx * sun[0] + ny * sun[1] + nz * sun[2]
         if ndl < 0.0 or not np.isfinite(ti):
             ndl = 0.0
         ndl_out[i] = ndl
         if shadows and ndl > 0.0:
-            px = rays[i, 0] + ti * dx + eps * nx
-            py = rays[i, 1] + ti * dy + eps * ny
-            pz = rays[i, 2] + ti * dz + eps * nz
-            srays[count, 0], srays[count, 1], srays[count, 2] = px, py, pz
-            srays[count, 3], srays[count, 4], srays[count, 5] = sx, sy, sz
-            spix[count] = i
-            ga = int(np.floor((px * e1[0] + py * e1[1] + pz * e1[2] - sa0) / scell))
-            gb = int(np.floor((px * e2[0] + py * e2[1] + pz * e2[2] - sb0) / scell))
-            smov[count] = 0 <= ga < gw and 0 <= gb < gh and sgrid[gb, ga]
+            _shadow_ray(i, count, rays[i, 0] + ti * dx + eps * nx, rays[i, 1] + ti * dy + eps * ny,
+                        rays[i, 2] + ti * dz + eps * nz, sun, grid, srays, spix, smov)
             count += 1
-    albedo_into(mat, var, uv, tab, fine_per_m, coarse_per_m, gmap, gx0, gy0, gres, plain, amp_f, amp_c,
-                facades, cars, clothes, crowns, alb, lab, paved)
+    albedo_into(mat, var, uv, tex, alb, lab, paved)
     return depth, mat, var, lab, uv, front, alb, paved, ndl_out, amb, srays, spix, smov, count
 
 
 @nb.njit(cache=True, nogil=True)
-def finish(alb, ndl, amb, depth, rays, paved, uv, tab, e_sun, e_sky, zenith, horizon, overcast, cloud,
-           sky_level, wet, puddle_level, beta, airlight, sky_distance, scale):
+def finish(alb, ndl, amb, depth, rays, paved, uv, tab, sky, optics, scale):
     """Radiance (N, 3) times ``scale``: lit surfaces ``albedo (1 - 0.45 wet paved) (e_sun n.s V +
     e_sky (0.6 + 0.4 n_z))`` (``ndl`` already 0 in shadow), the sky gradient where nothing was hit,
     puddles on paved ground mirroring the sky (where a coarse noise exceeds ``puddle_level``; none
-    when it is ``inf``), then Koschmieder fog ``J t + A (1 - t)`` (no fog when ``beta`` is 0)."""
+    when it is ``inf``), then Koschmieder fog ``J t + A (1 - t)`` (no fog when ``beta`` is 0).
+
+    ``sky`` is ``(e_sun, e_sky, zenith (3,), horizon (3,), overcast (3,), cloud, sky_level)``,
+    ``optics`` is ``(wet, puddle_level, beta [1/m], airlight (3,), sky_distance [m])``; ``tab`` is
+    the noise table."""
+    e_sun, e_sky, zenith, horizon, overcast, cloud, sky_level = sky
+    wet, puddle_level, beta, airlight, sky_distance = optics
     n = depth.shape[0]
     out = np.empty((n, 3), np.float32)
     puddling = np.isfinite(puddle_level)

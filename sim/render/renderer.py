@@ -16,7 +16,6 @@ shadow rays, ``_kernels.finish`` after them) and one for the sensor (``_kernels.
 from __future__ import annotations
 
 import threading
-import warnings
 from dataclasses import dataclass, fields
 from typing import Any
 
@@ -242,22 +241,11 @@ class Renderer:
         if self.options.noise:
             key = int(np.random.default_rng([self.seed, 0x5E75, noise_key, int(t_ns) & 0xFFFFFFFFFFFF])
                       .integers(0, 2**63))
-        with warnings.catch_warnings():
-            warnings.filterwarnings("ignore", message=".*TBB threading layer.*")
-            rgb = sensor_output(rad, lighting(w).gain, key, noise=self.options.noise)
+        rgb = sensor_output(rad, lighting(w).gain, key, noise=self.options.noise)
         return RenderedView(rgb, depth, labels, rad)
 
     # ------------------------------------------------------------------------------ internals
     def _radiance_image(self, model: CameraModel, T: np.ndarray, t_ns: int,
-                        weather: WeatherState | None = None, *, rain: bool = True
-                        ) -> tuple[F32, F32, npt.NDArray[np.uint8]]:
-        # numba tries the TBB threading layer first and warns (once) that this machine's TBB is
-        # too old before falling back to OpenMP: nothing a user can act on
-        with warnings.catch_warnings():
-            warnings.filterwarnings("ignore", message=".*TBB threading layer.*")
-            return self._radiance_image_impl(model, T, t_ns, weather, rain=rain)
-
-    def _radiance_image_impl(self, model: CameraModel, T: np.ndarray, t_ns: int,
                              weather: WeatherState | None = None, *, rain: bool = True
                              ) -> tuple[F32, F32, npt.NDArray[np.uint8]]:
         H, W = model.height_px, model.width_px
@@ -267,24 +255,8 @@ class Renderer:
         scale = 255.0 * light.gain
         rad, depth, mat, labels = self._radiance(rays, t_ns, w, light, self._mover_pixels(model, T, t_ns),
                                                  scale=scale)
-        s = self.options.target_supersample
-        if s > 1 and self.static.targets:
-            import cv2
-
-            on = (mat == MAT["target"]).reshape(H, W).astype(np.uint8)
-            if on.any():
-                # only where the pixel may cover an edge: the board's outline, or a 3x3
-                # neighbourhood whose centre samples differ (inside a printed square the
-                # pixel's average equals its centre sample)
-                k = np.ones((3, 3), np.uint8)
-                g = (rad @ GRAY_WEIGHTS).reshape(H, W)
-                spread = cv2.dilate(g, k) - cv2.erode(g, k)
-                grown = cv2.dilate(on, k)
-                edge = (grown > 0) & ((spread > 0.004 * scale) | (cv2.erode(on, k) == 0))
-                rows, cols = np.nonzero(edge)
-                sub = world_rays(subpixel_rays(model, rows, cols, s), T).reshape(-1, 6)
-                rs = self._radiance(sub, t_ns, w, light, scale=scale)[0]
-                rad[rows * W + cols] = rs.reshape(len(rows), s * s, 3).mean(axis=1)
+        if self.options.target_supersample > 1 and self.static.targets:
+            self._supersample_targets(model, T, t_ns, w, light, scale, rad, mat)
         img = rad.reshape(H, W, 3)
         depth = depth.reshape(H, W)
         if rain and self.options.weather_optics and w.precipitation > 0:
@@ -302,6 +274,28 @@ class Renderer:
         img = np.asarray(img, dtype=np.float32)
         np.clip(img, 0.0, 255.0, out=img)
         return img, depth, labels.reshape(H, W)
+
+    def _supersample_targets(self, model: CameraModel, T: np.ndarray, t_ns: int, w: WeatherState,
+                             light: Lighting, scale: float, rad: F32, mat: npt.NDArray[np.uint8]) -> None:
+        """Replace ``rad`` (H W, 3) in place by the mean of ``s x s`` rays where a pixel that sees
+        a calibration board may cover an edge: the board's outline, or a 3x3 neighbourhood whose
+        centre samples differ (inside a printed square the pixel's average equals its centre
+        sample)."""
+        import cv2
+
+        H, W = model.height_px, model.width_px
+        s = self.options.target_supersample
+        on = (mat == MAT["target"]).reshape(H, W).astype(np.uint8)
+        if not on.any():
+            return
+        k = np.ones((3, 3), np.uint8)
+        g = (rad @ GRAY_WEIGHTS).reshape(H, W)
+        spread = cv2.dilate(g, k) - cv2.erode(g, k)
+        edge = (cv2.dilate(on, k) > 0) & ((spread > 0.004 * scale) | (cv2.erode(on, k) == 0))
+        rows, cols = np.nonzero(edge)
+        sub = world_rays(subpixel_rays(model, rows, cols, s), T).reshape(-1, 6)
+        rs = self._radiance(sub, t_ns, w, light, scale=scale)[0]
+        rad[rows * W + cols] = rs.reshape(len(rows), s * s, 3).mean(axis=1)
 
     def _mover_scene(self, t_ns: int) -> tuple[Any, TriangleTables] | None:
         if len(self.world.agents) == 0:
@@ -323,7 +317,7 @@ class Renderer:
         ``mover_rays`` (N,) bool limits the movers' cast to the rays that may see one (the renderer
         passes the pixels inside the movers' projected outlines); ``None`` casts all.
         """
-        from ._kernels import finish, surfaces
+        from ._kernels import surfaces
 
         r = self.static.scene.cast_rays(tensor(rays), nthreads=0)
         n = len(rays)
@@ -346,32 +340,41 @@ class Renderer:
             b2, n2 = m["primitive_uvs"].numpy(), m["primitive_normals"].numpy()
         sun = np.asarray(light.sun_dir, np.float32)
         shadows = self.options.shadows and light.e_sun > 0.0
-        grid, a0, b0, cell, e1, e2 = self._sun_grid(t_ns, sun, movers is not None and shadows)
+        grid = self._sun_grid(t_ns, sun, movers is not None and shadows)
         targets = self.static.targets
         flip = np.array([not t.z_toward_observer for t in targets] or [False], bool)
-        args = (r["t_hit"].numpy(), r["primitive_ids"].numpy(), r["primitive_uvs"].numpy(),
-                r["primitive_normals"].numpy(), rays, map2, t2, p2, b2, n2,
-                st.material, st.variant, st.label, st.uv_m, mt.material, mt.variant, mt.label, mt.uv_m,
-                self.static.n_triangles, flip, *kernel_tables(self.static.ground),
-                sun, shadows, np.float32(_SHADOW_EPS_M), grid, a0, b0, cell, e1, e2)
-        depth, mat, var, labels, uv, front, alb, paved, ndl, amb, srays, spix, smov, count = surfaces(*args)
+        r_hits = (r["t_hit"].numpy(), r["primitive_ids"].numpy(), r["primitive_uvs"].numpy(),
+                  r["primitive_normals"].numpy())
+        depth, mat, var, labels, uv, front, alb, paved, ndl, amb, srays, spix, smov, count = surfaces(
+            rays, r_hits, (map2, t2, p2, b2, n2), (st.material, st.variant, st.label, st.uv_m,
+                                                   self.static.n_triangles),
+            (mt.material, mt.variant, mt.label, mt.uv_m), flip, kernel_tables(self.static.ground),
+            (sun, shadows, np.float32(_SHADOW_EPS_M)), grid)
         if targets:
             board_albedo(mat, uv, var, targets, front, alb)
         if count:
             occ = self._occluded(srays[:count], smov[:count], t_ns)
             ndl[spix[:count][occ]] = 0.0
+        rad = self._finish(alb, ndl, amb, depth, rays, paved, uv, w, light, scale)
+        return rad, depth, mat, labels
+
+    def _finish(self, alb: F32, ndl: F32, amb: F32, depth: F32, rays: F32, paved: F32, uv: F32,
+                w: WeatherState, light: Lighting, scale: float) -> F32:
+        """``_kernels.finish`` with this renderer's weather optics."""
+        from ._kernels import finish
+
         optics = self.options.weather_optics
         wet = w.wetness / 100.0 if optics else 0.0
         puddle_level = 1.6 - 2.2 * w.precipitation_deposits / 100.0  # more deposits: more water
         if not (optics and w.precipitation_deposits > 0):
             puddle_level = np.inf
         beta = fog_beta_per_m(w.fog_density) if optics else 0.0
-        rad = finish(alb, ndl, amb, depth, rays, paved, uv, kernel_tables(self.static.ground)[0],
-                     np.float32(light.e_sun), np.float32(light.e_sky), _ZENITH, _HORIZON, _OVERCAST,
-                     np.float32(w.cloudiness / 100.0), np.float32(1.6 * light.e_sky + 0.25 * light.e_sun),
-                     np.float32(wet), np.float32(puddle_level), np.float32(beta), horizon_radiance(w, light),
-                     np.float32(_SKY_DISTANCE_M), np.float32(scale))
-        return rad, depth, mat, labels
+        sky = (np.float32(light.e_sun), np.float32(light.e_sky), _ZENITH, _HORIZON, _OVERCAST,
+               np.float32(w.cloudiness / 100.0), np.float32(1.6 * light.e_sky + 0.25 * light.e_sun))
+        wet_fog = (np.float32(wet), np.float32(puddle_level), np.float32(beta), horizon_radiance(w, light),
+                   np.float32(_SKY_DISTANCE_M))
+        return finish(alb, ndl, amb, depth, rays, paved, uv, kernel_tables(self.static.ground)[0], sky,
+                      wet_fog, np.float32(scale))
 
     def _occluded(self, rays: F32, mover_may: npt.NDArray[np.bool_], t_ns: int) -> npt.NDArray[np.bool_]:
         """Shadow rays (N, 6) that hit something; the movers' scene is asked only for the rays

@@ -67,53 +67,62 @@ def export_problem(cfg: Any, fmt: str) -> str | None:
     return None
 
 
-def render_cameras(cfg: Any, folder: str | Path, world: Any, motion: Any, weather: Any, *,
-                   scenario: dict[str, Any] | None = None, progress: Progress | None = None
-                   ) -> dict[str, dict[str, Any]]:
-    """Render every camera of ``cfg`` into ``folder`` (the sequence's staging folder).
+class _Work:
+    """Progress in work units (pixels rendered; a DVS camera renders ~3 times per frame)."""
 
-    Returns
-    -------
-    dict
-        Camera name -> what was written (for ``sequence.yaml``: folders, frame count, DVS counts).
-    """
-    from ibiscape_eval.io.images import (
-        write_depth_carla_log,
-        write_depth_mm,
-        write_frame_timestamps,
-        write_labels,
-        write_labels_cityscapes,
-        write_png,
-    )
+    def __init__(self, cfg: Any, groups: list[list[Any]], progress: Progress | None) -> None:
+        self.units = {c.name: len(camera_stamps(cfg, c)) * c.width_px * c.height_px
+                      * (3 if c.kind == "dvs" else 1) for c in cfg.cameras}
+        for g in groups:
+            for c in g[1:]:  # rendered once for the whole group
+                self.units[c.name] = 0
+        self.total = max(1, sum(self.units.values()))
+        self.done = 0.0
+        self.progress = progress
 
-    from ..imu import sub_seed
-    from .renderer import Renderer
+    def report(self, label: str, frac_of_cam: float = 0.0, name: str = "") -> None:
+        if self.progress is not None:
+            extra = frac_of_cam * self.units[name] if name else 0.0
+            self.progress(min(1.0, (self.done + extra) / self.total), label)
 
-    out = Path(folder)
-    renderer = Renderer.from_config(cfg, world, motion, weather, scenario=scenario)
-    cams = list(cfg.cameras)
-    # work units: pixels rendered (a DVS camera renders ~3 times per frame on average)
+
+def _groups(cfg: Any, renderer: Any) -> list[list[Any]]:
+    """Non-DVS cameras with the same optics, mounting, rate and clock offset: one render each."""
     groups: dict[tuple[Any, ...], list[Any]] = {}
-    for c in cams:
+    for c in cfg.cameras:
         if c.kind == "dvs":
             continue
         cam = renderer.camera(c.name)
         key = (cam.model, cam.T_body_cam.round(9).tobytes(), float(c.rate_hz), shift_ns(c))
         groups.setdefault(key, []).append(c)
-    work = {c.name: len(camera_stamps(cfg, c)) * c.width_px * c.height_px * (3 if c.kind == "dvs" else 1)
-            for c in cams}
-    for g in groups.values():
-        for c in g[1:]:
-            work[c.name] = 0
-    total = max(1, sum(work.values()))
-    done = 0.0
+    return list(groups.values())
 
-    def step(frac_of_cam: float, name: str, label: str) -> None:
-        if progress is not None:
-            progress(min(1.0, (done + frac_of_cam * work[name]) / total), label)
 
-    result: dict[str, dict[str, Any]] = {}
-    glist = list(groups.values())
+def _write_view(out: Path, group: list[Any], t: int, view: Any) -> None:
+    """The PNG files of every camera of ``group`` for the view at stamp ``t``."""
+    from ibiscape_eval.io.images import (
+        write_depth_carla_log,
+        write_depth_mm,
+        write_labels,
+        write_labels_cityscapes,
+        write_png,
+    )
+
+    name = f"{t}.png"
+    for c in group:
+        d = out / c.name
+        if c.kind == "rgb":
+            write_png(d / "frames" / name, view.rgb)
+        elif c.kind == "depth":
+            write_depth_carla_log(d / "frames" / name, view.depth_m)
+            write_depth_mm(d / "mm" / name, view.depth_m)
+        elif c.kind == "semantic":
+            write_labels_cityscapes(d / "frames" / name, view.labels)
+            write_labels(d / "labels" / name, view.labels)
+
+
+def _render_frames(cfg: Any, out: Path, renderer: Any, glist: list[list[Any]], work: _Work) -> None:
+    """Render and write every frame of every group, instant by instant."""
     g_stamps = [camera_stamps(cfg, g[0]) for g in glist]
     g_shift = [shift_ns(g[0]) for g in glist]
     for g in glist:
@@ -123,20 +132,6 @@ def render_cameras(cfg: Any, folder: str | Path, world: Any, motion: Any, weathe
     lead_names = [sorted(g, key=lambda c: c.kind != "rgb")[0].name for g in glist]
     g_sets = [set(st.tolist()) for st in g_stamps]
     all_t = sorted(set().union(*g_sets)) if g_sets else []
-
-    def write(g: list[Any], t: int, view: Any) -> None:
-        name = f"{t}.png"
-        for c in g:
-            d = out / c.name
-            if c.kind == "rgb":
-                write_png(d / "frames" / name, view.rgb)
-            elif c.kind == "depth":
-                write_depth_carla_log(d / "frames" / name, view.depth_m)
-                write_depth_mm(d / "mm" / name, view.depth_m)
-            elif c.kind == "semantic":
-                write_labels_cityscapes(d / "frames" / name, view.labels)
-                write_labels(d / "labels" / name, view.labels)
-
     # the views of one instant (a stereo pair) render on two threads (the ray casts and the numba
     # kernels release the GIL), and PNG encoding runs on a third while the next instant renders;
     # at most a few frames wait, and a write error surfaces at once
@@ -148,15 +143,22 @@ def render_cameras(cfg: Any, folder: str | Path, world: Any, motion: Any, weathe
             rendered = list(views.map(lambda gi, t=t: renderer.render(lead_names[gi], t + g_shift[gi]),
                                       todo))
             for gi, view in zip(todo, rendered, strict=True):
-                pending.append(writer.submit(write, glist[gi], t, view))
-                done += work[glist[gi][0].name] / len(g_stamps[gi])
+                pending.append(writer.submit(_write_view, out, glist[gi], t, view))
+                work.done += work.units[glist[gi][0].name] / len(g_stamps[gi])
             while len(pending) > 4 or (pending and pending[0].done()):
                 pending.popleft().result()
-            if progress is not None:
-                progress(min(1.0, done / total), f"render {k + 1}/{len(all_t)}")
+            work.report(f"render {k + 1}/{len(all_t)}")
         while pending:
             pending.popleft().result()
-    for g, stamps in zip(glist, g_stamps, strict=True):
+
+
+def _frame_entries(cfg: Any, out: Path, glist: list[list[Any]]) -> dict[str, dict[str, Any]]:
+    """``timestamps.csv`` and the ``sequence.yaml`` entry of every rendered non-DVS camera."""
+    from ibiscape_eval.io.images import write_frame_timestamps
+
+    result: dict[str, dict[str, Any]] = {}
+    for g in glist:
+        stamps = camera_stamps(cfg, g[0])
         for c in g:
             write_frame_timestamps(out / c.name / "timestamps.csv", stamps)
             entry: dict[str, Any] = {"folder": c.name, "frames": len(stamps), "timestamps": f"{c.name}/timestamps.csv"}
@@ -167,11 +169,18 @@ def render_cameras(cfg: Any, folder: str | Path, world: Any, motion: Any, weathe
                 entry["encoding"] = {"frames": "CityScapes palette (CARLA 0.9.10-0.9.13 tags)",
                                      "labels": "raw CARLA tag per pixel, 8-bit"}
             result[c.name] = entry
-    for i, c in enumerate(cams):
+    return result
+
+
+def _render_dvs(cfg: Any, out: Path, renderer: Any, weather: Any, work: _Work) -> dict[str, dict[str, Any]]:
+    """Events (and event frames) of every DVS camera, one after the other."""
+    from ..dvs import write_dvs_camera
+    from ..imu import sub_seed
+
+    result: dict[str, dict[str, Any]] = {}
+    for i, c in enumerate(cfg.cameras):
         if c.kind != "dvs":
             continue
-        from ..dvs import write_dvs_camera
-
         stamps = camera_stamps(cfg, c)
         name = c.name
 
@@ -179,14 +188,36 @@ def render_cameras(cfg: Any, folder: str | Path, world: Any, motion: Any, weathe
             return renderer.gray(name, t_ns + d)  # events stamped on the camera's clock
 
         def dvs_step(frac: float, label: str, name: str = name) -> None:
-            step(frac, name, label)
+            work.report(label, frac, name)
 
         res = write_dvs_camera(gray, c, stamps, out / c.name, dvs_config=getattr(cfg, "dvs", None),
                                weather=weather, rng=np.random.default_rng(sub_seed(cfg.seed, "dvs", i)),
                                progress=dvs_step)
         result[c.name] = {"folder": c.name, "frames": len(stamps), "timestamps": f"{c.name}/timestamps.csv",
                           "dvs": res.to_dict()}
-        done += work[c.name]
+        work.done += work.units[c.name]
+    return result
+
+
+def render_cameras(cfg: Any, folder: str | Path, world: Any, motion: Any, weather: Any, *,
+                   scenario: dict[str, Any] | None = None, progress: Progress | None = None
+                   ) -> dict[str, dict[str, Any]]:
+    """Render every camera of ``cfg`` into ``folder`` (the sequence's staging folder).
+
+    Returns
+    -------
+    dict
+        Camera name -> what was written (for ``sequence.yaml``: folders, frame count, DVS counts).
+    """
+    from .renderer import Renderer
+
+    out = Path(folder)
+    renderer = Renderer.from_config(cfg, world, motion, weather, scenario=scenario)
+    glist = _groups(cfg, renderer)
+    work = _Work(cfg, glist, progress)
+    _render_frames(cfg, out, renderer, glist, work)
+    result = _frame_entries(cfg, out, glist)
+    result.update(_render_dvs(cfg, out, renderer, weather, work))
     _association(cfg, out, result)
     return result
 

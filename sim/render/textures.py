@@ -21,7 +21,7 @@ import numpy.typing as npt
 
 from .scene import MAT, GroundMap
 
-__all__ = ["TARGET_PX_PER_M", "albedo", "board_albedo", "kernel_tables", "noise_table", "sample_bilinear"]
+__all__ = ["TARGET_PX_PER_M", "albedo", "board_albedo", "board_tables", "kernel_tables", "noise_table", "sample_bilinear"]
 
 F32 = npt.NDArray[np.float32]
 
@@ -118,7 +118,7 @@ def albedo(mat: np.ndarray, var: np.ndarray, uv: np.ndarray, ground: GroundMap, 
     """
     from ._kernels import albedo_all
 
-    col, label, paved = albedo_all(mat, var, np.ascontiguousarray(uv, dtype=np.float32), *kernel_tables(ground))
+    col, label, paved = albedo_all(mat, var, np.ascontiguousarray(uv, dtype=np.float32), kernel_tables(ground))
     board_albedo(mat, uv, var, targets, front, col)
     return col, label, paved
 
@@ -126,18 +126,24 @@ def albedo(mat: np.ndarray, var: np.ndarray, uv: np.ndarray, ground: GroundMap, 
 def board_albedo(mat: np.ndarray, uv: np.ndarray, var: np.ndarray, targets: tuple[Any, ...],
                  front: np.ndarray, col: np.ndarray) -> None:
     """Fill ``col`` (N, 3) in place where ``mat`` is a calibration board: the nearest texel of the
-    board's printed texture on its observed side (``front``), plain grey on its back."""
-    idx = np.flatnonzero(mat == MAT["target"])
-    if idx.size == 0:
-        return
-    for k in np.unique(var[idx]).tolist():
-        sel = idx[var[idx] == k]
-        t = targets[k]
-        tex = _target_texture(t)
-        px = t.texture_px_from_target(uv[sel].astype(np.float64), TARGET_PX_PER_M)
-        # nearest texel: texel centres are at integers and every printed edge is a texel edge
-        c = np.clip(np.floor(px[:, 0] + 0.5).astype(np.intp), 0, tex.shape[1] - 1)
-        r = np.clip(np.floor(px[:, 1] + 0.5).astype(np.intp), 0, tex.shape[0] - 1)
-        val = tex[r, c]
-        val = np.where(front[sel], val, 0.35)  # the back of the board is grey
-        col[sel] = val[:, None]
+    board's printed texture on its observed side (``front``), plain grey on its back (one pass of
+    ``_kernels.board_texels``)."""
+    from ._kernels import board_texels
+
+    if targets:
+        board_texels(mat, np.ascontiguousarray(uv, dtype=np.float32), var, front, board_tables(targets),
+                     col)
+
+
+@functools.lru_cache(maxsize=8)
+def board_tables(targets: tuple[Any, ...]) -> tuple[tuple[Any, ...], ...]:
+    """The ``boards`` argument of ``_kernels.board_texels``: per board its texture, the
+    texture's first column / row edge [m], row direction and texels per metre (the arithmetic of
+    ``Target.texture_px_from_target``)."""
+    out = []
+    for t in targets:
+        flipped = bool(t.z_toward_observer)  # y up as seen: rows grow with decreasing y
+        y0 = float(t.board_max_m[1]) if flipped else float(t.board_min_m[1])
+        out.append((np.ascontiguousarray(_target_texture(t)), float(t.board_min_m[0]), y0,
+                    -1.0 if flipped else 1.0, float(TARGET_PX_PER_M)))
+    return tuple(out)

@@ -138,9 +138,9 @@ def test_labels_of_known_surfaces() -> None:
     assert np.isfinite(v.depth_m[v.labels != TAG["Sky"]]).all()
 
 
-def test_movers_without_rebuilding_the_static_scene() -> None:
-    world = build_world(kind="slam", seed=3, scene="dynamic", town_blocks=2)
-    r = Renderer(world, options=RenderOptions(noise=False))
+def test_movers_without_rebuilding_the_static_scene(town_dynamic: Renderer) -> None:
+    r = town_dynamic
+    world = r.world
     static = r.static
     t0 = 1_000_000_000_000
     pos, yaw = world.agents.poses_at(np.array([t0, t0 + 4_000_000_000]))
@@ -218,3 +218,15 @@ def test_distortion_that_does_not_invert_names_pixels() -> None:
 def test_bad_render_options(bad: dict) -> None:
     with pytest.raises(IbiscapeError, match="render:"):
         RenderOptions(**bad)
+
+
+def test_a_render_warns_nothing(calib) -> None:
+    """The renderer no longer filters warnings around each render (#23: the filter list is
+    process-global); no kernel runs in parallel, so nothing warns."""
+    import warnings
+
+    r, target = calib
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        r.render_pose(CameraModel.from_fov(48, 48, 90.0), look_at_board(target, 6.0, 0.0, 0.0, 0.0),
+                      weather=DAY)

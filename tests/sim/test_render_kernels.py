@@ -11,7 +11,7 @@ import pytest
 from scipy import stats
 
 from ibiscape_eval.core.camera import CameraModel
-from ibiscape_eval.sim.render import Renderer, RenderOptions
+from ibiscape_eval.sim.render import Renderer
 from ibiscape_eval.sim.render._kernels import finish
 from ibiscape_eval.sim.render.labels import TAG
 from ibiscape_eval.sim.render.optics import (
@@ -34,7 +34,6 @@ from ibiscape_eval.sim.render.shading import (
     sky_radiance,
 )
 from ibiscape_eval.sim.render.textures import noise_table, sample_bilinear
-from ibiscape_eval.sim.world import build_world
 
 T0 = 1_000_000_000_000
 
@@ -125,10 +124,10 @@ def test_finish_equals_the_reference_stages(weather: dict) -> None:
     level = 1.6 - 2.2 * w.precipitation_deposits / 100.0 if w.precipitation_deposits > 0 else np.inf
     beta = fog_beta_per_m(w.fog_density)
     scale = 255.0 * light.gain
-    got = finish(alb, ndl, amb, depth, rays, paved, uv, noise_table(), np.float32(light.e_sun),
-                   np.float32(light.e_sky), _ZENITH, _HORIZON, _OVERCAST, np.float32(w.cloudiness / 100.0),
-                   np.float32(1.6 * light.e_sky + 0.25 * light.e_sun), np.float32(wet), np.float32(level),
-                   np.float32(beta), horizon_radiance(w, light), np.float32(1000.0), np.float32(scale))
+    sky = (np.float32(light.e_sun), np.float32(light.e_sky), _ZENITH, _HORIZON, _OVERCAST,
+           np.float32(w.cloudiness / 100.0), np.float32(1.6 * light.e_sky + 0.25 * light.e_sun))
+    optics = (np.float32(wet), np.float32(level), np.float32(beta), horizon_radiance(w, light), np.float32(1000.0))
+    got = finish(alb, ndl, amb, depth, rays, paved, uv, noise_table(), sky, optics, np.float32(scale))
     # the reference, stage by stage (numpy)
     dn = np.linalg.norm(rays[:, 3:], axis=1)
     ref = shade(alb * (1.0 - 0.45 * wet * paved)[:, None], nrm, visible, light)
@@ -143,9 +142,8 @@ def test_finish_equals_the_reference_stages(weather: dict) -> None:
 
 # ------------------------------------------------------------------------- work the renderer skips
 @pytest.fixture(scope="module")
-def dynamic() -> Renderer:
-    world = build_world(kind="slam", seed=3, scene="dynamic", town_blocks=2)
-    return Renderer(world, options=RenderOptions(noise=False, target_supersample=1))
+def dynamic(town_dynamic: Renderer) -> Renderer:
+    return town_dynamic
 
 
 def _look(eye: np.ndarray, target: np.ndarray) -> np.ndarray:
@@ -207,3 +205,19 @@ def test_mover_shadows_equal_casting_every_shadow_ray(dynamic: Renderer, monkeyp
     none = dynamic.render_pose(model, T, T0, weather=w).radiance
     np.testing.assert_array_equal(limited, all_rays)
     assert (np.abs(none - limited).max(axis=2) > 5.0).sum() > 100
+
+
+def test_pinhole_subpixel_rays_equal_unproject_bit_for_bit() -> None:
+    """The numba supersample directions of an undistorted camera are CameraModel.unproject's,
+    bit for bit (so the rendered images do not change, #25)."""
+    from ibiscape_eval.sim.render.rays import subpixel_rays
+
+    model = CameraModel(97, 61, 80.5, 81.25, 48.3, 29.9)
+    rows, cols = np.meshgrid(np.arange(61), np.arange(97), indexing="ij")
+    rows, cols = rows.ravel(), cols.ravel()
+    for s in (2, 5, 6):
+        off = (np.arange(s) + 0.5) / s - 0.5
+        du, dv = np.meshgrid(off, off)
+        uv = np.stack([cols[:, None] + du.ravel()[None, :], rows[:, None] + dv.ravel()[None, :]], axis=-1)
+        ref = model.unproject(uv)[0].astype(np.float32)
+        assert np.array_equal(subpixel_rays(model, rows, cols, s), ref)
