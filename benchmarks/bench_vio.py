@@ -123,13 +123,20 @@ def _inprocess(seq: Path, max_frames: int | None) -> dict[str, float]:
     clock = time.process_time
     w0 = time.perf_counter()
     prev: int | None = None
+    stereo = 0
     for i in range(n):
         t_ns = int(s.frame_stamps_ns[i])
         c0 = clock()
-        left, right = read_gray_image(s.left_files[i]), read_gray_image(s.right_files[i])
+        left = read_gray_image(s.left_files[i])
         c1 = clock()
         R = None if prev is None else est.gyro_rotation(prev, t_ns)
-        obs = fe.process(t_ns, left, right, R)
+        obs = fe.track(t_ns, left, R)
+        if est.needs_stereo(obs):  # like run_vio: the right image only for stereo frames
+            c2 = clock()
+            right = read_gray_image(s.right_files[i])
+            c1 += clock() - c2
+            obs = fe.match(right)
+            stereo += 1
         c2 = clock()
         est.process(obs)
         c3 = clock()
@@ -155,7 +162,8 @@ def _inprocess(seq: Path, max_frames: int | None) -> dict[str, float]:
     row.update(wall_s=wall, peak_mb=float("nan"), speed=dur / wall, cpu_speed=dur / total,
                failures=len(est.failures), poses=len(tr), frames=n,
                read_ms=1e3 * cpu["read"] / n, front_ms=1e3 * cpu["front"] / n,
-               back_ms=1e3 * cpu["back"] / n, nopng_cpu_speed=dur / (cpu["front"] + cpu["back"]))
+               back_ms=1e3 * cpu["back"] / n, nopng_cpu_speed=dur / (cpu["front"] + cpu["back"]),
+               stereo_frames=stereo)
     return row
 
 

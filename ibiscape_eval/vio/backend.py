@@ -59,6 +59,15 @@ class StereoObservations:
     def __len__(self) -> int:
         return int(self.ids.shape[0])
 
+    def matched(self) -> StereoObservations:
+        """The observations with a stereo match (a frame tracked in the left image only has
+        ``uR`` NaN where it was not matched, see :meth:`StereoFrontEnd.track`)."""
+        ok = np.isfinite(self.uR)
+        if ok.all():
+            return self
+        return StereoObservations(self.stamp_ns, self.ids[ok], self.uL[ok], self.uR[ok],
+                                  self.v[ok])
+
     @classmethod
     def empty(cls, stamp_ns: int) -> StereoObservations:
         z = np.zeros(0)
@@ -209,6 +218,7 @@ class Backend:
 
     def seed(self, obs: StereoObservations) -> None:
         """Remember the observations of the anchor keyframe (landmarks appear at the next one)."""
+        obs = obs.matched()
         ok = (obs.uL - obs.uR) >= self.min_disp_px
         self.pending = {int(obs.ids[i]): [(self.k, float(obs.uL[i]), float(obs.uR[i]),
                                            float(obs.v[i]))] for i in np.flatnonzero(ok)}
@@ -231,6 +241,7 @@ class Backend:
         stereo observations; optimise.  Returns the number of landmark observations used."""
         import gtsam
 
+        obs = obs.matched()
         k = self.k + 1
         pred = self.predict(pim)
         graph = gtsam.NonlinearFactorGraph()

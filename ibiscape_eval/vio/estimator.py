@@ -133,6 +133,15 @@ class Estimator:
         rv = (w * dt[:, None]).sum(axis=0) if len(w) else np.zeros(3)
         return np.asarray(Rotation.from_rotvec(rv).as_matrix())
 
+    def needs_stereo(self, tracks: StereoObservations) -> bool:
+        """Whether the next frame, of which ``tracks`` are the left-image tracks
+        (:meth:`StereoFrontEnd.track`), needs stereo matches: before initialisation, while
+        lost, and at a keyframe (decided on the left tracks, so :meth:`process` decides alike).
+        Other frames only carry the prediction from their keyframe and the keyframe choice."""
+        if not self.initialised or self._lost_start is not None:
+            return True
+        return self._is_keyframe(tracks, (int(tracks.stamp_ns) - self._kf_t) * 1e-9)
+
     def process(self, obs: StereoObservations) -> None:
         """Consume the observations of the next frame."""
         t = int(obs.stamp_ns)

@@ -57,6 +57,7 @@ class StereoFrontEnd:
         self.ids = np.zeros(0, dtype=np.int64)
         self.disp = np.zeros(0, dtype=np.float32)        # last raw disparity guess per corner
         self._next_id = 0
+        self._tracks: StereoObservations | None = None   # the last track() result
 
     def _pyramid(self, img: npt.NDArray[np.uint8]) -> Any:
         # OpenCV 5's Python binding no longer accepts the list of buildOpticalFlowPyramid as an
@@ -159,9 +160,18 @@ class StereoFrontEnd:
     def process(self, stamp_ns: int, left: npt.NDArray[np.uint8], right: npt.NDArray[np.uint8],
                 R_b0_b1: FloatArray | None = None) -> StereoObservations:
         """Track into a new stereo pair; ``R_b0_b1`` is the body rotation since the previous
-        frame (from the gyro), used as the KLT start.  Returns the rectified stereo matches."""
+        frame (from the gyro), used as the KLT start.  Returns the rectified stereo matches
+        (:meth:`track` then :meth:`match`, the matched corners only)."""
+        self.track(stamp_ns, left, R_b0_b1)
+        return self.match(right).matched()
+
+    def track(self, stamp_ns: int, left: npt.NDArray[np.uint8],
+              R_b0_b1: FloatArray | None = None) -> StereoObservations:
+        """Track the corners into a new left image (and detect new ones): the corners held,
+        rectified, with ``uR`` NaN (no stereo match yet).  :meth:`match` adds the right image's
+        matches, when the frame needs them (keyframes): the right image is then the only one
+        read and tracked for it."""
         pyr_l = self._pyramid(left)
-        pyr_r = self._pyramid(right)
         if self._prev_pyr is not None and len(self.pts):
             p1, ok = self._lk(self._prev_pyr, pyr_l, self.pts, self._predict(R_b0_b1))
             idx = np.flatnonzero(ok)
@@ -185,20 +195,30 @@ class StereoFrontEnd:
             disp = np.concatenate([disp, np.full(len(new), fill, dtype=np.float32)])
         self.pts, self.ids, self.disp = pts, ids, disp
         self._prev_pyr = pyr_l
+        rl = self.rig.rectify_points(pts, "left")
+        self._tracks = StereoObservations(int(stamp_ns), ids.astype(np.int64), rl[:, 0],
+                                          np.full(len(pts), np.nan), rl[:, 1])
+        return self._tracks
+
+    def match(self, right: npt.NDArray[np.uint8]) -> StereoObservations:
+        """Stereo matches in ``right`` of the corners of the last :meth:`track` call (every
+        corner held; ``uR`` NaN where the match failed its checks)."""
+        tr = self._tracks
+        if tr is None:
+            raise RuntimeError("StereoFrontEnd.match before track")
+        pts, disp = self.pts, self.disp
         if len(pts) == 0:
-            return StereoObservations.empty(stamp_ns)
-        # stereo: left -> right, started at the last disparity
+            return tr
+        # left -> right, started at the last disparity
         guess = pts.copy()
         guess[:, 0] -= disp
-        pr, ok = self._lk(pyr_l, pyr_r, pts, guess)
-        rl = self.rig.rectify_points(pts, "left")
+        pr, ok = self._lk(self._prev_pyr, self._pyramid(right), pts, guess)
         rr = self.rig.rectify_points(pr, "right")
-        d = rl[:, 0] - rr[:, 0]
-        ok &= (np.abs(rl[:, 1] - rr[:, 1]) <= self.epi_px) & (d > 0.1)
+        d = tr.uL - rr[:, 0]
+        ok &= (np.abs(tr.v - rr[:, 1]) <= self.epi_px) & (d > 0.1)
         self.disp = np.where(ok, pts[:, 0] - pr[:, 0], disp).astype(np.float32)
-        sel = np.flatnonzero(ok)
-        return StereoObservations(int(stamp_ns), ids[sel].astype(np.int64), rl[sel, 0],
-                                  rr[sel, 0], rl[sel, 1])
+        return StereoObservations(tr.stamp_ns, tr.ids, tr.uL, np.where(ok, rr[:, 0], np.nan),
+                                  tr.v)
 
     @property
     def n_tracked(self) -> int:

@@ -153,7 +153,15 @@ def run_vio(seq: StereoSequence | Sequence, params: VioParams | None = None, *,
     from concurrent.futures import ThreadPoolExecutor
 
     def read(i: int) -> tuple[Any, Any]:
-        return seq.read_pair(i)
+        # the left image, and a reader of the right one (decoded only for frames needing stereo)
+        if seq.frame_reader is None and seq.left_files:
+            from functools import partial
+
+            from ibiscape_eval.io.stereo import read_gray_image
+
+            return read_gray_image(seq.left_files[i]), partial(read_gray_image, seq.right_files[i])
+        pair = seq.read_pair(i)
+        return pair[0], lambda: pair[1]
 
     pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="vio-read")
     ahead = {i: pool.submit(read, i) for i in range(min(4, n))}
@@ -197,22 +205,19 @@ def numerical_failure_message(path: str, exc: BaseException) -> str:
 def _loop(seq: StereoSequence, p: VioParams, n: int, fe: Any, est: Estimator, ahead: dict[int, Any],
           pool: Any, read: Callable[[int], tuple[Any, Any]], times: np.ndarray,
           tracked: np.ndarray, t_start: float, progress: Progress | None) -> None:
-    from ibiscape_eval.core.errors import FormatError
-
     w, h = seq.rig.size
     prev_t: int | None = None
     for i in range(n):
         t0 = time.perf_counter()
         t_ns = int(seq.frame_stamps_ns[i])
-        left, right = ahead.pop(i).result()
+        left, read_right = ahead.pop(i).result()
         if i + 4 < n:
             ahead[i + 4] = pool.submit(read, i + 4)
-        for img, f in zip((left, right), seq.frame_labels(i), strict=True):
-            if img.shape != (h, w):
-                raise FormatError(f, f"image is {img.shape[1]}x{img.shape[0]} px, the calibration "
-                                  f"says {w}x{h}")
         R = None if prev_t is None else est.gyro_rotation(prev_t, t_ns)
-        obs = fe.process(t_ns, left, right, R)
+        label_l, label_r = seq.frame_labels(i)
+        obs = fe.track(t_ns, _sized(left, label_l, w, h), R)
+        if est.needs_stereo(obs):  # the right image is read and matched for stereo frames only
+            obs = fe.match(_sized(read_right(), label_r, w, h))
         est.process(obs)
         prev_t = t_ns
         tracked[i] = len(obs)
@@ -221,3 +226,12 @@ def _loop(seq: StereoSequence, p: VioParams, n: int, fe: Any, est: Estimator, ah
             wall = time.perf_counter() - t_start
             span = (t_ns - int(seq.frame_stamps_ns[0])) * 1e-9
             progress(i + 1, n, span / wall if wall > 0 else 0.0)
+
+
+def _sized(img: Any, label: str, w: int, h: int) -> Any:
+    from ibiscape_eval.core.errors import FormatError
+
+    if img.shape != (h, w):
+        raise FormatError(label, f"image is {img.shape[1]}x{img.shape[0]} px, the calibration "
+                          f"says {w}x{h}")
+    return img
