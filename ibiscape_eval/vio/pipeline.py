@@ -71,6 +71,8 @@ class VioStats:
     cpu_realtime_factor: float = float("nan")
     resets: int = 0
     params: dict[str, Any] = field(default_factory=dict)
+    #: the initialiser's first standstill test (StandstillTest.to_dict; None before one ran)
+    standstill: dict[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
@@ -190,7 +192,8 @@ def run_vio(seq: StereoSequence | Sequence, params: VioParams | None = None, *,
                      mean_ms_per_frame=1e3 * wall / n, max_ms_per_frame=1e3 * float(times.max()),
                      realtime_factor=duration / wall if wall > 0 else float("inf"),
                      cpu_realtime_factor=duration / cpu if cpu > 0 else float("inf"),
-                     resets=est.backend.resets, params=p.to_dict())
+                     resets=est.backend.resets, params=p.to_dict(),
+                     standstill=None if est.standstill_test is None else est.standstill_test.to_dict())
     return VioResult(traj, stats)
 
 
