@@ -109,13 +109,13 @@ def _vio(seq: Path, tmp: Path) -> dict[str, float]:
     return row
 
 
-def _inprocess(seq: Path, max_frames: int | None) -> dict[str, float]:
+def _inprocess(seq: Path, max_frames: int | None, params: Any = None) -> dict[str, float]:
     """The VIO loop of ``run_vio`` with each stage timed by process CPU time (all threads)."""
     from ibiscape_eval.io.stereo import read_gray_image
     from ibiscape_eval.vio import Estimator, StereoFrontEnd, VioParams, load_sequence
 
     s = load_sequence(seq)
-    p = VioParams()
+    p = params or VioParams()
     n = s.n_frames if max_frames is None else min(max_frames, s.n_frames)
     fe = StereoFrontEnd(s.rig, p)
     est = Estimator(s.rig.rectified(), s.imu, s.noise, p, s.T_body_imu)
@@ -167,6 +167,21 @@ def _inprocess(seq: Path, max_frames: int | None) -> dict[str, float]:
     return row
 
 
+def _params(items: list[str]) -> Any:
+    import dataclasses
+
+    from ibiscape_eval.vio import VioParams
+
+    types = {f.name: type(getattr(VioParams(), f.name)) for f in dataclasses.fields(VioParams)}
+    kw = {}
+    for item in items:
+        name, _, value = item.partition("=")
+        if name not in types:
+            raise SystemExit(f"--set {item}: no VioParams option {name!r}")
+        kw[name] = types[name](value)
+    return VioParams(**kw)
+
+
 def _synthetic(seq: Path) -> dict[str, float]:
     import numpy as np
 
@@ -214,10 +229,13 @@ def main() -> None:
     ap.add_argument("--cli", action="store_true",
                     help="run the CLI in a fresh process (wall time, peak RSS; no front/back split)")
     ap.add_argument("--max-frames", type=int, default=None, help="stop each run after N frames")
+    ap.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE",
+                    help="VioParams options of the in-process runs, e.g. --set klt_levels=3")
     a = ap.parse_args()
+    params = _params(a.set)
 
     def vio(seq: Path) -> dict[str, float]:
-        return _vio(seq, tmp) if a.cli else _inprocess(seq, a.max_frames)
+        return _vio(seq, tmp) if a.cli else _inprocess(seq, a.max_frames, params)
 
     rows: list[tuple[str, str, dict[str, float]]] = []
     with tempfile.TemporaryDirectory(prefix="bench_vio_") as d:

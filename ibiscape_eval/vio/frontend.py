@@ -48,7 +48,9 @@ class StereoFrontEnd:
         self.min_dist = max(params.min_distance_px * s, 3.0)
         win = max(round(params.klt_window_px * math.sqrt(s)) | 1, 7)
         self.win = (win, win)
-        self.levels = params.klt_levels
+        # one pyramid level more per doubling of the width beyond 512 px (motion in px doubles too)
+        self.levels = params.klt_levels + max(round(math.log2(max(s, 1e-3))), 0)
+        self.crit = (3, params.klt_iters, params.klt_eps_px)   # TERM_CRITERIA_COUNT | EPS
         self.R_bc = rig.T_body_left[:3, :3]
         self.K = rig.left.K
         self.Kinv = np.linalg.inv(self.K)
@@ -69,7 +71,7 @@ class StereoFrontEnd:
         """KLT from ``p0`` in image 0 to image 1 with a start guess, plus the backward check."""
         import cv2
 
-        crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01)
+        crit = self.crit
         p1, st, _ = cv2.calcOpticalFlowPyrLK(pyr0, pyr1, p0.reshape(-1, 1, 2),
                                              guess.reshape(-1, 1, 2).copy(), winSize=self.win,
                                              maxLevel=self.levels, criteria=crit,
