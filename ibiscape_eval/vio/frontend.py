@@ -60,6 +60,7 @@ class StereoFrontEnd:
         self.disp = np.zeros(0, dtype=np.float32)        # last raw disparity guess per corner
         self._next_id = 0
         self._tracks: StereoObservations | None = None   # the last track() result
+        self._filled = 0                                  # corners held after the last detection
 
     def _pyramid(self, img: npt.NDArray[np.uint8]) -> Any:
         # OpenCV 5's Python binding no longer accepts the list of buildOpticalFlowPyramid as an
@@ -184,9 +185,14 @@ class StereoFrontEnd:
             pts = np.zeros((0, 2), dtype=np.float32)
             ids = np.zeros(0, dtype=np.int64)
             disp = np.zeros(0, dtype=np.float32)
-        # new corners only when the tracks have thinned out (detection is the costliest step)
-        if len(pts) < 0.7 * self.params.max_features:
+        # new corners only when the tracks have thinned out (detection is the costliest step):
+        # below 70 % of max_features and below redetect_ratio of the count after the last
+        # detection (images with textureless cells never fill up: not every frame then)
+        p = self.params
+        if len(pts) < 0.7 * p.max_features and (p.redetect_ratio >= 1.0
+                                                or len(pts) < p.redetect_ratio * self._filled):
             new = self._detect(left, pts)
+            self._filled = len(pts) + len(new)
         else:
             new = np.zeros((0, 2), dtype=np.float32)
         if len(new):

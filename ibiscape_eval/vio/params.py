@@ -26,7 +26,9 @@ class VioParams:
         levels above the image up to 512 px, one more per doubling of the width beyond) / ``klt_iters`` /
         ``klt_eps_px`` (iterations per level and the step that ends them),
         forward-backward check ``fb_max_px``, stereo epipolar check ``epipolar_max_px``,
-        RANSAC threshold ``ransac_px``.
+        RANSAC threshold ``ransac_px``; new corners are detected when fewer than 70 % of
+        ``max_features`` and fewer than ``redetect_ratio`` of the corners held after the last
+        detection are tracked (1: whenever below 70 %).
     Keyframes
         a new keyframe when the median parallax since the last one exceeds ``kf_parallax_px``,
         when fewer than ``kf_track_ratio`` of its tracks survive, or after ``kf_max_dt_s``.
@@ -59,6 +61,7 @@ class VioParams:
     fb_max_px: float = 1.0
     epipolar_max_px: float = 1.5
     ransac_px: float = 1.0
+    redetect_ratio: float = 1.0
     kf_parallax_px: float = 12.0
     kf_track_ratio: float = 0.6
     kf_max_dt_s: float = 0.3
