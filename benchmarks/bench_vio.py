@@ -7,7 +7,10 @@ shaped like the paper's ``table:evaluation`` with its ORB-SLAM3 and BASALT figur
 
 Each estimate is run in this process, frame by frame like ``run_vio`` (image reading, front end,
 estimator), timing each stage by the CPU time of the whole process (all threads: OpenCV's and
-GTSAM's worker threads count), which other load on this shared machine does not inflate.  One
+GTSAM's worker threads count), which other load on this shared machine inflates far less than
+wall time.  Like ``run_vio``, the right image is decoded and matched only for the frames that
+need stereo (keyframes, initialisation, lost spans; column ``stereo``); its decoding counts as
+reading.  ``--set NAME=VALUE ...`` changes ``VioParams`` options of the in-process runs.  One
 table per setup and weather: ATE after SE(3) alignment and RPE over 1 s (mean +- std) from the
 project's own metrics, the CPU milliseconds per frame of the front end (``StereoFrontEnd``) and
 of the back end (``Estimator``: keyframes, smoother), and the speed-up over real time by CPU time
@@ -29,6 +32,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 import tempfile
@@ -159,7 +163,10 @@ def _inprocess(seq: Path, max_frames: int | None, params: Any = None) -> dict[st
         write_trajectory(est_path, tr, "tum")
         row = _score(est_path, seq)
     total = sum(cpu.values())
-    row.update(wall_s=wall, peak_mb=float("nan"), speed=dur / wall, cpu_speed=dur / total,
+    import resource
+
+    peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # Linux: KiB
+    row.update(wall_s=wall, peak_mb=peak_mb, speed=dur / wall, cpu_speed=dur / total,
                failures=len(est.failures), poses=len(tr), frames=n,
                read_ms=1e3 * cpu["read"] / n, front_ms=1e3 * cpu["front"] / n,
                back_ms=1e3 * cpu["back"] / n, nopng_cpu_speed=dur / (cpu["front"] + cpu["back"]),
@@ -280,13 +287,17 @@ def main() -> None:
               f"x{r['speed']:.2f} (x{r['cpu_speed']:.2f})")
     if any("front_ms" in r for _, _, r in rows):
         print("\nSVI setup: CPU time per frame (process CPU time, all threads), speed-up by CPU time")
-        print(f"{'sequence':<24}{'weather':<10}{'frames':>7}{'read':>8}{'front':>8}{'back':>8}"
-              f"{'  x real time (CPU)':>20}{'  without PNG':>14}{'  wall':>8}")
+        print(f"{'sequence':<24}{'weather':<10}{'frames':>7}{'stereo':>7}{'read':>8}{'front':>8}"
+              f"{'back':>8}{'  x real time (CPU)':>20}{'  without PNG':>14}{'  wall':>8}"
+              f"{'  peak RSS':>11}")
         for name, weather, r in rows:
             if "front_ms" in r:
-                print(f"{name:<24}{weather:<10}{int(r['frames']):>7}{r['read_ms']:>6.1f}ms"
-                      f"{r['front_ms']:>6.1f}ms{r['back_ms']:>6.1f}ms{r['cpu_speed']:>19.2f}x"
-                      f"{r['nopng_cpu_speed']:>13.2f}x{r['speed']:>7.2f}x")
+                print(f"{name:<24}{weather:<10}{int(r['frames']):>7}{int(r['stereo_frames']):>7}"
+                      f"{r['read_ms']:>6.1f}ms{r['front_ms']:>6.1f}ms{r['back_ms']:>6.1f}ms"
+                      f"{r['cpu_speed']:>19.2f}x{r['nopng_cpu_speed']:>13.2f}x{r['speed']:>7.2f}x"
+                      f"{r['peak_mb']:>8.0f} MB")
+        print(f"(stereo: frames whose right image was decoded and matched; peak RSS of this "
+              f"process so far; load average {os.getloadavg()[0]:.1f})")
     if any(r.get("yaw_aligned") for _, _, r in rows):
         print("* a straight path: ATE after 4-DoF (yaw) alignment, SE(3) is undetermined")
     print("\nthe paper's table:evaluation, SVI setup (real IBISCape sequences, ~140 m; for context):")
