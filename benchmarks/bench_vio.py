@@ -224,6 +224,24 @@ def _fmt(v: float, s: float) -> str:
     return f"{v:.4f}±{s:.4f}"
 
 
+def _cpu_table(rows: list[tuple[str, str, dict[str, float]]]) -> None:
+    """CPU milliseconds per frame of reading, front end and back end (in-process runs)."""
+    if not any("front_ms" in r for _, _, r in rows):
+        return
+    print("\nSVI setup: CPU time per frame (process CPU time, all threads), speed-up by CPU time")
+    print(f"{'sequence':<24}{'weather':<10}{'frames':>7}{'stereo':>7}{'read':>8}{'front':>8}"
+          f"{'back':>8}{'  x real time (CPU)':>20}{'  without PNG':>14}{'  wall':>8}"
+          f"{'  peak RSS':>11}")
+    for name, weather, r in rows:
+        if "front_ms" in r:
+            print(f"{name:<24}{weather:<10}{int(r['frames']):>7}{int(r['stereo_frames']):>7}"
+                  f"{r['read_ms']:>6.1f}ms{r['front_ms']:>6.1f}ms{r['back_ms']:>6.1f}ms"
+                  f"{r['cpu_speed']:>19.2f}x{r['nopng_cpu_speed']:>13.2f}x{r['speed']:>7.2f}x"
+                  f"{r['peak_mb']:>8.0f} MB")
+    print(f"(stereo: frames whose right image was decoded and matched; peak RSS of this "
+          f"process so far; load average {os.getloadavg()[0]:.1f})")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sequences", nargs="*", type=Path, help="rendered SVI sequence folders")
@@ -285,19 +303,7 @@ def main() -> None:
               f"{TARGET_PCT[weather]:>6.0f}%  {_fmt(r['rpe_m'], r['rpe_m_std']):>15}  "
               f"{_fmt(r['rpe_deg'], r['rpe_deg_std']):>15}{int(r['failures']):>5}  "
               f"x{r['speed']:.2f} (x{r['cpu_speed']:.2f})")
-    if any("front_ms" in r for _, _, r in rows):
-        print("\nSVI setup: CPU time per frame (process CPU time, all threads), speed-up by CPU time")
-        print(f"{'sequence':<24}{'weather':<10}{'frames':>7}{'stereo':>7}{'read':>8}{'front':>8}"
-              f"{'back':>8}{'  x real time (CPU)':>20}{'  without PNG':>14}{'  wall':>8}"
-              f"{'  peak RSS':>11}")
-        for name, weather, r in rows:
-            if "front_ms" in r:
-                print(f"{name:<24}{weather:<10}{int(r['frames']):>7}{int(r['stereo_frames']):>7}"
-                      f"{r['read_ms']:>6.1f}ms{r['front_ms']:>6.1f}ms{r['back_ms']:>6.1f}ms"
-                      f"{r['cpu_speed']:>19.2f}x{r['nopng_cpu_speed']:>13.2f}x{r['speed']:>7.2f}x"
-                      f"{r['peak_mb']:>8.0f} MB")
-        print(f"(stereo: frames whose right image was decoded and matched; peak RSS of this "
-              f"process so far; load average {os.getloadavg()[0]:.1f})")
+    _cpu_table(rows)
     if any(r.get("yaw_aligned") for _, _, r in rows):
         print("* a straight path: ATE after 4-DoF (yaw) alignment, SE(3) is undetermined")
     print("\nthe paper's table:evaluation, SVI setup (real IBISCape sequences, ~140 m; for context):")

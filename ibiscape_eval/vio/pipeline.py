@@ -155,15 +155,7 @@ def run_vio(seq: StereoSequence | Sequence, params: VioParams | None = None, *,
     from concurrent.futures import ThreadPoolExecutor
 
     def read(i: int) -> tuple[Any, Any]:
-        # the left image, and a reader of the right one (decoded only for frames needing stereo)
-        if seq.frame_reader is None and seq.left_files:
-            from functools import partial
-
-            from ibiscape_eval.io.stereo import read_gray_image
-
-            return read_gray_image(seq.left_files[i]), partial(read_gray_image, seq.right_files[i])
-        pair = seq.read_pair(i)
-        return pair[0], lambda: pair[1]
+        return _read_left(seq, i)
 
     pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="vio-read")
     ahead = {i: pool.submit(read, i) for i in range(min(4, n))}
@@ -229,6 +221,19 @@ def _loop(seq: StereoSequence, p: VioParams, n: int, fe: Any, est: Estimator, ah
             wall = time.perf_counter() - t_start
             span = (t_ns - int(seq.frame_stamps_ns[0])) * 1e-9
             progress(i + 1, n, span / wall if wall > 0 else 0.0)
+
+
+def _read_left(seq: StereoSequence, i: int) -> tuple[Any, Callable[[], Any]]:
+    """The left image of pair ``i`` and a reader of the right one (decoded only for the frames
+    that need stereo)."""
+    if seq.frame_reader is None and seq.left_files:
+        from functools import partial
+
+        from ibiscape_eval.io.stereo import read_gray_image
+
+        return read_gray_image(seq.left_files[i]), partial(read_gray_image, seq.right_files[i])
+    pair = seq.read_pair(i)
+    return pair[0], lambda: pair[1]
 
 
 def _sized(img: Any, label: str, w: int, h: int) -> Any:
