@@ -186,11 +186,13 @@ class StereoFrontEnd:
             ids = np.zeros(0, dtype=np.int64)
             disp = np.zeros(0, dtype=np.float32)
         # new corners only when the tracks have thinned out (detection is the costliest step):
-        # below 70 % of max_features and below redetect_ratio of the count after the last
-        # detection (images with textureless cells never fill up: not every frame then)
+        # below 70 % of max_features, and (redetect_ratio < 1) below that fraction of the count
+        # after the last detection unless below half of max_features (images with textureless
+        # cells never fill up: not every frame then)
         p = self.params
-        if len(pts) < 0.7 * p.max_features and (p.redetect_ratio >= 1.0
-                                                or len(pts) < p.redetect_ratio * self._filled):
+        n = len(pts)
+        if n < 0.7 * p.max_features and (p.redetect_ratio >= 1.0 or n < 0.5 * p.max_features
+                                         or n < p.redetect_ratio * self._filled):
             new = self._detect(left, pts)
             self._filled = len(pts) + len(new)
         else:

@@ -27,8 +27,9 @@ class VioParams:
         ``klt_eps_px`` (iterations per level and the step that ends them),
         forward-backward check ``fb_max_px``, stereo epipolar check ``epipolar_max_px``,
         RANSAC threshold ``ransac_px``; new corners are detected when fewer than 70 % of
-        ``max_features`` and fewer than ``redetect_ratio`` of the corners held after the last
-        detection are tracked (1: whenever below 70 %).
+        ``max_features`` are tracked and, for ``redetect_ratio`` < 1, fewer than that fraction
+        of the corners held after the last detection or fewer than half of ``max_features``
+        (1: whenever below 70 %).
     Keyframes
         a new keyframe when the median parallax since the last one exceeds ``kf_parallax_px``,
         when fewer than ``kf_track_ratio`` of its tracks survive, or after ``kf_max_dt_s``.

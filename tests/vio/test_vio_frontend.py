@@ -152,3 +152,33 @@ def test_track_then_match_is_process_and_skipped_frames_keep_the_tracks():
 def test_match_before_track_is_refused():
     with pytest.raises(RuntimeError, match="before track"):
         StereoFrontEnd(_rig(), VioParams()).match(np.zeros((W, W), np.uint8))
+
+
+def test_redetect_ratio_skips_detection_until_the_tracks_thin_out(monkeypatch):
+    """With ``redetect_ratio`` < 1 the first frame (no corner) is detected on, and frames that
+    lost no track are not; below ``redetect_ratio`` of the corners held it detects again."""
+    rig = _rig()
+    tex = _texture(3)
+    left = _render(tex, rig.left, np.zeros(3))
+    left[:, W // 2:] = 128                              # half without texture: never fills up
+    calls = []
+    fe = StereoFrontEnd(rig, VioParams(max_features=400, redetect_ratio=0.9))
+    real = fe._detect
+    monkeypatch.setattr(fe, "_detect", lambda img, pts: calls.append(len(pts)) or real(img, pts))
+    fe.track(0, left)
+    assert calls == [0] and 100 < fe.n_tracked < 280   # < 70 % of 400: half the cells empty
+    fe.track(50_000_000, left)                          # nothing lost: no detection
+    assert calls == [0]
+    n = fe.n_tracked
+    fe.pts, fe.ids, fe.disp = fe.pts[: int(0.85 * n)], fe.ids[: int(0.85 * n)], fe.disp[: int(0.85 * n)]
+    fe.track(100_000_000, left)                         # 85 % of those held: detect again
+    assert len(calls) == 2 and fe.n_tracked > int(0.85 * n)
+    always = StereoFrontEnd(rig, VioParams(max_features=400))
+    always.track(0, left)
+    kept = always.n_tracked
+    assert kept < 280
+    calls2 = []
+    real2 = always._detect
+    monkeypatch.setattr(always, "_detect", lambda img, pts: calls2.append(len(pts)) or real2(img, pts))
+    always.track(50_000_000, left)                      # redetect_ratio 1: below 70 % -> detect
+    assert calls2 == [kept]
