@@ -56,7 +56,7 @@ class VioParams:
     grid: int = 8
     min_distance_px: float = 12.0
     klt_window_px: int = 21
-    klt_levels: int = 3
+    klt_levels: int = 2
     klt_iters: int = 30
     klt_eps_px: float = 0.01
     fb_max_px: float = 1.0
