@@ -48,8 +48,7 @@ class StereoFrontEnd:
         self.min_dist = max(params.min_distance_px * s, 3.0)
         win = max(round(params.klt_window_px * math.sqrt(s)) | 1, 7)
         self.win = (win, win)
-        # one pyramid level more per doubling of the width beyond 512 px (motion in px doubles too)
-        self.levels = params.klt_levels + max(round(math.log2(max(s, 1e-3))), 0)
+        self.levels = params.klt_levels
         self.crit = (3, params.klt_iters, params.klt_eps_px)   # TERM_CRITERIA_COUNT | EPS
         self.R_bc = rig.T_body_left[:3, :3]
         self.K = rig.left.K

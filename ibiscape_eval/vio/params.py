@@ -23,8 +23,8 @@ class VioParams:
     Front end
         ``max_features`` tracked per frame (on a ``grid`` x ``grid`` cell layout),
         ``min_distance_px`` between them, KLT ``klt_window_px`` / ``klt_levels`` (pyramid
-        levels above the image up to 512 px, one more per doubling of the width beyond) / ``klt_iters`` /
-        ``klt_eps_px`` (iterations per level and the step that ends them),
+        levels above the image) / ``klt_iters`` / ``klt_eps_px`` (iterations per level and
+        the step that ends them),
         forward-backward check ``fb_max_px``, stereo epipolar check ``epipolar_max_px``,
         RANSAC threshold ``ransac_px``; new corners are detected when fewer than 70 % of
         ``max_features`` are tracked and, for ``redetect_ratio`` < 1, fewer than that fraction
@@ -56,7 +56,7 @@ class VioParams:
     grid: int = 8
     min_distance_px: float = 12.0
     klt_window_px: int = 21
-    klt_levels: int = 2
+    klt_levels: int = 3
     klt_iters: int = 30
     klt_eps_px: float = 0.01
     fb_max_px: float = 1.0
