@@ -7,7 +7,10 @@ shaped like the paper's ``table:evaluation`` with its ORB-SLAM3 and BASALT figur
 
 Each estimate is run in this process, frame by frame like ``run_vio`` (image reading, front end,
 estimator), timing each stage by the CPU time of the whole process (all threads: OpenCV's and
-GTSAM's worker threads count), which other load on this shared machine does not inflate.  One
+GTSAM's worker threads count), which other load on this shared machine inflates far less than
+wall time.  Like ``run_vio``, the right image is decoded and matched only for the frames that
+need stereo (keyframes, initialisation, lost spans; column ``stereo``); its decoding counts as
+reading.  ``--set NAME=VALUE ...`` changes ``VioParams`` options of the in-process runs.  One
 table per setup and weather: ATE after SE(3) alignment and RPE over 1 s (mean +- std) from the
 project's own metrics, the CPU milliseconds per frame of the front end (``StereoFrontEnd``) and
 of the back end (``Estimator``: keyframes, smoother), and the speed-up over real time by CPU time
@@ -29,6 +32,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 import tempfile
@@ -109,13 +113,13 @@ def _vio(seq: Path, tmp: Path) -> dict[str, float]:
     return row
 
 
-def _inprocess(seq: Path, max_frames: int | None) -> dict[str, float]:
+def _inprocess(seq: Path, max_frames: int | None, params: Any = None) -> dict[str, float]:
     """The VIO loop of ``run_vio`` with each stage timed by process CPU time (all threads)."""
     from ibiscape_eval.io.stereo import read_gray_image
     from ibiscape_eval.vio import Estimator, StereoFrontEnd, VioParams, load_sequence
 
     s = load_sequence(seq)
-    p = VioParams()
+    p = params or VioParams()
     n = s.n_frames if max_frames is None else min(max_frames, s.n_frames)
     fe = StereoFrontEnd(s.rig, p)
     est = Estimator(s.rig.rectified(), s.imu, s.noise, p, s.T_body_imu)
@@ -159,12 +163,30 @@ def _inprocess(seq: Path, max_frames: int | None) -> dict[str, float]:
         write_trajectory(est_path, tr, "tum")
         row = _score(est_path, seq)
     total = sum(cpu.values())
-    row.update(wall_s=wall, peak_mb=float("nan"), speed=dur / wall, cpu_speed=dur / total,
+    import resource
+
+    peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # Linux: KiB
+    row.update(wall_s=wall, peak_mb=peak_mb, speed=dur / wall, cpu_speed=dur / total,
                failures=len(est.failures), poses=len(tr), frames=n,
                read_ms=1e3 * cpu["read"] / n, front_ms=1e3 * cpu["front"] / n,
                back_ms=1e3 * cpu["back"] / n, nopng_cpu_speed=dur / (cpu["front"] + cpu["back"]),
                stereo_frames=stereo)
     return row
+
+
+def _params(items: list[str]) -> Any:
+    import dataclasses
+
+    from ibiscape_eval.vio import VioParams
+
+    types = {f.name: type(getattr(VioParams(), f.name)) for f in dataclasses.fields(VioParams)}
+    kw = {}
+    for item in items:
+        name, _, value = item.partition("=")
+        if name not in types:
+            raise SystemExit(f"--set {item}: no VioParams option {name!r}")
+        kw[name] = types[name](value)
+    return VioParams(**kw)
 
 
 def _synthetic(seq: Path) -> dict[str, float]:
@@ -202,6 +224,24 @@ def _fmt(v: float, s: float) -> str:
     return f"{v:.4f}±{s:.4f}"
 
 
+def _cpu_table(rows: list[tuple[str, str, dict[str, float]]]) -> None:
+    """CPU milliseconds per frame of reading, front end and back end (in-process runs)."""
+    if not any("front_ms" in r for _, _, r in rows):
+        return
+    print("\nSVI setup: CPU time per frame (process CPU time, all threads), speed-up by CPU time")
+    print(f"{'sequence':<24}{'weather':<10}{'frames':>7}{'stereo':>7}{'read':>8}{'front':>8}"
+          f"{'back':>8}{'  x real time (CPU)':>20}{'  without PNG':>14}{'  wall':>8}"
+          f"{'  peak RSS':>11}")
+    for name, weather, r in rows:
+        if "front_ms" in r:
+            print(f"{name:<24}{weather:<10}{int(r['frames']):>7}{int(r['stereo_frames']):>7}"
+                  f"{r['read_ms']:>6.1f}ms{r['front_ms']:>6.1f}ms{r['back_ms']:>6.1f}ms"
+                  f"{r['cpu_speed']:>19.2f}x{r['nopng_cpu_speed']:>13.2f}x{r['speed']:>7.2f}x"
+                  f"{r['peak_mb']:>8.0f} MB")
+    print(f"(stereo: frames whose right image was decoded and matched; peak RSS of this "
+          f"process so far; load average {os.getloadavg()[0]:.1f})")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sequences", nargs="*", type=Path, help="rendered SVI sequence folders")
@@ -214,10 +254,13 @@ def main() -> None:
     ap.add_argument("--cli", action="store_true",
                     help="run the CLI in a fresh process (wall time, peak RSS; no front/back split)")
     ap.add_argument("--max-frames", type=int, default=None, help="stop each run after N frames")
+    ap.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE",
+                    help="VioParams options of the in-process runs, e.g. --set klt_levels=3")
     a = ap.parse_args()
+    params = _params(a.set)
 
     def vio(seq: Path) -> dict[str, float]:
-        return _vio(seq, tmp) if a.cli else _inprocess(seq, a.max_frames)
+        return _vio(seq, tmp) if a.cli else _inprocess(seq, a.max_frames, params)
 
     rows: list[tuple[str, str, dict[str, float]]] = []
     with tempfile.TemporaryDirectory(prefix="bench_vio_") as d:
@@ -260,15 +303,7 @@ def main() -> None:
               f"{TARGET_PCT[weather]:>6.0f}%  {_fmt(r['rpe_m'], r['rpe_m_std']):>15}  "
               f"{_fmt(r['rpe_deg'], r['rpe_deg_std']):>15}{int(r['failures']):>5}  "
               f"x{r['speed']:.2f} (x{r['cpu_speed']:.2f})")
-    if any("front_ms" in r for _, _, r in rows):
-        print("\nSVI setup: CPU time per frame (process CPU time, all threads), speed-up by CPU time")
-        print(f"{'sequence':<24}{'weather':<10}{'frames':>7}{'read':>8}{'front':>8}{'back':>8}"
-              f"{'  x real time (CPU)':>20}{'  without PNG':>14}{'  wall':>8}")
-        for name, weather, r in rows:
-            if "front_ms" in r:
-                print(f"{name:<24}{weather:<10}{int(r['frames']):>7}{r['read_ms']:>6.1f}ms"
-                      f"{r['front_ms']:>6.1f}ms{r['back_ms']:>6.1f}ms{r['cpu_speed']:>19.2f}x"
-                      f"{r['nopng_cpu_speed']:>13.2f}x{r['speed']:>7.2f}x")
+    _cpu_table(rows)
     if any(r.get("yaw_aligned") for _, _, r in rows):
         print("* a straight path: ATE after 4-DoF (yaw) alignment, SE(3) is undetermined")
     print("\nthe paper's table:evaluation, SVI setup (real IBISCape sequences, ~140 m; for context):")

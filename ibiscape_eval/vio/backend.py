@@ -159,8 +159,8 @@ class Backend:
         import gtsam
 
         isam = gtsam.ISAM2Params()
-        isam.setRelinearizeThreshold(0.01)
-        isam.relinearizeSkip = 1
+        isam.setRelinearizeThreshold(self.params.relinearize_threshold)
+        isam.relinearizeSkip = self.params.relinearize_skip
         self.smoother = gtsam.IncrementalFixedLagSmoother(self.params.lag_s, isam)
         self.k = -1                                # index of the latest keyframe
         self.kf_t: dict[int, int] = {}             # keyframe index -> stamp (ns), in the window

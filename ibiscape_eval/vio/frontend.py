@@ -49,6 +49,7 @@ class StereoFrontEnd:
         win = max(round(params.klt_window_px * math.sqrt(s)) | 1, 7)
         self.win = (win, win)
         self.levels = params.klt_levels
+        self.crit = (3, params.klt_iters, params.klt_eps_px)   # TERM_CRITERIA_COUNT | EPS
         self.R_bc = rig.T_body_left[:3, :3]
         self.K = rig.left.K
         self.Kinv = np.linalg.inv(self.K)
@@ -58,6 +59,7 @@ class StereoFrontEnd:
         self.disp = np.zeros(0, dtype=np.float32)        # last raw disparity guess per corner
         self._next_id = 0
         self._tracks: StereoObservations | None = None   # the last track() result
+        self._filled = 0                                  # corners held after the last detection
 
     def _pyramid(self, img: npt.NDArray[np.uint8]) -> Any:
         # OpenCV 5's Python binding no longer accepts the list of buildOpticalFlowPyramid as an
@@ -69,7 +71,7 @@ class StereoFrontEnd:
         """KLT from ``p0`` in image 0 to image 1 with a start guess, plus the backward check."""
         import cv2
 
-        crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01)
+        crit = self.crit
         p1, st, _ = cv2.calcOpticalFlowPyrLK(pyr0, pyr1, p0.reshape(-1, 1, 2),
                                              guess.reshape(-1, 1, 2).copy(), winSize=self.win,
                                              maxLevel=self.levels, criteria=crit,
@@ -182,9 +184,16 @@ class StereoFrontEnd:
             pts = np.zeros((0, 2), dtype=np.float32)
             ids = np.zeros(0, dtype=np.int64)
             disp = np.zeros(0, dtype=np.float32)
-        # new corners only when the tracks have thinned out (detection is the costliest step)
-        if len(pts) < 0.7 * self.params.max_features:
+        # new corners only when the tracks have thinned out (detection is the costliest step):
+        # below 70 % of max_features, and (redetect_ratio < 1) below that fraction of the count
+        # after the last detection unless below half of max_features (images with textureless
+        # cells never fill up: not every frame then)
+        p = self.params
+        n = len(pts)
+        if n < 0.7 * p.max_features and (p.redetect_ratio >= 1.0 or n < 0.5 * p.max_features
+                                         or n < p.redetect_ratio * self._filled):
             new = self._detect(left, pts)
+            self._filled = len(pts) + len(new)
         else:
             new = np.zeros((0, 2), dtype=np.float32)
         if len(new):

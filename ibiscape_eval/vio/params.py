@@ -22,14 +22,21 @@ class VioParams:
 
     Front end
         ``max_features`` tracked per frame (on a ``grid`` x ``grid`` cell layout),
-        ``min_distance_px`` between them, KLT ``klt_window_px`` / ``klt_levels``,
+        ``min_distance_px`` between them, KLT ``klt_window_px`` / ``klt_levels`` (pyramid
+        levels above the image) / ``klt_iters`` / ``klt_eps_px`` (iterations per level and
+        the step that ends them),
         forward-backward check ``fb_max_px``, stereo epipolar check ``epipolar_max_px``,
-        RANSAC threshold ``ransac_px``.
+        RANSAC threshold ``ransac_px``; new corners are detected when fewer than 70 % of
+        ``max_features`` are tracked and, for ``redetect_ratio`` < 1, fewer than that fraction
+        of the corners held after the last detection or fewer than half of ``max_features``
+        (1: whenever below 70 %).
     Keyframes
         a new keyframe when the median parallax since the last one exceeds ``kf_parallax_px``,
         when fewer than ``kf_track_ratio`` of its tracks survive, or after ``kf_max_dt_s``.
     Back end
-        ``lag_s`` of the fixed-lag smoother, stereo pixel sigma ``pixel_sigma_px`` (Huber),
+        ``lag_s`` of the fixed-lag smoother (iSAM2 checks relinearisation every
+        ``relinearize_skip`` updates, of variables that moved more than ``relinearize_threshold``),
+        stereo pixel sigma ``pixel_sigma_px`` (Huber),
         landmarks need ``min_landmark_obs`` keyframe observations and a disparity of at least
         ``min_disparity_px``; ``imu_noise_scale`` inflates the IMU densities (model mismatch).
     Initialisation
@@ -50,13 +57,18 @@ class VioParams:
     min_distance_px: float = 12.0
     klt_window_px: int = 21
     klt_levels: int = 3
+    klt_iters: int = 30
+    klt_eps_px: float = 0.01
     fb_max_px: float = 1.0
     epipolar_max_px: float = 1.5
     ransac_px: float = 1.0
+    redetect_ratio: float = 1.0
     kf_parallax_px: float = 12.0
     kf_track_ratio: float = 0.6
     kf_max_dt_s: float = 0.3
     lag_s: float = 3.0
+    relinearize_skip: int = 1
+    relinearize_threshold: float = 0.01
     pixel_sigma_px: float = 1.0
     min_landmark_obs: int = 2
     min_disparity_px: float = 3.0

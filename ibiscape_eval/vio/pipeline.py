@@ -70,6 +70,8 @@ class VioStats:
     cpu_realtime_factor: float = float("nan")
     resets: int = 0
     params: dict[str, Any] = field(default_factory=dict)
+    #: the initialiser's first standstill test (StandstillTest.to_dict; None before one ran)
+    standstill: dict[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
@@ -159,15 +161,7 @@ def run_vio(seq: StereoSequence | Sequence, params: VioParams | None = None, *,
     from concurrent.futures import ThreadPoolExecutor
 
     def read(i: int) -> tuple[Any, Any]:
-        # the left image, and a reader of the right one (decoded only for frames needing stereo)
-        if seq.frame_reader is None and seq.left_files:
-            from functools import partial
-
-            from ibiscape_eval.io.stereo import read_gray_image
-
-            return read_gray_image(seq.left_files[i]), partial(read_gray_image, seq.right_files[i])
-        pair = seq.read_pair(i)
-        return pair[0], lambda: pair[1]
+        return _read_left(seq, i)
 
     pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="vio-read")
     ahead = {i: pool.submit(read, i) for i in range(min(4, n))}
@@ -196,7 +190,8 @@ def run_vio(seq: StereoSequence | Sequence, params: VioParams | None = None, *,
                      mean_ms_per_frame=1e3 * wall / n, max_ms_per_frame=1e3 * float(times.max()),
                      realtime_factor=duration / wall if wall > 0 else float("inf"),
                      cpu_realtime_factor=duration / cpu if cpu > 0 else float("inf"),
-                     resets=est.backend.resets, params=p.to_dict())
+                     resets=est.backend.resets, params=p.to_dict(),
+                     standstill=None if est.standstill_test is None else est.standstill_test.to_dict())
     return VioResult(traj, stats)
 
 
@@ -232,6 +227,19 @@ def _loop(seq: StereoSequence, p: VioParams, n: int, fe: Any, est: Estimator, ah
             wall = time.perf_counter() - t_start
             span = (t_ns - int(seq.frame_stamps_ns[0])) * 1e-9
             progress(i + 1, n, span / wall if wall > 0 else 0.0)
+
+
+def _read_left(seq: StereoSequence, i: int) -> tuple[Any, Callable[[], Any]]:
+    """The left image of pair ``i`` and a reader of the right one (decoded only for the frames
+    that need stereo)."""
+    if seq.frame_reader is None and seq.left_files:
+        from functools import partial
+
+        from ibiscape_eval.io.stereo import read_gray_image
+
+        return read_gray_image(seq.left_files[i]), partial(read_gray_image, seq.right_files[i])
+    pair = seq.read_pair(i)
+    return pair[0], lambda: pair[1]
 
 
 def _sized(img: Any, label: str, w: int, h: int) -> Any:

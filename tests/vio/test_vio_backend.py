@@ -8,6 +8,7 @@ import pytest
 
 from ibiscape_eval.core.errors import FormatError
 from ibiscape_eval.metrics import ate
+from ibiscape_eval.vio.backend import StereoObservations
 from ibiscape_eval.vio.estimator import Estimator
 from ibiscape_eval.vio.params import VioParams
 from ibiscape_eval.vio.synthetic import random_landmarks, synthetic_observations
@@ -111,3 +112,42 @@ def test_a_diverging_state_is_reported_and_reinitialised(svi_seq, small_rig, mon
     v = np.linalg.norm(np.diff(traj.pos_m, axis=0), axis=1) / np.diff(traj.stamps_ns) * 1e9
     assert v.max() < 20.0  # no 100 m/s pose written
     assert len(traj) > 0.8 * len(gt.stamps_ns[::10])  # and the estimate resumed
+
+
+@pytest.mark.parametrize("start_s", [0.0, 3.0])
+def test_stereo_only_where_needed_gives_the_same_estimate(svi_seq, small_rig, start_s):
+    """Frames for which ``needs_stereo`` says no carry left tracks only (``uR`` NaN, as
+    ``StereoFrontEnd.track`` gives them): the keyframes, the initialisation (standstill and
+    moving) and so the estimate are exactly those of stereo on every frame."""
+    gt = svi_seq.groundtruth
+    stamps = gt.stamps_ns[::10]
+    stamps = stamps[stamps >= gt.stamps_ns[0] + int(start_s * 1e9)]
+    obs = synthetic_observations(gt, small_rig, stamps, random_landmarks(gt, seed=4),
+                                 pixel_sigma_px=0.3, seed=5)
+    full, lazy = (Estimator(small_rig.rectified(), svi_seq.imu, svi_seq.noise, VioParams(),
+                            svi_seq.T_body_imu) for _ in range(2))
+    skipped = 0
+    for o in obs:
+        full.process(o)
+        left_only = type(o)(o.stamp_ns, o.ids, o.uL, np.full(len(o), np.nan), o.v)
+        if lazy.needs_stereo(left_only):
+            lazy.process(o)
+        else:
+            skipped += 1
+            lazy.process(left_only)
+    full.finish()
+    lazy.finish()
+    assert skipped > len(obs) // 3
+    assert lazy.n_keyframes == full.n_keyframes and lazy.init_method == full.init_method
+    a, b = full.trajectory(), lazy.trajectory()
+    assert np.array_equal(a.stamps_ns, b.stamps_ns)
+    np.testing.assert_allclose(b.matrices(), a.matrices(), atol=1e-9)
+
+
+def test_matched_keeps_the_stereo_observations():
+    o = StereoObservations(5, np.array([1, 2, 3]), np.array([10.0, 20.0, 30.0]),
+                           np.array([8.0, np.nan, 25.0]), np.array([1.0, 2.0, 3.0]))
+    m = o.matched()
+    assert m.stamp_ns == 5 and m.ids.tolist() == [1, 3] and m.uR.tolist() == [8.0, 25.0]
+    full = StereoObservations(5, o.ids, o.uL, np.array([8.0, 9.0, 25.0]), o.v)
+    assert full.matched() is full

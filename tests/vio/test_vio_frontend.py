@@ -117,3 +117,68 @@ def test_textureless_images_give_no_observations(value):
     for k in range(3):
         obs = fe.process(k * 50_000_000, blank, blank)
         assert len(obs) == 0
+
+
+def test_track_then_match_is_process_and_skipped_frames_keep_the_tracks():
+    """``track`` gives every corner held (``uR`` NaN), ``match`` adds the stereo matches: the
+    matched subset is what ``process`` gives; frames tracked without the right image keep ids and
+    the next ``match`` still finds the plane's disparity (started at the older one)."""
+    rig = _rig()
+    tex = _texture(2)
+    cam = rig.left
+    b = 0.4
+    centres = [np.array([0.0, 0.0, 0.02 * k]) for k in range(5)]
+    pairs = [(_render(tex, cam, c), _render(tex, cam, c + np.array([b, 0.0, 0.0])))
+             for c in centres]
+    full, lazy = StereoFrontEnd(rig, VioParams()), StereoFrontEnd(rig, VioParams())
+    t0 = full.process(0, *pairs[0])
+    tracks = lazy.track(0, pairs[0][0])
+    assert np.isnan(tracks.uR).all() and len(tracks) >= len(t0) > 80
+    m = lazy.match(pairs[0][1])
+    assert np.array_equal(m.ids, tracks.ids) and np.array_equal(m.uL, tracks.uL)
+    got = m.matched()
+    assert np.array_equal(got.ids, t0.ids) and np.allclose(got.uR, t0.uR)
+    for k in (1, 2, 3):        # left only
+        tr = lazy.track(k * 50_000_000, pairs[k][0])
+        assert np.isnan(tr.uR).all()
+    lazy.track(4 * 50_000_000, pairs[4][0])
+    last = lazy.match(pairs[4][1])
+    ok = np.isfinite(last.uR)
+    assert ok.sum() > 80 and len(np.intersect1d(last.ids, t0.ids)) > 60
+    d_true = cam.fx * b / (DEPTH_M - centres[4][2])
+    assert np.median(np.abs(last.uL[ok] - last.uR[ok] - d_true)) < 0.1
+
+
+def test_match_before_track_is_refused():
+    with pytest.raises(RuntimeError, match="before track"):
+        StereoFrontEnd(_rig(), VioParams()).match(np.zeros((W, W), np.uint8))
+
+
+def test_redetect_ratio_skips_detection_until_the_tracks_thin_out(monkeypatch):
+    """With ``redetect_ratio`` < 1 the first frame (no corner) is detected on, and frames that
+    lost no track are not; below ``redetect_ratio`` of the corners held it detects again."""
+    rig = _rig()
+    tex = _texture(3)
+    left = _render(tex, rig.left, np.zeros(3))
+    left[:, W // 2:] = 128                              # half without texture: never fills up
+    calls = []
+    fe = StereoFrontEnd(rig, VioParams(max_features=400, redetect_ratio=0.9))
+    real = fe._detect
+    monkeypatch.setattr(fe, "_detect", lambda img, pts: calls.append(len(pts)) or real(img, pts))
+    fe.track(0, left)
+    assert calls == [0] and 100 < fe.n_tracked < 280   # < 70 % of 400: half the cells empty
+    fe.track(50_000_000, left)                          # nothing lost: no detection
+    assert calls == [0]
+    n = fe.n_tracked
+    fe.pts, fe.ids, fe.disp = fe.pts[: int(0.85 * n)], fe.ids[: int(0.85 * n)], fe.disp[: int(0.85 * n)]
+    fe.track(100_000_000, left)                         # 85 % of those held: detect again
+    assert len(calls) == 2 and fe.n_tracked > int(0.85 * n)
+    always = StereoFrontEnd(rig, VioParams(max_features=400))
+    always.track(0, left)
+    kept = always.n_tracked
+    assert kept < 280
+    calls2 = []
+    real2 = always._detect
+    monkeypatch.setattr(always, "_detect", lambda img, pts: calls2.append(len(pts)) or real2(img, pts))
+    always.track(50_000_000, left)                      # redetect_ratio 1: below 70 % -> detect
+    assert calls2 == [kept]
