@@ -25,7 +25,7 @@ from .estimator import Estimator, FailureSpan
 from .inputs import StereoSequence
 from .params import VioParams
 
-__all__ = ["VioResult", "VioStats", "run_vio"]
+__all__ = ["VioResult", "VioStats", "make_frontend", "run_vio"]
 
 #: progress(frames_done, frames_total, speed_up_over_real_time)
 Progress = Callable[[int, int, float], None]
@@ -53,6 +53,11 @@ class VioStats:
         Processing time per frame (reading, front end, back end).
     realtime_factor : float
         Sequence duration / wall-clock processing time (> 1: faster than real time).
+    setup : str
+        ``svi``, ``esvi`` or ``rgbd``: the cameras used (:func:`ibiscape_eval.vio.inputs.resolve_setup`).
+    usable_frames : int
+        Frames with at least ``min_tracked`` stereo measurements (the paper's "usable frames"
+        of the event reconstructions).
     cpu_realtime_factor : float
         Sequence duration / CPU time of the process (all threads): the speed on an idle machine
         with one core, unaffected by other processes.
@@ -71,6 +76,8 @@ class VioStats:
     cpu_realtime_factor: float = float("nan")
     resets: int = 0
     params: dict[str, Any] = field(default_factory=dict)
+    setup: str = "svi"
+    usable_frames: int = 0
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
@@ -100,7 +107,8 @@ class VioResult:
 def run_vio(seq: StereoSequence | Sequence, params: VioParams | None = None, *,
             max_frames: int | None = None, progress: Progress | None = None,
             calib: str | os.PathLike[str] | None = None,
-            imu_yaml: str | os.PathLike[str] | None = None) -> VioResult:
+            imu_yaml: str | os.PathLike[str] | None = None, setup: str = "auto",
+            options: Any = None) -> VioResult:
     """Run the stereo VIO over a sequence with images.
 
     Parameters
@@ -116,6 +124,13 @@ def run_vio(seq: StereoSequence | Sequence, params: VioParams | None = None, *,
     calib, imu_yaml : path, optional
         Kalibr ``camchain-imucam.yaml`` / ``imu.yaml`` replacing the sequence's own (a
         :class:`Sequence` only).
+    setup : {"auto", "svi", "esvi", "rgbd", "full"}
+        The cameras to use (a :class:`Sequence` only): stereo RGB, stereo events (frames
+        reconstructed causally, :mod:`~ibiscape_eval.vio.events_input`), RGB + depth
+        (:mod:`~ibiscape_eval.vio.depth`), or the best the sequence has
+        (:func:`~ibiscape_eval.vio.inputs.resolve_setup`).
+    options : EsviOptions or DepthOptions, optional
+        The ESVI reconstruction or the depth front end's options.
 
     Raises
     ------
@@ -124,12 +139,10 @@ def run_vio(seq: StereoSequence | Sequence, params: VioParams | None = None, *,
     FormatError
         An image that cannot be read or has another size than the calibration.
     """
-    from .frontend import StereoFrontEnd
-
     if not isinstance(seq, StereoSequence):
         from .inputs import stereo_inputs
 
-        seq = stereo_inputs(seq, calib=calib, imu_yaml=imu_yaml)
+        seq = stereo_inputs(seq, calib=calib, imu_yaml=imu_yaml, setup=setup, options=options)
     p = params or VioParams()
     if seq.n_frames == 0:
         raise DegenerateInputError(f"{seq.path}: no stereo frames to process")
@@ -142,7 +155,7 @@ def run_vio(seq: StereoSequence | Sequence, params: VioParams | None = None, *,
             f"{seq.path}: only {n} stereo frames ({span_s:.2f} s); the VIO needs {p.init_frames} "
             f"frames (moving start) or {p.still_window_s:g} s (standstill start) to initialise: "
             "give a longer recording")
-    fe = StereoFrontEnd(seq.rig, p)
+    fe = make_frontend(seq, p, options)
     est = Estimator(seq.rig.rectified(), seq.imu, seq.noise, p, seq.T_body_imu)
     times = np.zeros(n)
     tracked = np.zeros(n, dtype=np.int64)
@@ -182,8 +195,22 @@ def run_vio(seq: StereoSequence | Sequence, params: VioParams | None = None, *,
                      mean_ms_per_frame=1e3 * wall / n, max_ms_per_frame=1e3 * float(times.max()),
                      realtime_factor=duration / wall if wall > 0 else float("inf"),
                      cpu_realtime_factor=duration / cpu if cpu > 0 else float("inf"),
-                     resets=est.backend.resets, params=p.to_dict())
+                     resets=est.backend.resets, params=p.to_dict(), setup=seq.setup,
+                     usable_frames=int(np.count_nonzero(tracked >= p.min_tracked)))
     return VioResult(traj, stats)
+
+
+def make_frontend(seq: StereoSequence, params: VioParams, options: Any = None) -> Any:
+    """The front end of the sequence's setup: :class:`~ibiscape_eval.vio.depth.DepthFrontEnd`
+    for RGB-D, :class:`~ibiscape_eval.vio.frontend.StereoFrontEnd` for stereo RGB and events."""
+    if seq.setup == "rgbd":
+        from .depth import DepthFrontEnd, DepthOptions
+
+        return DepthFrontEnd(seq.rig, params, seq.depth_unit or "mm",
+                             options if isinstance(options, DepthOptions) else None)
+    from .frontend import StereoFrontEnd
+
+    return StereoFrontEnd(seq.rig, params)
 
 
 def numerical_failure_message(path: str, exc: BaseException) -> str:
@@ -208,7 +235,7 @@ def _loop(seq: StereoSequence, p: VioParams, n: int, fe: Any, est: Estimator, ah
         if i + 4 < n:
             ahead[i + 4] = pool.submit(read, i + 4)
         for img, f in zip((left, right), seq.frame_labels(i), strict=True):
-            if img.shape != (h, w):
+            if img.shape[:2] != (h, w):
                 raise FormatError(f, f"image is {img.shape[1]}x{img.shape[0]} px, the calibration "
                                   f"says {w}x{h}")
         R = None if prev_t is None else est.gyro_rotation(prev_t, t_ns)
