@@ -144,17 +144,7 @@ def run_vio(seq: StereoSequence | Sequence, params: VioParams | None = None, *,
 
         seq = stereo_inputs(seq, calib=calib, imu_yaml=imu_yaml, setup=setup, options=options)
     p = params or VioParams()
-    if seq.n_frames == 0:
-        raise DegenerateInputError(f"{seq.path}: no stereo frames to process")
-    n = seq.n_frames if max_frames is None else min(max_frames, seq.n_frames)
-    span_s = (int(seq.frame_stamps_ns[n - 1]) - int(seq.frame_stamps_ns[0])) * 1e-9
-    if n < p.init_frames and span_s < p.still_window_s:
-        # neither initialisation can start: the standstill needs still_window_s of frames, the
-        # moving one init_frames frames
-        raise DegenerateInputError(
-            f"{seq.path}: only {n} stereo frames ({span_s:.2f} s); the VIO needs {p.init_frames} "
-            f"frames (moving start) or {p.still_window_s:g} s (standstill start) to initialise: "
-            "give a longer recording")
+    n = _frames_to_run(seq, p, max_frames)
     fe = make_frontend(seq, p, options)
     est = Estimator(seq.rig.rectified(), seq.imu, seq.noise, p, seq.T_body_imu)
     times = np.zeros(n)
@@ -188,16 +178,36 @@ def run_vio(seq: StereoSequence | Sequence, params: VioParams | None = None, *,
         raise DegenerateInputError(
             f"{seq.path}: no frame could be estimated (tracking failed from the start: images "
             "without texture, or no standstill to initialise from); see the failure spans")
+    return VioResult(traj, _stats(seq, p, est, n, len(traj), times, tracked, wall, cpu))
+
+
+def _frames_to_run(seq: StereoSequence, p: VioParams, max_frames: int | None) -> int:
+    """How many frames to process; refuses a recording too short to initialise."""
+    if seq.n_frames == 0:
+        raise DegenerateInputError(f"{seq.path}: no stereo frames to process")
+    n = seq.n_frames if max_frames is None else min(max_frames, seq.n_frames)
+    span_s = (int(seq.frame_stamps_ns[n - 1]) - int(seq.frame_stamps_ns[0])) * 1e-9
+    if n < p.init_frames and span_s < p.still_window_s:
+        # neither initialisation can start: the standstill needs still_window_s of frames, the
+        # moving one init_frames frames
+        raise DegenerateInputError(
+            f"{seq.path}: only {n} stereo frames ({span_s:.2f} s); the VIO needs {p.init_frames} "
+            f"frames (moving start) or {p.still_window_s:g} s (standstill start) to initialise: "
+            "give a longer recording")
+    return n
+
+
+def _stats(seq: StereoSequence, p: VioParams, est: Estimator, n: int, n_poses: int,
+           times: np.ndarray, tracked: np.ndarray, wall: float, cpu: float) -> VioStats:
     duration = (int(seq.frame_stamps_ns[n - 1]) - int(seq.frame_stamps_ns[0])) * 1e-9
-    stats = VioStats(frames=n, keyframes=est.n_keyframes, frames_estimated=len(traj),
-                     mean_tracked=float(tracked.mean()), min_tracked=int(tracked.min()),
-                     failures=tuple(est.failures), init_method=est.init_method,
-                     mean_ms_per_frame=1e3 * wall / n, max_ms_per_frame=1e3 * float(times.max()),
-                     realtime_factor=duration / wall if wall > 0 else float("inf"),
-                     cpu_realtime_factor=duration / cpu if cpu > 0 else float("inf"),
-                     resets=est.backend.resets, params=p.to_dict(), setup=seq.setup,
-                     usable_frames=int(np.count_nonzero(tracked >= p.min_tracked)))
-    return VioResult(traj, stats)
+    return VioStats(frames=n, keyframes=est.n_keyframes, frames_estimated=n_poses,
+                    mean_tracked=float(tracked.mean()), min_tracked=int(tracked.min()),
+                    failures=tuple(est.failures), init_method=est.init_method,
+                    mean_ms_per_frame=1e3 * wall / n, max_ms_per_frame=1e3 * float(times.max()),
+                    realtime_factor=duration / wall if wall > 0 else float("inf"),
+                    cpu_realtime_factor=duration / cpu if cpu > 0 else float("inf"),
+                    resets=est.backend.resets, params=p.to_dict(), setup=seq.setup,
+                    usable_frames=int(np.count_nonzero(tracked >= p.min_tracked)))
 
 
 def make_frontend(seq: StereoSequence, params: VioParams, options: Any = None) -> Any:

@@ -15,7 +15,12 @@ from click.testing import CliRunner
 from ibiscape_eval.cli.main import cli
 from ibiscape_eval.core.camera import CameraModel
 from ibiscape_eval.core.errors import FormatError
-from ibiscape_eval.io.images import decode_depth_carla_log, encode_depth_carla_log, read_png, write_png
+from ibiscape_eval.io.images import (
+    decode_depth_carla_log,
+    encode_depth_carla_log,
+    read_png,
+    write_png,
+)
 from ibiscape_eval.io.open_sequence import open_sequence
 from ibiscape_eval.metrics import ate
 from ibiscape_eval.sim import generate, preset
@@ -86,7 +91,7 @@ def test_registration_moves_depth_into_the_rgb_camera(tmp_path: Path) -> None:
     T_body_rgb = np.eye(4)
     T_body_depth = np.eye(4)
     T_body_depth[0, 3] = 0.1
-    u, v = np.meshgrid(np.arange(160.0), np.arange(120.0))
+    u, _ = np.meshgrid(np.arange(160.0), np.arange(120.0))
     xd = (u - 79.5) / 80.0
     zd = (5.0 + 0.2 * 0.1) / (1.0 - 0.2 * xd)  # the plane in the depth camera's frame
     f = tmp_path / "d.png"
