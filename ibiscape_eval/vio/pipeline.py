@@ -25,7 +25,7 @@ from .estimator import Estimator, FailureSpan
 from .inputs import StereoSequence
 from .params import VioParams
 
-__all__ = ["VioResult", "VioStats", "make_frontend", "run_vio"]
+__all__ = ["VioResult", "VioStats", "gyro_prior", "make_frontend", "run_vio"]
 
 #: progress(frames_done, frames_total, speed_up_over_real_time)
 Progress = Callable[[int, int, float], None]
@@ -223,6 +223,15 @@ def make_frontend(seq: StereoSequence, params: VioParams, options: Any = None) -
     return StereoFrontEnd(seq.rig, params)
 
 
+def gyro_prior(est: Estimator, t0_ns: int, t1_ns: int) -> Any:
+    """The front end's KLT rotation prior, or None while the smoother holds no newest state (right
+    after a reported divergence, until re-initialisation): tracking then starts unrotated."""
+    try:
+        return est.gyro_rotation(t0_ns, t1_ns)
+    except RuntimeError:
+        return None
+
+
 def numerical_failure_message(path: str, exc: BaseException) -> str:
     """One line for a numerical failure of the estimator on the sequence at ``path``."""
     first = next((ln.strip() for ln in str(exc).splitlines() if ln.strip()), type(exc).__name__)
@@ -248,7 +257,7 @@ def _loop(seq: StereoSequence, p: VioParams, n: int, fe: Any, est: Estimator, ah
             if img.shape[:2] != (h, w):
                 raise FormatError(f, f"image is {img.shape[1]}x{img.shape[0]} px, the calibration "
                                   f"says {w}x{h}")
-        R = None if prev_t is None else est.gyro_rotation(prev_t, t_ns)
+        R = None if prev_t is None else gyro_prior(est, prev_t, t_ns)
         obs = fe.process(t_ns, left, right, R)
         est.process(obs)
         prev_t = t_ns

@@ -45,13 +45,14 @@ def test_esvi_runs_on_the_event_pair_within_the_truth(esvi_folder: Path) -> None
     # the vehicle stands still for the first second or so (no events, no features): those
     # frames are not usable, the driving ones are
     assert 60 <= s.usable_frames < s.frames
-    assert all(f.kind in ("tracking", "lost") for f in s.failures)
+    # tracking loss is reported as spans (IMU only, smoother resets), never a divergence
+    assert s.failures and all(f.kind != "diverged" for f in s.failures)
     gt = seq.ground_truth()
     assert gt is not None
     a = ate(res.trajectory, gt, align="yaw", max_diff_s=0.02)
     length = float(a.ref.path_length_m()[-1])
     assert length > 10.0
-    # measured 2.9 % at this 128 px resolution (1.1 % at 346x260 over 5 s)
+    # a coarse 128 px DVS (0.2 % at 346x260 over 5 s)
     assert a.translation_m.rmse < 0.05 * length
 
 
