@@ -46,7 +46,8 @@ def test_every_step_ran_and_the_report_is_written(bench) -> None:
         assert (out / "report" / name).is_file()
     html = (out / "report" / "report.html").read_text()
     assert "<script" not in html and "Camera-IMU calibration" in html
-    assert html.count('src="data:image/png;base64,') == 2  # VIO top view and error box plots
+    # VIO top views (SVI and ESVI) and the error box plots
+    assert html.count('src="data:image/png;base64,') == 3
     assert (out / "report" / "figures" / "errors_boxplot.png").is_file()
     assert f"report: {out / 'report' / 'report.html'}" in err
     assert json.loads((out / "report" / "report.json").read_text())["steps"] == doc["steps"]
