@@ -47,12 +47,12 @@ for folder in folders:
         print(f"  ATE {a.translation_m.rmse:.3f} m over {length:.1f} m "
               f"({100 * a.translation_m.rmse / length:.2f} %)")
 
-# %% ESVI: another reconstruction of the event frames (the default is causal log-intensity)
+# %% ESVI: another reconstruction of the event frames (the default: signed accumulation per window)
 esvi = [f for f in folders if resolve_setup(open_sequence(f)) == "esvi"]
 if esvi:
     seq = open_sequence(esvi[0])
-    res = run_vio(seq, options=EsviOptions("accumulate-signed"))
-    print(f"accumulate-signed: {res.stats.usable_frames}/{res.stats.frames} usable frames")
+    res = run_vio(seq, options=EsviOptions("log-intensity", tau_s=0.03))
+    print(f"log-intensity (30 ms): {res.stats.usable_frames}/{res.stats.frames} usable frames")
     # the frames themselves, e.g. to look at one
     stamps, read_pair, labels = event_stereo_frames(seq, "davisL", "davisR", EsviOptions())
     left, right = read_pair(0)
