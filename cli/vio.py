@@ -39,6 +39,7 @@ def _summary(res: Any, ate_res: Any, out: Path) -> str:
 Examples:
   ibiscape-eval vio SVI_1_town -o est.txt
   ibiscape-eval vio SVI_1_town -o est.txt --json --plot top.png
+  ibiscape-eval vio ESVI_1_town -o est.txt      (stereo events; RGBD_1_town: RGB + depth)
   ibiscape-eval vio MH_01_easy -o est.txt --calib camchain-imucam.yaml --imu imu.yaml
   ibiscape-eval vio run.bag -o est.txt --topic /cam0/image_raw --topic /cam1/image_raw \
       --imu-topic /imu0 --calib camchain-imucam.yaml --imu imu.yaml
@@ -57,6 +58,8 @@ Examples:
               help="SEQUENCE is a ROS bag: the left then the right image topic (give both).")
 @click.option("--imu-topic", default=None, metavar="TOPIC",
               help="SEQUENCE is a ROS bag with several sensor_msgs/Imu topics: the one to use.")
+@click.option("--setup", type=click.Choice(["auto", "svi", "esvi", "rgbd", "full"]), default="auto",
+              show_default=True, help="Cameras: stereo RGB, stereo events, RGB + depth, or the best there is.")
 @click.option("--max-frames", type=click.IntRange(min=2), default=None,
               help="Process only the first N stereo frames.")
 @click.option("--lag-s", type=click.FloatRange(min=0.5), default=None,
@@ -70,7 +73,7 @@ Examples:
               help="Top view of the estimate with the ground truth (PNG/PDF/SVG).")
 @user_errors
 def vio(sequence: Path, out: Path, calib: Path | None, imu_yaml: Path | None,
-        topics: tuple[str, ...], imu_topic: str | None, max_frames: int | None, lag_s: float | None, max_features: int | None, as_json: bool,
+        topics: tuple[str, ...], imu_topic: str | None, setup: str, max_frames: int | None, lag_s: float | None, max_features: int | None, as_json: bool,
         plot: Path | None) -> None:
     """Stereo visual-inertial odometry (OpenCV front end, GTSAM fixed-lag smoother).
 
@@ -86,7 +89,7 @@ def vio(sequence: Path, out: Path, calib: Path | None, imu_yaml: Path | None,
     from ibiscape_eval.vio.pipeline import run_vio
 
     seq = stereo_inputs(open_sequence(sequence, image_topics=topics or None, imu_topic=imu_topic),
-                        calib=calib, imu_yaml=imu_yaml)
+                        calib=calib, imu_yaml=imu_yaml, setup=setup)
     kw: dict[str, Any] = {}
     if lag_s is not None:
         kw["lag_s"] = lag_s

@@ -8,8 +8,9 @@ error and the others carry on):
 3. ``imu_camera``: camera-IMU extrinsics and time offsets of the same sequences;
 4. ``imu_noise``: the Allan deviation of the still IMU;
 5. ``hot_pixels``: every DVS camera (ESVI and FULL sequences);
-6. ``vio``: the stereo-VIO baseline on every SLAM sequence with a stereo RGB pair (SVI, FULL;
-   ESVI and RGB-D have none and are listed as not applicable);
+6. ``vio``: the VIO baseline on every SLAM sequence, with the cameras of its setup (SVI: stereo
+   RGB; ESVI: frames reconstructed from the stereo events; RGBD: RGB + depth; FULL: the best
+   there is, :func:`ibiscape_eval.vio.inputs.resolve_setup`);
 7. ``evaluation``: ATE and RPE (over 1 s) of every VIO estimate
    (:mod:`ibiscape_eval.report.evaluate`) in the layout of the paper's ``table:evaluation``, after
    4-DoF (position + yaw) alignment, the standard for VIO.
@@ -51,6 +52,9 @@ __all__ = ["STEPS", "BenchmarkResult", "StepProgress", "benchmark_jobs", "run_be
 
 STEPS = tuple(STEP_VALUES)
 VIO_ALGORITHM = "vio-baseline"
+#: the camera folders the VIO job of each setup reads (its cache inputs)
+VIO_CAMERAS = {"svi": ("rgbL", "rgbR"), "esvi": ("davisL", "davisR"), "rgbd": ("rgb", "depth"),
+               "full": ("rgb", "depth")}
 #: 4-DoF (position + yaw) alignment, the standard for VIO (gravity is observed); a short
 #: straight drive is collinear, which leaves SE(3) undetermined.
 VIO_ALIGN = "yaw"
@@ -152,13 +156,11 @@ def benchmark_jobs(entries: Sequence[SuiteEntry], suite_dir: str | os.PathLike[s
                 inputs=(*tuple(str(root / e.name / c) for c in cams), seq + "/sequence.yaml",
                         seq + "/other_sensors")))
         else:
-            if e.setup in ("svi", "full"):
-                ins = tuple(str(root / e.name / p) for p in
-                            ("rgbL", "rgbR", "other_sensors", "vehicle_gt", "sequence.yaml"))
-                jobs["vio"].append(Job(e.name, f.vio, {"seq": seq}, inputs=ins))
-            else:
-                skipped.append({"step": "vio", "sequence": e.name,
-                                "reason": f"{e.setup.upper()} has no stereo RGB pair"})
+            cams = VIO_CAMERAS.get(e.setup, ("rgbL", "rgbR"))
+            ins = tuple(str(root / e.name / p) for p in
+                        (*cams, "other_sensors", "vehicle_gt", "sequence.yaml"))
+            args = {"seq": seq} if e.setup == "svi" else {"seq": seq, "setup": e.setup}
+            jobs["vio"].append(Job(e.name, f.vio, args, inputs=ins))
         if e.setup in ("esvi", "full"):
             for cam in ("davisL", "davisR"):
                 d = str(root / e.name / cam)

@@ -231,8 +231,9 @@ def hot_pixels(seq: str, camera: str, n_sigma: float = 5.0) -> dict[str, Any]:
 # VIO
 
 
-def vio(seq: str, max_frames: int | None = None) -> dict[str, Any]:
-    """The stereo-VIO baseline on ``seq``: statistics and the estimate as TUM text."""
+def vio(seq: str, max_frames: int | None = None, setup: str = "auto") -> dict[str, Any]:
+    """The VIO baseline on ``seq`` with the cameras of ``setup``
+    (:func:`ibiscape_eval.vio.run_vio`): statistics and the estimate as TUM text."""
     import tempfile
 
     from ibiscape_eval.io import write_trajectory
@@ -243,13 +244,13 @@ def vio(seq: str, max_frames: int | None = None) -> dict[str, Any]:
     if opened.groundtruth is None:
         gt = Path(seq) / "vehicle_gt" / "groundtruth_sync.csv"
         raise IbiscapeError(f"{gt}: no ground truth; the VIO estimate cannot be scored")
-    res = run_vio(opened, max_frames=max_frames)
+    res = run_vio(opened, max_frames=max_frames, setup=setup)
     with tempfile.TemporaryDirectory() as d:
         p = Path(d) / "est.txt"
         write_trajectory(p, res.trajectory, "tum")
         text = p.read_text(encoding="utf-8")
     stats = res.to_dict()
     keep: dict[str, Any] = {k: stats[k] for k in ("frames", "keyframes", "frames_estimated",
-                                                  "failures", "init_method",
-                                                  "cpu_realtime_factor") if k in stats}
+                                                  "failures", "init_method", "cpu_realtime_factor",
+                                                  "setup", "usable_frames") if k in stats}
     return VioResult(Path(seq).name, keep, len(res.trajectory), text).to_dict()

@@ -37,6 +37,11 @@ FloatArray = npt.NDArray[np.float64]
 class StereoFrontEnd:
     """Stateful tracker over a stereo image stream (see the module docstring)."""
 
+    #: the right image is needed only for the frames that need stereo (:meth:`track` on every
+    #: frame, :meth:`match` when the estimator asks); a front end that needs its second image on
+    #: every frame (RGB-D's depth) says False and is driven by :meth:`process`
+    stereo_on_demand: bool = True
+
     def __init__(self, rig: StereoRig, params: VioParams):
         self.rig = rig
         self.params = params

@@ -37,7 +37,7 @@ from ibiscape_eval.core.trajectory import Trajectory
 
 from .rig import StereoRig
 
-__all__ = ["StereoSequence", "load_sequence", "stereo_inputs"]
+__all__ = ["SETUPS", "StereoSequence", "load_sequence", "resolve_setup", "stereo_inputs"]
 
 FloatArray = npt.NDArray[np.float64]
 #: reader(i) -> (left, right) grey images of stereo pair i
@@ -68,7 +68,15 @@ class StereoSequence:
     groundtruth : Trajectory or None
     weather : str or None
     frame_reader : callable, optional
-        ``frame_reader(i)`` -> (left, right) grey images, for frames that are not files.
+        ``frame_reader(i)`` -> (left, right) grey images, for frames that are not files (ESVI:
+        frames reconstructed from the events; RGB-D: the grey RGB image and the registered
+        depth [m], float32).
+    setup : str
+        ``svi``, ``esvi`` or ``rgbd`` (:func:`resolve_setup`).
+    labeler : callable, optional
+        ``labeler(i)`` -> the files of pair ``i`` for messages.
+    depth_unit : str
+        RGB-D: ``mm`` or ``carla-log`` (the depth files read; :mod:`ibiscape_eval.vio.depth`).
     """
 
     path: str
@@ -85,6 +93,9 @@ class StereoSequence:
     groundtruth: Trajectory | None
     weather: str | None = None
     frame_reader: FrameReader | None = None
+    setup: str = "svi"
+    labeler: Callable[[int], tuple[str, str]] | None = None
+    depth_unit: str = ""
 
     @property
     def n_frames(self) -> int:
@@ -100,6 +111,8 @@ class StereoSequence:
 
     def frame_labels(self, i: int) -> tuple[str, str]:
         """Names of pair ``i``'s images for messages."""
+        if self.labeler is not None:
+            return self.labeler(i)
         if self.frame_reader is not None or not self.left_files:
             return f"{self.path} left frame {i}", f"{self.path} right frame {i}"
         return str(self.left_files[i]), str(self.right_files[i])
@@ -115,7 +128,8 @@ class StereoSequence:
 
 def load_sequence(path: str | os.PathLike[str], *, calib: str | os.PathLike[str] | None = None,
                   imu_yaml: str | os.PathLike[str] | None = None,
-                  require_images: bool = True) -> StereoSequence:
+                  require_images: bool = True, setup: str = "auto",
+                  options: Any = None) -> StereoSequence:
     """Open a recording (:func:`ibiscape_eval.io.open_sequence`) and take the VIO's inputs from it
     (:func:`stereo_inputs`).
 
@@ -131,12 +145,13 @@ def load_sequence(path: str | os.PathLike[str], *, calib: str | os.PathLike[str]
         raise IbiscapeError(f"{p}: not a folder; give an IBISCape sequence folder or an EuRoC "
                             "ASL folder (with mav0/)")
     return stereo_inputs(open_sequence(p), calib=calib, imu_yaml=imu_yaml,
-                         require_images=require_images)
+                         require_images=require_images, setup=setup, options=options)
 
 
 def stereo_inputs(seq: Sequence, *, calib: str | os.PathLike[str] | None = None,
                   imu_yaml: str | os.PathLike[str] | None = None,
-                  require_images: bool = True) -> StereoSequence:
+                  require_images: bool = True, setup: str = "auto",
+                  options: Any = None) -> StereoSequence:
     """The VIO's inputs from an opened sequence (module docstring): the stereo rig (the first two
     cameras: ``rgbL``/``rgbR`` of ``sequence.yaml``, ``cam0``/``cam1`` otherwise), the IMU
     samples and noise, the stereo frames and the ground truth when there is one.
@@ -152,9 +167,19 @@ def stereo_inputs(seq: Sequence, *, calib: str | os.PathLike[str] | None = None,
     require_images : bool
         Refuse a sequence without camera frames (False for IMU/ground-truth-only use such as
         synthetic measurements).
+    setup : {"auto", "svi", "esvi", "rgbd", "full"}
+        Which cameras the VIO uses (:func:`resolve_setup`); ESVI and RGB-D need the IBISCape
+        layout.
+    options : EsviOptions or DepthOptions, optional
+        The ESVI reconstruction (:mod:`ibiscape_eval.vio.events_input`) or the depth front end's
+        options (:mod:`ibiscape_eval.vio.depth`).
     """
+    chosen = resolve_setup(seq, setup)
     if seq.layout == "ibiscape":
-        out = _load_ibiscape(seq, calib, imu_yaml, require_images)
+        out = _load_ibiscape(seq, calib, imu_yaml, require_images or chosen != "svi", chosen, options)
+    elif chosen != "svi":
+        raise IbiscapeError(f"{seq.path}: the {chosen.upper()} setup needs an IBISCape sequence "
+                            f"(sequence.yaml with its cameras), not {seq.layout}")
     elif seq.layout in ("euroc", "tumvi", "rosbag"):
         out = _load_asl(seq, calib, imu_yaml, require_images)
     else:
@@ -168,29 +193,38 @@ def stereo_inputs(seq: Sequence, *, calib: str | os.PathLike[str] | None = None,
 # IBISCape
 
 
-def _load_ibiscape(seq: Sequence, calib: Any, imu_yaml: Any, require_images: bool) -> StereoSequence:
+#: the VIO setups (the paper's): stereo RGB, stereo events, RGB + depth, every sensor
+SETUPS = ("auto", "svi", "esvi", "rgbd", "full")
+
+
+def resolve_setup(seq: Sequence, setup: str = "auto") -> str:
+    """The setup a sequence is run as: ``svi``, ``esvi`` or ``rgbd``.  ``auto``: stereo RGB
+    (``rgbL``/``rgbR`` or any two RGB cameras) -> svi, an RGB camera with a depth camera -> rgbd,
+    two event cameras -> esvi; ``full`` (every sensor there is) -> rgbd when the sequence has an
+    RGB-D pair (the most accurate measurement, see the README), else svi, else esvi."""
+    if setup not in SETUPS:
+        raise IbiscapeError(f"setup {setup!r}: use one of {', '.join(SETUPS)}")
+    if setup not in ("auto", "full"):
+        return setup
+    doc = dict(seq.doc) if seq.layout == "ibiscape" else {}
+    kinds = {n: (c.get("kind", "rgb") if isinstance(c, dict) else "rgb")
+             for n, c in (doc.get("cameras") or {}).items()}
+    n_rgb = sum(k == "rgb" for k in kinds.values())
+    has_depth = "depth" in kinds.values() and n_rgb >= 1
+    n_ev = sum(c.kind == "events" for c in seq.cameras)
+    stereo_rgb = ("rgbL" in kinds and "rgbR" in kinds) or (not doc and len(seq.cameras) >= 2)
+    order = (("rgbd", has_depth), ("svi", stereo_rgb), ("esvi", n_ev >= 2)) if setup == "full" \
+        else (("svi", stereo_rgb), ("rgbd", has_depth), ("esvi", n_ev >= 2))
+    return next((name for name, ok in order if ok), "svi")
+
+
+def _ibiscape_imu(seq: Sequence, imu_yaml: Any) -> tuple[Any, ...]:
+    """IMU samples, ``T_body_imu`` and noise of an IBISCape sequence."""
     from ibiscape_eval.io.kalibr import read_imu_noise
 
     p = seq.path
-    doc: dict[str, Any] = dict(seq.doc)
-    cams = doc.get("cameras") or {}
-    imus = doc.get("imus") or {}
+    imus = dict(seq.doc).get("imus") or {}
     imu_entry = imus.get("imu0") or (next(iter(imus.values())) if imus else {})
-    # cameras
-    if calib is not None:
-        left_name, right_name = _stereo_folders(p, cams)
-        rig = _rig_from_camchain(calib)
-    else:
-        if not cams:
-            raise CalibrationError(f"{p}: no calibration (sequence.yaml has no cameras); give "
-                                   "{0}", hint=_CALIB)
-        left_name, right_name = _stereo_names(p, cams)
-        rig = _checked_rig(p / "sequence.yaml",
-                           _camera(cams[left_name], p / "sequence.yaml", left_name),
-                           _camera(cams[right_name], p / "sequence.yaml", right_name),
-                           _T(cams[left_name], "T_body_cam", p / "sequence.yaml", left_name),
-                           _T(cams[right_name], "T_body_cam", p / "sequence.yaml", right_name))
-    # IMU
     if seq.imu is None:
         raise FormatError(p / "other_sensors", "no IMU file (other_sensors/imu.csv)")
     stamps, gyro, acc = seq.imu.samples.get()
@@ -201,12 +235,56 @@ def _load_ibiscape(seq: Sequence, calib: Any, imu_yaml: Any, require_images: boo
     elif imu_entry:
         noise = ImuNoise.from_kalibr(imu_entry, source=f"{p / 'sequence.yaml'}: imus")
     else:
-        raise IbiscapeError(f"{p}: no IMU noise (sequence.yaml has no imus); give {{0}}", hint=_IMU)
-    # frames
-    frames, lf, rf, reader = _frames(seq, left_name, right_name, "timestamps.csv", require_images)
+        raise IbiscapeError(f"{p}: no IMU noise (sequence.yaml has no imus); give {0}", hint=_IMU)
+    return stamps, gyro, acc, T_body_imu, noise
+
+
+def _load_ibiscape(seq: Sequence, calib: Any, imu_yaml: Any, require_images: bool,
+                   setup: str = "svi", options: Any = None) -> StereoSequence:
+    p = seq.path
+    doc: dict[str, Any] = dict(seq.doc)
+    cams = doc.get("cameras") or {}
+    if setup == "rgbd":
+        from .depth_input import rgbd_parts
+
+        rig, frames, reader, labeler, unit = rgbd_parts(seq, cams, calib, options)
+        lf: list[Path] = []
+        rf: list[Path] = []
+    elif setup == "esvi":
+        from .events_input import event_pair_names, event_stereo_frames
+
+        left_name, right_name = event_pair_names(seq)
+        rig = _rig_from_camchain(calib) if calib is not None else _doc_rig(p, cams, left_name, right_name)
+        frames, reader, labeler = event_stereo_frames(seq, left_name, right_name, options)
+        lf, rf, unit = [], [], ""
+    else:
+        if calib is not None:
+            left_name, right_name = _stereo_folders(p, cams)
+            rig = _rig_from_camchain(calib)
+        else:
+            if not cams:
+                raise CalibrationError(f"{p}: no calibration (sequence.yaml has no cameras); give "
+                                       "{0}", hint=_CALIB)
+            left_name, right_name = _stereo_names(p, cams)
+            rig = _doc_rig(p, cams, left_name, right_name)
+        frames, lf, rf, reader = _frames(seq, left_name, right_name, "timestamps.csv", require_images)
+        labeler, unit = None, ""
+    stamps, gyro, acc, T_body_imu, noise = _ibiscape_imu(seq, imu_yaml)
     weather = (doc.get("weather") or {}).get("preset") if doc else None
     return StereoSequence(str(p), "ibiscape", rig, noise, stamps, gyro, acc, T_body_imu, frames,
-                          lf, rf, seq.ground_truth(), weather, reader)
+                          lf, rf, seq.ground_truth(), weather, reader, setup, labeler, unit)
+
+
+def _doc_rig(p: Path, cams: dict[str, Any], left_name: str, right_name: str) -> StereoRig:
+    """The stereo rig of two ``sequence.yaml`` cameras."""
+    where = p / "sequence.yaml"
+    for n in (left_name, right_name):
+        if n not in cams:
+            raise CalibrationError(f"{where}: no calibration of camera {n}; give {0}", hint=_CALIB)
+    return _checked_rig(where, _camera(cams[left_name], where, left_name),
+                        _camera(cams[right_name], where, right_name),
+                        _T(cams[left_name], "T_body_cam", where, left_name),
+                        _T(cams[right_name], "T_body_cam", where, right_name))
 
 
 def _stereo_names(p: Path, cams: dict[str, Any]) -> tuple[str, str]:

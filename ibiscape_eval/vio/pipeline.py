@@ -28,7 +28,7 @@ from .params import VioParams
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
 
-__all__ = ["VioResult", "VioStats", "run_vio"]
+__all__ = ["VioResult", "VioStats", "gyro_prior", "make_frontend", "run_vio"]
 
 #: progress(frames_done, frames_total, speed_up_over_real_time)
 Progress = Callable[[int, int, float], None]
@@ -52,6 +52,11 @@ class VioStats:
         Processing time per frame (reading, front end, back end).
     realtime_factor : float
         Sequence duration / wall-clock processing time (> 1: faster than real time).
+    setup : str
+        ``svi``, ``esvi`` or ``rgbd``: the cameras used (:func:`ibiscape_eval.vio.inputs.resolve_setup`).
+    usable_frames : int
+        Frames with at least ``min_tracked`` stereo measurements (the paper's "usable frames"
+        of the event reconstructions).
     cpu_realtime_factor : float
         Sequence duration / CPU time of the process (all threads): the speed on an idle machine
         with one core, unaffected by other processes.
@@ -72,6 +77,8 @@ class VioStats:
     params: dict[str, Any] = field(default_factory=dict)
     #: the initialiser's first standstill test (StandstillTest.to_dict; None before one ran)
     standstill: dict[str, Any] | None = None
+    setup: str = "svi"
+    usable_frames: int = 0
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
@@ -108,7 +115,8 @@ class VioResult:
 def run_vio(seq: StereoSequence | Sequence, params: VioParams | None = None, *,
             max_frames: int | None = None, progress: Progress | None = None,
             calib: str | os.PathLike[str] | None = None,
-            imu_yaml: str | os.PathLike[str] | None = None) -> VioResult:
+            imu_yaml: str | os.PathLike[str] | None = None, setup: str = "auto",
+            options: Any = None) -> VioResult:
     """Run the stereo VIO over a sequence with images.
 
     Parameters
@@ -124,6 +132,13 @@ def run_vio(seq: StereoSequence | Sequence, params: VioParams | None = None, *,
     calib, imu_yaml : path, optional
         Kalibr ``camchain-imucam.yaml`` / ``imu.yaml`` replacing the sequence's own (a
         :class:`Sequence` only).
+    setup : {"auto", "svi", "esvi", "rgbd", "full"}
+        The cameras to use (a :class:`Sequence` only): stereo RGB, stereo events (frames
+        reconstructed causally, :mod:`~ibiscape_eval.vio.events_input`), RGB + depth
+        (:mod:`~ibiscape_eval.vio.depth`), or the best the sequence has
+        (:func:`~ibiscape_eval.vio.inputs.resolve_setup`).
+    options : EsviOptions or DepthOptions, optional
+        The ESVI reconstruction or the depth front end's options.
 
     Raises
     ------
@@ -132,25 +147,13 @@ def run_vio(seq: StereoSequence | Sequence, params: VioParams | None = None, *,
     FormatError
         An image that cannot be read or has another size than the calibration.
     """
-    from .frontend import StereoFrontEnd
-
     if not isinstance(seq, StereoSequence):
         from .inputs import stereo_inputs
 
-        seq = stereo_inputs(seq, calib=calib, imu_yaml=imu_yaml)
+        seq = stereo_inputs(seq, calib=calib, imu_yaml=imu_yaml, setup=setup, options=options)
     p = params or VioParams()
-    if seq.n_frames == 0:
-        raise DegenerateInputError(f"{seq.path}: no stereo frames to process")
-    n = seq.n_frames if max_frames is None else min(max_frames, seq.n_frames)
-    span_s = (int(seq.frame_stamps_ns[n - 1]) - int(seq.frame_stamps_ns[0])) * 1e-9
-    if n < p.init_frames and span_s < p.still_window_s:
-        # neither initialisation can start: the standstill needs still_window_s of frames, the
-        # moving one init_frames frames
-        raise DegenerateInputError(
-            f"{seq.path}: only {n} stereo frames ({span_s:.2f} s); the VIO needs {p.init_frames} "
-            f"frames (moving start) or {p.still_window_s:g} s (standstill start) to initialise: "
-            "give a longer recording")
-    fe = StereoFrontEnd(seq.rig, p)
+    n = _frames_to_run(seq, p, max_frames)
+    fe = make_frontend(seq, p, options)
     est = Estimator(seq.rig.rectified(), seq.imu, seq.noise, p, seq.T_body_imu)
     times = np.zeros(n)
     tracked = np.zeros(n, dtype=np.int64)
@@ -183,16 +186,59 @@ def run_vio(seq: StereoSequence | Sequence, params: VioParams | None = None, *,
         raise DegenerateInputError(
             f"{seq.path}: no frame could be estimated (tracking failed from the start: images "
             "without texture, or no standstill to initialise from); see the failure spans")
+    return VioResult(traj, _stats(seq, p, est, n, len(traj), times, tracked, wall, cpu))
+
+
+def _frames_to_run(seq: StereoSequence, p: VioParams, max_frames: int | None) -> int:
+    """How many frames to process; refuses a recording too short to initialise."""
+    if seq.n_frames == 0:
+        raise DegenerateInputError(f"{seq.path}: no stereo frames to process")
+    n = seq.n_frames if max_frames is None else min(max_frames, seq.n_frames)
+    span_s = (int(seq.frame_stamps_ns[n - 1]) - int(seq.frame_stamps_ns[0])) * 1e-9
+    if n < p.init_frames and span_s < p.still_window_s:
+        # neither initialisation can start: the standstill needs still_window_s of frames, the
+        # moving one init_frames frames
+        raise DegenerateInputError(
+            f"{seq.path}: only {n} stereo frames ({span_s:.2f} s); the VIO needs {p.init_frames} "
+            f"frames (moving start) or {p.still_window_s:g} s (standstill start) to initialise: "
+            "give a longer recording")
+    return n
+
+
+def _stats(seq: StereoSequence, p: VioParams, est: Estimator, n: int, n_poses: int,
+           times: np.ndarray, tracked: np.ndarray, wall: float, cpu: float) -> VioStats:
     duration = (int(seq.frame_stamps_ns[n - 1]) - int(seq.frame_stamps_ns[0])) * 1e-9
-    stats = VioStats(frames=n, keyframes=est.n_keyframes, frames_estimated=len(traj),
-                     mean_tracked=float(tracked.mean()), min_tracked=int(tracked.min()),
-                     failures=tuple(est.failures), init_method=est.init_method,
-                     mean_ms_per_frame=1e3 * wall / n, max_ms_per_frame=1e3 * float(times.max()),
-                     realtime_factor=duration / wall if wall > 0 else float("inf"),
-                     cpu_realtime_factor=duration / cpu if cpu > 0 else float("inf"),
-                     resets=est.backend.resets, params=p.to_dict(),
-                     standstill=None if est.standstill_test is None else est.standstill_test.to_dict())
-    return VioResult(traj, stats)
+    return VioStats(frames=n, keyframes=est.n_keyframes, frames_estimated=n_poses,
+                    mean_tracked=float(tracked.mean()), min_tracked=int(tracked.min()),
+                    failures=tuple(est.failures), init_method=est.init_method,
+                    mean_ms_per_frame=1e3 * wall / n, max_ms_per_frame=1e3 * float(times.max()),
+                    realtime_factor=duration / wall if wall > 0 else float("inf"),
+                    cpu_realtime_factor=duration / cpu if cpu > 0 else float("inf"),
+                    resets=est.backend.resets, params=p.to_dict(), setup=seq.setup,
+                    usable_frames=int(np.count_nonzero(tracked >= p.min_tracked)),
+                    standstill=None if est.standstill_test is None else est.standstill_test.to_dict())
+
+
+def make_frontend(seq: StereoSequence, params: VioParams, options: Any = None) -> Any:
+    """The front end of the sequence's setup: :class:`~ibiscape_eval.vio.depth.DepthFrontEnd`
+    for RGB-D, :class:`~ibiscape_eval.vio.frontend.StereoFrontEnd` for stereo RGB and events."""
+    if seq.setup == "rgbd":
+        from .depth import DepthFrontEnd, DepthOptions
+
+        return DepthFrontEnd(seq.rig, params, seq.depth_unit or "mm",
+                             options if isinstance(options, DepthOptions) else None)
+    from .frontend import StereoFrontEnd
+
+    return StereoFrontEnd(seq.rig, params)
+
+
+def gyro_prior(est: Estimator, t0_ns: int, t1_ns: int) -> Any:
+    """The front end's KLT rotation prior, or None while the smoother holds no newest state (right
+    after a reported divergence, until re-initialisation): tracking then starts unrotated."""
+    try:
+        return est.gyro_rotation(t0_ns, t1_ns)
+    except RuntimeError:
+        return None
 
 
 def numerical_failure_message(path: str, exc: BaseException) -> str:
@@ -214,11 +260,15 @@ def _loop(seq: StereoSequence, p: VioParams, n: int, fe: Any, est: Estimator, ah
         left, read_right = ahead.pop(i).result()
         if i + 4 < n:
             ahead[i + 4] = pool.submit(read, i + 4)
-        R = None if prev_t is None else est.gyro_rotation(prev_t, t_ns)
+        R = None if prev_t is None else gyro_prior(est, prev_t, t_ns)
         label_l, label_r = seq.frame_labels(i)
-        obs = fe.track(t_ns, _sized(left, label_l, w, h), R)
-        if est.needs_stereo(obs):  # the right image is read and matched for stereo frames only
-            obs = fe.match(_sized(read_right(), label_r, w, h))
+        left = _sized(left, label_l, w, h)
+        if fe.stereo_on_demand:
+            obs = fe.track(t_ns, left, R)
+            if est.needs_stereo(obs):  # the right image is read and matched for stereo frames only
+                obs = fe.match(_sized(read_right(), label_r, w, h))
+        else:  # RGB-D: the registered depth of every frame
+            obs = fe.process(t_ns, left, _sized(read_right(), label_r, w, h), R)
         est.process(obs)
         prev_t = t_ns
         tracked[i] = len(obs)

@@ -14,7 +14,7 @@ from ibiscape_eval.cli.main import cli
 from ibiscape_eval.report.benchmark_report import benchmark_tables, write_benchmark_report
 
 # one sequence per step: still IMU (Allan), an SVI calibration drive (camera and camera-IMU
-# calibration), a dynamic-weather ESVI run (hot pixels; no stereo RGB: VIO not applicable) and a
+# calibration), a dynamic-weather ESVI run (hot pixels; VIO on its event frames) and a
 # clear SVI run (VIO, ATE/RPE)
 SUBSET = ("IMU_calib_1", "SVI_calib_1", "ESVI_slam_dyn_1", "SVI_slam_clear_1")
 SCALE = "0.002"  # 128 px cameras, 3 s runs (calibration drives 12 s at 320 px), 30 min of still IMU
@@ -46,7 +46,8 @@ def test_every_step_ran_and_the_report_is_written(bench) -> None:
         assert (out / "report" / name).is_file()
     html = (out / "report" / "report.html").read_text()
     assert "<script" not in html and "Camera-IMU calibration" in html
-    assert html.count('src="data:image/png;base64,') == 2  # VIO top view and error box plots
+    # VIO top views (SVI and ESVI) and the error box plots
+    assert html.count('src="data:image/png;base64,') == 3
     assert (out / "report" / "figures" / "errors_boxplot.png").is_file()
     assert f"report: {out / 'report' / 'report.html'}" in err
     assert json.loads((out / "report" / "report.json").read_text())["steps"] == doc["steps"]
@@ -134,19 +135,29 @@ def test_hot_pixels_against_the_planted_noisy_pixels(bench) -> None:
         assert v["precision"] >= 0.9 and v["recall"] >= 0.5, v
 
 
-def test_vio_on_stereo_sequences_only(bench) -> None:
+def test_vio_on_every_slam_sequence(bench) -> None:
     _, doc, _ = bench
-    assert [r["key"] for r in doc["steps"]["vio"]] == ["SVI_slam_clear_1"]
-    assert {"step": "vio", "sequence": "ESVI_slam_dyn_1",
-            "reason": "ESVI has no stereo RGB pair"} in doc["skipped"]
-    rec = doc["steps"]["vio"][0]
+    # issue #24: every SLAM setup has a VIO run (ESVI on frames reconstructed from its events)
+    assert sorted(r["key"] for r in doc["steps"]["vio"]) == ["ESVI_slam_dyn_1", "SVI_slam_clear_1"]
+    assert not [s for s in doc["skipped"] if s["step"] == "vio"]
+    recs = {r["key"]: r for r in doc["steps"]["vio"]}
+    rec = recs["SVI_slam_clear_1"]
     assert rec["status"] == "ok", rec["error"]
     assert "estimate_tum" not in rec["value"]  # written to runs/, not kept in the report
     assert rec["value"]["stats"]["frames"] == 61 and not rec["value"]["stats"]["failures"]
-    (ev,) = doc["steps"]["evaluation"]
+    assert rec["value"]["stats"]["setup"] == "svi"
+    ev = {r["sequence"]: r for r in doc["steps"]["evaluation"]}["SVI_slam_clear_1"]
     assert ev["status"] == "ok", ev["error"]
     assert 0.0 < ev["value"]["ate_rmse_m"] < 0.5  # 3 s of clear-weather driving at 128 px
-    assert doc["evaluation"]["table"]["cells"][0]["sequence"] == "SVI_slam_clear_1"
+    # dynamic-weather ESVI: an estimate, or an honest one-line error, never a divergence
+    esvi = recs["ESVI_slam_dyn_1"]
+    if esvi["status"] == "ok":
+        st = esvi["value"]["stats"]
+        assert st["setup"] == "esvi" and 0 <= st["usable_frames"] <= st["frames"]
+        assert all(f["kind"] != "diverged" for f in st["failures"])
+    else:
+        assert "\n" not in esvi["error"] and "Traceback" not in esvi["error"]
+    assert "SVI_slam_clear_1" in [c["sequence"] for c in doc["evaluation"]["table"]["cells"]]
     out, _, _ = bench
     assert (out / "runs" / "SVI_slam_clear_1" / "vio-baseline" / "1" / "estimate.txt").is_file()
 
