@@ -481,9 +481,14 @@ class _Solution:
 def _levenberg_marquardt(fun: Callable[[FloatArray], FloatArray], x0: FloatArray,
                          groups: list[tuple[IntArray, list[tuple[int, IntArray]]]], *,
                          max_iter: int = 100) -> _Solution:
-    """Levenberg-Marquardt with Marquardt's diagonal scaling on the normal equations (the
-    parameter count stays small: intrinsics, chain and 6 per view)."""
-    import scipy.linalg
+    """Levenberg-Marquardt with Marquardt's diagonal scaling on the normal equations.
+
+    The normal equations stay sparse (intrinsics and chain beside a 6x6 block per view) and are
+    solved by sparse LU: a dense Cholesky of the 172 x 172 system of 25 stereo views took 0.2-0.5 s
+    per step on a loaded 2-core machine (OpenBLAS threads waiting for each other), the sparse
+    solve 2-4 ms."""
+    import scipy.sparse as sp
+    from scipy.sparse.linalg import splu
 
     x = x0.copy()
     r = fun(x)
@@ -492,15 +497,17 @@ def _levenberg_marquardt(fun: Callable[[FloatArray], FloatArray], x0: FloatArray
     J = _jacobian(fun, x, r, groups)
     it = 0
     for it in range(1, max_iter + 1):  # noqa: B007
-        A = (J.T @ J).toarray()
+        A = (J.T @ J).tocsc()
         g = J.T @ r.ravel()
-        d = np.maximum(np.diag(A), 1e-12)
+        d = np.maximum(A.diagonal(), 1e-12)
         improved = False
         while lam < 1e12:
             try:
-                c, low = scipy.linalg.cho_factor(A + lam * np.diag(d))
-                dx = -scipy.linalg.cho_solve((c, low), g)
-            except np.linalg.LinAlgError:
+                dx = -splu((A + sp.diags(lam * d)).tocsc()).solve(g)
+            except RuntimeError:  # exactly singular
+                lam *= 10.0
+                continue
+            if not np.all(np.isfinite(dx)):
                 lam *= 10.0
                 continue
             xn = x + dx
@@ -560,17 +567,18 @@ def _covariance(sol: _Solution, n_fixed_tail: int, res: FloatArray, cam_i: IntAr
 
     The result is multiplied by :data:`STD_INFLATION` squared (see there).
     """
+    import scipy.sparse as sp
+
     J = sol.jac.tocsr()
     m, p = J.shape
     k = p - n_fixed_tail
-    JtJ = (J.T @ J).toarray()
-    Hinv = np.linalg.pinv(JtJ, rcond=1e-15, hermitian=True)
+    X = _leading_inverse_columns((J.T @ J).tocsc(), k)  # (J^T J)^-1 [:, :k]
     r = res.ravel()
     rows_cam = np.repeat(cam_i, 2)
     rows_view = np.repeat(view_i, 2)
     n_cams = int(cam_i.max()) + 1 if cam_i.size else 0
     # per camera: its share of the parameters is the columns its rows touch
-    meat = np.zeros((p, p))
+    cov_cam = np.zeros((k, k))
     s2_cam = []
     for n in range(n_cams):
         sel = rows_cam == n
@@ -578,28 +586,39 @@ def _covariance(sol: _Solution, n_fixed_tail: int, res: FloatArray, cam_i: IntAr
         pc = int(np.count_nonzero(np.asarray(abs(Jc).sum(axis=0)).ravel()))
         s2 = float(r[sel] @ r[sel]) / max(int(sel.sum()) - pc, 1)
         s2_cam.append(s2)
-        meat += s2 * (Jc.T @ Jc).toarray()
-    cov_cam = Hinv @ meat @ Hinv
-    # per view: cluster-robust
+        JX = np.asarray(Jc @ X)
+        cov_cam += s2 * np.einsum("ij,ik->jk", JX, JX)
+    # per view: cluster-robust, the score u_v = J_v^T r_v of every view
     n_v = int(view_i.max()) + 1 if view_i.size else 0
-    U = np.zeros((n_v, p))
-    Jr = J.multiply(r[:, None]).tocsr()  # rows J_i r_i
-    import scipy.sparse as sp
-
     Sv = sp.csr_matrix((np.ones(m), (rows_view, np.arange(m))), shape=(n_v, m))
-    U = (Sv @ Jr).toarray()
+    UX = np.asarray((Sv @ J.multiply(r[:, None]).tocsr()) @ X)
     corr = n_v / max(n_v - 1, 1) * (m - 1) / max(m - p, 1)
-    cov_view = Hinv @ (U.T @ U) @ Hinv * corr
+    cov_view = np.einsum("ij,ik->jk", UX, UX) * corr
     d = np.maximum(np.diag(cov_cam), np.diag(cov_view))
     sc = np.sqrt(d / np.maximum(np.diag(cov_cam), 1e-300))
     cov = cov_cam * np.outer(sc, sc)  # the larger variance, the per-camera correlations
     cov *= STD_INFLATION**2
     info = {"method": "max(per-camera residual variance, per-view cluster-robust)",
             "residual_variance_px2": s2_cam, "inflation": STD_INFLATION,
-            "std_plain": np.sqrt(np.clip(np.diag(Hinv)[:k] * float(r @ r) / max(m - p, 1), 0, None)).tolist(),
-            "std_per_camera": np.sqrt(np.clip(np.diag(cov_cam)[:k], 0, None)).tolist(),
-            "std_per_view": np.sqrt(np.clip(np.diag(cov_view)[:k], 0, None)).tolist()}
-    return cov[:k, :k], info
+            "std_plain": np.sqrt(np.clip(np.diag(X[:k]) * float(r @ r) / max(m - p, 1), 0, None)).tolist(),
+            "std_per_camera": np.sqrt(np.clip(np.diag(cov_cam), 0, None)).tolist(),
+            "std_per_view": np.sqrt(np.clip(np.diag(cov_view), 0, None)).tolist()}
+    return cov, info
+
+
+def _leading_inverse_columns(H: Any, k: int) -> FloatArray:
+    """The first ``k`` columns of ``H^-1`` for the sparse normal matrix ``H`` (p, p): by sparse LU,
+    else (a singular ``H``) from the dense pseudo-inverse."""
+    from scipy.sparse.linalg import splu
+
+    p = H.shape[0]
+    try:
+        X = splu(H).solve(np.eye(p)[:, :k])
+        if np.all(np.isfinite(X)):
+            return np.asarray(X)
+    except RuntimeError:
+        pass
+    return np.linalg.pinv(H.toarray(), rcond=1e-15, hermitian=True)[:, :k]
 
 
 #: Views whose target normals all lie within this angle [deg] of each other are refused: the
