@@ -399,6 +399,7 @@ class _Problem:
     n_views: int
     free_intrinsics: bool = True
     free_chain: bool = True
+    _memo: dict[Any, Any] = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def n_cams(self) -> int:
@@ -415,11 +416,30 @@ class _Problem:
         c = x[ni:ni + nc].reshape(-1, 6) if self.free_chain else chain
         return i, c, x[ni + nc:].reshape(-1, 6)
 
+    def _camera_rows(self, n: int) -> npt.NDArray[np.bool_]:
+        key = ("rows", n)
+        if key not in self._memo:
+            self._memo[key] = self.cam_i == n
+        return self._memo[key]  # type: ignore[no-any-return]
+
+    def _target_points(self, poses: FloatArray) -> FloatArray:
+        """The target points of every observation in camera 0 (M, 3); kept for the last poses
+        (the finite differences of the intrinsics and the chain leave the poses unchanged)."""
+        from scipy.spatial.transform import Rotation
+
+        key = poses.tobytes()
+        last = self._memo.get("points")
+        if last is not None and last[0] == key:
+            return last[1]  # type: ignore[no-any-return]
+        R = Rotation.from_rotvec(poses[:, :3]).as_matrix()
+        p = np.einsum("mij,mj->mi", R[self.view_i], self.obj) + poses[self.view_i, 3:]
+        self._memo["points"] = (key, p)
+        return p
+
     def residuals(self, intr: FloatArray, chain: FloatArray, poses: FloatArray) -> FloatArray:
         from scipy.spatial.transform import Rotation
 
-        R = Rotation.from_rotvec(poses[:, :3]).as_matrix()
-        p = np.einsum("mij,mj->mi", R[self.view_i], self.obj) + poses[self.view_i, 3:]
+        p = self._target_points(poses)
         out = np.empty_like(self.uv)
         # chain: T_cn_c0 = T_cn_cnm1 ... T_c1_c0
         Rn, tn = np.eye(3), np.zeros(3)
@@ -427,7 +447,7 @@ class _Problem:
             if n > 0:
                 Rc = Rotation.from_rotvec(chain[n - 1, :3]).as_matrix()
                 Rn, tn = Rc @ Rn, Rc @ tn + chain[n - 1, 3:]
-            sel = self.cam_i == n
+            sel = self._camera_rows(n)
             if not sel.any():
                 continue
             pc = p[sel] @ Rn.T + tn

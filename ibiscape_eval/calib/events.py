@@ -288,8 +288,6 @@ class EventFrameSource:
         the detections and ``{corners_detected, corners_refined, views_detected, views_kept,
         method}`` (``method``: ``events``, ``frames`` after that fallback, or ``none``).
         """
-        import cv2
-
         from .detect import Detection
 
         dets = list(detections)
@@ -317,25 +315,12 @@ class EventFrameSource:
                 continue
             near = [q for q in (j - 1, j + 1) if 0 <= q < len(dets) and t_of[q] is not None
                     and dets[q] is not None and abs(int(t_of[q]) - t) <= max_gap_ns]  # type: ignore[arg-type]
-            # per corner: central difference over both neighbours, else one-sided with this view
-            one = [(pos[q, det.ids] - det.corners_px) / ((int(t_of[q]) - t) * 1e-9) for q in near]  # type: ignore[arg-type]
-            vel = np.full((len(det), 2), np.nan)
-            for v in one:
-                vel = np.where(np.isnan(vel), v, vel)
-            if len(near) == 2:
-                q0, q1 = near
-                both = (pos[q1, det.ids] - pos[q0, det.ids]) / ((int(t_of[q1]) - int(t_of[q0])) * 1e-9)  # type: ignore[arg-type]
-                vel = np.where(np.isnan(both), vel, both)
-            H, _ = cv2.findHomography(obj[det.ids], det.corners_px, 0)
-            if H is None:
+            vel = _corner_velocity(pos, det, t, [(q, int(t_of[q])) for q in near])  # type: ignore[arg-type]
+            lines = _edge_lines(obj[det.ids], det.corners_px, step)
+            if lines is None:
                 out.append(None)
                 continue
-            P = obj[det.ids]
-            ex, ey = np.array([step[0], 0.0]), np.array([0.0, step[1]])
-            ends = np.concatenate([P + ex, P - ex, P + ey, P - ey])
-            q = cv2.perspectiveTransform(ends[None], H)[0].reshape(4, len(P), 2)
-            dirs = np.stack([q[0] - q[1], q[2] - q[3]], axis=1)  # two squares along each line
-            square = 0.5 * np.minimum(np.hypot(*dirs[:, 0].T), np.hypot(*dirs[:, 1].T))
+            dirs, square = lines
             # a margin beyond the events used, so that the last event of a run is known as such
             ev = self.events_around(t, REFINE_HALF_WINDOW_NS[1] + 20_000_000)
             refined = refine_xcorners(ev, t, det.corners_px, vel, dirs, square)
@@ -718,3 +703,36 @@ def refine_xcorners(events: Events, t_ns: int, corners_px: npt.ArrayLike, veloci
         if fit is not None and fit[1] <= max_sigma_px:
             out[k] = fit[0]
     return out
+
+
+def _corner_velocity(pos: npt.NDArray[np.float64], det: Any, t_ns: int,
+                     near: list[tuple[int, int]]) -> npt.NDArray[np.float64]:
+    """Image velocity [px/s] of every corner of ``det`` (at ``t_ns``) from its positions
+    ``pos[q, id]`` in the neighbouring views ``near`` (``(q, t_q_ns)``): the central difference
+    over both neighbours, else one-sided with this view (NaN where no neighbour saw the corner)."""
+    one = [(pos[q, det.ids] - det.corners_px) / ((tq - t_ns) * 1e-9) for q, tq in near]
+    vel = np.full((len(det), 2), np.nan)
+    for v in one:
+        vel = np.where(np.isnan(vel), v, vel)
+    if len(near) == 2:
+        (q0, t0), (q1, t1) = near
+        both = (pos[q1, det.ids] - pos[q0, det.ids]) / ((t1 - t0) * 1e-9)
+        vel = np.where(np.isnan(both), vel, both)
+    return vel
+
+
+def _edge_lines(P: npt.NDArray[np.float64], uv: npt.NDArray[np.float64], step: npt.NDArray[np.float64]
+                ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]] | None:
+    """Through every corner (board points ``P``, image ``uv``), the image directions of the two
+    edge lines spanning two squares (N, 2, 2) and half the shorter one [px] (N,), by the board's
+    homography; None when it cannot be estimated."""
+    import cv2
+
+    H, _ = cv2.findHomography(P, uv, 0)
+    if H is None:
+        return None
+    ex, ey = np.array([step[0], 0.0]), np.array([0.0, step[1]])
+    ends = np.concatenate([P + ex, P - ex, P + ey, P - ey])
+    q = cv2.perspectiveTransform(ends[None], H)[0].reshape(4, len(P), 2)
+    dirs = np.stack([q[0] - q[1], q[2] - q[3]], axis=1)  # two squares along each line
+    return dirs, 0.5 * np.minimum(np.hypot(*dirs[:, 0].T), np.hypot(*dirs[:, 1].T))
