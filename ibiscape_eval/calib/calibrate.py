@@ -422,25 +422,24 @@ class _Problem:
             self._memo[key] = self.cam_i == n
         return self._memo[key]  # type: ignore[no-any-return]
 
-    def _target_points(self, poses: FloatArray) -> FloatArray:
-        """The target points of every observation in camera 0 (M, 3); kept for the last poses
-        (the finite differences of the intrinsics and the chain leave the poses unchanged)."""
+    def _camera_points(self, chain: FloatArray, poses: FloatArray) -> list[FloatArray | None]:
+        """Per camera, the target points of its observations in its frame (None: no observation);
+        kept for the last chain and poses (the finite differences of the intrinsics leave them
+        unchanged, those of the chain leave the target points in camera 0 unchanged)."""
         from scipy.spatial.transform import Rotation
 
-        key = poses.tobytes()
-        last = self._memo.get("points")
+        key = (chain.tobytes(), poses.tobytes())
+        last = self._memo.get("cameras")
         if last is not None and last[0] == key:
             return last[1]  # type: ignore[no-any-return]
-        R = Rotation.from_rotvec(poses[:, :3]).as_matrix()
-        p = np.einsum("mij,mj->mi", R[self.view_i], self.obj) + poses[self.view_i, 3:]
-        self._memo["points"] = (key, p)
-        return p
-
-    def residuals(self, intr: FloatArray, chain: FloatArray, poses: FloatArray) -> FloatArray:
-        from scipy.spatial.transform import Rotation
-
-        p = self._target_points(poses)
-        out = np.empty_like(self.uv)
+        last_p = self._memo.get("points")
+        if last_p is not None and last_p[0] == key[1]:
+            p = last_p[1]
+        else:
+            R = Rotation.from_rotvec(poses[:, :3]).as_matrix()
+            p = np.einsum("mij,mj->mi", R[self.view_i], self.obj) + poses[self.view_i, 3:]
+            self._memo["points"] = (key[1], p)
+        out: list[FloatArray | None] = []
         # chain: T_cn_c0 = T_cn_cnm1 ... T_c1_c0
         Rn, tn = np.eye(3), np.zeros(3)
         for n in range(self.n_cams):
@@ -448,9 +447,16 @@ class _Problem:
                 Rc = Rotation.from_rotvec(chain[n - 1, :3]).as_matrix()
                 Rn, tn = Rc @ Rn, Rc @ tn + chain[n - 1, 3:]
             sel = self._camera_rows(n)
-            if not sel.any():
+            out.append(p[sel] @ Rn.T + tn if sel.any() else None)
+        self._memo["cameras"] = (key, out)
+        return out
+
+    def residuals(self, intr: FloatArray, chain: FloatArray, poses: FloatArray) -> FloatArray:
+        out = np.empty_like(self.uv)
+        for n, pc in enumerate(self._camera_points(chain, poses)):
+            if pc is None:
                 continue
-            pc = p[sel] @ Rn.T + tn
+            sel = self._camera_rows(n)
             try:
                 cam = _camera(self.cams[n], intr[n])
             except IbiscapeError:
