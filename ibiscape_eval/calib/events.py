@@ -625,12 +625,15 @@ def _fit_xcorner(xy: npt.NDArray[np.float64], dt: npt.NDArray[np.float64], c: np
     return c, sigma
 
 
-def _run_ends(events: Events) -> npt.NDArray[np.bool_]:
+def _run_ends(x: npt.NDArray[Any], y: npt.NDArray[Any], t_ns: npt.NDArray[np.int64],
+              p: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
     """The last event of every run of same-polarity events of a pixel (followed by an event of the
-    other polarity, or by none in ``events``)."""
-    pix = events.y.astype(np.int64) * (int(events.x.max()) + 1) + events.x
-    order = np.lexsort((events.t_ns, pix))
-    p_s, pol_s = pix[order], events.p[order]
+    other polarity, or by none in the events given)."""
+    if len(x) == 0:
+        return np.zeros(0, bool)
+    pix = y.astype(np.int64) * (int(x.max()) + 1) + x
+    order = np.lexsort((t_ns, pix))
+    p_s, pol_s = pix[order], p[order]
     end_s = np.ones(len(order), bool)
     end_s[:-1] = (p_s[1:] != p_s[:-1]) | (pol_s[1:] != pol_s[:-1])
     out = np.empty(len(order), bool)
@@ -679,15 +682,22 @@ def refine_xcorners(events: Events, t_ns: int, corners_px: npt.ArrayLike, veloci
     out = np.full_like(uv, np.nan)
     if len(events) == 0 or len(uv) == 0:
         return out
-    dt_all = (events.t_ns - int(t_ns)).astype(np.float64) * 1e-9
-    keep = np.abs(dt_all) <= half_window_ns[1] * 1e-9
-    if drop_run_ends:
-        keep &= ~_run_ends(events)
-    ex = events.x[keep].astype(np.float64)
-    ey = events.y[keep].astype(np.float64)
-    dt_all = dt_all[keep]
     speed = np.hypot(vel[:, 0], vel[:, 1])
     half = np.clip(move_px / np.maximum(speed, 1e-9), half_window_ns[0] * 1e-9, half_window_ns[1] * 1e-9)
+    # only the pixels within reach of a corner (whole pixels: their runs stay whole)
+    valid = np.isfinite(uv).all(axis=1) & np.isfinite(vel).all(axis=1) & (sq > 4.0)
+    if not valid.any():
+        return out
+    reach_all = (0.7 * sq + speed * half + 1.0)[:, None]
+    lo, hi = (uv - reach_all)[valid].min(axis=0) - 1.0, (uv + reach_all)[valid].max(axis=0) + 1.0
+    box = ((events.x >= lo[0]) & (events.x <= hi[0]) & (events.y >= lo[1]) & (events.y <= hi[1]))
+    dt_all = (events.t_ns[box] - int(t_ns)).astype(np.float64) * 1e-9
+    keep = np.abs(dt_all) <= half_window_ns[1] * 1e-9
+    if drop_run_ends:
+        keep &= ~_run_ends(events.x[box], events.y[box], events.t_ns[box], events.p[box])
+    ex = events.x[box][keep].astype(np.float64)
+    ey = events.y[box][keep].astype(np.float64)
+    dt_all = dt_all[keep]
     for k in range(len(uv)):  # ~0.3 ms per corner; the events of one corner are few
         if not (np.all(np.isfinite(uv[k])) and np.all(np.isfinite(vel[k])) and sq[k] > 4.0):
             continue
