@@ -420,7 +420,8 @@ class _Problem:
         key = ("rows", n)
         if key not in self._memo:
             self._memo[key] = self.cam_i == n
-        return self._memo[key]  # type: ignore[no-any-return]
+        rows: npt.NDArray[np.bool_] = self._memo[key]
+        return rows
 
     def _camera_points(self, chain: FloatArray, poses: FloatArray) -> list[FloatArray | None]:
         """Per camera, the target points of its observations in its frame (None: no observation);
@@ -431,7 +432,8 @@ class _Problem:
         key = (chain.tobytes(), poses.tobytes())
         last = self._memo.get("cameras")
         if last is not None and last[0] == key:
-            return last[1]  # type: ignore[no-any-return]
+            kept: list[FloatArray | None] = last[1]
+            return kept
         last_p = self._memo.get("points")
         if last_p is not None and last_p[0] == key[1]:
             p = last_p[1]
@@ -775,9 +777,10 @@ def _chain_init(observations: Sequence[Observations], cams: Sequence[CameraModel
 
 
 def _stack(cams: Sequence[CameraModel], dets: Sequence[Sequence[Detection | None]], view_ids: list[int],
-           obj: FloatArray, posed: Sequence[dict[int, FloatArray]] | None = None, **free: bool) -> _Problem:
+           obj: FloatArray, posed: Sequence[dict[int, FloatArray]] | None = None, *,
+           free: bool = True) -> _Problem:
     """The least-squares problem of the detections of ``view_ids`` (of views in ``posed[n]`` only,
-    when given); ``free``: :class:`_Problem`'s ``free_intrinsics`` / ``free_chain``."""
+    when given); ``free=False``: only the poses are estimated (intrinsics and chain given)."""
     vindex = {v: i for i, v in enumerate(view_ids)}
     o_pts, uv, cam_i, view_i = [], [], [], []
     for n in range(len(cams)):
@@ -791,7 +794,7 @@ def _stack(cams: Sequence[CameraModel], dets: Sequence[Sequence[Detection | None
             view_i.append(np.full(len(d), vindex[v]))
     return _Problem(list(cams), np.concatenate(o_pts), np.concatenate(uv),
                     np.concatenate(cam_i).astype(np.int64), np.concatenate(view_i).astype(np.int64),
-                    len(view_ids), **free)
+                    len(view_ids), free_intrinsics=free, free_chain=free)
 
 
 def _first_poses(poses_cam: list[dict[int, FloatArray]], chain_T: list[FloatArray],
@@ -1038,7 +1041,7 @@ def evaluate(target: CalibrationTarget, observations: Sequence[Observations], ca
     view_ids, pose0 = _given_poses(target, cameras, dets, T_cn_c0)
     if not view_ids:
         raise CalibrationError("the target was not found with enough corners in any view")
-    prob = _stack(cameras, dets, view_ids, target.object_points(), free_intrinsics=False, free_chain=False)
+    prob = _stack(cameras, dets, view_ids, target.object_points(), free=False)
     intr = np.array([[c.fx, c.fy, c.cx, c.cy, *c.coeffs] for c in cameras])
     chain = np.array([_rt(np.asarray(T)) for T in T_cn_cnm1]).reshape(-1, 6)
     _, _, poses, _ = _solve(prob, intr, chain, np.array(pose0))

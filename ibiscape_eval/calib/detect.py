@@ -172,7 +172,7 @@ def _search_checkerboard(gray: npt.NDArray[np.uint8], size: tuple[int, int],
     # resolution gives the corners.  The exhaustive search is the fallback for hard views.
     scales = sorted({min(1.0, _FAST_SEARCH_WIDTH_PX / w), min(1.0, _SEARCH_WIDTH_PX / w)})
     tries = [(s, 0) for s in scales] + ([(scales[-1], cv2.CALIB_CB_EXHAUSTIVE)] if exhaustive else [])
-    small: dict[float, npt.NDArray[np.uint8]] = {}
+    small: dict[float, npt.NDArray[Any]] = {}
     for scale, flags in tries:
         if scale not in small:
             small[scale] = gray if scale == 1.0 else cv2.resize(

@@ -36,7 +36,11 @@ def _opencv() -> dict:
     crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 30, 1e-3)
     pts: list[list[np.ndarray]] = [[], []]
     for fl in sorted(DATA.glob("left*.jpg")):
-        imgs = [cv2.imread(str(f), cv2.IMREAD_GRAYSCALE) for f in (fl, DATA / fl.name.replace("left", "right"))]
+        imgs = []
+        for f in (fl, DATA / fl.name.replace("left", "right")):
+            g = cv2.imread(str(f), cv2.IMREAD_GRAYSCALE)
+            assert g is not None, f
+            imgs.append(g)
         found = [cv2.findChessboardCorners(g, (cols, rows)) for g in imgs]
         assert all(ok for ok, _ in found)
         for k, (g, (_, c)) in enumerate(zip(imgs, found, strict=True)):
