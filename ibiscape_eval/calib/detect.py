@@ -131,7 +131,7 @@ def _near_box(near: npt.NDArray[np.float64], gray: npt.NDArray[np.uint8],
 
 
 def _checkerboard(gray: npt.NDArray[np.uint8], target: CalibrationTarget, near: npt.NDArray[np.float64] | None,
-                  exhaustive: bool) -> Detection | None:
+                  exhaustive: bool, fast: bool = True) -> Detection | None:
     import cv2
 
     h, w = gray.shape
@@ -146,7 +146,7 @@ def _checkerboard(gray: npt.NDArray[np.uint8], target: CalibrationTarget, near: 
         if ok and corners is not None:
             pts = np.asarray(corners, np.float64).reshape(-1, 2) + np.array([x0, y0], np.float64)
     if pts is None:
-        pts = _search_checkerboard(gray, size, exhaustive)
+        pts = _search_checkerboard(gray, size, exhaustive, fast)
     if pts is None:
         return None
     if len(pts) != target.n_corners:
@@ -160,17 +160,18 @@ def _checkerboard(gray: npt.NDArray[np.uint8], target: CalibrationTarget, near: 
 
 
 def _search_checkerboard(gray: npt.NDArray[np.uint8], size: tuple[int, int],
-                         exhaustive: bool) -> npt.NDArray[np.float64] | None:
-    """The whole image searched for the grid: in a :data:`_FAST_SEARCH_WIDTH_PX` copy, then a
-    :data:`_SEARCH_WIDTH_PX` one, then (``exhaustive``) by the exhaustive search; the corners in
-    full-size pixels, or None."""
+                         exhaustive: bool, fast: bool) -> npt.NDArray[np.float64] | None:
+    """The whole image searched for the grid: in a :data:`_FAST_SEARCH_WIDTH_PX` copy (``fast``),
+    then a :data:`_SEARCH_WIDTH_PX` one, then (``exhaustive``) by the exhaustive search; the
+    corners in full-size pixels, or None."""
     import cv2
 
     h, w = gray.shape
     # the plain search finds the grid (5x cheaper than with CALIB_CB_ACCURACY, whose corner
     # model is biased by up to 0.3 px on tilted rendered boards); cornerSubPix at full
     # resolution gives the corners.  The exhaustive search is the fallback for hard views.
-    scales = sorted({min(1.0, _FAST_SEARCH_WIDTH_PX / w), min(1.0, _SEARCH_WIDTH_PX / w)})
+    scales = sorted({min(1.0, (_FAST_SEARCH_WIDTH_PX if fast else _SEARCH_WIDTH_PX) / w),
+                     min(1.0, _SEARCH_WIDTH_PX / w)})
     tries = [(s, 0) for s in scales] + ([(scales[-1], cv2.CALIB_CB_EXHAUSTIVE)] if exhaustive else [])
     small: dict[float, npt.NDArray[Any]] = {}
     for scale, flags in tries:
@@ -487,11 +488,15 @@ def detect_corners(image: npt.NDArray[Any], target: CalibrationTarget, *,
         AprilGrids: the tags are read by correlating their cells with the board's own codes
         instead of aruco's bit-by-bit decoding, which rejects the blurred 1-2 px cells of event
         frames, and once 4 tags are read the corners of the others are predicted from their
-        neighbours and kept where the image has an X-junction.  Checkerboards: no change.
+        neighbours and kept where the image has an X-junction.  Checkerboards: the whole image is
+        not first searched in the fast reduced copy (many reconstructions hold no board).
     """
     gray = _gray(image)
     if target.target_type == "checkerboard":
-        return _checkerboard(gray, target, None if near is None else near.corners_px, exhaustive)
+        # event frames: the reconstructions auto-reconstruction tries often hold no board, and a
+        # miss would cost the fast search on top of the full one
+        return _checkerboard(gray, target, None if near is None else near.corners_px, exhaustive,
+                             fast=not event_frame)
     return _aprilgrid(gray, target, None if near is None else _grid_outline(near, target), event_frame)
 
 
