@@ -370,21 +370,19 @@ def _consistent_numbering(ref_poses: dict[int, FloatArray], dets: list[Detection
             best_score, best = score, Tc
     out: dict[int, Detection] = {}
     changed = 0
-    chosen = []
     for v in np.unique(views):
         mine = [c for c in cands if c[0] == v]
         dist = [_pose_distance(best, c[2], scale) for c in mine]
         i = int(np.argmin(dist))
         if dist[i] > 20.0:  # no numbering of this view agrees: leave the view out of the pair
             continue
-        v_, k, Tc = mine[i]
+        v_, k, _ = mine[i]
         d = dets[v_]
         assert d is not None
         ids = perms[k][d.ids]
         order = np.argsort(ids)
         out[int(v_)] = Detection(ids[order], d.corners_px[order], d.image_size)
         changed += int(k != 0)
-        chosen.append(Tc)
     return out, best, changed
 
 
