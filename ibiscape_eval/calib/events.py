@@ -346,7 +346,7 @@ class EventFrameSource:
         from .detect import detect_corners
 
         assert self.target is not None and self.max_board_noise_px is not None
-        det = detect_corners(frame, self.target, event_frame=True)
+        det = detect_corners(frame, self.target, event_frame=True, fast=False)
         if det is None:
             return frame
         noise = board_noise_px(det.corners_px, self.target.object_points()[det.ids, :2])
@@ -510,7 +510,7 @@ def choose_reconstruction(read_window: ReadWindow, windows_ns: npt.ArrayLike, se
         n = 0
         for i in probe:
             img = src(int(i))
-            det = None if img is None else detect_corners(img, target, event_frame=True)
+            det = None if img is None else detect_corners(img, target, event_frame=True, fast=False)
             n += 0 if det is None else len(det)
         counts[m] = n
     best = max(candidates, key=lambda m: (counts[m], -list(candidates).index(m)))

@@ -143,7 +143,8 @@ def _run_detection(target: CalibrationTarget, cameras: Sequence[CameraFrames],
                 sizes[k].setdefault(size, i)
                 det = detect_corners(img, target, near=prev if near_search else None,
                                      exhaustive=exhaustive,
-                                     event_frame=cameras[k].reconstruction is not None)
+                                     event_frame=cameras[k].reconstruction is not None,
+                                     fast=cameras[k].reconstruction is None)
             prev = det
             if progress is not None:
                 progress(1)
