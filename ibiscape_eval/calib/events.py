@@ -288,8 +288,6 @@ class EventFrameSource:
         the detections and ``{corners_detected, corners_refined, views_detected, views_kept,
         method}`` (``method``: ``events``, ``frames`` after that fallback, or ``none``).
         """
-        import cv2
-
         from .detect import Detection
 
         dets = list(detections)
@@ -317,25 +315,12 @@ class EventFrameSource:
                 continue
             near = [q for q in (j - 1, j + 1) if 0 <= q < len(dets) and t_of[q] is not None
                     and dets[q] is not None and abs(int(t_of[q]) - t) <= max_gap_ns]  # type: ignore[arg-type]
-            # per corner: central difference over both neighbours, else one-sided with this view
-            one = [(pos[q, det.ids] - det.corners_px) / ((int(t_of[q]) - t) * 1e-9) for q in near]  # type: ignore[arg-type]
-            vel = np.full((len(det), 2), np.nan)
-            for v in one:
-                vel = np.where(np.isnan(vel), v, vel)
-            if len(near) == 2:
-                q0, q1 = near
-                both = (pos[q1, det.ids] - pos[q0, det.ids]) / ((int(t_of[q1]) - int(t_of[q0])) * 1e-9)  # type: ignore[arg-type]
-                vel = np.where(np.isnan(both), vel, both)
-            H, _ = cv2.findHomography(obj[det.ids], det.corners_px, 0)
-            if H is None:
+            vel = _corner_velocity(pos, det, t, [(q, int(t_of[q])) for q in near])  # type: ignore[arg-type]
+            lines = _edge_lines(obj[det.ids], det.corners_px, step)
+            if lines is None:
                 out.append(None)
                 continue
-            P = obj[det.ids]
-            ex, ey = np.array([step[0], 0.0]), np.array([0.0, step[1]])
-            ends = np.concatenate([P + ex, P - ex, P + ey, P - ey])
-            q = cv2.perspectiveTransform(ends[None], H)[0].reshape(4, len(P), 2)
-            dirs = np.stack([q[0] - q[1], q[2] - q[3]], axis=1)  # two squares along each line
-            square = 0.5 * np.minimum(np.hypot(*dirs[:, 0].T), np.hypot(*dirs[:, 1].T))
+            dirs, square = lines
             # a margin beyond the events used, so that the last event of a run is known as such
             ev = self.events_around(t, REFINE_HALF_WINDOW_NS[1] + 20_000_000)
             refined = refine_xcorners(ev, t, det.corners_px, vel, dirs, square)
@@ -361,7 +346,7 @@ class EventFrameSource:
         from .detect import detect_corners
 
         assert self.target is not None and self.max_board_noise_px is not None
-        det = detect_corners(frame, self.target, event_frame=True)
+        det = detect_corners(frame, self.target, event_frame=True, fast=False)
         if det is None:
             return frame
         noise = board_noise_px(det.corners_px, self.target.object_points()[det.ids, :2])
@@ -525,7 +510,7 @@ def choose_reconstruction(read_window: ReadWindow, windows_ns: npt.ArrayLike, se
         n = 0
         for i in probe:
             img = src(int(i))
-            det = None if img is None else detect_corners(img, target, event_frame=True)
+            det = None if img is None else detect_corners(img, target, event_frame=True, fast=False)
             n += 0 if det is None else len(det)
         counts[m] = n
     best = max(candidates, key=lambda m: (counts[m], -list(candidates).index(m)))
@@ -640,12 +625,15 @@ def _fit_xcorner(xy: npt.NDArray[np.float64], dt: npt.NDArray[np.float64], c: np
     return c, sigma
 
 
-def _run_ends(events: Events) -> npt.NDArray[np.bool_]:
+def _run_ends(x: npt.NDArray[Any], y: npt.NDArray[Any], t_ns: npt.NDArray[np.int64],
+              p: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
     """The last event of every run of same-polarity events of a pixel (followed by an event of the
-    other polarity, or by none in ``events``)."""
-    pix = events.y.astype(np.int64) * (int(events.x.max()) + 1) + events.x
-    order = np.lexsort((events.t_ns, pix))
-    p_s, pol_s = pix[order], events.p[order]
+    other polarity, or by none in the events given)."""
+    if len(x) == 0:
+        return np.zeros(0, bool)
+    pix = y.astype(np.int64) * (int(x.max()) + 1) + x
+    order = np.lexsort((t_ns, pix))
+    p_s, pol_s = pix[order], p[order]
     end_s = np.ones(len(order), bool)
     end_s[:-1] = (p_s[1:] != p_s[:-1]) | (pol_s[1:] != pol_s[:-1])
     out = np.empty(len(order), bool)
@@ -694,15 +682,22 @@ def refine_xcorners(events: Events, t_ns: int, corners_px: npt.ArrayLike, veloci
     out = np.full_like(uv, np.nan)
     if len(events) == 0 or len(uv) == 0:
         return out
-    dt_all = (events.t_ns - int(t_ns)).astype(np.float64) * 1e-9
-    keep = np.abs(dt_all) <= half_window_ns[1] * 1e-9
-    if drop_run_ends:
-        keep &= ~_run_ends(events)
-    ex = events.x[keep].astype(np.float64)
-    ey = events.y[keep].astype(np.float64)
-    dt_all = dt_all[keep]
     speed = np.hypot(vel[:, 0], vel[:, 1])
     half = np.clip(move_px / np.maximum(speed, 1e-9), half_window_ns[0] * 1e-9, half_window_ns[1] * 1e-9)
+    # only the pixels within reach of a corner (whole pixels: their runs stay whole)
+    valid = np.isfinite(uv).all(axis=1) & np.isfinite(vel).all(axis=1) & (sq > 4.0)
+    if not valid.any():
+        return out
+    reach_all = (0.7 * sq + speed * half + 1.0)[:, None]
+    lo, hi = (uv - reach_all)[valid].min(axis=0) - 1.0, (uv + reach_all)[valid].max(axis=0) + 1.0
+    box = ((events.x >= lo[0]) & (events.x <= hi[0]) & (events.y >= lo[1]) & (events.y <= hi[1]))
+    dt_all = (events.t_ns[box] - int(t_ns)).astype(np.float64) * 1e-9
+    keep = np.abs(dt_all) <= half_window_ns[1] * 1e-9
+    if drop_run_ends:
+        keep &= ~_run_ends(events.x[box], events.y[box], events.t_ns[box], events.p[box])
+    ex = events.x[box][keep].astype(np.float64)
+    ey = events.y[box][keep].astype(np.float64)
+    dt_all = dt_all[keep]
     for k in range(len(uv)):  # ~0.3 ms per corner; the events of one corner are few
         if not (np.all(np.isfinite(uv[k])) and np.all(np.isfinite(vel[k])) and sq[k] > 4.0):
             continue
@@ -718,3 +713,36 @@ def refine_xcorners(events: Events, t_ns: int, corners_px: npt.ArrayLike, veloci
         if fit is not None and fit[1] <= max_sigma_px:
             out[k] = fit[0]
     return out
+
+
+def _corner_velocity(pos: npt.NDArray[np.float64], det: Any, t_ns: int,
+                     near: list[tuple[int, int]]) -> npt.NDArray[np.float64]:
+    """Image velocity [px/s] of every corner of ``det`` (at ``t_ns``) from its positions
+    ``pos[q, id]`` in the neighbouring views ``near`` (``(q, t_q_ns)``): the central difference
+    over both neighbours, else one-sided with this view (NaN where no neighbour saw the corner)."""
+    one = [(pos[q, det.ids] - det.corners_px) / ((tq - t_ns) * 1e-9) for q, tq in near]
+    vel = np.full((len(det), 2), np.nan)
+    for v in one:
+        vel = np.where(np.isnan(vel), v, vel)
+    if len(near) == 2:
+        (q0, t0), (q1, t1) = near
+        both = (pos[q1, det.ids] - pos[q0, det.ids]) / ((t1 - t0) * 1e-9)
+        vel = np.where(np.isnan(both), vel, both)
+    return vel
+
+
+def _edge_lines(P: npt.NDArray[np.float64], uv: npt.NDArray[np.float64], step: npt.NDArray[np.float64]
+                ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]] | None:
+    """Through every corner (board points ``P``, image ``uv``), the image directions of the two
+    edge lines spanning two squares (N, 2, 2) and half the shorter one [px] (N,), by the board's
+    homography; None when it cannot be estimated."""
+    import cv2
+
+    H, _ = cv2.findHomography(P, uv, 0)
+    if H is None:
+        return None
+    ex, ey = np.array([step[0], 0.0]), np.array([0.0, step[1]])
+    ends = np.concatenate([P + ex, P - ex, P + ey, P - ey])
+    q = cv2.perspectiveTransform(ends[None], H)[0].reshape(4, len(P), 2)
+    dirs = np.stack([q[0] - q[1], q[2] - q[3]], axis=1)  # two squares along each line
+    return dirs, 0.5 * np.minimum(np.hypot(*dirs[:, 0].T), np.hypot(*dirs[:, 1].T))
