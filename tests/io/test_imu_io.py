@@ -102,7 +102,7 @@ def test_npz_parquet_and_rate_without_stamps(tmp_path: Path) -> None:
     np.savez(tmp_path / "imu.npz", stamps_ns=t, gyro_rad_s=y[:, :3], accel_m_s2=y[:, 3:])
     np.testing.assert_array_equal(read_imu(tmp_path / "imu.npz").samples, y)
     np.save(tmp_path / "six.npy", y)
-    with pytest.raises(FormatError, match="rate-hz"):
+    with pytest.raises(FormatError, match="rate_hz"):
         read_imu(tmp_path / "six.npy")
     assert read_imu(tmp_path / "six.npy", rate_hz=50.0).rate_hz == 50.0
     df = pd.DataFrame(y, columns=["w_x", "w_y", "w_z", "a_x", "a_y", "a_z"])
