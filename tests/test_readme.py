@@ -80,7 +80,7 @@ def make_demo_output(root: Path) -> None:
     np.savetxt(root / "log.csv", cols, delimiter=",", header="time,gx,gy,gz,ax,ay,az", comments="",
                fmt="%.12g")
     write_events(root / "events.txt", ev.events, fmt="text")
-    # the allan section's foreign layouts (issue 22): accelerometer first by name and without a
+    # the allan section's foreign layouts: accelerometer first by name and without a
     # header, a rostopic echo -p csv, and a generated drive (not still)
     acc_first = np.column_stack((10**12 + np.arange(m) * 5_000_000, s[:m, 3:], s[:m, :3]))
     for name, head in (("phone.csv", "timestamp,ax,ay,az,gx,gy,gz"), ("noheader.csv", "")):

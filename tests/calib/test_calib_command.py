@@ -1,4 +1,4 @@
-"""``ibiscape-eval calib`` end to end on rendered sequences, and every bad input the issue names."""
+"""``ibiscape-eval calib`` end to end on rendered sequences, and every bad input (exit 2, one line)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """Views that do not constrain the focal length are refused, not solved into a confident wrong
-number (issue #22's rule): known answers from projected boards, and the real EuRoC excerpt."""
+number: known answers from projected boards, and the real EuRoC excerpt."""
 
 from __future__ import annotations
 

@@ -2,10 +2,10 @@
 sim.calib_views: shading, supersampled board edges, 0.7 px lens blur, sensor noise), judged against
 the truth the command reads from sequence.yaml.
 
-The sequences are rendered once per test session (tmp_path_factory).  Tolerances are the issue's
+The sequences are rendered once per test session (tmp_path_factory).  The tolerances are
 (focal 0.3 px, principal point 0.5 px, baseline 1 mm, RMS 0.1 px) at 384 x 384 px (f = 192 px), a
 third of the paper's 1024 px: the corner noise in pixels does not grow at a lower resolution, so
-the issue's pixel tolerances are kept unchanged.
+the pixel tolerances are kept unchanged.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Our calibration against a careful OpenCV pipeline on identical views (the issue's tolerance:
+"""Our calibration against a careful OpenCV pipeline on identical views (tolerance:
 focal within 0.5 %, baseline within 1 %, our RMS not above OpenCV's)."""
 
 from __future__ import annotations

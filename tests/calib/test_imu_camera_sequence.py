@@ -1,5 +1,5 @@
 """``calib SEQ --imu imu.yaml`` end to end on a generated sequence with planted extrinsics and camera
-clock offsets, and every bad input the issue names (exit 2, one line naming the file, no --yaml).
+clock offsets, and every bad input (exit 2, one line naming the file, no --yaml).
 
 The sequence is the simulator's own (IMU, ground truth, sequence.yaml with the true T_cam_imu and
 timeshift_cam_imu, generated without rendering); its camera frames are the board's texture warped
@@ -70,7 +70,7 @@ def _run(*args: str):
 def test_cli_recovers_planted_extrinsics_and_offsets(seq, tmp_path):
     out = tmp_path / "camchain-imucam.yaml"
     chain = _truth_chain(seq, tmp_path)
-    # the noise densities straight from the sequence's sequence.yaml (issue #21)
+    # the noise densities straight from the sequence's sequence.yaml
     r = _run(str(seq), "--imu", str(seq / "sequence.yaml"), "--cams", str(chain), "--yaml", str(out), "--json",
              "--plot", str(tmp_path / "plots"))
     assert r.exit_code == 0, r.output

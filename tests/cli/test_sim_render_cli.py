@@ -1,5 +1,5 @@
 """``ibiscape-eval sim`` rendering options: --render/--no-render, --resolution, --export, and the
-camera errors the issue names (exit 2, one stderr line, no output folder)."""
+camera errors (exit 2, one stderr line, no output folder)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """The renderer against known answers: analytic plane depth, OpenCV corners and calibration on
-rendered checkerboards, labels, movers, determinism, and the errors the issue names."""
+rendered checkerboards, labels, movers, determinism, and the renderer's input errors."""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """``ibiscape-eval vio`` end to end on a short generated sequence with images (a textured street
 rendered along the sequence's exact ground truth), checked with the project's own ATE, and every
-bad input the issue names."""
+bad input (missing files, wrong sizes, bad numbers)."""
 
 from __future__ import annotations
 

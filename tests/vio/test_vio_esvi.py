@@ -1,4 +1,4 @@
-"""ESVI: the VIO on stereo event frames (issue #24), on a small generated sequence (128x96 DVS pair,
+"""ESVI: the VIO on stereo event frames, on a small generated sequence (128x96 DVS pair,
 6 s, standstill start), against the generator's truth; causality of the frames; bad input."""
 
 from __future__ import annotations

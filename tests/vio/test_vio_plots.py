@@ -33,7 +33,7 @@ def test_ground_truth_is_cut_to_the_estimate_span_with_the_margin() -> None:
 
 
 def test_top_view_axes_frame_the_estimate_not_the_whole_recording() -> None:
-    """The issue's case: 4.7 s of estimate on a 145 s recording (the whole circle is 100 m
+    """A short estimate on a long recording: 4.7 s of estimate on a 145 s recording (the whole circle is 100 m
     across; the estimate's arc ~24 m)."""
     gt = _circle(0.0, 145.0, 100.0, "gt")
     est = _circle(20.0, 24.7, 20.0, "est")

@@ -1,4 +1,4 @@
-"""RGB-D (+ IMU): depth as the stereo measurement (issue #24), on a small generated sequence
+"""RGB-D (+ IMU): depth as the stereo measurement, on a small generated sequence
 (128x96, 6 s) against the generator's truth; the depth noise model against the encoding's own
 quantisation; registration of a depth camera that sits elsewhere; bad depth files."""
 

@@ -172,7 +172,7 @@ def _windows(stream, t0_s: float, t1_s: float, step_s: float = 0.1):
 
 
 def test_euroc_v1_01_still_with_rotors_on_is_still() -> None:
-    """The issue's case: V1_01's first 1.15 s (gyro bias 0.08 rad/s, rotor vibration 1 m/s^2 RMS
+    """A real still start: V1_01's first 1.15 s (gyro bias 0.08 rad/s, rotor vibration 1 m/s^2 RMS
     on y) was 'moving' under the old test; every window is still now, well inside the limits."""
     stream = _euroc_imu("euroc_v1_01_kimera")
     rs = _windows(stream, 0.0, 1.15)
