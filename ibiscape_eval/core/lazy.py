@@ -29,7 +29,8 @@ def lazy_exports(module_name: str, exports: Mapping[str, str], *, relative: bool
     ``:attribute`` when the module names the object differently (``"sim.generator:generate"``).
     A loaded name is cached in the package's namespace, so the next access does not come back
     here.  ``dir()`` lists the exports and the package's public dunders (``__version__``), not
-    the names the package module itself imported (``annotations``, ``TYPE_CHECKING`` ...).
+    the names the package module itself imported (``annotations``, ``TYPE_CHECKING`` ...) unless
+    its ``__all__`` names them (a light import such as the error types).
     """
 
     def get_attr(name: str) -> Any:
@@ -42,7 +43,8 @@ def lazy_exports(module_name: str, exports: Mapping[str, str], *, relative: bool
         raise AttributeError(f"module {module_name!r} has no attribute {name!r}")
 
     def dir_names() -> list[str]:
-        own = {n for n in vars(sys.modules[module_name]) if n in ("__version__", "__all__")}
-        return sorted(own | set(exports))
+        module = vars(sys.modules[module_name])
+        own = {n for n in module if n in ("__version__", "__all__")}
+        return sorted(own | set(exports) | set(module.get("__all__", ())))
 
     return get_attr, dir_names
