@@ -1,13 +1,13 @@
 """Camera calibration on REAL stereo checkerboard images: ``ibiscape-eval calib`` against a plain
 OpenCV script, each in a fresh process, in the same run.
 
-    .venv/bin/python benchmarks/bench_calib_real.py                  # the 8-pair fixture
-    .venv/bin/python benchmarks/bench_calib_real.py --images-dir DIR --repeat 3   # e.g. all 25 pairs
+    .venv/bin/python benchmarks/bench_calib_real.py                  # the 13-pair fixture
+    .venv/bin/python benchmarks/bench_calib_real.py --images-dir DIR --repeat 3   # any such folder
 
 Images: ``DIR/left*.jpg`` and ``DIR/right*.jpg`` (paired by the number in their names) and
 ``DIR/target.yaml`` (Kalibr's checkerboard description); by default
-``tests/data/real/stereo_checkerboard_640x512`` (8 of the 25 real 640x512 pairs of
-Barry-Liang/stereoCalibrate, see its PROVENANCE.md, which says how to get all 25).
+``tests/data/real/opencv_stereo_checkerboard_640x480`` (OpenCV's 13 real 640x480 stereo sample
+pairs, Apache-2.0, see its PROVENANCE.md).
 
 - ours: ``ibiscape-eval calib --target DIR/target.yaml --images cam0=... --images cam1=... --json``;
 - peer: what most users would write (:data:`PEER`): ``imread`` (grey), ``findChessboardCorners`` +
@@ -31,7 +31,7 @@ import tempfile
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-DEFAULT_DIR = HERE.parent / "tests" / "data" / "real" / "stereo_checkerboard_640x512"
+DEFAULT_DIR = HERE.parent / "tests" / "data" / "real" / "opencv_stereo_checkerboard_640x480"
 
 PEER = r'''
 import glob, json, os, sys
