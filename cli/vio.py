@@ -7,7 +7,7 @@ from typing import Any
 
 import click
 
-from ._common import echo_json, info, user_errors
+from ._common import cli_flag, echo_json, info, user_errors
 
 
 def _summary(res: Any, ate_res: Any, out: Path) -> str:
@@ -119,7 +119,8 @@ def vio(sequence: Path, out: Path, calib: Path | None, imu_yaml: Path | None,
         try:
             ate_res = ate(res.trajectory, seq.groundtruth, align="se3", max_diff_s=0.02)
         except IbiscapeError as e:  # degenerate alignment (a straight path): report, go on
-            info(f"note: no ATE ({' '.join(str(e).split())})")
+            why = " ".join(e.spelt(cli_flag).split())
+            info(f"note: no ATE ({why}: score {out} with `ibiscape-eval ate`)")
     if plot is not None:
         from ibiscape_eval.io.figure import save_figure
         from ibiscape_eval.vio.plots import top_view_figure
