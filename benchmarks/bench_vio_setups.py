@@ -60,7 +60,7 @@ def run_one(seq_dir: Path, setup: str, options: Any) -> dict[str, Any]:
     from ibiscape_eval.io.open_sequence import open_sequence
     from ibiscape_eval.vio import Estimator, VioParams
     from ibiscape_eval.vio.inputs import stereo_inputs
-    from ibiscape_eval.vio.pipeline import gyro_prior, make_frontend
+    from ibiscape_eval.vio.pipeline import make_frontend
 
     s = stereo_inputs(open_sequence(seq_dir), setup=setup, options=options)
     p = VioParams()
@@ -76,7 +76,7 @@ def run_one(seq_dir: Path, setup: str, options: Any) -> dict[str, Any]:
         c0 = clock()
         left, right = s.read_pair(i)
         c1 = clock()
-        obs = fe.process(t_ns, left, right, None if prev is None else gyro_prior(est, prev, t_ns))
+        obs = fe.process(t_ns, left, right, None if prev is None else est.gyro_rotation(prev, t_ns))
         c2 = clock()
         est.process(obs)
         cpu["read"] += c1 - c0

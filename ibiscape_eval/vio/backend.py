@@ -262,9 +262,14 @@ class Backend:
         self._refresh(t_ns)
         return used
 
+    def newest(self) -> KeyframeState | None:
+        """The newest keyframe's estimate, or None when the smoother dropped it (a numerically
+        broken graph, reported as a divergence)."""
+        return self.states.get(self.k)
+
     def latest(self) -> KeyframeState:
         """The newest keyframe's estimate."""
-        st = self.states.get(self.k)
+        st = self.newest()
         if st is None:
             # the smoother dropped the newest keyframe (a numerically broken graph)
             raise RuntimeError(f"the smoother has no estimate of keyframe {self.k}")

@@ -191,42 +191,19 @@ class DepthFrontEnd(StereoFrontEnd):
 
     def process(self, stamp_ns: int, left: npt.NDArray[np.uint8], right: Any,
                 R_b0_b1: FloatArray | None = None) -> StereoObservations:
-        """Track into a new RGB frame; ``right`` is the registered depth [m] (H, W)."""
-        pts, ids = self._track(left, R_b0_b1)
-        if len(pts) == 0:
+        """Track into a new RGB frame (:meth:`StereoFrontEnd.track`); ``right`` is the registered
+        depth [m] (H, W)."""
+        tr = self.track(stamp_ns, left, R_b0_b1)
+        if len(tr) == 0:
             return StereoObservations.empty(stamp_ns)
-        z, ok = self._depth_at(np.asarray(right, np.float32), pts)
-        rect = self.rect
-        rl = self.rig.rectify_points(pts, "left")
+        z, ok = self._depth_at(np.asarray(right, np.float32), self.pts)
         with np.errstate(divide="ignore", invalid="ignore"):
-            disp = rect.fx * self.options.baseline_m / z
-            sigma_d = rect.fx * self.options.baseline_m * depth_sigma_m(z, self.unit) / (z * z)
+            disp = self.rect.fx * self.options.baseline_m / z
+            sigma_d = self.rect.fx * self.options.baseline_m * depth_sigma_m(z, self.unit) / (z * z)
         ok &= np.isfinite(disp) & (sigma_d <= self.sigma_px)
         sel = np.flatnonzero(ok)
-        return StereoObservations(int(stamp_ns), ids[sel].astype(np.int64), rl[sel, 0],
-                                  rl[sel, 0] - disp[sel], rl[sel, 1])
-
-    def _track(self, left: npt.NDArray[np.uint8], R_b0_b1: FloatArray | None
-               ) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.int64]]:
-        """Temporal KLT (gyro prior, forward-backward, RANSAC) and new corners; the corners held."""
-        pyr = self._pyramid(left)
-        if self._prev_pyr is not None and len(self.pts):
-            p1, ok = self._lk(self._prev_pyr, pyr, self.pts, self._predict(R_b0_b1))
-            idx = np.flatnonzero(ok)
-            idx = idx[self._ransac(self.pts[idx], p1[idx])]
-            pts, ids = p1[idx], self.ids[idx]
-        else:
-            pts, ids = np.zeros((0, 2), np.float32), np.zeros(0, np.int64)
-        if len(pts) < 0.7 * self.params.max_features:
-            new = self._detect(left, pts)
-            if len(new):
-                pts = np.concatenate([pts, new])
-                ids = np.concatenate([ids, np.arange(self._next_id, self._next_id + len(new))])
-                self._next_id += len(new)
-        self.pts, self.ids = pts, ids
-        self.disp = np.zeros(len(pts), np.float32)
-        self._prev_pyr = pyr
-        return pts, ids
+        return StereoObservations(int(stamp_ns), tr.ids[sel], tr.uL[sel], tr.uL[sel] - disp[sel],
+                                  tr.v[sel])
 
     def _depth_at(self, depth: F32, pts: npt.NDArray[np.float32]
                   ) -> tuple[FloatArray, npt.NDArray[np.bool_]]:

@@ -117,19 +117,24 @@ class Estimator:
         self.standstill_test: StandstillTest | None = None
 
     # ------------------------------------------------------------------------------ frames
-    def gyro_rotation(self, t0_ns: int, t1_ns: int) -> FloatArray:
+    def gyro_rotation(self, t0_ns: int, t1_ns: int) -> FloatArray | None:
         """``R_b0_b1`` from the gyro (bias-corrected with the latest estimate) between two stamps;
-        the front end's rotation prior for KLT."""
+        the front end's rotation prior for KLT.  None while the smoother holds no newest state
+        (right after a reported divergence, until re-initialisation): tracking then starts
+        unrotated."""
         stamps, gyro, _ = self.imu
-        sel = (stamps >= t0_ns) & (stamps < t1_ns)
-        w = gyro[sel]
+        i0, i1 = np.searchsorted(stamps, (t0_ns, t1_ns), side="left")  # stamps sorted (inputs)
+        w = gyro[i0:i1]
         if self.initialised and self.backend.k >= 0:
-            w = w - self.backend.latest().bias_gyro_rad_s
+            newest = self.backend.newest()
+            if newest is None:
+                return None
+            w = w - newest.bias_gyro_rad_s
         if self.T_body_imu is not None:
             w = w @ self.T_body_imu[:3, :3].T
         from scipy.spatial.transform import Rotation
 
-        dt = np.diff(np.concatenate((stamps[sel], [t1_ns]))) * 1e-9
+        dt = np.diff(np.concatenate((stamps[i0:i1], [t1_ns]))) * 1e-9
         rv = (w * dt[:, None]).sum(axis=0) if len(w) else np.zeros(3)
         return np.asarray(Rotation.from_rotvec(rv).as_matrix())
 

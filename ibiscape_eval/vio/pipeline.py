@@ -28,7 +28,7 @@ from .params import VioParams
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
 
-__all__ = ["VioResult", "VioStats", "gyro_prior", "make_frontend", "run_vio"]
+__all__ = ["VioResult", "VioStats", "make_frontend", "run_vio"]
 
 #: progress(frames_done, frames_total, speed_up_over_real_time)
 Progress = Callable[[int, int, float], None]
@@ -232,15 +232,6 @@ def make_frontend(seq: StereoSequence, params: VioParams, options: Any = None) -
     return StereoFrontEnd(seq.rig, params)
 
 
-def gyro_prior(est: Estimator, t0_ns: int, t1_ns: int) -> Any:
-    """The front end's KLT rotation prior, or None while the smoother holds no newest state (right
-    after a reported divergence, until re-initialisation): tracking then starts unrotated."""
-    try:
-        return est.gyro_rotation(t0_ns, t1_ns)
-    except RuntimeError:
-        return None
-
-
 def numerical_failure_message(path: str, exc: BaseException) -> str:
     """One line for a numerical failure of the estimator on the sequence at ``path``."""
     first = next((ln.strip() for ln in str(exc).splitlines() if ln.strip()), type(exc).__name__)
@@ -260,7 +251,7 @@ def _loop(seq: StereoSequence, p: VioParams, n: int, fe: Any, est: Estimator, ah
         left, read_right = ahead.pop(i).result()
         if i + 4 < n:
             ahead[i + 4] = pool.submit(read, i + 4)
-        R = None if prev_t is None else gyro_prior(est, prev_t, t_ns)
+        R = None if prev_t is None else est.gyro_rotation(prev_t, t_ns)
         label_l, label_r = seq.frame_labels(i)
         left = _sized(left, label_l, w, h)
         if fe.stereo_on_demand:
