@@ -38,7 +38,7 @@ from .shading import (
     horizon_radiance,
     lighting,
 )
-from .textures import board_albedo, kernel_tables
+from .textures import board_albedo, board_footprint_tables, board_tables, kernel_tables
 
 __all__ = ["RenderCamera", "RenderOptions", "RenderedView", "Renderer"]
 
@@ -253,10 +253,11 @@ class Renderer:
         light = lighting(w)
         rays = world_rays(camera_rays(model).reshape(-1, 3), T)
         scale = 255.0 * light.gain
-        rad, depth, mat, labels = self._radiance(rays, t_ns, w, light, self._mover_pixels(model, T, t_ns),
-                                                 scale=scale)
-        if self.options.target_supersample > 1 and self.static.targets:
-            self._supersample_targets(model, T, t_ns, w, light, scale, rad, mat)
+        ss = self.options.target_supersample > 1 and bool(self.static.targets)
+        rad, depth, mat, labels, code = self._radiance(rays, t_ns, w, light, self._mover_pixels(model, T, t_ns),
+                                                       scale=scale, board_code=ss)
+        if ss:
+            self._supersample_targets(model, T, t_ns, w, light, scale, rad, mat, code)
         img = rad.reshape(H, W, 3)
         depth = depth.reshape(H, W)
         if rain and self.options.weather_optics and w.precipitation > 0:
@@ -276,12 +277,21 @@ class Renderer:
         return img, depth, labels.reshape(H, W)
 
     def _supersample_targets(self, model: CameraModel, T: np.ndarray, t_ns: int, w: WeatherState,
-                             light: Lighting, scale: float, rad: F32, mat: npt.NDArray[np.uint8]) -> None:
+                             light: Lighting, scale: float, rad: F32, mat: npt.NDArray[np.uint8],
+                             code: npt.NDArray[np.uint16]) -> None:
         """Replace ``rad`` (H W, 3) in place by the mean of ``s x s`` rays where a pixel that sees
         a calibration board may cover an edge: the board's outline, or a 3x3 neighbourhood whose
         centre samples differ (inside a printed square the pixel's average equals its centre
-        sample)."""
+        sample).
+
+        A pixel whose 3x3 neighbourhood sees one board side, lit alike (``code``, see
+        :meth:`_radiance`), and whose ``s x s`` rays all meet that board's plane inside one
+        uniform patch of the print (a texel of margin) keeps its centre sample: its rays would
+        all return that sample's radiance (the ~35 % of candidates beside an edge that does not
+        cross them)."""
         import cv2
+
+        from ._kernels import board_footprints_flat, pixel_means
 
         H, W = model.height_px, model.width_px
         s = self.options.target_supersample
@@ -294,8 +304,19 @@ class Renderer:
         edge = (cv2.dilate(on, k) > 0) & ((spread > 0.004 * scale) | (cv2.erode(on, k) == 0))
         rows, cols = np.nonzero(edge)
         sub = world_rays(subpixel_rays(model, rows, cols, s), T).reshape(-1, 6)
+        c2 = code.reshape(H, W)
+        c = c2[rows, cols]
+        uniform = (c > 0) & (cv2.dilate(c2, k)[rows, cols] == cv2.erode(c2, k)[rows, cols])
+        if uniform.any():
+            poses, diffs = board_footprint_tables(self.static.targets)
+            flat = board_footprints_flat(sub, s * s, uniform, ((c - 1) >> 2).astype(np.intp), poses,
+                                         board_tables(self.static.targets), diffs,
+                                         np.empty(len(rows), np.bool_))
+            cross = ~flat
+            rows, cols = rows[cross], cols[cross]
+            sub = sub.reshape(-1, s * s, 6)[cross].reshape(-1, 6)
         rs = self._radiance(sub, t_ns, w, light, scale=scale)[0]
-        rad[rows * W + cols] = rs.reshape(len(rows), s * s, 3).mean(axis=1)
+        pixel_means(rs, s * s, rows * W + cols, rad)
 
     def _mover_scene(self, t_ns: int) -> tuple[Any, TriangleTables] | None:
         if len(self.world.agents) == 0:
@@ -309,10 +330,13 @@ class Renderer:
             return self._movers
 
     def _radiance(self, rays: F32, t_ns: int, w: WeatherState, light: Lighting,
-                  mover_rays: npt.NDArray[np.bool_] | None = None, *, scale: float = 1.0
-                  ) -> tuple[F32, F32, npt.NDArray[np.uint8], npt.NDArray[np.uint8]]:
+                  mover_rays: npt.NDArray[np.bool_] | None = None, *, scale: float = 1.0,
+                  board_code: bool = False) -> tuple[F32, F32, npt.NDArray[np.uint8], npt.NDArray[np.uint8],
+                                                     npt.NDArray[np.uint16]]:
         """Radiance (N, 3) times ``scale`` of rays (N, 6) with shadows, fog and wet road; the
-        z-depth (``inf``: sky), material and label of every ray.
+        z-depth (``inf``: sky), material and label of every ray and, when ``board_code``, which
+        board side each ray sees and how it is lit (0: no board, else ``1 + 4 board + 2 front +
+        lit``; an empty array otherwise).
 
         ``mover_rays`` (N,) bool limits the movers' cast to the rays that may see one (the renderer
         passes the pixels inside the movers' projected outlines); ``None`` casts all.
@@ -356,7 +380,11 @@ class Renderer:
             occ = self._occluded(srays[:count], smov[:count], t_ns)
             ndl[spix[:count][occ]] = 0.0
         rad = self._finish(alb, ndl, amb, depth, rays, paved, uv, w, light, scale)
-        return rad, depth, mat, labels
+        code = np.zeros(0, np.uint16)
+        if board_code:
+            code = np.where(mat == MAT["target"], 1 + 4 * var.astype(np.uint16) + 2 * front.astype(np.uint16)
+                            + (ndl > 0.0), 0).astype(np.uint16)
+        return rad, depth, mat, labels, code
 
     def _finish(self, alb: F32, ndl: F32, amb: F32, depth: F32, rays: F32, paved: F32, uv: F32,
                 w: WeatherState, light: Lighting, scale: float) -> F32:

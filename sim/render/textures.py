@@ -147,3 +147,14 @@ def board_tables(targets: tuple[Any, ...]) -> tuple[tuple[Any, ...], ...]:
         out.append((np.ascontiguousarray(_target_texture(t)), float(t.board_min_m[0]), y0,
                     -1.0 if flipped else 1.0, float(TARGET_PX_PER_M)))
     return tuple(out)
+
+
+@functools.lru_cache(maxsize=8)
+def board_footprint_tables(targets: tuple[Any, ...]) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
+    """The board arguments of ``_kernels.board_footprints_flat`` besides :func:`board_tables`: the
+    poses ``T_world_target`` (B, 4, 4) and per board the summed-area table of its texels that
+    differ from a neighbour (``_kernels.texel_diff_table``)."""
+    from ._kernels import texel_diff_table
+
+    poses = np.ascontiguousarray([t.T_world_target for t in targets], dtype=np.float64)
+    return poses, tuple(texel_diff_table(np.ascontiguousarray(_target_texture(t))) for t in targets)
