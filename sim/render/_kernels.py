@@ -478,10 +478,12 @@ def finish(alb, ndl, amb, depth, rays, paved, uv, tab, sky, optics, scale):
 
 @nb.njit(cache=True, nogil=True)
 def board_footprints_flat(rays, per_pixel, cand, var, poses, boards, diffs, out):
-    """``out[k]``: whether the ``per_pixel`` rays of pixel ``k`` (rows ``k per_pixel ...`` of
-    ``rays`` (K per_pixel, 6)) all meet the plane of board ``var[k]`` (pose ``poses[var[k]]``
-    ``T_world_target`` (B, 4, 4)) inside one uniform patch of its printed texture, one texel of
-    margin all round (only where ``cand[k]``; False elsewhere).
+    """``out[k]``: whether the ``per_pixel = s * s`` rays of pixel ``k`` (rows ``k per_pixel ...``
+    of ``rays`` (K per_pixel, 6), an s x s grid) all meet the plane of board ``var[k]`` (pose
+    ``poses[var[k]]`` ``T_world_target`` (B, 4, 4)) inside one uniform patch of its printed
+    texture, one texel of margin all round (only where ``cand[k]``; False elsewhere).  The four
+    corner rays of the grid decide: a plane seen in front of the camera maps the grid to a convex
+    quadrilateral holding every other ray's hit.
 
     ``boards`` are :func:`board_texels`' tables (the texel of a point as that kernel finds it),
     ``diffs[b]`` the summed-area table ``(H + 1, W + 1)`` of board ``b``'s texels that differ from
@@ -499,7 +501,8 @@ def board_footprints_flat(rays, per_pixel, cand, var, poses, boards, diffs, out)
         h, w = tex.shape
         rmin, cmin, rmax, cmax = 1 << 30, 1 << 30, -(1 << 30), -(1 << 30)
         ok = True
-        for q in range(per_pixel):
+        s = int(np.sqrt(per_pixel) + 0.5)  # the outermost rays of the s x s grid bound the others
+        for q in (0, s - 1, per_pixel - s, per_pixel - 1):
             i = k * per_pixel + q
             ox, oy, oz = rays[i, 0] - P[0, 3], rays[i, 1] - P[1, 3], rays[i, 2] - P[2, 3]
             dx, dy, dz = np.float64(rays[i, 3]), np.float64(rays[i, 4]), np.float64(rays[i, 5])

@@ -288,7 +288,9 @@ class Renderer:
         :meth:`_radiance`), and whose ``s x s`` rays all meet that board's plane inside one
         uniform patch of the print (a texel of margin) keeps its centre sample: its rays would
         all return that sample's radiance (the ~35 % of candidates beside an edge that does not
-        cross them)."""
+        cross them).  The rays of such a pixel (its neighbours all lit) that meet that board side
+        are taken as lit without shadow rays: like the centre-sample test itself, this assumes no
+        shadow edge thinner than the pixel spacing."""
         import cv2
 
         from ._kernels import board_footprints_flat, pixel_means
@@ -313,9 +315,10 @@ class Renderer:
                                          board_tables(self.static.targets), diffs,
                                          np.empty(len(rows), np.bool_))
             cross = ~flat
-            rows, cols = rows[cross], cols[cross]
+            rows, cols, c, uniform = rows[cross], cols[cross], c[cross], uniform[cross]
             sub = sub.reshape(-1, s * s, 6)[cross].reshape(-1, 6)
-        rs = self._radiance(sub, t_ns, w, light, scale=scale)[0]
+        lit = np.repeat(np.where(uniform & (c % 2 == 0), c, 0).astype(np.uint16), s * s)  # lit: c even
+        rs = self._radiance(sub, t_ns, w, light, scale=scale, lit_code=lit)[0]
         pixel_means(rs, s * s, rows * W + cols, rad)
 
     def _mover_scene(self, t_ns: int) -> tuple[Any, TriangleTables] | None:
@@ -331,15 +334,17 @@ class Renderer:
 
     def _radiance(self, rays: F32, t_ns: int, w: WeatherState, light: Lighting,
                   mover_rays: npt.NDArray[np.bool_] | None = None, *, scale: float = 1.0,
-                  board_code: bool = False) -> tuple[F32, F32, npt.NDArray[np.uint8], npt.NDArray[np.uint8],
-                                                     npt.NDArray[np.uint16]]:
+                  board_code: bool = False, lit_code: npt.NDArray[np.uint16] | None = None
+                  ) -> tuple[F32, F32, npt.NDArray[np.uint8], npt.NDArray[np.uint8], npt.NDArray[np.uint16]]:
         """Radiance (N, 3) times ``scale`` of rays (N, 6) with shadows, fog and wet road; the
         z-depth (``inf``: sky), material and label of every ray and, when ``board_code``, which
         board side each ray sees and how it is lit (0: no board, else ``1 + 4 board + 2 front +
         lit``; an empty array otherwise).
 
         ``mover_rays`` (N,) bool limits the movers' cast to the rays that may see one (the renderer
-        passes the pixels inside the movers' projected outlines); ``None`` casts all.
+        passes the pixels inside the movers' projected outlines); ``None`` casts all.  A ray that
+        sees the board side ``lit_code`` (N,) names (a lit code as above; 0: none) is taken as lit
+        without a shadow ray (the supersamples of a pixel whose neighbours all see that side lit).
         """
         from ._kernels import surfaces
 
@@ -377,8 +382,12 @@ class Renderer:
         if targets:
             board_albedo(mat, uv, var, targets, front, alb)
         if count:
-            occ = self._occluded(srays[:count], smov[:count], t_ns)
-            ndl[spix[:count][occ]] = 0.0
+            spix, keep = spix[:count], slice(None)
+            if lit_code is not None:  # 2 + 4 board + 2 front: the code of a board ray lit so far
+                keep = (mat[spix] != MAT["target"]) | (2 + 4 * var[spix].astype(np.uint16)
+                                                       + 2 * front[spix].astype(np.uint16) != lit_code[spix])
+            occ = self._occluded(srays[:count][keep], smov[:count][keep], t_ns)
+            ndl[spix[keep][occ]] = 0.0
         rad = self._finish(alb, ndl, amb, depth, rays, paved, uv, w, light, scale)
         code = np.zeros(0, np.uint16)
         if board_code:

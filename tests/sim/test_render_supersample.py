@@ -1,5 +1,6 @@
-"""Target supersampling that skips the pixels whose footprint lies in one printed patch (#25):
-the image equals the one that casts every candidate's rays, and the skip is really taken."""
+"""Target supersampling that skips the pixels whose footprint lies in one printed patch and the
+shadow rays of supersamples whose neighbourhood is one lit board side (#25): the image equals the
+one that casts every candidate's rays with their shadow rays, and both skips are really taken."""
 
 from __future__ import annotations
 
@@ -58,8 +59,17 @@ def test_skipped_footprints_equal_casting_every_candidate(calib, monkeypatch: py
         out[:] = False
         return out
 
+    real_radiance = Renderer._radiance
+    shadow_skips: list[int] = []
+
+    def every_shadow_ray(self, *a, lit_code=None, **k):  # type: ignore[no-untyped-def]
+        shadow_skips.append(0 if lit_code is None else int(np.count_nonzero(lit_code)))
+        return real_radiance(self, *a, **k)
+
     monkeypatch.setattr(kernels, "board_footprints_flat", never)
+    monkeypatch.setattr(Renderer, "_radiance", every_shadow_ray)
     ref = r.render_pose(model, T, weather=DAY).radiance
+    assert max(shadow_skips) > 1000  # lit supersamples without shadow rays in the fast image
     diff = np.abs(fast - ref).max(axis=-1)
     assert diff.max() < 0.05  # 0..255 scale: float rounding of the 36-ray mean only
 
