@@ -133,7 +133,7 @@ def render_calibration_views(out: str | os.PathLike[str], cameras: Mapping[str, 
             (tmp / name / "frames").mkdir(parents=True)
             for T, t in zip(poses, stamps, strict=True):
                 view = renderer.render_pose(cameras[name], T @ rel[name], int(t), noise_key=k)
-                write_png(tmp / name / "frames" / f"{int(t)}.png", view.rgb)
+                write_png(tmp / name / "frames" / f"{int(t)}.png", view.rgb, photo=True)
             write_frame_timestamps(tmp / name / "timestamps.csv", stamps)
         cams = {name: {**cameras[name].to_kalibr(), "rostopic": f"/{name}/image_raw",
                        "T_body_cam": rel[name]} for name in names}

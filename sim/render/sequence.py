@@ -112,7 +112,7 @@ def _write_view(out: Path, group: list[Any], t: int, view: Any) -> None:
     for c in group:
         d = out / c.name
         if c.kind == "rgb":
-            write_png(d / "frames" / name, view.rgb)
+            write_png(d / "frames" / name, view.rgb, photo=True)
         elif c.kind == "depth":
             write_depth_carla_log(d / "frames" / name, view.depth_m)
             write_depth_mm(d / "mm" / name, view.depth_m)
