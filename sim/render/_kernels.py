@@ -350,7 +350,7 @@ def _shadow_ray(i, count, ox, oy, oz, sun, grid, srays, spix, smov):
 
 
 @nb.njit(cache=True, nogil=True)
-def surfaces(rays, hits, hits2, tables, tables2, board_flip, tex, light, grid):
+def surfaces(rays, hits, hits2, tables, tables2, board_flip, tex, light, grid, work):
     """Everything of the hits the shading needs, in one pass over the rays (N, 6).
 
     ``hits`` are the static scene's ``(t_hit, primitive_ids, primitive_uvs, primitive_normals)``,
@@ -360,7 +360,10 @@ def surfaces(rays, hits, hits2, tables, tables2, board_flip, tex, light, grid):
     ``board_flip[var]`` says for each calibration board whether its triangle normal points away
     from the observed side; ``tex`` are the albedo tables (``textures.kernel_tables``), ``light``
     is ``(sun direction, shadows, lift eps [m])`` and ``grid`` the movers' outlines seen along
-    the sun ``(raster, a0, b0, cell, e1, e2)`` (``a = p.e1``, ``b = p.e2``).
+    the sun ``(raster, a0, b0, cell, e1, e2)`` (``a = p.e1``, ``b = p.e2``).  ``work`` holds the
+    buffers of the results that do not leave the renderer, each at least N long (:func:`workspace`;
+    reused from view to view: fresh arrays this size cost as much kernel time in page faults as
+    the pass itself).
 
     Returns
     -------
@@ -377,12 +380,9 @@ def surfaces(rays, hits, hits2, tables, tables2, board_flip, tex, light, grid):
     material2, variant2, label2, uv_m2 = tables2
     sun, shadows, eps = light
     n = t.shape[0]
-    depth, ndl_out, amb, paved = (np.empty(n, np.float32), np.empty(n, np.float32),
-                                  np.empty(n, np.float32), np.empty(n, np.float32))
-    mat, var, lab = np.empty(n, np.uint8), np.empty(n, np.uint8), np.empty(n, np.uint8)
-    uv, alb = np.empty((n, 2), np.float32), np.empty((n, 3), np.float32)
-    front, smov = np.empty(n, np.bool_), np.empty(n, np.bool_)
-    srays, spix = np.empty((n, 6), np.float32), np.empty(n, np.int32)
+    depth, mat, lab = np.empty(n, np.float32), np.empty(n, np.uint8), np.empty(n, np.uint8)
+    var, uv, front, alb, paved, ndl_out, amb, srays, spix, smov = work
+    var, uv, front, alb, paved, ndl_out, amb = var[:n], uv[:n], front[:n], alb[:n], paved[:n], ndl_out[:n], amb[:n]
     has2 = map2.shape[0] > 1
     count = 0
     for i in range(n):
@@ -422,6 +422,14 @@ def surfaces(rays, hits, hits2, tables, tables2, board_flip, tex, light, grid):
             count += 1
     albedo_into(mat, var, uv, tex, alb, lab, paved)
     return depth, mat, var, lab, uv, front, alb, paved, ndl_out, amb, srays, spix, smov, count
+
+
+def workspace(n):
+    """Buffers for :func:`surfaces`' ``work`` argument, ``n`` rays long."""
+    return (np.empty(n, np.uint8), np.empty((n, 2), np.float32), np.empty(n, np.bool_),
+            np.empty((n, 3), np.float32), np.empty(n, np.float32), np.empty(n, np.float32),
+            np.empty(n, np.float32), np.empty((n, 6), np.float32), np.empty(n, np.int32),
+            np.empty(n, np.bool_))
 
 
 @nb.njit(cache=True, nogil=True)

@@ -159,6 +159,7 @@ class Renderer:
         self._movers_t: int | None = None
         self._movers: tuple[Any, TriangleTables] | None = None
         self._lock = threading.Lock()  # views of one instant may render on parallel threads
+        self._local = threading.local()  # per thread: the kernels' reusable buffers
 
     # ----------------------------------------------------------------------------- construction
     @classmethod
@@ -378,7 +379,7 @@ class Renderer:
             rays, r_hits, (map2, t2, p2, b2, n2), (st.material, st.variant, st.label, st.uv_m,
                                                    self.static.n_triangles),
             (mt.material, mt.variant, mt.label, mt.uv_m), flip, kernel_tables(self.static.ground),
-            (sun, shadows, np.float32(_SHADOW_EPS_M)), grid)
+            (sun, shadows, np.float32(_SHADOW_EPS_M)), grid, self._workspace(n))
         if targets:
             board_albedo(mat, uv, var, targets, front, alb)
         if count:
@@ -394,6 +395,15 @@ class Renderer:
             code = np.where(mat == MAT["target"], 1 + 4 * var.astype(np.uint16) + 2 * front.astype(np.uint16)
                             + (ndl > 0.0), 0).astype(np.uint16)
         return rad, depth, mat, labels, code
+
+    def _workspace(self, n: int) -> tuple[np.ndarray, ...]:
+        """This thread's buffers for ``_kernels.surfaces`` (grown to ``n`` rays when short)."""
+        from ._kernels import workspace
+
+        work = getattr(self._local, "work", None)
+        if work is None or len(work[0]) < n:
+            work = self._local.work = workspace(n)
+        return work
 
     def _finish(self, alb: F32, ndl: F32, amb: F32, depth: F32, rays: F32, paved: F32, uv: F32,
                 w: WeatherState, light: Lighting, scale: float) -> F32:
