@@ -434,7 +434,14 @@ def workspace(n):
 
 @nb.njit(cache=True, nogil=True)
 def finish(alb, ndl, amb, depth, rays, paved, uv, tab, sky, optics, scale):
-    """Radiance (N, 3) times ``scale``: lit surfaces ``albedo (1 - 0.45 wet paved) (e_sun n.s V +
+    """:func:`finish_into` a new (N, 3) array."""
+    return finish_into(alb, ndl, amb, depth, rays, paved, uv, tab, sky, optics, scale,
+                       np.empty((depth.shape[0], 3), np.float32))
+
+
+@nb.njit(cache=True, nogil=True)
+def finish_into(alb, ndl, amb, depth, rays, paved, uv, tab, sky, optics, scale, out):
+    """Radiance into ``out`` (N, 3) times ``scale``: lit surfaces ``albedo (1 - 0.45 wet paved) (e_sun n.s V +
     e_sky (0.6 + 0.4 n_z))`` (``ndl`` already 0 in shadow), the sky gradient where nothing was hit,
     puddles on paved ground mirroring the sky (where a coarse noise exceeds ``puddle_level``; none
     when it is ``inf``), then Koschmieder fog ``J t + A (1 - t)`` (no fog when ``beta`` is 0).
@@ -445,7 +452,6 @@ def finish(alb, ndl, amb, depth, rays, paved, uv, tab, sky, optics, scale):
     e_sun, e_sky, zenith, horizon, overcast, cloud, sky_level = sky
     wet, puddle_level, beta, airlight, sky_distance = optics
     n = depth.shape[0]
-    out = np.empty((n, 3), np.float32)
     puddling = np.isfinite(puddle_level)
     for i in range(n):
         d = depth[i]

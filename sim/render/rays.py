@@ -58,8 +58,9 @@ def subpixel_rays(model: CameraModel, rows: npt.ArrayLike, cols: npt.ArrayLike, 
     return rays.astype(np.float32)
 
 
-def world_rays(dirs_cam: npt.ArrayLike, T_world_cam: npt.ArrayLike) -> F32:
-    """Rays ``(..., 6)`` float32 ``[origin, direction]`` in the world for camera-frame directions.
+def world_rays(dirs_cam: npt.ArrayLike, T_world_cam: npt.ArrayLike, out: F32 | None = None) -> F32:
+    """Rays ``(..., 6)`` float32 ``[origin, direction]`` in the world for camera-frame directions
+    (into ``out`` when given: a C-contiguous float32 buffer of that shape).
 
     The rotation keeps ``|d|``, so hit distances stay z-depths.
     """
@@ -67,7 +68,8 @@ def world_rays(dirs_cam: npt.ArrayLike, T_world_cam: npt.ArrayLike) -> F32:
 
     d = np.asarray(dirs_cam, dtype=np.float32)
     T = np.asarray(T_world_cam, dtype=np.float64)
-    out = np.empty((*d.shape[:-1], 6), dtype=np.float32)
+    if out is None:
+        out = np.empty((*d.shape[:-1], 6), dtype=np.float32)
     transform_rays(np.ascontiguousarray(d).reshape(-1, 3), T[:3, :3].astype(np.float32),
                    T[:3, 3].astype(np.float32), out.reshape(-1, 6))
     return out

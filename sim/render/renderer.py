@@ -252,11 +252,13 @@ class Renderer:
         H, W = model.height_px, model.width_px
         w = weather or self.weather_at(t_ns)
         light = lighting(w)
-        rays = world_rays(camera_rays(model).reshape(-1, 3), T)
+        rays = world_rays(camera_rays(model).reshape(-1, 3), T, out=self._buffer("rays", (H * W, 6)))
         scale = 255.0 * light.gain
         ss = self.options.target_supersample > 1 and bool(self.static.targets)
-        rad, depth, mat, labels, code = self._radiance(rays, t_ns, w, light, self._mover_pixels(model, T, t_ns),
-                                                       scale=scale, board_code=ss)
+        blur = self.options.psf_sigma_px > 0  # the blur's output leaves, the radiance buffer stays
+        rad, depth, mat, labels, code = self._radiance(
+            rays, t_ns, w, light, self._mover_pixels(model, T, t_ns), scale=scale, board_code=ss,
+            rad_buffer=self._buffer("radiance", (H * W, 3)) if blur else None)
         if ss:
             self._supersample_targets(model, T, t_ns, w, light, scale, rad, mat, code)
         img = rad.reshape(H, W, 3)
@@ -267,7 +269,7 @@ class Renderer:
             if cov is not None:
                 a = (0.45 * cov)[..., None]
                 img = img * (1.0 - a) + a * np.float32(glow)
-        if self.options.psf_sigma_px > 0:
+        if blur:
             import cv2
 
             img = np.asarray(cv2.GaussianBlur(np.ascontiguousarray(img, dtype=np.float32), (0, 0),
@@ -335,7 +337,8 @@ class Renderer:
 
     def _radiance(self, rays: F32, t_ns: int, w: WeatherState, light: Lighting,
                   mover_rays: npt.NDArray[np.bool_] | None = None, *, scale: float = 1.0,
-                  board_code: bool = False, lit_code: npt.NDArray[np.uint16] | None = None
+                  board_code: bool = False, lit_code: npt.NDArray[np.uint16] | None = None,
+                  rad_buffer: F32 | None = None
                   ) -> tuple[F32, F32, npt.NDArray[np.uint8], npt.NDArray[np.uint8], npt.NDArray[np.uint16]]:
         """Radiance (N, 3) times ``scale`` of rays (N, 6) with shadows, fog and wet road; the
         z-depth (``inf``: sky), material and label of every ray and, when ``board_code``, which
@@ -346,6 +349,7 @@ class Renderer:
         passes the pixels inside the movers' projected outlines); ``None`` casts all.  A ray that
         sees the board side ``lit_code`` (N,) names (a lit code as above; 0: none) is taken as lit
         without a shadow ray (the supersamples of a pixel whose neighbours all see that side lit).
+        The radiance goes into ``rad_buffer`` (N, 3) when given.
         """
         from ._kernels import surfaces
 
@@ -389,7 +393,7 @@ class Renderer:
                                                        + 2 * front[spix].astype(np.uint16) != lit_code[spix])
             occ = self._occluded(srays[:count][keep], smov[:count][keep], t_ns)
             ndl[spix[keep][occ]] = 0.0
-        rad = self._finish(alb, ndl, amb, depth, rays, paved, uv, w, light, scale)
+        rad = self._finish(alb, ndl, amb, depth, rays, paved, uv, w, light, scale, rad_buffer)
         code = np.zeros(0, np.uint16)
         if board_code:
             code = np.where(mat == MAT["target"], 1 + 4 * var.astype(np.uint16) + 2 * front.astype(np.uint16)
@@ -405,10 +409,20 @@ class Renderer:
             work = self._local.work = workspace(n)
         return work
 
+    def _buffer(self, name: str, shape: tuple[int, ...]) -> F32:
+        """This thread's float32 buffer ``name`` of ``shape`` (reused from view to view: its
+        contents live until the thread asks for ``name`` again)."""
+        n = int(np.prod(shape))
+        buf = getattr(self._local, name, None)
+        if buf is None or buf.size < n:
+            buf = np.empty(n, np.float32)
+            setattr(self._local, name, buf)
+        return buf[:n].reshape(shape)
+
     def _finish(self, alb: F32, ndl: F32, amb: F32, depth: F32, rays: F32, paved: F32, uv: F32,
-                w: WeatherState, light: Lighting, scale: float) -> F32:
-        """``_kernels.finish`` with this renderer's weather optics."""
-        from ._kernels import finish
+                w: WeatherState, light: Lighting, scale: float, out: F32 | None = None) -> F32:
+        """``_kernels.finish_into`` (``out``, or a new array) with this renderer's weather optics."""
+        from ._kernels import finish_into
 
         optics = self.options.weather_optics
         wet = w.wetness / 100.0 if optics else 0.0
@@ -420,8 +434,8 @@ class Renderer:
                np.float32(w.cloudiness / 100.0), np.float32(1.6 * light.e_sky + 0.25 * light.e_sun))
         wet_fog = (np.float32(wet), np.float32(puddle_level), np.float32(beta), horizon_radiance(w, light),
                    np.float32(_SKY_DISTANCE_M))
-        return finish(alb, ndl, amb, depth, rays, paved, uv, kernel_tables(self.static.ground)[0], sky,
-                      wet_fog, np.float32(scale))
+        return finish_into(alb, ndl, amb, depth, rays, paved, uv, kernel_tables(self.static.ground)[0], sky,
+                           wet_fog, np.float32(scale), np.empty((len(depth), 3), np.float32) if out is None else out)
 
     def _occluded(self, rays: F32, mover_may: npt.NDArray[np.bool_], t_ns: int) -> npt.NDArray[np.bool_]:
         """Shadow rays (N, 6) that hit something; the movers' scene is asked only for the rays
