@@ -567,3 +567,30 @@ def pixel_means(samples, per_pixel, rows_flat, out):
         j = rows_flat[k]
         out[j, 0], out[j, 1], out[j, 2] = a0 * inv, a1 * inv, a2 * inv
     return out
+
+
+@nb.njit(cache=True, nogil=True)
+def board_plane_samples(rays, var, code, poses, sun, depth, uv, ndl, amb):
+    """Where rays (N, 6) meet the plane of board ``var[i]`` (pose ``poses[var[i]]``
+    ``T_world_target``): the ray parameter into ``depth`` (the z-depth of a camera ray), target
+    coordinates into ``uv`` and the shading terms of :func:`surfaces` for that plane into ``ndl``
+    (``max(0, n.s)`` of the normal facing the ray; 0 when ``code[i]`` says unlit: ``code`` as
+    ``Renderer._radiance``'s board code) and ``amb`` (``0.6 + 0.4 n_z``).  A ray parallel to the
+    plane gets ``inf`` (the caller casts only rays whose neighbours saw the plane)."""
+    for i in range(rays.shape[0]):
+        P = poses[var[i]]
+        ox, oy, oz = rays[i, 0] - P[0, 3], rays[i, 1] - P[1, 3], rays[i, 2] - P[2, 3]
+        dx, dy, dz = np.float64(rays[i, 3]), np.float64(rays[i, 4]), np.float64(rays[i, 5])
+        nx, ny, nz = P[0, 2], P[1, 2], P[2, 2]
+        dn = nx * dx + ny * dy + nz * dz
+        t = -(nx * ox + ny * oy + nz * oz) / dn if dn != 0.0 else np.inf
+        px, py, pz = ox + t * dx, oy + t * dy, oz + t * dz
+        depth[i] = t
+        uv[i, 0] = P[0, 0] * px + P[1, 0] * py + P[2, 0] * pz
+        uv[i, 1] = P[0, 1] * px + P[1, 1] * py + P[2, 1] * pz
+        if dn > 0.0:  # the normal facing the viewer
+            nx, ny, nz = -nx, -ny, -nz
+        amb[i] = 0.6 + 0.4 * nz
+        lit = (code[i] - 1) % 2 == 1
+        ndl[i] = max(nx * sun[0] + ny * sun[1] + nz * sun[2], 0.0) if lit else 0.0
+    return depth

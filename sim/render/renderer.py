@@ -320,9 +320,50 @@ class Renderer:
             cross = ~flat
             rows, cols, c, uniform = rows[cross], cols[cross], c[cross], uniform[cross]
             sub = sub.reshape(-1, s * s, 6)[cross].reshape(-1, 6)
-        lit = np.repeat(np.where(uniform & (c % 2 == 0), c, 0).astype(np.uint16), s * s)  # lit: c even
+        n = s * s
+        if uniform.any():  # a coarse cast, the rest on the board's plane where it sees only the board
+            done, rs = self._plane_supersamples(sub, s, c, uniform, t_ns, w, light, scale)
+            pixel_means(rs, n, rows[done] * W + cols[done], rad)
+            keep = np.ones(len(rows), bool)
+            keep[done] = False
+            rows, cols, c, uniform = rows[keep], cols[keep], c[keep], uniform[keep]
+            sub = sub.reshape(-1, n, 6)[keep].reshape(-1, 6)
+        lit = np.repeat(np.where(uniform & (c % 2 == 0), c, 0).astype(np.uint16), n)  # lit: c even
         rs = self._radiance(sub, t_ns, w, light, scale=scale, lit_code=lit)[0]
-        pixel_means(rs, s * s, rows * W + cols, rad)
+        pixel_means(rs, n, rows * W + cols, rad)
+
+    def _plane_supersamples(self, sub: F32, s: int, c: npt.NDArray[np.uint16], uniform: npt.NDArray[np.bool_],
+                            t_ns: int, w: WeatherState, light: Lighting, scale: float
+                            ) -> tuple[npt.NDArray[np.intp], F32]:
+        """The supersamples of the ``uniform`` pixels (board code ``c``, rays ``sub`` (K s s, 6))
+        whose coarse 3 x 3 subset of rays, cast into the scene, all see the pixel's board side as
+        the pixel's neighbours do: those pixels (indices into K) and the radiance (s s per pixel)
+        of all their rays where they meet the board's plane, shaded like a cast hit (lit as the
+        code says; no occluder thinner than a third of the pixel between the coarse rays)."""
+        from ._kernels import board_plane_samples, board_texels
+
+        n = s * s
+        q = np.round(np.linspace(0, s - 1, 3)).astype(int)
+        coarse_idx = (q[:, None] * s + q[None, :]).ravel()
+        u = np.flatnonzero(uniform)
+        cu = c[u]
+        coarse = np.ascontiguousarray(sub.reshape(-1, n, 6)[u][:, coarse_idx].reshape(-1, 6))
+        lit = np.repeat(np.where(cu % 2 == 0, cu, 0).astype(np.uint16), len(coarse_idx))
+        seen = self._radiance(coarse, t_ns, w, light, scale=scale, board_code=True, lit_code=lit)[4]
+        ok = (seen.reshape(len(u), -1) == cu[:, None]).all(axis=1)
+        done = u[ok]
+        rays = np.ascontiguousarray(sub.reshape(-1, n, 6)[done].reshape(-1, 6))
+        code = np.repeat(c[done], n)
+        var = ((code - 1) >> 2).astype(np.uint8)
+        m = len(rays)
+        depth, uv = np.empty(m, np.float32), np.empty((m, 2), np.float32)
+        ndl, amb, alb = np.empty(m, np.float32), np.empty(m, np.float32), np.empty((m, 3), np.float32)
+        poses, _ = board_footprint_tables(self.static.targets)
+        board_plane_samples(rays, var, code, poses, np.asarray(light.sun_dir, np.float64), depth, uv, ndl, amb)
+        board_texels(np.full(m, MAT["target"], np.uint8), uv, var, ((code - 1) >> 1) % 2 == 1,
+                     board_tables(self.static.targets), alb)
+        rs = self._finish(alb, ndl, amb, depth, rays, np.zeros(m, np.float32), uv, w, light, scale)
+        return done, rs
 
     def _mover_scene(self, t_ns: int) -> tuple[Any, TriangleTables] | None:
         if len(self.world.agents) == 0:

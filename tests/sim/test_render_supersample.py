@@ -66,10 +66,19 @@ def test_skipped_footprints_equal_casting_every_candidate(calib, monkeypatch: py
         shadow_skips.append(0 if lit_code is None else int(np.count_nonzero(lit_code)))
         return real_radiance(self, *a, **k)
 
+    real_plane = Renderer._plane_supersamples
+    plane_pixels: list[int] = []
+
+    def no_plane(self, sub, s, *a):  # type: ignore[no-untyped-def]
+        plane_pixels.append(len(real_plane(self, sub, s, *a)[0]))
+        return np.zeros(0, np.intp), np.zeros((0, 3), np.float32)
+
     monkeypatch.setattr(kernels, "board_footprints_flat", never)
     monkeypatch.setattr(Renderer, "_radiance", every_shadow_ray)
+    monkeypatch.setattr(Renderer, "_plane_supersamples", no_plane)
     ref = r.render_pose(model, T, weather=DAY).radiance
     assert max(shadow_skips) > 1000  # lit supersamples without shadow rays in the fast image
+    assert plane_pixels and plane_pixels[0] > 100  # pixels whose supersamples met the plane
     diff = np.abs(fast - ref).max(axis=-1)
     assert diff.max() < 0.05  # 0..255 scale: float rounding of the 36-ray mean only
 
