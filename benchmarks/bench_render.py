@@ -4,6 +4,9 @@ sequence.
     .venv/bin/python benchmarks/bench_render.py                  # sizes 256, 512, 1024; SVI 10 s
     .venv/bin/python benchmarks/bench_render.py --svi-seconds 60 # the issue's 60 s sequence
     .venv/bin/python benchmarks/bench_render.py --sizes 1024 --stages --svi-seconds 0
+    # issue #25 in one command: 1024 step with stages, 30 s calibration drive before/after
+    .venv/bin/python benchmarks/bench_render.py --sizes 1024 --stages --svi-seconds 0 \
+        --calib-seconds 30 --cli /path/to/old/.venv/bin/ibiscape-eval
 
 A *stereo step* renders two RGB views (left and right camera of the SVI rig, 0.4 m apart) with
 depth and segmentation: rays, static + movers casts, textures, shadows, weather, sensor noise (PNG
@@ -14,7 +17,9 @@ one: on two idle cores the two-thread step takes about half its CPU time).  The 
 raycaster alone: ``cast_rays(nthreads=0)`` of the same rays against the same static scene, twice
 (one per view).  RATIO = render time / raw cast time (1 would be a renderer that adds nothing to
 the ray cast).  ``--stages`` adds the CPU time per stage of the sequential 1024 step (the casts, the
-fused numba passes, blur, noise; inclusive times, benchmark-only instrumentation of internals).
+fused numba passes, blur, noise, target supersampling and its board-plane path; inclusive times,
+benchmark-only instrumentation of internals) and, outside the step's total, the PNG encoding of
+its two RGB views as ``sim`` writes them (``write_png(photo=True)``) and with the default settings.
 
 The sequence row runs the command line (``ibiscape-eval sim --setup svi --resolution 1024``, PNG
 writing included) in fresh processes, once for 0.5 s and once for ``--svi-seconds``: the difference
@@ -113,6 +118,8 @@ def _stages(r: Any, step: Callable[[], None], repeat: int) -> list[tuple[str, fl
                (renderer.Renderer, "_radiance", "per-ray work (casts + kernels)"),
                (renderer.Renderer, "_supersample_targets", "target supersampling (all of it)"),
                (_kernels, "board_texels", "numba: board texels"),
+               (_kernels, "board_footprints_flat", "numba: footprints in one printed patch"),
+               (renderer.Renderer, "_plane_supersamples", "supersamples on the board's plane (coarse cast + numba)"),
                (renderer.Renderer, "render_pose", "whole view")]
     import cv2
 
@@ -129,11 +136,31 @@ def _stages(r: Any, step: Callable[[], None], repeat: int) -> list[tuple[str, fl
         for _ in range(repeat):
             step()
         acc["TOTAL stereo step"] = time.process_time() - c0
+        acc.update(_png_stage(r, repeat))
     finally:
         for obj, name, fn in saved:
             setattr(obj, name, fn)
         object.__setattr__(static, "scene", static.scene.scene)
     return sorted(((k, v / repeat) for k, v in acc.items()), key=lambda kv: -kv[1])
+
+
+def _png_stage(r: Any, repeat: int) -> dict[str, float]:
+    """CPU time of writing the two RGB views of the last step as ``sim`` does (``write_png``
+    ``photo=True``) and with the default settings, outside the step's total (``sim`` writes on
+    a third thread while the next frame renders)."""
+    from ibiscape_eval.io.images import write_png
+
+    views = getattr(r, "_bench_views", [])
+    out: dict[str, float] = {}
+    with tempfile.TemporaryDirectory(prefix="bench_render_png_") as d:
+        for label, photo in (("(not in TOTAL) PNG, 2 RGB views as sim writes them", True),
+                             ("(not in TOTAL) PNG, 2 RGB views, default zlib level 1", False)):
+            c0 = time.process_time()
+            for _ in range(repeat):
+                for i, v in enumerate(views):
+                    write_png(Path(d) / f"{i}.png", v.rgb, photo=photo)
+            out[label] = time.process_time() - c0
+    return out
 
 
 def _svi(seconds: float) -> tuple[float, float, float, int]:
@@ -233,8 +260,8 @@ def main() -> None:
             w = WeatherState(fog_density=20.0, precipitation=30.0, wetness=40.0) if scene == "dynamic" else None
 
             def step(model: Any = model, w: Any = w, r: Any = r, TL: Any = TL, TR: Any = TR) -> None:
-                r.render_pose(model, TL, T_NS, weather=w)
-                r.render_pose(model, TR, T_NS, noise_key=1, weather=w)
+                r._bench_views = [r.render_pose(model, TL, T_NS, weather=w),
+                                  r.render_pose(model, TR, T_NS, noise_key=1, weather=w)]
 
             rays = [tensor(world_rays(camera_rays(model), T).reshape(-1, 6)) for T in (TL, TR)]
 
