@@ -3,12 +3,14 @@ than the default at the same zlib level on a noisy image."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from ibiscape_eval.io.images import read_png, write_png
 
 
-def test_photo_png_is_lossless_and_smaller_on_a_noisy_image(tmp_path) -> None:
+def test_photo_png_is_lossless_and_smaller_on_a_noisy_image(tmp_path: Path) -> None:
     rng = np.random.default_rng(3)
     x = np.linspace(0.0, 1.0, 160)
     base = 60.0 + 120.0 * np.outer(np.sin(3 * x) ** 2, x)[..., None] * np.array([1.0, 0.8, 0.6])

@@ -4,6 +4,8 @@ one that casts every candidate's rays with their shadow rays, and both skips are
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 
@@ -16,7 +18,7 @@ from ibiscape_eval.sim.world import build_world
 DAY = WeatherState(cloudiness=10.0, sun_altitude_angle=50.0, sun_azimuth_angle=200.0)
 
 
-def look_at_board(target, dist_m: float, yaw_deg: float, pitch_deg: float, roll_deg: float) -> np.ndarray:
+def look_at_board(target: Any, dist_m: float, yaw_deg: float, pitch_deg: float, roll_deg: float) -> np.ndarray:
     """T_world_cam of a camera ``dist_m`` in front of the board centre, turned by yaw/pitch/roll."""
     from scipy.spatial.transform import Rotation
 
@@ -37,7 +39,7 @@ def calib() -> tuple[Renderer, object]:
 
 
 @pytest.mark.parametrize(("dist", "yaw", "pitch", "roll"), [(5.0, 20.0, -10.0, 5.0), (9.0, -35.0, 8.0, -12.0)])
-def test_skipped_footprints_equal_casting_every_candidate(calib, monkeypatch: pytest.MonkeyPatch, dist: float,
+def test_skipped_footprints_equal_casting_every_candidate(calib: Any, monkeypatch: pytest.MonkeyPatch, dist: float,
                                                           yaw: float, pitch: float, roll: float) -> None:
     r, target = calib
     model = CameraModel.from_fov(192, 160, 80.0)
@@ -45,7 +47,7 @@ def test_skipped_footprints_equal_casting_every_candidate(calib, monkeypatch: py
     flat_counts: list[int] = []
     real = kernels.board_footprints_flat
 
-    def counted(*a):  # type: ignore[no-untyped-def]
+    def counted(*a: Any) -> Any:
         out = real(*a)
         flat_counts.append(int(out.sum()))
         return out
@@ -54,7 +56,7 @@ def test_skipped_footprints_equal_casting_every_candidate(calib, monkeypatch: py
     fast = r.render_pose(model, T, weather=DAY).radiance
     assert flat_counts and flat_counts[0] > 100  # the skip is taken
 
-    def never(*a):  # type: ignore[no-untyped-def]
+    def never(*a: Any) -> Any:
         out = a[-1]
         out[:] = False
         return out
@@ -62,14 +64,14 @@ def test_skipped_footprints_equal_casting_every_candidate(calib, monkeypatch: py
     real_radiance = Renderer._radiance
     shadow_skips: list[int] = []
 
-    def every_shadow_ray(self, *a, lit_code=None, **k):  # type: ignore[no-untyped-def]
+    def every_shadow_ray(self: Renderer, *a: Any, lit_code: Any = None, **k: Any) -> Any:
         shadow_skips.append(0 if lit_code is None else int(np.count_nonzero(lit_code)))
         return real_radiance(self, *a, **k)
 
     real_plane = Renderer._plane_supersamples
     plane_pixels: list[int] = []
 
-    def no_plane(self, sub, s, *a):  # type: ignore[no-untyped-def]
+    def no_plane(self: Renderer, sub: np.ndarray, s: int, *a: Any) -> Any:
         plane_pixels.append(len(real_plane(self, sub, s, *a)[0]))
         return np.zeros(0, np.intp), np.zeros((0, 3), np.float32)
 
@@ -95,7 +97,7 @@ def test_texel_diff_table_counts_changes() -> None:
         assert got == brute[r0:r1 + 1, c0:c1 + 1].sum()
 
 
-def test_footprint_crossing_a_printed_edge_is_not_flat(calib) -> None:
+def test_footprint_crossing_a_printed_edge_is_not_flat(calib: Any) -> None:
     """Rays straddling a square's edge are not flat; the same rays moved inside a square are."""
     from ibiscape_eval.sim.render.textures import board_footprint_tables, board_tables
 
