@@ -112,7 +112,7 @@ def _stages(r: Any, step: Callable[[], None], repeat: int) -> list[tuple[str, fl
                (renderer, "rain_streaks", "rain streaks"), (renderer, "board_albedo", "board textures"),
                (renderer, "sensor_output", "sensor noise + 8 bit (quantize)"),
                (_kernels, "surfaces", "numba: hits, albedo, shadow rays (surfaces)"),
-               (_kernels, "finish", "numba: shading, wet road, fog (finish)"),
+               (_kernels, "finish_into", "numba: shading, wet road, fog (finish)"),
                (renderer.Renderer, "_occluded", "shadow rays (static + movers)"),
                (renderer.Renderer, "_mover_pixels", "movers' pixels"),
                (renderer.Renderer, "_radiance", "per-ray work (casts + kernels)"),
