@@ -294,27 +294,40 @@ def main() -> None:
                 if a.stages:
                     stages[f"{kind} ({scene}) {n}x{n}"] = _stages(r, step, a.repeat)
         print(f"{kind} world: {r.static.n_triangles} triangles, scene built in {build_s:.2f} s", flush=True)
+    _print_steps(rows, stages)
+    if a.svi_seconds > 0:
+        _svi_rows(a.svi_seconds)
+
+
+def _print_steps(rows: list[tuple[str, float, float, float, float]],
+                 stages: dict[str, list[tuple[str, float]]]) -> None:
+    """The stereo-step table, this process's peak RSS and the stages."""
     print(f"\n{'stereo step (2 RGB + depth + seg)':<36} {'step [s]':>9} {'cpu [s]':>8} {'steps/s':>8} "
           f"{'raw cast x2 [s]':>16} {'cpu [s]':>8} {'RATIO wall':>11} {'RATIO cpu':>10}")
     for name, ts, cs, tc, cc in rows:
         print(f"{name:<36} {ts:>9.3f} {cs:>8.3f} {1 / ts:>8.2f} {tc:>16.3f} {cc:>8.3f} {ts / tc:>11.1f} "
               f"{cs / cc:>10.1f}")
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(f"peak RSS of this process (both worlds, every size): {peak:.0f} MB")
     for name, st in stages.items():
         print(f"\nCPU per stage, {name} stereo step, views one after the other (inclusive) [ms]")
         for label, v in st:
-            print(f"  {label:<46} {1000 * v:8.1f}")
-    if a.svi_seconds > 0:
-        w0, c0, _, f0 = _svi(0.5)
-        w1, c1, peak, f1 = _svi(a.svi_seconds)
-        per_w, per_c = (w1 - w0) / (f1 - f0), (c1 - c0) / (f1 - f0)
-        fix_w, fix_c = w0 - f0 * per_w, c0 - f0 * per_c
-        print(f"\nSVI at 1024x1024: {a.svi_seconds:g} s ({f1} stereo frames) {w1:.1f} s wall, {c1:.1f} s CPU, "
-              f"{peak:.0f} MB peak; 0.5 s ({f0} frames) {w0:.1f} s wall, {c0:.1f} s CPU")
-        print(f"  per stereo frame (PNG writing included): {per_w:.3f} s wall, {per_c:.3f} s CPU; fixed "
-              f"{fix_w:.1f} s wall, {fix_c:.1f} s CPU")
-        print(f"  a 60 s sequence (1201 frames) extrapolates to {(fix_w + 1201 * per_w) / 60:.1f} min wall here, "
-              f"{(fix_c + 1201 * per_c) / 60:.1f} min of CPU (on two idle cores about half of that in wall "
-              "time; target <= 10 min wall)")
+            print(f"  {label:<58} {1000 * v:8.1f}")
+
+
+def _svi_rows(seconds: float) -> None:
+    """The SVI sequence rows: fixed cost and cost per frame from a 0.5 s and a long run."""
+    w0, c0, _, f0 = _svi(0.5)
+    w1, c1, peak, f1 = _svi(seconds)
+    per_w, per_c = (w1 - w0) / (f1 - f0), (c1 - c0) / (f1 - f0)
+    fix_w, fix_c = w0 - f0 * per_w, c0 - f0 * per_c
+    print(f"\nSVI at 1024x1024: {seconds:g} s ({f1} stereo frames) {w1:.1f} s wall, {c1:.1f} s CPU, "
+          f"{peak:.0f} MB peak; 0.5 s ({f0} frames) {w0:.1f} s wall, {c0:.1f} s CPU")
+    print(f"  per stereo frame (PNG writing included): {per_w:.3f} s wall, {per_c:.3f} s CPU; fixed "
+          f"{fix_w:.1f} s wall, {fix_c:.1f} s CPU")
+    print(f"  a 60 s sequence (1201 frames) extrapolates to {(fix_w + 1201 * per_w) / 60:.1f} min wall here, "
+          f"{(fix_c + 1201 * per_c) / 60:.1f} min of CPU (on two idle cores about half of that in wall "
+          "time; target <= 10 min wall)")
 
 
 if __name__ == "__main__":
