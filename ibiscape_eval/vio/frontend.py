@@ -54,7 +54,6 @@ class StereoFrontEnd:
         win = max(round(params.klt_window_px * math.sqrt(s)) | 1, 7)
         self.win = (win, win)
         self.levels = params.klt_levels
-        self.check_levels = min(params.klt_check_levels, params.klt_levels)
         self.crit = (3, params.klt_iters, params.klt_eps_px)   # TERM_CRITERIA_COUNT | EPS
         self.R_bc = rig.T_body_left[:3, :3]
         self.K = rig.left.K
@@ -91,10 +90,9 @@ class StereoFrontEnd:
         fwd = np.flatnonzero(ok)
         if len(fwd):
             q0 = p0.reshape(-1, 2)[fwd]
-            # started at the forward start, so the coarse levels add little (klt_check_levels)
             pb, stb, _ = cv2.calcOpticalFlowPyrLK(pyr1, pyr0, p1[fwd].reshape(-1, 1, 2).copy(),
                                                   q0.reshape(-1, 1, 2).copy(), winSize=self.win,
-                                                  maxLevel=self.check_levels, criteria=crit,
+                                                  maxLevel=self.levels, criteria=crit,
                                                   flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
             fb = np.linalg.norm(pb.reshape(-1, 2) - q0, axis=1)
             ok[fwd] = (stb.ravel() == 1) & (fb < self.fb_px)
@@ -187,8 +185,10 @@ class StereoFrontEnd:
             # each point is rectified on its own: the previous frame's rectified corners and
             # these are reused below instead of rectifying again (the same numbers)
             prev = self._tracks
+            r0 = (np.column_stack([prev.uL[idx], prev.v[idx]]) if len(prev.uL) == len(self.pts)
+                  else self.rig.rectify_points(self.pts[idx], "left"))
             rl = self.rig.rectify_points(p1[idx], "left")
-            inl = self._ransac(np.column_stack([prev.uL[idx], prev.v[idx]]), rl)
+            inl = self._ransac(r0, rl)
             idx, rl = idx[inl], rl[inl]
             pts, ids, disp = p1[idx], self.ids[idx], self.disp[idx]
         else:

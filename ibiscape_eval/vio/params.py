@@ -59,7 +59,6 @@ class VioParams:
     klt_levels: int = 3
     klt_iters: int = 30
     klt_eps_px: float = 0.01
-    klt_check_levels: int = 3
     fb_max_px: float = 1.0
     epipolar_max_px: float = 1.5
     ransac_px: float = 1.0
