@@ -180,8 +180,8 @@ def decode_png_grey(data: bytes) -> npt.NDArray[np.uint8] | None:
     the caller gives to OpenCV.
 
     Twice as fast as OpenCV's libpng for the RGB frames the generator writes
-    (``benchmarks/bench_png.py``: 512 px 6.2 -> 2.7 ms, 1024 px 22.7 -> 12.0 ms of CPU
-    per image): libdeflate inflates about 3x faster than the zlib 1.2.11 OpenCV's wheel links,
+    (``benchmarks/bench_png.py`` on rendered SVI frames: 512 px 6.4 -> 3.0 ms, 1024 px
+    23.1 -> 11.0 ms of CPU per image, at a load average of 24): libdeflate inflates about 3x faster than the zlib 1.2.11 OpenCV's wheel links,
     and the unfiltering runs in numba with the grey conversion fused into it.
     """
     import zlib
