@@ -121,11 +121,10 @@ def read_gray_image(path: str | os.PathLike[str]) -> npt.NDArray[np.uint8]:
     """An 8-bit grey image ``(H, W)`` (colour images are converted with OpenCV's weights)."""
     import cv2
 
-    from .images import imread_checked
+    from .images import read_grey
 
-    img = imread_checked(path, cv2.IMREAD_GRAYSCALE,
-                         missing="image file is missing; check the frame list",
-                         unreadable="not an image OpenCV can read")
+    img = read_grey(path, missing="image file is missing; check the frame list",
+                    unreadable="not an image OpenCV can read")
     if img.dtype != np.uint8:
         img = cv2.convertScaleAbs(img, alpha=255.0 / max(float(img.max()), 1.0))
     return np.asarray(img, dtype=np.uint8)

@@ -110,14 +110,13 @@ class StereoFrontEnd:
         pred[bad] = self.pts[bad]
         return pred.astype(np.float32)
 
-    def _ransac(self, p0: npt.NDArray[np.float32], p1: npt.NDArray[np.float32]) -> npt.NDArray[np.bool_]:
+    def _ransac(self, r0: FloatArray, r1: FloatArray) -> npt.NDArray[np.bool_]:
+        """Inliers of a fundamental matrix between the rectified points ``r0`` -> ``r1``."""
         import cv2
 
-        keep = np.ones(len(p0), dtype=bool)
-        if len(p0) < 12:
+        keep = np.ones(len(r0), dtype=bool)
+        if len(r0) < 12:
             return keep
-        r0 = self.rig.rectify_points(p0, "left")
-        r1 = self.rig.rectify_points(p1, "left")
         if np.median(np.linalg.norm(r1 - r0, axis=1)) < 1.0:
             return keep  # too little motion for a fundamental matrix; the back end's Huber copes
         F, mask = cv2.findFundamentalMat(r0, r1, cv2.FM_RANSAC, self.ransac_px, 0.999)
@@ -179,11 +178,18 @@ class StereoFrontEnd:
         matches, when the frame needs them (keyframes): the right image is then the only one
         read and tracked for it."""
         pyr_l = self._pyramid(left)
-        if self._prev_pyr is not None and len(self.pts):
+        rl = np.zeros((0, 2))
+        if self._prev_pyr is not None and len(self.pts) and self._tracks is not None:
             p1, ok = self._lk(self._prev_pyr, pyr_l, self.pts, self._predict(R_b0_b1))
             idx = np.flatnonzero(ok)
-            inl = self._ransac(self.pts[idx], p1[idx])
-            idx = idx[inl]
+            # each point is rectified on its own: the previous frame's rectified corners and
+            # these are reused below instead of rectifying again (the same numbers)
+            prev = self._tracks
+            r0 = (np.column_stack([prev.uL[idx], prev.v[idx]]) if len(prev.uL) == len(self.pts)
+                  else self.rig.rectify_points(self.pts[idx], "left"))
+            rl = self.rig.rectify_points(p1[idx], "left")
+            inl = self._ransac(r0, rl)
+            idx, rl = idx[inl], rl[inl]
             pts, ids, disp = p1[idx], self.ids[idx], self.disp[idx]
         else:
             pts = np.zeros((0, 2), dtype=np.float32)
@@ -202,6 +208,7 @@ class StereoFrontEnd:
         else:
             new = np.zeros((0, 2), dtype=np.float32)
         if len(new):
+            rl = np.concatenate([rl, self.rig.rectify_points(new, "left")])
             pts = np.concatenate([pts, new])
             ids = np.concatenate([ids, np.arange(self._next_id, self._next_id + len(new))])
             self._next_id += len(new)
@@ -209,7 +216,6 @@ class StereoFrontEnd:
             disp = np.concatenate([disp, np.full(len(new), fill, dtype=np.float32)])
         self.pts, self.ids, self.disp = pts, ids, disp
         self._prev_pyr = pyr_l
-        rl = self.rig.rectify_points(pts, "left")
         self._tracks = StereoObservations(int(stamp_ns), ids.astype(np.int64), rl[:, 0],
                                           np.full(len(pts), np.nan), rl[:, 1])
         return self._tracks

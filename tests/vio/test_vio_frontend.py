@@ -182,3 +182,23 @@ def test_redetect_ratio_skips_detection_until_the_tracks_thin_out(monkeypatch):
     monkeypatch.setattr(always, "_detect", lambda img, pts: calls2.append(len(pts)) or real2(img, pts))
     always.track(50_000_000, left)                      # redetect_ratio 1: below 70 % -> detect
     assert calls2 == [kept]
+
+
+def test_forward_backward_check_rejects_tracks_into_another_scene():
+    """The forward-backward check keeps the true tracks of a moved scene and rejects the tracks
+    into an unrelated one, which the forward track alone mostly calls converged.  (A backward
+    track over fewer pyramid levels, started at the forward start, let 35 % of them through.)"""
+    rig = _rig()
+    cam = rig.left
+    tex = _texture(4)
+    fe = StereoFrontEnd(rig, VioParams(max_features=150))
+    img0 = _render(tex, cam, np.zeros(3))
+    fe.track(0, img0)
+    p0 = fe.pts
+    _, ok = fe._lk(img0, _render(tex, cam, np.array([0.1, 0.05, 0.3])), p0, p0)
+    assert ok.mean() > 0.9
+    loose = StereoFrontEnd(rig, VioParams(max_features=150, fb_max_px=1e9))
+    other = _render(_texture(5), cam, np.zeros(3))
+    _, ok_fwd = loose._lk(img0, other, p0, p0)
+    _, ok = fe._lk(img0, other, p0, p0)
+    assert ok_fwd.mean() > 0.5 and ok.mean() < 0.1, (ok_fwd.mean(), ok.mean())
