@@ -180,6 +180,38 @@ def in_memory(n_events: int, repeat: int) -> None:
               f"{n / wa / 1e6:10.0f} {n / wb / 1e6:13.0f} {wa / wb:5.1f}x "
               f"{pa:8.0f}/{pb:.0f}/{pc:.0f}")
     numba.set_num_threads(1)
+    roofline(n, (t, x, y, p), repeat, threads)
+
+
+def roofline(n: int, cols: tuple[np.ndarray, ...], repeat: int, threads: int) -> None:
+    """The machine's memory speed on the same bytes: numpy copying every column (what a filter
+    that keeps everything must do), on one thread (CPU time) and split over ``threads`` Python
+    threads (wall time; numpy releases the GIL while copying)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    into = [np.empty_like(a) for a in cols]
+    nbytes = sum(a.itemsize for a in cols)
+
+    def copy_into(parts: int = 1, k: int = 0) -> None:
+        for o, a in zip(into, cols, strict=True):
+            m = a.shape[0]
+            np.copyto(o[m * k // parts : m * (k + 1) // parts], a[m * k // parts : m * (k + 1) // parts])
+
+    def copy_new() -> list[np.ndarray]:
+        return [a.copy() for a in cols]
+
+    pool = ThreadPoolExecutor(threads)
+
+    def copy_into_threads() -> None:
+        list(pool.map(lambda k: copy_into(threads, k), range(threads)))
+
+    c1, c2 = best_of(copy_into, repeat), best_of(copy_new, repeat)
+    w2 = best_times(copy_into_threads, repeat)[1]
+    pool.shutdown()
+    print(f"  roofline: numpy copying t, x, y, p ({nbytes} B/event): into existing arrays "
+          f"{n / c1 / 1e6:.0f} Mev/s ({n * nbytes / c1 / 1e9:.1f} GB/s) on one thread, "
+          f"{n / w2 / 1e6:.0f} Mev/s on {threads} threads (wall); into new arrays "
+          f"{n / c2 / 1e6:.0f} Mev/s (one thread)")
 
 
 def streamed(n_events: int, tmp_root: Path) -> None:

@@ -506,19 +506,23 @@ def filter_arrays(
     keep = np.empty(xa.shape[0], np.uint8)
     threads = _threads(xa.shape[0])
     if threads > 1:
-        *outs, bad = _kernels.filter_threads(ta, xa, ya, pa, w, h, lut, keep, 2 * threads)
-        if bad >= 0:
-            raise _outside(xa, ya, int(bad), w, h)
-        to, xo, yo, po = (a[:-1] for a in outs)
-        return to, xo, yo, po
-    bad = int(_kernels.keep_mask(xa, ya, w, h, lut, keep))
+        off, bad = _kernels.mask_parts(xa, ya, w, h, lut, keep, threads)
+    else:
+        bad = _kernels.keep_mask(xa, ya, w, h, lut, keep)
+        off = np.array([0, 0 if bad >= 0 else _kernels.count_kept(keep)], np.int64)
     if bad >= 0:
-        raise _outside(xa, ya, bad, w, h)
-    kept = int(_kernels.count_kept(keep))
-    # exactly sized (plus the one spare place the branch-free compaction writes to)
-    to, xo, yo, po = (np.empty(kept + 1, a.dtype) for a in (ta, xa, ya, pa))
-    _kernels.compact4(ta, xa, ya, pa, keep, to, xo, yo, po)
-    return to[:kept], xo[:kept], yo[:kept], po[:kept]
+        raise _outside(xa, ya, int(bad), w, h)
+    # exactly sized outputs, allocated by numpy (which asks for huge pages: fewer page faults)
+    outs = tuple(np.empty(int(off[-1]), a.dtype) for a in (ta, xa, ya, pa))
+    simd = _kernels.simd_ok(ta.dtype, xa.dtype, ya.dtype, pa.dtype)
+    if threads > 1:
+        parts: Any = _kernels.compact_parts_simd if simd else _kernels.compact_parts
+        parts(ta, xa, ya, pa, keep, off, *outs)
+    else:
+        one: Any = _kernels.compact_simd if simd else _kernels.compact_into
+        one(ta, xa, ya, pa, keep, *outs, 0, off[-1])
+    to, xo, yo, po = outs
+    return to, xo, yo, po
 
 
 def rate_hot_pixels(
