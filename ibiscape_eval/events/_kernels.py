@@ -38,23 +38,55 @@ def count_xy(x, y, width, height, stride, counts):
     return -1
 
 
+@njit(cache=True, nogil=True)
+def count_xy16(x, y, width, height, stride, counts, wraps):
+    """:func:`count_xy` into uint16 counters: half the cache footprint of uint32 ones (1.4x
+    faster on a 1024x1024 sensor, measured); a counter that wraps around to 0 adds one to
+    ``wraps`` (uint32) at its place, so the count is ``counts + 65536 * wraps``."""
+    w = np.uint64(width)
+    h = np.uint64(height)
+    st = np.uint64(stride)
+    for i in range(x.shape[0]):
+        xi = np.uint64(x[i])
+        yi = np.uint64(y[i])
+        if xi >= w or yi >= h:
+            return i
+        j = yi * st + xi
+        c = np.uint16(counts[j] + 1)
+        counts[j] = c
+        if c == 0:
+            wraps[j] += 1
+    return -1
+
+
 @njit(cache=True, parallel=True)
-def count_xy_threads(x, y, width, height, stride, counts, n_parts):
-    """:func:`count_xy` in ``n_parts`` contiguous slices counted by the numba threads, each into
-    its own row of ``counts`` (shape ``(n_parts, height * stride)``; the caller sums them).
-    Returns the first out-of-sensor index or -1 (then the counts are incomplete)."""
+def count_xy16_threads(x, y, width, height, stride, counts, wraps, n_parts):
+    """:func:`count_xy16` in ``n_parts`` contiguous slices counted by the numba threads, each
+    into its own row of ``counts`` and ``wraps`` (shape ``(n_parts, height * stride)``; see
+    :func:`fold16`).  Returns the first out-of-sensor index or -1 (then the counts are
+    incomplete)."""
     n = x.shape[0]
     bad = np.full(n_parts, -1, np.int64)
     for c in prange(n_parts):
-        a = n * c // n_parts
-        r = count_xy(x[a : n * (c + 1) // n_parts], y[a : n * (c + 1) // n_parts], width,
-                     height, stride, counts[c])
+        a, b = n * c // n_parts, n * (c + 1) // n_parts
+        r = count_xy16(x[a:b], y[a:b], width, height, stride, counts[c], wraps[c])
         if r >= 0:
             bad[c] = a + r
     for c in range(n_parts):
         if bad[c] >= 0:
             return bad[c]
     return -1
+
+
+@njit(cache=True, nogil=True)
+def fold16(counts, wraps, width, height, stride, out):
+    """Add the padded uint16 counts (and their wraps) of every row of ``counts`` to the int64
+    (height, width) ``out``."""
+    for r in range(height):
+        for c in range(counts.shape[0]):
+            a = r * stride
+            for col in range(width):
+                out[r, col] += np.int64(counts[c, a + col]) + (np.int64(wraps[c, a + col]) << 16)
 
 
 @njit(cache=True, nogil=True)
@@ -72,18 +104,27 @@ def count_xyp(x, y, p, width, height, stride, counts):
 
 
 @njit(cache=True, nogil=True)
-def keep_mask(x, y, width, height, hot_lut, out):
-    """``out[i] = 1 - hot_lut[pixel of event i]`` (uint8); return the first out-of-sensor index
-    or -1.  (Counting the kept events in this loop stops LLVM from vectorising it: 20 % slower
-    than the separate :func:`count_kept` pass, measured.)"""
+def keep_mask(x, y, width, hot_lut, out):
+    """``out[i] = 1 - hot_lut[pixel of event i]`` (uint8) for coordinates already checked to lie
+    inside the sensor (see :func:`first_outside`): 32-bit pixel indices (``width * height <=
+    2**32``) and no bounds test in the loop, 1.2-1.4x faster than testing every event.
+    (Counting the kept events in this loop stops LLVM from vectorising it: 20 % slower than the
+    separate :func:`count_kept` pass, measured.)"""
+    w = np.uint32(width)
+    for i in range(x.shape[0]):
+        out[i] = hot_lut[np.uint32(y[i]) * w + np.uint32(x[i])] ^ 1
+
+
+@njit(cache=True, nogil=True)
+def first_outside(x, y, width, height):
+    """Index of the first event outside the sensor, or -1.  The coordinates are compared as
+    unsigned 64-bit numbers: a negative one wraps to a huge value, so one comparison per axis
+    checks both bounds."""
     w = np.uint64(width)
     h = np.uint64(height)
     for i in range(x.shape[0]):
-        xi = np.uint64(x[i])
-        yi = np.uint64(y[i])
-        if xi >= w or yi >= h:
+        if np.uint64(x[i]) >= w or np.uint64(y[i]) >= h:
             return i
-        out[i] = hot_lut[yi * w + xi] ^ 1
     return -1
 
 
@@ -197,24 +238,16 @@ def compact_simd(t, x, y, p, keep, to, xo, yo, po, k, limit):
 
 
 @njit(cache=True, parallel=True)
-def mask_parts(x, y, width, height, hot_lut, keep, n_parts):
-    """The keep-mask of ``n_parts`` contiguous slices in parallel; returns the output offset of
-    every slice (``n_parts + 1`` cumulative kept counts) and the first out-of-sensor index or
-    -1."""
+def mask_parts(x, y, width, hot_lut, keep, n_parts):
+    """The keep-mask of ``n_parts`` contiguous slices in parallel (:func:`keep_mask`); returns
+    the output offset of every slice (``n_parts + 1`` cumulative kept counts)."""
     n = x.shape[0]
     kept = np.zeros(n_parts + 1, np.int64)
-    bad = np.full(n_parts, -1, np.int64)
     for c in prange(n_parts):
         a, b = n * c // n_parts, n * (c + 1) // n_parts
-        r = keep_mask(x[a:b], y[a:b], width, height, hot_lut, keep[a:b])
-        if r >= 0:
-            bad[c] = a + r
-        else:
-            kept[c + 1] = count_kept(keep[a:b])
-    for c in range(n_parts):
-        if bad[c] >= 0:
-            return kept, bad[c]
-    return np.cumsum(kept), np.int64(-1)
+        keep_mask(x[a:b], y[a:b], width, hot_lut, keep[a:b])
+        kept[c + 1] = count_kept(keep[a:b])
+    return np.cumsum(kept)
 
 
 @njit(cache=True, parallel=True)

@@ -76,6 +76,18 @@ def _outside(x: np.ndarray, y: np.ndarray, i: int, w: int, h: int) -> IbiscapeEr
     )
 
 
+def _check_inside(x: np.ndarray, y: np.ndarray, w: int, h: int) -> None:
+    """Refuse events outside the sensor, naming the first (numpy's vectorised min / max first:
+    the per-event kernels then need no test)."""
+    if not x.shape[0]:
+        return
+    lo = min(int(x.min()), int(y.min())) if "i" in (x.dtype.kind, y.dtype.kind) else 0
+    if lo < 0 or int(x.max()) >= w or int(y.max()) >= h:
+        from . import _kernels
+
+        raise _outside(x, y, int(_kernels.first_outside(x, y, w, h)), w, h)
+
+
 def count_events(
     x: npt.ArrayLike,
     y: npt.ArrayLike,
@@ -112,17 +124,22 @@ def count_events(
         pa = np.ascontiguousarray(p, dtype=np.bool_)
         if pa.shape != xa.shape:
             raise IbiscapeError(f"p has shape {pa.shape}, x and y have {xa.shape}")
+    if pa is None:
+        total = np.zeros((h, w), np.int64)
+        bad = _count16(xa, ya, w, h, total)
+        if bad >= 0:
+            raise _outside(xa, ya, bad, w, h)
+        return total
     # uint32 cannot overflow: a pixel holds at most N events; split larger inputs.
     step = 2**31
-    total: np.ndarray | None = None
+    total3: np.ndarray | None = None
     for s in range(0, max(xa.shape[0], 1), step):
-        part = _count_padded(xa[s : s + step], ya[s : s + step],
-                             None if pa is None else pa[s : s + step], w, h)
+        part = _count_padded(xa[s : s + step], ya[s : s + step], pa[s : s + step], w, h)
         if isinstance(part, int):
             raise _outside(xa, ya, s + part, w, h)
-        total = part.astype(np.int64) if total is None else total + part
-    assert total is not None
-    return total[0] if p is None else total
+        total3 = part.astype(np.int64) if total3 is None else total3 + part
+    assert total3 is not None
+    return total3
 
 
 #: Streams shorter than this run on one thread (starting the numba threads costs more).
@@ -140,6 +157,25 @@ def _threads(n: int) -> int:
 
 
 _PAD = 16  # uint32 counters = one 64-byte cache line of row padding (see _kernels.count_xy)
+_PAD16 = 32  # the same for uint16 counters
+
+
+def _count16(x: np.ndarray, y: np.ndarray, w: int, h: int, out: np.ndarray) -> int:
+    """Add the events per pixel to the int64 (H, W) ``out`` through uint16 counters (one set
+    per thread, see ``_kernels.count_xy16``); the index of the first out-of-sensor event or -1."""
+    from . import _kernels
+
+    stride = w + _PAD16
+    threads = _threads(x.shape[0])
+    counts = np.zeros((threads, h * stride), np.uint16)
+    wraps = np.zeros((threads, h * stride), np.uint32)  # pages untouched unless a counter wraps
+    if threads > 1:
+        bad = int(_kernels.count_xy16_threads(x, y, w, h, stride, counts, wraps, threads))
+    else:
+        bad = int(_kernels.count_xy16(x, y, w, h, stride, counts[0], wraps[0]))
+    if bad < 0:
+        _kernels.fold16(counts, wraps, w, h, stride, out)
+    return bad
 
 
 def _count_padded(
@@ -150,11 +186,6 @@ def _count_padded(
 
     stride = w + _PAD
     planes = 1 if p is None else 2
-    threads = _threads(x.shape[0]) if p is None else 1
-    if threads > 1:  # one histogram per thread, summed
-        parts = np.zeros((threads, h * stride), np.uint32)
-        bad = _kernels.count_xy_threads(x, y, w, h, stride, parts, threads)
-        return int(bad) if bad >= 0 else parts.sum(axis=0, dtype=np.uint32).reshape(1, h, stride)[:, :, :w]
     buf = np.zeros(planes * h * stride, np.uint32)
     if p is None:
         bad = _kernels.count_xy(x, y, w, h, stride, buf)
@@ -465,10 +496,9 @@ def hot_pixel_mask(
     w, h = _check_sensor_size(sensor_size)
     xa, ya = _coords(x, y)
     lut = _hot_lut(pixels, w, h)
+    _check_inside(xa, ya, w, h)
     out = np.empty(xa.shape[0], np.bool_)
-    bad = int(_kernels.keep_mask(xa, ya, w, h, lut, out.view(np.uint8)))
-    if bad >= 0:
-        raise _outside(xa, ya, bad, w, h)
+    _kernels.keep_mask(xa, ya, w, lut, out.view(np.uint8))
     return out
 
 
@@ -504,14 +534,13 @@ def filter_arrays(
         raise IbiscapeError(f"t, x, y, p lengths differ: {ta.shape}, {xa.shape}, {ya.shape}, {pa.shape}")
     lut = _hot_lut(pixels, w, h)
     keep = np.empty(xa.shape[0], np.uint8)
+    _check_inside(xa, ya, w, h)
     threads = _threads(xa.shape[0])
     if threads > 1:
-        off, bad = _kernels.mask_parts(xa, ya, w, h, lut, keep, threads)
+        off = _kernels.mask_parts(xa, ya, w, lut, keep, threads)
     else:
-        bad = _kernels.keep_mask(xa, ya, w, h, lut, keep)
-        off = np.array([0, 0 if bad >= 0 else _kernels.count_kept(keep)], np.int64)
-    if bad >= 0:
-        raise _outside(xa, ya, int(bad), w, h)
+        _kernels.keep_mask(xa, ya, w, lut, keep)
+        off = np.array([0, _kernels.count_kept(keep)], np.int64)
     # exactly sized outputs, allocated by numpy (which asks for huge pages: fewer page faults)
     outs = tuple(np.empty(int(off[-1]), a.dtype) for a in (ta, xa, ya, pa))
     simd = _kernels.simd_ok(ta.dtype, xa.dtype, ya.dtype, pa.dtype)
