@@ -125,10 +125,9 @@ def count_events(
         if pa.shape != xa.shape:
             raise IbiscapeError(f"p has shape {pa.shape}, x and y have {xa.shape}")
     if pa is None:
+        _check_inside(xa, ya, w, h)
         total = np.zeros((h, w), np.int64)
-        bad = _count16(xa, ya, w, h, total)
-        if bad >= 0:
-            raise _outside(xa, ya, bad, w, h)
+        _count16(xa, ya, w, h, total)
         return total
     # uint32 cannot overflow: a pixel holds at most N events; split larger inputs.
     step = 2**31
@@ -160,9 +159,9 @@ _PAD = 16  # uint32 counters = one 64-byte cache line of row padding (see _kerne
 _PAD16 = 32  # the same for uint16 counters
 
 
-def _count16(x: np.ndarray, y: np.ndarray, w: int, h: int, out: np.ndarray) -> int:
-    """Add the events per pixel to the int64 (H, W) ``out`` through uint16 counters (one set
-    per thread, see ``_kernels.count_xy16``); the index of the first out-of-sensor event or -1."""
+def _count16(x: np.ndarray, y: np.ndarray, w: int, h: int, out: np.ndarray) -> None:
+    """Add the events per pixel (inside the sensor, checked) to the int64 (H, W) ``out`` through
+    uint16 counters (one set per thread, see ``_kernels.count_xy16``)."""
     from . import _kernels
 
     stride = w + _PAD16
@@ -170,12 +169,10 @@ def _count16(x: np.ndarray, y: np.ndarray, w: int, h: int, out: np.ndarray) -> i
     counts = np.zeros((threads, h * stride), np.uint16)
     wraps = np.zeros((threads, h * stride), np.uint32)  # pages untouched unless a counter wraps
     if threads > 1:
-        bad = int(_kernels.count_xy16_threads(x, y, w, h, stride, counts, wraps, threads))
+        n_wraps = _kernels.count_xy16_threads(x, y, stride, counts, wraps, threads)
     else:
-        bad = int(_kernels.count_xy16(x, y, w, h, stride, counts[0], wraps[0]))
-    if bad < 0:
-        _kernels.fold16(counts, wraps, w, h, stride, out)
-    return bad
+        n_wraps = _kernels.count_xy16(x, y, stride, counts[0], wraps[0])
+    _kernels.fold16(counts, wraps if n_wraps else None, w, h, stride, out)
 
 
 def _count_padded(
