@@ -167,12 +167,12 @@ def _count16(x: np.ndarray, y: np.ndarray, w: int, h: int, out: np.ndarray) -> N
     stride = w + _PAD16
     threads = _threads(x.shape[0])
     counts = np.zeros((threads, h * stride), np.uint16)
-    wraps = np.zeros((threads, h * stride), np.uint32)  # pages untouched unless a counter wraps
+    wrapped = np.empty((threads, x.shape[0] // 65536 + 1), np.int64)
     if threads > 1:
-        n_wraps = _kernels.count_xy16_threads(x, y, stride, counts, wraps, threads)
+        n_wraps = _kernels.count_xy16_threads(x, y, stride, counts, wrapped, threads)
     else:
-        n_wraps = _kernels.count_xy16(x, y, stride, counts[0], wraps[0])
-    _kernels.fold16(counts, wraps if n_wraps else None, w, h, stride, out)
+        n_wraps = np.array([_kernels.count_xy16(x, y, stride, counts[0], wrapped[0])], np.int64)
+    _kernels.fold16(counts, wrapped, n_wraps, w, h, stride, out)
 
 
 def _count_padded(
