@@ -39,6 +39,15 @@ def count_xy(x, y, width, height, stride, counts):
 
 
 @njit(cache=True, nogil=True)
+def count_inside(x, y, stride, counts):
+    """:func:`count_xy` for coordinates already checked to lie inside the sensor (no test per
+    event)."""
+    st = np.uint64(stride)
+    for i in range(x.shape[0]):
+        counts[np.uint64(y[i]) * st + np.uint64(x[i])] += 1
+
+
+@njit(cache=True, nogil=True)
 def count_xy16(x, y, stride, counts, wrapped):
     """:func:`count_xy` into uint16 counters, for coordinates already checked to lie inside the
     sensor (no test per event: 1.4x faster, measured): half the cache footprint of uint32 ones

@@ -76,16 +76,24 @@ def _outside(x: np.ndarray, y: np.ndarray, i: int, w: int, h: int) -> IbiscapeEr
     )
 
 
-def _check_inside(x: np.ndarray, y: np.ndarray, w: int, h: int) -> None:
-    """Refuse events outside the sensor, naming the first (numpy's vectorised min / max first:
+def _first_outside(x: np.ndarray, y: np.ndarray, w: int, h: int) -> int:
+    """Index of the first event outside the sensor or -1 (numpy's vectorised min / max first:
     the per-event kernels then need no test)."""
     if not x.shape[0]:
-        return
+        return -1
     lo = min(int(x.min()), int(y.min())) if "i" in (x.dtype.kind, y.dtype.kind) else 0
     if lo < 0 or int(x.max()) >= w or int(y.max()) >= h:
         from . import _kernels
 
-        raise _outside(x, y, int(_kernels.first_outside(x, y, w, h)), w, h)
+        return int(_kernels.first_outside(x, y, w, h))
+    return -1
+
+
+def _check_inside(x: np.ndarray, y: np.ndarray, w: int, h: int) -> None:
+    """Refuse events outside the sensor, naming the first."""
+    bad = _first_outside(x, y, w, h)
+    if bad >= 0:
+        raise _outside(x, y, bad, w, h)
 
 
 def count_events(
@@ -641,9 +649,18 @@ class PixelCounter:
             self._rate_state = new
         self._counts, self.w, self.h = counts, w, h
 
+    def _outside(self, events: Events, i: int, chunk: EventChunk | None) -> IbiscapeError:
+        msg = (f"pixel (x={int(events.x[i])}, y={int(events.y[i])}) lies outside the "
+               f"{self.w}x{self.h} sensor; pass the right {{0}}")
+        hint = (Remedy("sensor_size"),)
+        if chunk is not None:
+            path, line, what = chunk.where(i)
+            return FormatError(path, f"{what}: {msg}", line=line, hint=hint)
+        return IbiscapeError(f"event {self.n_events + i}: {msg}", hint=hint)
+
     def add(self, events: Events, chunk: EventChunk | None = None) -> None:
         """Count a chunk.  Out-of-sensor coordinates raise :class:`FormatError` naming the file
-        (and line) when ``chunk`` is given."""
+        (and line) when ``chunk`` is given (and nothing of the chunk is counted)."""
         from . import _kernels
 
         n = len(events)
@@ -653,41 +670,23 @@ class PixelCounter:
             mw, mh = int(events.x.max()) + 1, int(events.y.max()) + 1
             if mw > self.w or mh > self.h:
                 self._grow(max(mw, self.w), max(mh, self.h))
+        bad = _first_outside(events.x, events.y, self.w, self.h)
+        if bad >= 0:
+            raise self._outside(events, bad, chunk)
         if self._acc_n + n >= 2**32 - 1:
             self._flush()
+        stride = self.w + _PAD
         if n >= 2**32 - 1:  # one chunk beyond uint32: count it apart
             part = _count_padded(events.x, events.y, events.p if self.per_polarity else None,
                                  self.w, self.h)
-            bad = part if isinstance(part, int) else -1
-        else:
-            stride = self.w + _PAD
-            if self.per_polarity:
-                bad = int(_kernels.count_xyp(events.x, events.y, events.p, self.w, self.h,
-                                             stride, self._acc))
-            else:
-                bad = int(_kernels.count_xy(events.x, events.y, self.w, self.h, stride, self._acc))
-            if bad >= 0:  # undo the events counted before the bad one: the counts stay valid
-                xs, ys = events.x[:bad].astype(np.int64), events.y[:bad].astype(np.int64)
-                plane = (events.p[:bad].astype(np.int64) * (self.h * stride) if self.per_polarity
-                         else 0)
-                np.subtract.at(self._acc, plane + ys * stride + xs, np.uint32(1))
-            part = None
-        if bad >= 0:
-            i = bad
-            msg = (
-                f"pixel (x={int(events.x[i])}, y={int(events.y[i])}) lies outside the "
-                f"{self.w}x{self.h} sensor; pass the right {{0}}"
-            )
-            hint = (Remedy("sensor_size"),)
-            if chunk is not None:
-                path, line, what = chunk.where(i)
-                raise FormatError(path, f"{what}: {msg}", line=line, hint=hint)
-            raise IbiscapeError(f"event {self.n_events + i}: {msg}", hint=hint)
-        if part is None:
-            self._acc_n += n
-        else:
             assert not isinstance(part, int)
             self._counts += part
+        elif self.per_polarity:
+            _kernels.count_xyp(events.x, events.y, events.p, self.w, self.h, stride, self._acc)
+            self._acc_n += n
+        else:
+            _kernels.count_inside(events.x, events.y, stride, self._acc)
+            self._acc_n += n
         if self._rate_state:
             if self._t0 is None:
                 self._t0 = int(events.t_ns[0])

@@ -138,3 +138,27 @@ def test_outside_the_sensor_is_refused_naming_the_first(bad, threads):
                  lambda: count_events(x, y, sensor_size=(w, h))):
         with pytest.raises(IbiscapeError, match=r"event 1234 at pixel .* outside the 5x4 sensor"):
             call()
+
+
+@pytest.mark.parametrize("per_polarity", [False, True])
+def test_streamed_counter_refuses_a_bad_chunk_and_keeps_its_counts(per_polarity):
+    """PixelCounter checks a chunk before counting it: the error names the event, the counts
+    so far stay those of the good chunks, and counting goes on."""
+    from ibiscape_eval.core.events import Events
+    from ibiscape_eval.events import PixelCounter
+
+    w, h = 6, 5
+    chunks = [Events(*(a for a in stream(700, w, h, seed=s))) for s in range(3)]
+    bad = chunks[1]
+    bx = bad.x.copy()
+    bx[321] = w
+    acc = PixelCounter(sensor_size=(w, h), per_polarity=per_polarity)
+    acc.add(chunks[0])
+    with pytest.raises(IbiscapeError, match=r"event 1021: pixel \(x=6, y=\d\) lies outside the 6x5"):
+        acc.add(Events(bad.t_ns, bx, bad.y, bad.p))
+    acc.add(chunks[2])
+    both = Events.concatenate([chunks[0], chunks[2]])
+    want = np.bincount(both.y.astype(np.int64) * w + both.x, minlength=w * h).reshape(h, w)
+    got = acc.count_map.sum(axis=0) if per_polarity else acc.count_map
+    np.testing.assert_array_equal(got, want)
+    assert acc.n_events == 1400
