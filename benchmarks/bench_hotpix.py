@@ -8,6 +8,7 @@ Run::
 
     .venv/bin/python benchmarks/bench_hotpix.py                       # 5e7 in memory, 1e7 streamed
     .venv/bin/python benchmarks/bench_hotpix.py --n-events 1e8 --stream-events 1e9 --tmp /tmp
+    .venv/bin/python benchmarks/bench_hotpix.py --against /tmp/main --repeat 7   # before / after
 
 The streamed folder is generated with the synthetic builder under ``--tmp`` (~13 bytes per
 event on disk, twice: input and filtered output) and deleted afterwards.
@@ -23,6 +24,7 @@ import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -217,6 +219,59 @@ def roofline(n: int, cols: tuple[np.ndarray, ...], repeat: int, threads: int) ->
           f"{n / c2 / 1e6:.0f} Mev/s (one thread)")
 
 
+def _load_against(root: Path) -> object:
+    """The hot-pixel module of another checkout (``root/ibiscape_eval/events``), imported as a
+    package of its own (its ``_kernels`` beside it) from a temporary copy."""
+    import importlib
+
+    pkg = Path(tempfile.mkdtemp(prefix="bench_hotpix_against_")) / "hotpix_against"
+    pkg.mkdir()
+    for name in ("hotpix.py", "_kernels.py"):
+        shutil.copy(root / "ibiscape_eval" / "events" / name, pkg / name)
+    (pkg / "__init__.py").write_text("")
+    sys.path.insert(0, str(pkg.parent))
+    return importlib.import_module("hotpix_against.hotpix")
+
+
+def against(n_events: int, root: Path, rounds: int) -> None:
+    """This checkout's count and filter against another checkout's (e.g. ``git worktree add
+    /tmp/main main``), interleaved round by round in one process on the same events, so that a
+    busy machine slows both alike; best CPU time of ``rounds``, one thread."""
+    import numba
+
+    from ibiscape_eval.events import hotpix as ours
+
+    old: Any = _load_against(root)
+    ev, _ = make_stream(n_events)
+    n, x, y = len(ev), ev.x, ev.y
+    hot = hot_pixels_from_counts(count_events(x, y, sensor_size=SENSOR), top_n=200).pixels
+    new_f, old_f = ours.filter_events(ev, hot, sensor_size=SENSOR), old.filter_events(ev, hot, sensor_size=SENSOR)
+    assert all(np.array_equal(getattr(new_f, f), getattr(old_f, f)) for f in ("t_ns", "x", "y", "p"))
+
+    def steps(m: Any) -> dict[str, Callable[[], object]]:
+        def both() -> object:
+            m.count_events(x, y, sensor_size=SENSOR)
+            return m.filter_events(ev, hot, sensor_size=SENSOR)
+        return {"count": lambda: m.count_events(x, y, sensor_size=SENSOR),
+                "filter": lambda: m.filter_events(ev, hot, sensor_size=SENSOR), "count + filter": both}
+
+    numba.set_num_threads(1)
+    mine, theirs = steps(ours), steps(old)
+    best: dict[tuple[str, str], float] = {}
+    for r in range(rounds + 1):
+        for k in mine:
+            for who, fn in (("ours", mine[k]), ("against", theirs[k])):
+                c0 = time.process_time()
+                fn()
+                if r:  # round 0 warms up
+                    best[k, who] = min(best.get((k, who), 9e9), time.process_time() - c0)
+    print(f"against {root}: {n:,} events, one thread, best CPU time of {rounds} interleaved rounds "
+          f"(load average {os.getloadavg()[0]:.1f}); same kept events: yes")
+    for k in mine:
+        a, b = best[k, "ours"], best[k, "against"]
+        print(f"  {k:16s} ours {n / a / 1e6:6.0f} Mev/s, against {n / b / 1e6:6.0f} Mev/s: {b / a:.2f}x")
+
+
 def streamed(n_events: int, tmp_root: Path) -> None:
     from ibiscape_eval.io.events import _Writer
 
@@ -276,7 +331,12 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--stream-events", type=float, default=1e7, help="streamed folder size (0: skip)")
     ap.add_argument("--tmp", type=Path, default=Path(tempfile.gettempdir()))
+    ap.add_argument("--against", type=Path, default=None,
+                    help="another checkout: its count and filter interleaved with ours (only that)")
     a = ap.parse_args()
+    if a.against is not None:
+        against(int(a.n_events), a.against, a.repeat)
+        return
     if a.n_events > 0:
         in_memory(int(a.n_events), a.repeat)
     if a.stream_events > 0:
