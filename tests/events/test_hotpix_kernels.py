@@ -57,8 +57,8 @@ def all_pixels(w, h):
     return np.stack(np.meshgrid(np.arange(w), np.arange(h)), -1).reshape(-1, 2)
 
 
-@pytest.mark.parametrize("n", [0, 1, 63, 64, 65, 127, 128, 129, 1000, 4097, 100_003])
-@pytest.mark.parametrize("hot_fraction", [0.0, 0.08, 0.5, 0.97, 1.0])
+@pytest.mark.parametrize("n", [0, 1, 63, 64, 65, 129, 4097, 100_003])
+@pytest.mark.parametrize("hot_fraction", [0.0, 0.08, 0.97, 1.0])
 def test_filter_keeps_what_numpy_keeps(n, hot_fraction, threads, simd):
     w, h = 37, 23
     t, x, y, p = stream(n, w, h, seed=n)
