@@ -8,6 +8,7 @@ Run::
 
     .venv/bin/python benchmarks/bench_hotpix.py                       # 5e7 in memory, 1e7 streamed
     .venv/bin/python benchmarks/bench_hotpix.py --n-events 1e8 --stream-events 1e9 --tmp /tmp
+    .venv/bin/python benchmarks/bench_hotpix.py --against /tmp/main --repeat 7   # before / after
 
 The streamed folder is generated with the synthetic builder under ``--tmp`` (~13 bytes per
 event on disk, twice: input and filtered output) and deleted afterwards.
@@ -23,6 +24,7 @@ import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -166,20 +168,108 @@ def in_memory(n_events: int, repeat: int) -> None:
 
     threads = min(2, numba.config.NUMBA_NUM_THREADS)
     print(f"  Mev/s: one thread by CPU time, {threads} threads by wall time (load average "
-          f"{os.getloadavg()[0]:.1f}); peak MB added over the {ev_mb:.0f} MB of events")
+          f"{os.getloadavg()[0]:.1f}) and by CPU time over the threads (the wall time a quiet "
+          f"machine would give at perfect scaling: events / CPU s x {threads}); peak MB added "
+          f"over the {ev_mb:.0f} MB of events")
     print(f"  {'step':32s} {'numpy':>7s} {'ours 1T':>8s} {'RATIO':>6s} {'numpy wall':>10s} "
-          f"{f'ours {threads}T wall':>13s} {'RATIO':>6s} {'peak MB numpy/1T/' + str(threads) + 'T':>22s}")
+          f"{f'ours {threads}T wall':>13s} {'RATIO':>6s} {f'{threads}T CPU':>7s} "
+          f"{'peak MB numpy/1T/' + str(threads) + 'T':>22s}")
     for name, a, b in rows:
         numba.set_num_threads(1)
         (ta, wa), tb = best_times(a, repeat), best_of(b, repeat)
         pa, pb = peak_added_mb(a), peak_added_mb(b)
         numba.set_num_threads(threads)
-        wb = best_times(b, repeat)[1]
+        cb, wb = best_times(b, repeat)
         pc = peak_added_mb(b)
         print(f"  {name:32s} {n / ta / 1e6:7.0f} {n / tb / 1e6:8.0f} {ta / tb:5.1f}x "
               f"{n / wa / 1e6:10.0f} {n / wb / 1e6:13.0f} {wa / wb:5.1f}x "
-              f"{pa:8.0f}/{pb:.0f}/{pc:.0f}")
+              f"{threads * n / cb / 1e6:7.0f} {pa:8.0f}/{pb:.0f}/{pc:.0f}")
     numba.set_num_threads(1)
+    roofline(n, (t, x, y, p), repeat, threads)
+
+
+def roofline(n: int, cols: tuple[np.ndarray, ...], repeat: int, threads: int) -> None:
+    """The machine's memory speed on the same bytes: numpy copying every column (what a filter
+    that keeps everything must do), on one thread (CPU time) and split over ``threads`` Python
+    threads (wall time; numpy releases the GIL while copying)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    into = [np.empty_like(a) for a in cols]
+    nbytes = sum(a.itemsize for a in cols)
+
+    def copy_into(parts: int = 1, k: int = 0) -> None:
+        for o, a in zip(into, cols, strict=True):
+            m = a.shape[0]
+            np.copyto(o[m * k // parts : m * (k + 1) // parts], a[m * k // parts : m * (k + 1) // parts])
+
+    def copy_new() -> list[np.ndarray]:
+        return [a.copy() for a in cols]
+
+    pool = ThreadPoolExecutor(threads)
+
+    def copy_into_threads() -> None:
+        list(pool.map(lambda k: copy_into(threads, k), range(threads)))
+
+    c1, c2 = best_of(copy_into, repeat), best_of(copy_new, repeat)
+    w2 = best_times(copy_into_threads, repeat)[1]
+    pool.shutdown()
+    print(f"  roofline: numpy copying t, x, y, p ({nbytes} B/event): into existing arrays "
+          f"{n / c1 / 1e6:.0f} Mev/s ({n * nbytes / c1 / 1e9:.1f} GB/s) on one thread, "
+          f"{n / w2 / 1e6:.0f} Mev/s on {threads} threads (wall); into new arrays "
+          f"{n / c2 / 1e6:.0f} Mev/s (one thread)")
+
+
+def _load_against(root: Path) -> object:
+    """The hot-pixel module of another checkout (``root/ibiscape_eval/events``), imported as a
+    package of its own (its ``_kernels`` beside it) from a temporary copy."""
+    import importlib
+
+    pkg = Path(tempfile.mkdtemp(prefix="bench_hotpix_against_")) / "hotpix_against"
+    pkg.mkdir()
+    for name in ("hotpix.py", "_kernels.py"):
+        shutil.copy(root / "ibiscape_eval" / "events" / name, pkg / name)
+    (pkg / "__init__.py").write_text("")
+    sys.path.insert(0, str(pkg.parent))
+    return importlib.import_module("hotpix_against.hotpix")
+
+
+def against(n_events: int, root: Path, rounds: int) -> None:
+    """This checkout's count and filter against another checkout's (e.g. ``git worktree add
+    /tmp/main main``), interleaved round by round in one process on the same events, so that a
+    busy machine slows both alike; best CPU time of ``rounds``, one thread."""
+    import numba
+
+    from ibiscape_eval.events import hotpix as ours
+
+    old: Any = _load_against(root)
+    ev, _ = make_stream(n_events)
+    n, x, y = len(ev), ev.x, ev.y
+    hot = hot_pixels_from_counts(count_events(x, y, sensor_size=SENSOR), top_n=200).pixels
+    new_f, old_f = ours.filter_events(ev, hot, sensor_size=SENSOR), old.filter_events(ev, hot, sensor_size=SENSOR)
+    assert all(np.array_equal(getattr(new_f, f), getattr(old_f, f)) for f in ("t_ns", "x", "y", "p"))
+
+    def steps(m: Any) -> dict[str, Callable[[], object]]:
+        def both() -> object:
+            m.count_events(x, y, sensor_size=SENSOR)
+            return m.filter_events(ev, hot, sensor_size=SENSOR)
+        return {"count": lambda: m.count_events(x, y, sensor_size=SENSOR),
+                "filter": lambda: m.filter_events(ev, hot, sensor_size=SENSOR), "count + filter": both}
+
+    numba.set_num_threads(1)
+    mine, theirs = steps(ours), steps(old)
+    best: dict[tuple[str, str], float] = {}
+    for r in range(rounds + 1):
+        for k in mine:
+            for who, fn in (("ours", mine[k]), ("against", theirs[k])):
+                c0 = time.process_time()
+                fn()
+                if r:  # round 0 warms up
+                    best[k, who] = min(best.get((k, who), 9e9), time.process_time() - c0)
+    print(f"against {root}: {n:,} events, one thread, best CPU time of {rounds} interleaved rounds "
+          f"(load average {os.getloadavg()[0]:.1f}); same kept events: yes")
+    for k in mine:
+        a, b = best[k, "ours"], best[k, "against"]
+        print(f"  {k:16s} ours {n / a / 1e6:6.0f} Mev/s, against {n / b / 1e6:6.0f} Mev/s: {b / a:.2f}x")
 
 
 def streamed(n_events: int, tmp_root: Path) -> None:
@@ -237,12 +327,18 @@ def streamed(n_events: int, tmp_root: Path) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--n-events", type=float, default=5e7, help="in-memory stream size")
+    ap.add_argument("--n-events", type=float, default=5e7, help="in-memory stream size (0: skip)")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--stream-events", type=float, default=1e7, help="streamed folder size (0: skip)")
     ap.add_argument("--tmp", type=Path, default=Path(tempfile.gettempdir()))
+    ap.add_argument("--against", type=Path, default=None,
+                    help="another checkout: its count and filter interleaved with ours (only that)")
     a = ap.parse_args()
-    in_memory(int(a.n_events), a.repeat)
+    if a.against is not None:
+        against(int(a.n_events), a.against, a.repeat)
+        return
+    if a.n_events > 0:
+        in_memory(int(a.n_events), a.repeat)
     if a.stream_events > 0:
         streamed(int(a.stream_events), a.tmp)
 

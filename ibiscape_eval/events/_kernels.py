@@ -7,8 +7,13 @@ proportional to the number of events, so that counting and filtering run at memo
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
-from numba import njit, prange
+from llvmlite import ir
+from numba import njit, prange, types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 
 @njit(cache=True, nogil=True)
@@ -33,23 +38,60 @@ def count_xy(x, y, width, height, stride, counts):
     return -1
 
 
+@njit(cache=True, nogil=True)
+def count_inside(x, y, stride, counts):
+    """:func:`count_xy` for coordinates already checked to lie inside the sensor (no test per
+    event)."""
+    st = np.uint64(stride)
+    for i in range(x.shape[0]):
+        counts[np.uint64(y[i]) * st + np.uint64(x[i])] += 1
+
+
+@njit(cache=True, nogil=True)
+def count_xy16(x, y, stride, counts, wrapped):
+    """:func:`count_xy` into uint16 counters, for coordinates already checked to lie inside the
+    sensor (no test per event: 1.4x faster, measured): half the cache footprint of uint32 ones
+    (1.4x faster on a 1024x1024 sensor, measured too).  A counter that wraps around to 0 writes
+    its place to the next entry of ``wrapped`` (at most ``len(x) // 65536`` entries), so a
+    count is ``counts`` + 65536 x the times its place is listed.  Returns the number listed."""
+    st = np.uint64(stride)
+    n_wraps = 0
+    for i in range(x.shape[0]):
+        j = np.uint64(y[i]) * st + np.uint64(x[i])
+        c = np.uint16(counts[j] + 1)
+        counts[j] = c
+        if c == 0:
+            wrapped[n_wraps] = j
+            n_wraps += 1
+    return n_wraps
+
+
 @njit(cache=True, parallel=True)
-def count_xy_threads(x, y, width, height, stride, counts, n_parts):
-    """:func:`count_xy` in ``n_parts`` contiguous slices counted by the numba threads, each into
-    its own row of ``counts`` (shape ``(n_parts, height * stride)``; the caller sums them).
-    Returns the first out-of-sensor index or -1 (then the counts are incomplete)."""
+def count_xy16_threads(x, y, stride, counts, wrapped, n_parts):
+    """:func:`count_xy16` in ``n_parts`` contiguous slices counted by the numba threads, each
+    into its own row of ``counts`` (shape ``(n_parts, height * stride)``) and of ``wrapped``
+    (see :func:`fold16`).  Returns the number of wrap-arounds of every slice."""
     n = x.shape[0]
-    bad = np.full(n_parts, -1, np.int64)
+    n_wraps = np.zeros(n_parts, np.int64)
     for c in prange(n_parts):
-        a = n * c // n_parts
-        r = count_xy(x[a : n * (c + 1) // n_parts], y[a : n * (c + 1) // n_parts], width,
-                     height, stride, counts[c])
-        if r >= 0:
-            bad[c] = a + r
-    for c in range(n_parts):
-        if bad[c] >= 0:
-            return bad[c]
-    return -1
+        a, b = n * c // n_parts, n * (c + 1) // n_parts
+        n_wraps[c] = count_xy16(x[a:b], y[a:b], stride, counts[c], wrapped[c])
+    return n_wraps
+
+
+@njit(cache=True, parallel=True)
+def fold16(counts, wrapped, n_wraps, width, height, stride, out):
+    """Add the padded uint16 counts of every row of ``counts`` (rows in parallel) and 65536 for
+    every place listed in ``wrapped[c, :n_wraps[c]]`` to the int64 (height, width) ``out``."""
+    for r in prange(height):
+        a = r * stride
+        for c in range(counts.shape[0]):
+            for col in range(width):
+                out[r, col] += np.int64(counts[c, a + col])
+    for c in range(counts.shape[0]):
+        for k in range(n_wraps[c]):
+            j = wrapped[c, k]
+            out[j // stride, j % stride] += 65536
 
 
 @njit(cache=True, nogil=True)
@@ -67,18 +109,27 @@ def count_xyp(x, y, p, width, height, stride, counts):
 
 
 @njit(cache=True, nogil=True)
-def keep_mask(x, y, width, height, hot_lut, out):
-    """``out[i] = 1 - hot_lut[pixel of event i]`` (uint8); return the first out-of-sensor index
-    or -1.  (Counting the kept events in this loop stops LLVM from vectorising it: 20 % slower
-    than the separate :func:`count_kept` pass, measured.)"""
+def keep_mask(x, y, width, hot_lut, out):
+    """``out[i] = 1 - hot_lut[pixel of event i]`` (uint8) for coordinates already checked to lie
+    inside the sensor (see :func:`first_outside`): 32-bit pixel indices (``width * height <=
+    2**32``) and no bounds test in the loop, 1.2-1.4x faster than testing every event.
+    (Counting the kept events in this loop stops LLVM from vectorising it: 20 % slower than the
+    separate :func:`count_kept` pass, measured.)"""
+    w = np.uint32(width)
+    for i in range(x.shape[0]):
+        out[i] = hot_lut[np.uint32(y[i]) * w + np.uint32(x[i])] ^ 1
+
+
+@njit(cache=True, nogil=True)
+def first_outside(x, y, width, height):
+    """Index of the first event outside the sensor, or -1.  The coordinates are compared as
+    unsigned 64-bit numbers: a negative one wraps to a huge value, so one comparison per axis
+    checks both bounds."""
     w = np.uint64(width)
     h = np.uint64(height)
     for i in range(x.shape[0]):
-        xi = np.uint64(x[i])
-        yi = np.uint64(y[i])
-        if xi >= w or yi >= h:
+        if np.uint64(x[i]) >= w or np.uint64(y[i]) >= h:
             return i
-        out[i] = hot_lut[yi * w + xi] ^ 1
     return -1
 
 
@@ -92,64 +143,153 @@ def count_kept(keep):
 
 
 @njit(cache=True, nogil=True)
-def compact4(t, x, y, p, keep, to, xo, yo, po):
-    """Copy the events with ``keep[i] == 1`` into the output arrays, in order, in one
-    branch-free pass: every event is written, the write position advances only for kept ones
-    (the outputs need one spare element past the kept events).  Returns the number kept.
+def compact_into(t, x, y, p, keep, to, xo, yo, po, k, limit):
+    """Copy the events with ``keep[i] == 1`` into ``to[k:limit]`` (and the others), in order,
+    ``limit - k`` being the number of kept events.  Branch-free: every event is written, the
+    write position advances only for kept ones (a place a discarded event took is written again
+    by a later kept one; once ``limit`` is reached only discarded events remain).  Returns the
+    end.
 
     The mask comes from :func:`keep_mask` in a separate pass: fusing the LUT lookup into this
     loop puts its load latency on the loop-carried write position and runs 2-3x slower (also
-    block by block through a small buffer, measured)."""
-    k = 0
-    for i in range(t.shape[0]):
+    block by block through a small buffer, measured; with the AVX-512 compaction of
+    :func:`compact_simd` too, 2.3x slower in session 8)."""
+    n = t.shape[0]
+    i = 0
+    while i < n and k < limit:
         to[k] = t[i]
         xo[k] = x[i]
         yo[k] = y[i]
         po[k] = p[i]
         k += keep[i]
+        i += 1
     return k
 
 
-@njit(cache=True, parallel=True)
-def filter_threads(t, x, y, p, width, height, hot_lut, keep, n_parts):
-    """Two-pass parallel filter over ``n_parts`` contiguous slices: the keep-mask and the kept
-    count of every slice, then each slice compacted into its place of exactly-sized outputs.
-    Returns ``(to, xo, yo, po, bad)`` with ``bad`` the first out-of-sensor index or -1."""
+def _data_ptr(context, builder, arrty, arr, elem):
+    """Pointer to the first element of a numba array, as ``elem*``."""
+    data = cgutils.create_struct_proxy(arrty)(context, builder, value=arr).data
+    return builder.bitcast(data, elem.as_pointer())
+
+
+@intrinsic
+def _mask64(typingctx, keep, i):
+    """The 64 bytes ``keep[i:i + 64]`` as the bits of a uint64 (bit j set if ``keep[i + j]``)."""
+    sig = types.uint64(keep, types.int64)
+
+    def codegen(context, builder, signature, args):
+        i8 = ir.IntType(8)
+        vty = ir.VectorType(i8, 64)
+        ptr = builder.gep(_data_ptr(context, builder, signature.args[0], args[0], i8), [args[1]])
+        v = builder.load(builder.bitcast(ptr, vty.as_pointer()), align=1)
+        m = builder.icmp_unsigned("!=", v, ir.Constant(vty, None))
+        return builder.bitcast(m, ir.IntType(64))
+
+    return sig, codegen
+
+
+@intrinsic
+def _compress64(typingctx, src, i, dst, k, bits):
+    """AVX-512 compress of ``src[i:i + 64]``: the elements whose bit is set in ``bits`` are
+    stored to ``dst[k:]`` in order, as whole 64-byte vectors (``vpcompress{b,w,d,q}`` into a
+    register, then a plain store: the memory form is slow on AMD Zen 4), so up to 63 places past
+    the kept ones are overwritten.  Returns ``k + popcount(bits)``."""
+    sig = types.int64(src, types.int64, dst, types.int64, types.uint64)
+
+    def codegen(context, builder, signature, args):
+        srcty, _, dstty, _, _ = signature.args
+        s_arr, i_v, d_arr, k, m_v = args
+        bits = 8 * context.get_abi_sizeof(context.get_data_type(srcty.dtype))
+        lanes = 512 // bits
+        ety, i64 = ir.IntType(bits), ir.IntType(64)
+        vty, mty = ir.VectorType(ety, lanes), ir.VectorType(ir.IntType(1), lanes)
+        sp = _data_ptr(context, builder, srcty, s_arr, ety)
+        dp = _data_ptr(context, builder, dstty, d_arr, ety)
+        comp = cgutils.get_or_insert_function(builder.module, ir.FunctionType(vty, [vty, vty, mty]),
+                                              f"llvm.x86.avx512.mask.compress.v{lanes}i{bits}")
+        ctpop = cgutils.get_or_insert_function(builder.module, ir.FunctionType(i64, [i64]),
+                                               "llvm.ctpop.i64")
+        for sub in range(64 // lanes):
+            ptr = builder.gep(sp, [builder.add(i_v, ir.Constant(i64, sub * lanes))])
+            v = builder.load(builder.bitcast(ptr, vty.as_pointer()), align=1)
+            sm = m_v
+            if lanes < 64:
+                sm = builder.lshr(m_v, ir.Constant(i64, sub * lanes))
+                sm = builder.and_(sm, ir.Constant(i64, (1 << lanes) - 1))
+            mvec = builder.bitcast(builder.trunc(sm, ir.IntType(lanes)) if lanes < 64 else sm, mty)
+            c = builder.call(comp, [v, ir.Constant(vty, None), mvec])
+            builder.store(c, builder.bitcast(builder.gep(dp, [k]), vty.as_pointer()), align=1)
+            k = builder.add(k, builder.call(ctpop, [sm]))
+        return k
+
+    return sig, codegen
+
+
+@njit(cache=True, nogil=True)
+def compact_simd(t, x, y, p, keep, to, xo, yo, po, k, limit):
+    """:func:`compact_into` with AVX-512 compress stores, 64 events at a time while a whole
+    vector still fits before ``limit`` (the rest by :func:`compact_into`).  Only for CPUs with
+    AVX512F/BW/VBMI2 and element sizes of 1, 2, 4 or 8 bytes (see :func:`simd_ok`)."""
     n = t.shape[0]
+    i = 0
+    while i + 64 <= n and k + 64 <= limit:
+        m = _mask64(keep, i)  # type: ignore[call-arg, var-annotated]
+        _compress64(t, i, to, k, m)
+        _compress64(x, i, xo, k, m)
+        _compress64(y, i, yo, k, m)
+        k = _compress64(p, i, po, k, m)
+        i += 64
+    return compact_into(t[i:], x[i:], y[i:], p[i:], keep[i:], to, xo, yo, po, k, limit)
+
+
+@njit(cache=True, parallel=True)
+def mask_parts(x, y, width, hot_lut, keep, n_parts):
+    """The keep-mask of ``n_parts`` contiguous slices in parallel (:func:`keep_mask`); returns
+    the output offset of every slice (``n_parts + 1`` cumulative kept counts)."""
+    n = x.shape[0]
     kept = np.zeros(n_parts + 1, np.int64)
-    bad = np.full(n_parts, -1, np.int64)
     for c in prange(n_parts):
         a, b = n * c // n_parts, n * (c + 1) // n_parts
-        r = keep_mask(x[a:b], y[a:b], width, height, hot_lut, keep[a:b])
-        if r >= 0:
-            bad[c] = a + r
-        else:
-            kept[c + 1] = count_kept(keep[a:b])
-    for c in range(n_parts):
-        if bad[c] >= 0:
-            e = np.empty(0, t.dtype), np.empty(0, x.dtype), np.empty(0, y.dtype)
-            return e[0], e[1], e[2], np.empty(0, p.dtype), bad[c]
-    off = np.cumsum(kept)
-    to = np.empty(off[-1] + 1, t.dtype)
-    xo = np.empty(off[-1] + 1, x.dtype)
-    yo = np.empty(off[-1] + 1, y.dtype)
-    po = np.empty(off[-1] + 1, p.dtype)
+        keep_mask(x[a:b], y[a:b], width, hot_lut, keep[a:b])
+        kept[c + 1] = count_kept(keep[a:b])
+    return np.cumsum(kept)
+
+
+@njit(cache=True, parallel=True)
+def compact_parts(t, x, y, p, keep, off, to, xo, yo, po):
+    """Every slice of :func:`mask_parts` compacted into its place ``[off[c], off[c + 1])``."""
+    n, n_parts = t.shape[0], off.shape[0] - 1
     for c in prange(n_parts):
-        a, b, k = n * c // n_parts, n * (c + 1) // n_parts, off[c]
-        compact4(t[a:b], x[a:b], y[a:b], p[a:b], keep[a:b], to[k:], xo[k:], yo[k:], po[k:])
-    # a slice's discarded events after its last kept one were written (branch-free) over the
-    # first place of the next slice: write each slice's first kept event again
-    for c in range(1, n_parts):
-        if kept[c + 1] > 0:
-            i = n * c // n_parts
-            while keep[i] == 0:
-                i += 1
-            k = off[c]
-            to[k] = t[i]
-            xo[k] = x[i]
-            yo[k] = y[i]
-            po[k] = p[i]
-    return to, xo, yo, po, np.int64(-1)
+        a, b = n * c // n_parts, n * (c + 1) // n_parts
+        compact_into(t[a:b], x[a:b], y[a:b], p[a:b], keep[a:b], to, xo, yo, po, off[c], off[c + 1])
+
+
+@njit(cache=True, parallel=True)
+def compact_parts_simd(t, x, y, p, keep, off, to, xo, yo, po):
+    """:func:`compact_parts` with :func:`compact_simd`."""
+    n, n_parts = t.shape[0], off.shape[0] - 1
+    for c in prange(n_parts):
+        a, b = n * c // n_parts, n * (c + 1) // n_parts
+        compact_simd(t[a:b], x[a:b], y[a:b], p[a:b], keep[a:b], to, xo, yo, po, off[c], off[c + 1])
+
+
+@functools.cache
+def _cpu_simd() -> bool:
+    import numba
+    from llvmlite import binding
+
+    cfg = numba.config
+    if getattr(cfg, "CPU_NAME", None) not in (None, "host") or getattr(cfg, "CPU_FEATURES", None):
+        return False
+    feats = binding.get_host_cpu_features()
+    return all(feats.get(f, False) for f in ("avx512f", "avx512bw", "avx512vbmi2"))
+
+
+def simd_ok(*dtypes: np.dtype) -> bool:
+    """Whether :func:`compact_simd` can run here: numba compiles for this CPU (no
+    ``NUMBA_CPU_NAME``), the CPU has AVX512F/BW/VBMI2, and every dtype is a plain 1/2/4/8-byte
+    number or bool."""
+    return _cpu_simd() and all(np.dtype(d).kind in "biuf" and np.dtype(d).itemsize in (1, 2, 4, 8) for d in dtypes)
 
 
 @njit(cache=True, nogil=True)

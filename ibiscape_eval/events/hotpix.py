@@ -76,6 +76,26 @@ def _outside(x: np.ndarray, y: np.ndarray, i: int, w: int, h: int) -> IbiscapeEr
     )
 
 
+def _first_outside(x: np.ndarray, y: np.ndarray, w: int, h: int) -> int:
+    """Index of the first event outside the sensor or -1 (numpy's vectorised min / max first:
+    the per-event kernels then need no test)."""
+    if not x.shape[0]:
+        return -1
+    lo = min(int(x.min()), int(y.min())) if "i" in (x.dtype.kind, y.dtype.kind) else 0
+    if lo < 0 or int(x.max()) >= w or int(y.max()) >= h:
+        from . import _kernels
+
+        return int(_kernels.first_outside(x, y, w, h))
+    return -1
+
+
+def _check_inside(x: np.ndarray, y: np.ndarray, w: int, h: int) -> None:
+    """Refuse events outside the sensor, naming the first."""
+    bad = _first_outside(x, y, w, h)
+    if bad >= 0:
+        raise _outside(x, y, bad, w, h)
+
+
 def count_events(
     x: npt.ArrayLike,
     y: npt.ArrayLike,
@@ -112,17 +132,21 @@ def count_events(
         pa = np.ascontiguousarray(p, dtype=np.bool_)
         if pa.shape != xa.shape:
             raise IbiscapeError(f"p has shape {pa.shape}, x and y have {xa.shape}")
+    if pa is None:
+        _check_inside(xa, ya, w, h)
+        total = np.zeros((h, w), np.int64)
+        _count16(xa, ya, w, h, total)
+        return total
     # uint32 cannot overflow: a pixel holds at most N events; split larger inputs.
     step = 2**31
-    total: np.ndarray | None = None
+    total3: np.ndarray | None = None
     for s in range(0, max(xa.shape[0], 1), step):
-        part = _count_padded(xa[s : s + step], ya[s : s + step],
-                             None if pa is None else pa[s : s + step], w, h)
+        part = _count_padded(xa[s : s + step], ya[s : s + step], pa[s : s + step], w, h)
         if isinstance(part, int):
             raise _outside(xa, ya, s + part, w, h)
-        total = part.astype(np.int64) if total is None else total + part
-    assert total is not None
-    return total[0] if p is None else total
+        total3 = part.astype(np.int64) if total3 is None else total3 + part
+    assert total3 is not None
+    return total3
 
 
 #: Streams shorter than this run on one thread (starting the numba threads costs more).
@@ -140,6 +164,23 @@ def _threads(n: int) -> int:
 
 
 _PAD = 16  # uint32 counters = one 64-byte cache line of row padding (see _kernels.count_xy)
+_PAD16 = 32  # the same for uint16 counters
+
+
+def _count16(x: np.ndarray, y: np.ndarray, w: int, h: int, out: np.ndarray) -> None:
+    """Add the events per pixel (inside the sensor, checked) to the int64 (H, W) ``out`` through
+    uint16 counters (one set per thread, see ``_kernels.count_xy16``)."""
+    from . import _kernels
+
+    stride = w + _PAD16
+    threads = _threads(x.shape[0])
+    counts = np.zeros((threads, h * stride), np.uint16)
+    wrapped = np.empty((threads, x.shape[0] // 65536 + 1), np.int64)
+    if threads > 1:
+        n_wraps = _kernels.count_xy16_threads(x, y, stride, counts, wrapped, threads)
+    else:
+        n_wraps = np.array([_kernels.count_xy16(x, y, stride, counts[0], wrapped[0])], np.int64)
+    _kernels.fold16(counts, wrapped, n_wraps, w, h, stride, out)
 
 
 def _count_padded(
@@ -150,11 +191,6 @@ def _count_padded(
 
     stride = w + _PAD
     planes = 1 if p is None else 2
-    threads = _threads(x.shape[0]) if p is None else 1
-    if threads > 1:  # one histogram per thread, summed
-        parts = np.zeros((threads, h * stride), np.uint32)
-        bad = _kernels.count_xy_threads(x, y, w, h, stride, parts, threads)
-        return int(bad) if bad >= 0 else parts.sum(axis=0, dtype=np.uint32).reshape(1, h, stride)[:, :, :w]
     buf = np.zeros(planes * h * stride, np.uint32)
     if p is None:
         bad = _kernels.count_xy(x, y, w, h, stride, buf)
@@ -465,10 +501,9 @@ def hot_pixel_mask(
     w, h = _check_sensor_size(sensor_size)
     xa, ya = _coords(x, y)
     lut = _hot_lut(pixels, w, h)
+    _check_inside(xa, ya, w, h)
     out = np.empty(xa.shape[0], np.bool_)
-    bad = int(_kernels.keep_mask(xa, ya, w, h, lut, out.view(np.uint8)))
-    if bad >= 0:
-        raise _outside(xa, ya, bad, w, h)
+    _kernels.keep_mask(xa, ya, w, lut, out.view(np.uint8))
     return out
 
 
@@ -504,21 +539,27 @@ def filter_arrays(
         raise IbiscapeError(f"t, x, y, p lengths differ: {ta.shape}, {xa.shape}, {ya.shape}, {pa.shape}")
     lut = _hot_lut(pixels, w, h)
     keep = np.empty(xa.shape[0], np.uint8)
+    _check_inside(xa, ya, w, h)
     threads = _threads(xa.shape[0])
     if threads > 1:
-        *outs, bad = _kernels.filter_threads(ta, xa, ya, pa, w, h, lut, keep, 2 * threads)
-        if bad >= 0:
-            raise _outside(xa, ya, int(bad), w, h)
-        to, xo, yo, po = (a[:-1] for a in outs)
-        return to, xo, yo, po
-    bad = int(_kernels.keep_mask(xa, ya, w, h, lut, keep))
-    if bad >= 0:
-        raise _outside(xa, ya, bad, w, h)
-    kept = int(_kernels.count_kept(keep))
-    # exactly sized (plus the one spare place the branch-free compaction writes to)
-    to, xo, yo, po = (np.empty(kept + 1, a.dtype) for a in (ta, xa, ya, pa))
-    _kernels.compact4(ta, xa, ya, pa, keep, to, xo, yo, po)
-    return to[:kept], xo[:kept], yo[:kept], po[:kept]
+        off = _kernels.mask_parts(xa, ya, w, lut, keep, threads)
+    else:
+        _kernels.keep_mask(xa, ya, w, lut, keep)
+        off = np.array([0, _kernels.count_kept(keep)], np.int64)
+    # exactly sized outputs, allocated by numpy, which asks for transparent huge pages: their
+    # first write costs 57-74 ms per 600 MB against 280 ms for 4 KiB pages (numba's allocator),
+    # though where memory is fragmented it can stall in page compaction (median 590 ms at load
+    # 22 in session 8, numba's 330 ms: numpy's own filtering pays the same)
+    outs = tuple(np.empty(int(off[-1]), a.dtype) for a in (ta, xa, ya, pa))
+    simd = _kernels.simd_ok(ta.dtype, xa.dtype, ya.dtype, pa.dtype)
+    if threads > 1:
+        parts: Any = _kernels.compact_parts_simd if simd else _kernels.compact_parts
+        parts(ta, xa, ya, pa, keep, off, *outs)
+    else:
+        one: Any = _kernels.compact_simd if simd else _kernels.compact_into
+        one(ta, xa, ya, pa, keep, *outs, 0, off[-1])
+    to, xo, yo, po = outs
+    return to, xo, yo, po
 
 
 def rate_hot_pixels(
@@ -611,9 +652,18 @@ class PixelCounter:
             self._rate_state = new
         self._counts, self.w, self.h = counts, w, h
 
+    def _outside(self, events: Events, i: int, chunk: EventChunk | None) -> IbiscapeError:
+        msg = (f"pixel (x={int(events.x[i])}, y={int(events.y[i])}) lies outside the "
+               f"{self.w}x{self.h} sensor; pass the right {{0}}")
+        hint = (Remedy("sensor_size"),)
+        if chunk is not None:
+            path, line, what = chunk.where(i)
+            return FormatError(path, f"{what}: {msg}", line=line, hint=hint)
+        return IbiscapeError(f"event {self.n_events + i}: {msg}", hint=hint)
+
     def add(self, events: Events, chunk: EventChunk | None = None) -> None:
         """Count a chunk.  Out-of-sensor coordinates raise :class:`FormatError` naming the file
-        (and line) when ``chunk`` is given."""
+        (and line) when ``chunk`` is given (and nothing of the chunk is counted)."""
         from . import _kernels
 
         n = len(events)
@@ -623,41 +673,23 @@ class PixelCounter:
             mw, mh = int(events.x.max()) + 1, int(events.y.max()) + 1
             if mw > self.w or mh > self.h:
                 self._grow(max(mw, self.w), max(mh, self.h))
+        bad = _first_outside(events.x, events.y, self.w, self.h)
+        if bad >= 0:
+            raise self._outside(events, bad, chunk)
         if self._acc_n + n >= 2**32 - 1:
             self._flush()
+        stride = self.w + _PAD
         if n >= 2**32 - 1:  # one chunk beyond uint32: count it apart
             part = _count_padded(events.x, events.y, events.p if self.per_polarity else None,
                                  self.w, self.h)
-            bad = part if isinstance(part, int) else -1
-        else:
-            stride = self.w + _PAD
-            if self.per_polarity:
-                bad = int(_kernels.count_xyp(events.x, events.y, events.p, self.w, self.h,
-                                             stride, self._acc))
-            else:
-                bad = int(_kernels.count_xy(events.x, events.y, self.w, self.h, stride, self._acc))
-            if bad >= 0:  # undo the events counted before the bad one: the counts stay valid
-                xs, ys = events.x[:bad].astype(np.int64), events.y[:bad].astype(np.int64)
-                plane = (events.p[:bad].astype(np.int64) * (self.h * stride) if self.per_polarity
-                         else 0)
-                np.subtract.at(self._acc, plane + ys * stride + xs, np.uint32(1))
-            part = None
-        if bad >= 0:
-            i = bad
-            msg = (
-                f"pixel (x={int(events.x[i])}, y={int(events.y[i])}) lies outside the "
-                f"{self.w}x{self.h} sensor; pass the right {{0}}"
-            )
-            hint = (Remedy("sensor_size"),)
-            if chunk is not None:
-                path, line, what = chunk.where(i)
-                raise FormatError(path, f"{what}: {msg}", line=line, hint=hint)
-            raise IbiscapeError(f"event {self.n_events + i}: {msg}", hint=hint)
-        if part is None:
-            self._acc_n += n
-        else:
             assert not isinstance(part, int)
             self._counts += part
+        elif self.per_polarity:
+            _kernels.count_xyp(events.x, events.y, events.p, self.w, self.h, stride, self._acc)
+            self._acc_n += n
+        else:
+            _kernels.count_inside(events.x, events.y, stride, self._acc)
+            self._acc_n += n
         if self._rate_state:
             if self._t0 is None:
                 self._t0 = int(events.t_ns[0])

@@ -1,0 +1,164 @@
+"""The fast paths of hot-pixel counting and filtering (uint16 counters with wrap-around, AVX-512
+compaction, two-pass parallel compaction) against plain numpy on generated data: the same
+counts, the same kept events in the same order, the same refusals."""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+import pytest
+
+from ibiscape_eval.core.errors import IbiscapeError
+from ibiscape_eval.events import _kernels, count_events, filter_arrays, hot_pixel_mask, hotpix
+
+THREADS = min(2, numba.config.NUMBA_NUM_THREADS)  # type: ignore[attr-defined]
+
+
+@pytest.fixture(params=["1 thread", "parallel"])
+def threads(request, monkeypatch):
+    """Run the single-thread kernels, or the parallel ones even on short streams."""
+    if request.param == "parallel":
+        if THREADS < 2:
+            pytest.skip("numba has one thread here")
+        monkeypatch.setattr(hotpix, "PARALLEL_MIN_EVENTS", 0)
+    before = numba.get_num_threads()
+    numba.set_num_threads(THREADS if request.param == "parallel" else 1)
+    yield request.param
+    numba.set_num_threads(before)
+
+
+@pytest.fixture(params=["simd", "scalar"])
+def simd(request, monkeypatch):
+    """The AVX-512 compaction where the CPU has it, and the scalar one everywhere."""
+    if request.param == "simd" and not _kernels.simd_ok(np.int64, np.uint16, np.bool_):
+        pytest.skip("no AVX-512 VBMI2 here")
+    if request.param == "scalar":
+        monkeypatch.setattr(_kernels, "simd_ok", lambda *d: False)
+    return request.param
+
+
+def reference(t, x, y, p, pixels, w):
+    rows = max(int(y.max(initial=0)), int(pixels[:, 1].max(initial=0))) + 1
+    hot = np.zeros(rows * w, bool)
+    hot[pixels[:, 1].astype(np.int64) * w + pixels[:, 0]] = True
+    m = ~hot[y.astype(np.int64) * w + x]
+    return t[m], x[m], y[m], p[m]
+
+
+def stream(n, w, h, seed=0):
+    rng = np.random.default_rng(seed)
+    x = rng.integers(0, w, n).astype(np.uint16)
+    y = rng.integers(0, h, n).astype(np.uint16)
+    t = np.cumsum(rng.integers(0, 5, n)).astype(np.int64)
+    return t, x, y, rng.random(n) < 0.5
+
+
+def all_pixels(w, h):
+    return np.stack(np.meshgrid(np.arange(w), np.arange(h)), -1).reshape(-1, 2)
+
+
+@pytest.mark.parametrize("n", [0, 1, 63, 64, 65, 129, 4097, 100_003])
+@pytest.mark.parametrize("hot_fraction", [0.0, 0.08, 0.97, 1.0])
+def test_filter_keeps_what_numpy_keeps(n, hot_fraction, threads, simd):
+    w, h = 37, 23
+    t, x, y, p = stream(n, w, h, seed=n)
+    px = all_pixels(w, h)
+    pixels = px[np.random.default_rng(1).random(len(px)) < hot_fraction]
+    out = filter_arrays(t, x, y, p, pixels, sensor_size=(w, h))
+    for got, want in zip(out, reference(t, x, y, p, pixels, w), strict=True):
+        assert got.dtype == want.dtype and got.shape == want.shape
+        np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(hot_pixel_mask(x, y, pixels, sensor_size=(w, h)),
+                                  ~np.isin(y.astype(np.int64) * w + x, pixels[:, 1] * w + pixels[:, 0]))
+
+
+@pytest.mark.parametrize("size", [(1, 1), (640, 1), (1, 480), (346, 260), (65536, 2)])
+def test_every_pixel_of_the_sensor_edge(size, threads, simd):
+    """Events on every border pixel (the largest coordinates included), several times over:
+    all kept, only the corners dropped, or all dropped."""
+    w, h = size
+    px = all_pixels(w, h) if w * h < 10_000 else None
+    if px is None:
+        xs = np.arange(w)
+        px = np.concatenate([np.stack([xs, np.zeros_like(xs)], 1), np.stack([xs, np.full_like(xs, h - 1)], 1)])
+    edge = px[(px[:, 0] == 0) | (px[:, 0] == w - 1) | (px[:, 1] == 0) | (px[:, 1] == h - 1)]
+    rep = np.tile(edge, (3, 1))
+    x, y = rep[:, 0].astype(np.uint16), rep[:, 1].astype(np.uint16)
+    t, p = np.arange(len(x), dtype=np.int64), np.arange(len(x)) % 3 == 0
+    counts = count_events(x, y, sensor_size=size)
+    assert counts.sum() == len(x)
+    np.testing.assert_array_equal(
+        counts.ravel(), np.bincount(y.astype(np.int64) * w + x, minlength=w * h))
+    corners = np.array([[0, 0], [w - 1, 0], [0, h - 1], [w - 1, h - 1]])
+    for pixels in (np.empty((0, 2), np.int64), corners, edge):
+        out = filter_arrays(t, x, y, p, pixels, sensor_size=size)
+        for got, want in zip(out, reference(t, x, y, p, pixels, w), strict=True):
+            np.testing.assert_array_equal(got, want)
+    assert len(filter_arrays(t, x, y, p, edge, sensor_size=size)[0]) == 0
+
+
+def test_any_dtypes_are_kept_exactly(threads, simd):
+    """filter_arrays on non-canonical dtypes (float time, int32 / int64 coordinates, uint8
+    polarity): the outputs have the input dtypes and values."""
+    w, h = 50, 40
+    t, x, y, p = stream(5000, w, h, seed=7)
+    pixels = all_pixels(w, h)[::7]
+    ins = (t.astype(np.float64) / 3, x.astype(np.int32), y.astype(np.int64), p.astype(np.uint8))
+    out = filter_arrays(*ins, pixels, sensor_size=(w, h))
+    for got, want in zip(out, reference(*ins, pixels, w), strict=True):
+        assert got.dtype == want.dtype
+        np.testing.assert_array_equal(got, want)
+
+
+def test_counters_wrap_around_exactly(threads):
+    """More than 65535 events on a pixel (the uint16 counters wrap, twice here) and a pixel with
+    exactly 65536: the counts stay exact."""
+    w, h = 8, 4
+    rng = np.random.default_rng(3)
+    x = np.concatenate([np.full(140_000, 7), np.full(65_536, 0), rng.integers(0, w, 5000)])
+    y = np.concatenate([np.full(140_000, 3), np.full(65_536, 1), rng.integers(0, h, 5000)])
+    order = rng.permutation(len(x))
+    x, y = x[order].astype(np.uint16), y[order].astype(np.uint16)
+    counts = count_events(x, y, sensor_size=(w, h))
+    assert counts.dtype == np.int64
+    np.testing.assert_array_equal(counts.ravel(), np.bincount(y.astype(np.int64) * w + x, minlength=w * h))
+    assert counts[3, 7] >= 140_000 and counts[1, 0] >= 65_536
+
+
+@pytest.mark.parametrize("bad", [(5, 0), (0, 4), (-1, 0), (0, -3)])
+def test_outside_the_sensor_is_refused_naming_the_first(bad, threads):
+    w, h = 5, 4
+    t, x, y, p = stream(3000, w, h, seed=9)
+    x, y = x.astype(np.int32), y.astype(np.int32)
+    x[1234], y[1234] = bad
+    x[2000] = 99
+    pixels = np.array([[1, 1]])
+    for call in (lambda: filter_arrays(t, x, y, p, pixels, sensor_size=(w, h)),
+                 lambda: hot_pixel_mask(x, y, pixels, sensor_size=(w, h)),
+                 lambda: count_events(x, y, sensor_size=(w, h))):
+        with pytest.raises(IbiscapeError, match=r"event 1234 at pixel .* outside the 5x4 sensor"):
+            call()
+
+
+@pytest.mark.parametrize("per_polarity", [False, True])
+def test_streamed_counter_refuses_a_bad_chunk_and_keeps_its_counts(per_polarity):
+    """PixelCounter checks a chunk before counting it: the error names the event, the counts
+    so far stay those of the good chunks, and counting goes on."""
+    from ibiscape_eval.core.events import Events
+    from ibiscape_eval.events import PixelCounter
+
+    w, h = 6, 5
+    chunks = [Events(*(a for a in stream(700, w, h, seed=s))) for s in range(3)]
+    bad = chunks[1]
+    bx = bad.x.copy()
+    bx[321] = w
+    acc = PixelCounter(sensor_size=(w, h), per_polarity=per_polarity)
+    acc.add(chunks[0])
+    with pytest.raises(IbiscapeError, match=r"event 1021: pixel \(x=6, y=\d\) lies outside the 6x5"):
+        acc.add(Events(bad.t_ns, bx, bad.y, bad.p))
+    acc.add(chunks[2])
+    both = Events.concatenate([chunks[0], chunks[2]])
+    want = np.bincount(both.y.astype(np.int64) * w + both.x, minlength=w * h).reshape(h, w)
+    got = acc.count_map.sum(axis=0) if per_polarity else acc.count_map
+    np.testing.assert_array_equal(got, want)
+    assert acc.n_events == 1400
