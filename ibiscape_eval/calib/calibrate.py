@@ -33,6 +33,17 @@ from ibiscape_eval.core.camera import CameraModel
 from ibiscape_eval.core.errors import CalibrationError, IbiscapeError
 from ibiscape_eval.core.kalibr import CalibrationTarget
 
+from ._lsq import (
+    BlockJacobian,
+    leading_inverse,
+    left_jacobian,
+    normal_equations,
+    project_jacobian,
+    rotvec_from_matrix,
+    rotvec_matrix,
+    skew,
+    solve_damped,
+)
 from .detect import Detection
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -221,18 +232,14 @@ class Observations:
 
 # ------------------------------------------------------------------------------------- geometry
 def _T(rvec: npt.ArrayLike, tvec: npt.ArrayLike) -> FloatArray:
-    from scipy.spatial.transform import Rotation
-
     T = np.eye(4)
-    T[:3, :3] = Rotation.from_rotvec(np.asarray(rvec, np.float64).ravel()).as_matrix()
+    T[:3, :3] = rotvec_matrix(np.asarray(rvec, np.float64).ravel())[0]
     T[:3, 3] = np.asarray(tvec, np.float64).ravel()
     return T
 
 
 def _rt(T: FloatArray) -> FloatArray:
-    from scipy.spatial.transform import Rotation
-
-    return np.concatenate([Rotation.from_matrix(T[:3, :3]).as_rotvec(), T[:3, 3]])
+    return np.concatenate([rotvec_from_matrix(T[:3, :3]), T[:3, 3]])
 
 
 def _rot_angle_deg(R: FloatArray) -> float:
@@ -436,8 +443,6 @@ class _Problem:
         """Per camera, the target points of its observations in its frame (None: no observation);
         kept for the last chain and poses (the finite differences of the intrinsics leave them
         unchanged, those of the chain leave the target points in camera 0 unchanged)."""
-        from scipy.spatial.transform import Rotation
-
         key = (chain.tobytes(), poses.tobytes())
         last = self._memo.get("cameras")
         if last is not None and last[0] == key:
@@ -447,7 +452,7 @@ class _Problem:
         if last_p is not None and last_p[0] == key[1]:
             p = last_p[1]
         else:
-            R = Rotation.from_rotvec(poses[:, :3]).as_matrix()
+            R = rotvec_matrix(poses[:, :3])
             p = np.einsum("mij,mj->mi", R[self.view_i], self.obj) + poses[self.view_i, 3:]
             self._memo["points"] = (key[1], p)
         out: list[FloatArray | None] = []
@@ -455,7 +460,7 @@ class _Problem:
         Rn, tn = np.eye(3), np.zeros(3)
         for n in range(self.n_cams):
             if n > 0:
-                Rc = Rotation.from_rotvec(chain[n - 1, :3]).as_matrix()
+                Rc = rotvec_matrix(chain[n - 1, :3])[0]
                 Rn, tn = Rc @ Rn, Rc @ tn + chain[n - 1, 3:]
             sel = self._camera_rows(n)
             out.append(p[sel] @ Rn.T + tn if sel.any() else None)
@@ -476,95 +481,85 @@ class _Problem:
             out[sel] = cam.project(pc) - self.uv[sel]
         return np.nan_to_num(out, nan=1e3, posinf=1e3, neginf=-1e3)
 
-    def column_groups(self) -> list[tuple[IntArray, list[tuple[int, IntArray]]]]:
-        """Finite-difference groups: ``(columns moved together, [(column, its residual rows)])``.
-
-        Columns that touch disjoint residuals share one function evaluation (Curtis, Powell &
-        Reid 1974): the same intrinsic of different cameras, the same pose entry of all views.
-        """
+    def jacobian(self, intr: FloatArray, chain: FloatArray, poses: FloatArray) -> BlockJacobian:
+        """Exact derivatives of :meth:`residuals` by ``a`` (the free intrinsics and chain) and by
+        each corner's view pose; rows whose residual is a placeholder (behind the camera, invalid
+        intrinsics) are zero, as the derivative of a constant."""
         ni, nc, _ = self.layout()
-        obs = np.arange(len(self.uv))
-        groups: list[tuple[IntArray, list[tuple[int, IntArray]]]] = []
-        cam_rows = [obs[self.cam_i == n] for n in range(self.n_cams)]
-        if self.free_intrinsics:
-            for j in range(8):
-                cols = 8 * np.arange(self.n_cams) + j
-                groups.append((cols, [(int(c), cam_rows[n]) for n, c in enumerate(cols)]))
-        if self.free_chain:
-            for n in range(1, self.n_cams):
-                rows = obs[self.cam_i >= n]
-                for j in range(6):
-                    c = ni + 6 * (n - 1) + j
-                    groups.append((np.array([c]), [(c, rows)]))
-        order = np.argsort(self.view_i, kind="stable")
-        bounds = np.searchsorted(self.view_i[order], np.arange(self.n_views + 1))
-        view_rows = [order[bounds[v]:bounds[v + 1]] for v in range(self.n_views)]
-        for j in range(6):
-            cols = ni + nc + 6 * np.arange(self.n_views) + j
-            groups.append((cols, [(int(c), view_rows[v]) for v, c in enumerate(cols)]))
-        return groups
-
-
-def _jacobian(fun: Callable[[FloatArray], FloatArray], x: FloatArray, r0: FloatArray,
-              groups: list[tuple[IntArray, list[tuple[int, IntArray]]]]) -> Any:
-    """Sparse forward-difference Jacobian of the (M, 2) residual function, shape (2M, P)."""
-    from scipy.sparse import csr_matrix
-
-    h = 1e-6 * np.maximum(np.abs(x), 1.0)
-    rows_l, cols_l, vals_l = [], [], []
-    for cols, members in groups:
-        xp = x.copy()
-        xp[cols] += h[cols]
-        d = (fun(xp) - r0)
-        for c, rows in members:
-            if len(rows) == 0:
+        m = len(self.uv)
+        Ja, Jp = np.zeros((m, 2, ni + nc)), np.zeros((m, 2, 6))
+        Rv = rotvec_matrix(poses[:, :3])[self.view_i]
+        RX = np.einsum("mij,mj->mi", Rv, self.obj)
+        p0 = RX + poses[self.view_i, 3:]
+        dp0_dw = -skew(RX) @ left_jacobian(poses[:, :3])[self.view_i]
+        Rc = rotvec_matrix(chain[:, :3]) if len(chain) else np.zeros((0, 3, 3))
+        Jlc = left_jacobian(chain[:, :3]) if len(chain) else np.zeros((0, 3, 3))
+        for n in range(self.n_cams):
+            sel = self._camera_rows(n)
+            if not sel.any():
                 continue
-            g = d[rows] / h[c]
-            rows_l.append(np.concatenate([2 * rows, 2 * rows + 1]))
-            cols_l.append(np.full(2 * len(rows), c))
-            vals_l.append(np.concatenate([g[:, 0], g[:, 1]]))
-    m = 2 * len(r0)
-    return csr_matrix((np.concatenate(vals_l), (np.concatenate(rows_l), np.concatenate(cols_l))),
-                      shape=(m, len(x)))
+            try:
+                _camera(self.cams[n], intr[n])
+            except IbiscapeError:
+                continue
+            p, qs = p0[sel], []
+            for k in range(n):  # through the chain: q = R_k p_(k-1), p_k = q + t_k
+                q = p @ Rc[k].T
+                qs.append(q)
+                p = q + chain[k, 3:]
+            uv, J_i, G = project_jacobian(self.cams[n].distortion, intr[n], p)
+            Jn = np.zeros((len(p), 2, ni + nc))
+            if self.free_intrinsics:
+                Jn[:, :, 8 * n:8 * n + 8] = J_i
+            for k in range(n - 1, -1, -1):  # back through the chain: G = d uv / d p_k
+                if self.free_chain:
+                    c = ni + 6 * k
+                    Jn[:, :, c:c + 3] = G @ (-skew(qs[k]) @ Jlc[k])
+                    Jn[:, :, c + 3:c + 6] = G
+                G = G @ Rc[k]
+            Jpn = np.concatenate([G @ dp0_dw[sel], G], axis=2)
+            bad = ~np.all(np.isfinite(uv), axis=1)
+            Jn[bad], Jpn[bad] = 0.0, 0.0
+            Ja[sel], Jp[sel] = Jn, Jpn
+        return BlockJacobian(Ja, Jp, self.view_i, self.n_views)
 
 
 @dataclass(frozen=True, eq=False)
 class _Solution:
     x: FloatArray
-    jac: Any
+    jac: BlockJacobian
     cost: float  # 0.5 * sum of squares (scipy's convention)
     iterations: int
 
 
-def _levenberg_marquardt(fun: Callable[[FloatArray], FloatArray], x0: FloatArray,
-                         groups: list[tuple[IntArray, list[tuple[int, IntArray]]]], *,
-                         max_iter: int = 100) -> _Solution:
+def _levenberg_marquardt(fun: Callable[[FloatArray], FloatArray], jac: Callable[[FloatArray], BlockJacobian],
+                         x0: FloatArray, *, max_iter: int = 100) -> _Solution:
     """Levenberg-Marquardt with Marquardt's diagonal scaling on the normal equations.
 
-    The normal equations stay sparse (intrinsics and chain beside a 6x6 block per view) and are
-    solved by sparse LU: a dense Cholesky of the 172 x 172 system of 25 stereo views took 0.2-0.5 s
-    per step on a loaded 2-core machine (OpenBLAS threads waiting for each other), the sparse
-    solve 2-4 ms."""
-    import scipy.sparse as sp
-    from scipy.sparse.linalg import splu
-
+    The normal equations keep their block structure (intrinsics and chain beside a 6x6 block per
+    view): the poses are eliminated block by block and a ``K x K`` system is left
+    (:func:`~ibiscape_eval.calib._lsq.solve_damped`).  A dense Cholesky of the 172 x 172 system of
+    25 stereo views took 0.2-0.5 s per step on a loaded 2-core machine (OpenBLAS threads waiting
+    for each other), a sparse LU 2-4 ms (with 0.3 s of scipy imports), the reduced system well
+    under 1 ms.  The Jacobian is exact (:meth:`_Problem.jacobian`): one evaluation, where finite
+    differences took 20."""
     x = x0.copy()
     r = fun(x)
     cost = float(np.sum(r * r))
     lam = 1e-3
-    J = _jacobian(fun, x, r, groups)
+    J = jac(x)
     it = 0
     for it in range(1, max_iter + 1):  # noqa: B007
-        A = (J.T @ J).tocsc()
-        g = J.T @ r.ravel()
-        d = np.maximum(A.diagonal(), 1e-12)
+        N = normal_equations(J, r)
+        d_a, d_p = (np.maximum(d, 1e-12) for d in N.diagonal())
         improved = False
         while lam < 1e12:
             try:
-                dx = -splu((A + sp.diags(lam * d)).tocsc()).solve(g)
-            except RuntimeError:  # exactly singular
+                dx_a, dx_p = solve_damped(N, lam, d_a, d_p)
+            except np.linalg.LinAlgError:  # exactly singular
                 lam *= 10.0
                 continue
+            dx = np.concatenate([dx_a, dx_p.ravel()])
             if not np.all(np.isfinite(dx)):
                 lam *= 10.0
                 continue
@@ -580,7 +575,7 @@ def _levenberg_marquardt(fun: Callable[[FloatArray], FloatArray], x0: FloatArray
             lam *= 5.0
         if not improved:
             break
-        J = _jacobian(fun, x, r, groups)
+        J = jac(x)
         if rel < 1e-12 or np.max(np.abs(dx) / np.maximum(np.abs(x), 1.0)) < 1e-12:
             break
     return _Solution(x, J, 0.5 * cost, it)
@@ -600,9 +595,20 @@ def _solve(prob: _Problem, intr: FloatArray, chain: FloatArray, poses: FloatArra
         i, c, p = prob.split(x, intr, chain)
         return prob.residuals(i, c, p)
 
-    sol = _levenberg_marquardt(fun, x0, prob.column_groups())
+    def jac(x: FloatArray) -> BlockJacobian:
+        i, c, p = prob.split(x, intr, chain)
+        return prob.jacobian(i, c, p)
+
+    sol = _levenberg_marquardt(fun, jac, x0)
     i, c, p = prob.split(sol.x, intr, chain)
     return i.copy(), c.copy(), p.copy(), sol
+
+
+def _per_view_sums(values: FloatArray, view_rows: IntArray, n_views: int) -> FloatArray:
+    """Sums (V, ...) of ``values`` (rows, ...) over the rows of every view."""
+    out = np.zeros((n_views, *values.shape[1:]))
+    np.add.at(out, view_rows, values)
+    return out
 
 
 def _covariance(sol: _Solution, n_fixed_tail: int, res: FloatArray, cam_i: IntArray,
@@ -625,13 +631,14 @@ def _covariance(sol: _Solution, n_fixed_tail: int, res: FloatArray, cam_i: IntAr
 
     The result is multiplied by :data:`STD_INFLATION` squared (see there).
     """
-    import scipy.sparse as sp
-
-    J = sol.jac.tocsr()
+    J = sol.jac
     m, p = J.shape
     k = p - n_fixed_tail
-    X = _leading_inverse_columns((J.T @ J).tocsc(), k)  # (J^T J)^-1 [:, :k]
+    X_a, X_p = leading_inverse(normal_equations(J, res), J)  # (J^T J)^-1 [:, :k] in blocks
     r = res.ravel()
+    Ja = J.Ja.reshape(m, k)
+    Jp = J.Jp.reshape(m, 6)
+    JX = (J.Ja @ X_a + J.Jp @ X_p[view_i]).reshape(m, k)  # J (J^T J)^-1 [:, :k]
     rows_cam = np.repeat(cam_i, 2)
     rows_view = np.repeat(view_i, 2)
     n_cams = int(cam_i.max()) + 1 if cam_i.size else 0
@@ -640,43 +647,27 @@ def _covariance(sol: _Solution, n_fixed_tail: int, res: FloatArray, cam_i: IntAr
     s2_cam = []
     for n in range(n_cams):
         sel = rows_cam == n
-        Jc = J[sel]
-        pc = int(np.count_nonzero(np.asarray(abs(Jc).sum(axis=0)).ravel()))
+        touched = _per_view_sums(np.abs(Jp[sel]), rows_view[sel], J.n_views)
+        pc = int(np.count_nonzero(np.abs(Ja[sel]).sum(axis=0))) + int(np.count_nonzero(touched))
         s2 = float(r[sel] @ r[sel]) / max(int(sel.sum()) - pc, 1)
         s2_cam.append(s2)
-        JX = np.asarray(Jc @ X)
-        cov_cam += s2 * np.einsum("ij,ik->jk", JX, JX)
+        cov_cam += s2 * (JX[sel].T @ JX[sel])
     # per view: cluster-robust, the score u_v = J_v^T r_v of every view
     n_v = int(view_i.max()) + 1 if view_i.size else 0
-    Sv = sp.csr_matrix((np.ones(m), (rows_view, np.arange(m))), shape=(n_v, m))
-    UX = np.asarray((Sv @ J.multiply(r[:, None]).tocsr()) @ X)
+    UX = (_per_view_sums(Ja * r[:, None], rows_view, J.n_views) @ X_a
+          + np.einsum("vj,vjk->vk", _per_view_sums(Jp * r[:, None], rows_view, J.n_views), X_p))
     corr = n_v / max(n_v - 1, 1) * (m - 1) / max(m - p, 1)
-    cov_view = np.einsum("ij,ik->jk", UX, UX) * corr
+    cov_view = (UX.T @ UX) * corr
     d = np.maximum(np.diag(cov_cam), np.diag(cov_view))
     sc = np.sqrt(d / np.maximum(np.diag(cov_cam), 1e-300))
     cov = cov_cam * np.outer(sc, sc)  # the larger variance, the per-camera correlations
     cov *= STD_INFLATION**2
     info = {"method": "max(per-camera residual variance, per-view cluster-robust)",
             "residual_variance_px2": s2_cam, "inflation": STD_INFLATION,
-            "std_plain": np.sqrt(np.clip(np.diag(X[:k]) * float(r @ r) / max(m - p, 1), 0, None)).tolist(),
+            "std_plain": np.sqrt(np.clip(np.diag(X_a) * float(r @ r) / max(m - p, 1), 0, None)).tolist(),
             "std_per_camera": np.sqrt(np.clip(np.diag(cov_cam), 0, None)).tolist(),
             "std_per_view": np.sqrt(np.clip(np.diag(cov_view), 0, None)).tolist()}
     return cov, info
-
-
-def _leading_inverse_columns(H: Any, k: int) -> FloatArray:
-    """The first ``k`` columns of ``H^-1`` for the sparse normal matrix ``H`` (p, p): by sparse LU,
-    else (a singular ``H``) from the dense pseudo-inverse."""
-    from scipy.sparse.linalg import splu
-
-    p = H.shape[0]
-    try:
-        X = splu(H).solve(np.eye(p)[:, :k])
-        if np.all(np.isfinite(X)):
-            return np.asarray(X)
-    except RuntimeError:
-        pass
-    return np.linalg.pinv(H.toarray(), rcond=1e-15, hermitian=True)[:, :k]
 
 
 #: Views whose target normals all lie within this angle [deg] of each other are refused: the
