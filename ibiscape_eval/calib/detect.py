@@ -131,7 +131,7 @@ def _near_box(near: npt.NDArray[np.float64], gray: npt.NDArray[np.uint8],
 
 
 def _checkerboard(gray: npt.NDArray[np.uint8], target: CalibrationTarget, near: npt.NDArray[np.float64] | None,
-                  exhaustive: bool, fast: bool = True) -> Detection | None:
+                  exhaustive: bool, fast: bool = True, photo: bool = False) -> Detection | None:
     import cv2
 
     h, w = gray.shape
@@ -146,6 +146,8 @@ def _checkerboard(gray: npt.NDArray[np.uint8], target: CalibrationTarget, near: 
         if ok and corners is not None:
             pts = np.asarray(corners, np.float64).reshape(-1, 2) + np.array([x0, y0], np.float64)
     if pts is None:
+        pts = _classic_checkerboard(gray, size, photo) if fast else None
+    if pts is None:
         pts = _search_checkerboard(gray, size, exhaustive, fast)
     if pts is None:
         return None
@@ -157,6 +159,26 @@ def _checkerboard(gray: npt.NDArray[np.uint8], target: CalibrationTarget, near: 
             np.linalg.norm(np.diff(grid, axis=1), axis=-1).min())
     pts = _subpix(gray, pts, int(min(d / 3.0, 15)))
     return Detection(np.arange(target.n_corners, dtype=np.int64), pts, (w, h))
+
+
+def _classic_checkerboard(gray: npt.NDArray[np.uint8], size: tuple[int, int],
+                          photo: bool) -> npt.NDArray[np.float64] | None:
+    """OpenCV's classic quad-based search (adaptive threshold, normalised image; its quick check
+    for a board first unless ``photo``) in a copy at most :data:`_SEARCH_WIDTH_PX` wide: the
+    grid in full-size pixels, or None.  On OpenCV's 13 real 640x480 stereo pairs: 4.0 ms per photo
+    against 32 ms for the sector-based search at 400 px, every board found by both."""
+    import cv2
+
+    h, w = gray.shape
+    scale = min(1.0, _SEARCH_WIDTH_PX / w)
+    img = gray if scale == 1.0 else cv2.resize(gray, (round(w * scale), round(h * scale)),
+                                               interpolation=cv2.INTER_AREA)
+    flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
+    ok, corners = cv2.findChessboardCorners(img, size, flags=flags if photo else flags | cv2.CALIB_CB_FAST_CHECK)
+    if not ok or corners is None:
+        return None
+    pts = np.asarray(corners, np.float64).reshape(-1, 2)
+    return pts if scale == 1.0 else (pts + 0.5) / scale - 0.5
 
 
 def _search_checkerboard(gray: npt.NDArray[np.uint8], size: tuple[int, int],
@@ -471,7 +493,7 @@ def neighbour_residuals_px(board_xy: npt.ArrayLike, uv: npt.ArrayLike, *, k: int
 
 def detect_corners(image: npt.NDArray[Any], target: CalibrationTarget, *,
                    near: Detection | None = None, exhaustive: bool = True,
-                   event_frame: bool = False, fast: bool = True) -> Detection | None:
+                   event_frame: bool = False, fast: bool = True, photo: bool = False) -> Detection | None:
     """Detect the target in one image (grey or BGR, any dtype); None when it is not found.
 
     Parameters
@@ -493,10 +515,18 @@ def detect_corners(image: npt.NDArray[Any], target: CalibrationTarget, *,
         Checkerboards: search the whole image first in a :data:`_FAST_SEARCH_WIDTH_PX` wide copy
         (2x less CPU on 640x512 photos); False for images that often hold no board (event-frame
         reconstructions under trial), where a miss would cost that search on top of the full one.
+        Before that, OpenCV's classic quad-based ``findChessboardCorners`` is tried (4-7 ms on a
+        640x480 photo, the sector-based search 32 ms at 400 px): with its quick check for a board
+        first, unless ``photo``.
+    photo
+        The image is a photo of the board (``--images``), not a frame of a video that may miss it:
+        the classic search runs without its quick check (4.0 instead of 6.6 ms per 640x480 photo;
+        without a board it costs 99 ms instead of 14).
     """
     gray = _gray(image)
     if target.target_type == "checkerboard":
-        return _checkerboard(gray, target, None if near is None else near.corners_px, exhaustive, fast)
+        return _checkerboard(gray, target, None if near is None else near.corners_px, exhaustive, fast,
+                             photo)
     return _aprilgrid(gray, target, None if near is None else _grid_outline(near, target), event_frame)
 
 

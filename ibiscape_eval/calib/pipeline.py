@@ -144,7 +144,7 @@ def _run_detection(target: CalibrationTarget, cameras: Sequence[CameraFrames],
                 det = detect_corners(img, target, near=prev if near_search else None,
                                      exhaustive=exhaustive,
                                      event_frame=cameras[k].reconstruction is not None,
-                                     fast=cameras[k].reconstruction is None)
+                                     fast=cameras[k].reconstruction is None, photo=not near_search)
             prev = det
             if progress is not None:
                 progress(1)
