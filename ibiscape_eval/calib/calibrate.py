@@ -530,10 +530,11 @@ class _Solution:
     jac: BlockJacobian
     cost: float  # 0.5 * sum of squares (scipy's convention)
     iterations: int
+    damping: float  # the last Levenberg-Marquardt damping
 
 
 def _levenberg_marquardt(fun: Callable[[FloatArray], FloatArray], jac: Callable[[FloatArray], BlockJacobian],
-                         x0: FloatArray, *, max_iter: int = 100) -> _Solution:
+                         x0: FloatArray, *, max_iter: int = 100, lam0: float = 1e-3) -> _Solution:
     """Levenberg-Marquardt with Marquardt's diagonal scaling on the normal equations.
 
     The normal equations keep their block structure (intrinsics and chain beside a 6x6 block per
@@ -542,11 +543,12 @@ def _levenberg_marquardt(fun: Callable[[FloatArray], FloatArray], jac: Callable[
     25 stereo views took 0.2-0.5 s per step on a loaded 2-core machine (OpenBLAS threads waiting
     for each other), a sparse LU 2-4 ms (with 0.3 s of scipy imports), the reduced system well
     under 1 ms.  The Jacobian is exact (:meth:`_Problem.jacobian`): one evaluation, where finite
-    differences took 20."""
+    differences took 20.  ``lam0``: the first damping (a problem re-solved from a nearby solution
+    starts with the damping it ended with)."""
     x = x0.copy()
     r = fun(x)
     cost = float(np.sum(r * r))
-    lam = 1e-3
+    lam = lam0
     J = jac(x)
     it = 0
     for it in range(1, max_iter + 1):  # noqa: B007
@@ -578,10 +580,10 @@ def _levenberg_marquardt(fun: Callable[[FloatArray], FloatArray], jac: Callable[
         J = jac(x)
         if rel < 1e-12 or np.max(np.abs(dx) / np.maximum(np.abs(x), 1.0)) < 1e-12:
             break
-    return _Solution(x, J, 0.5 * cost, it)
+    return _Solution(x, J, 0.5 * cost, it, lam)
 
 
-def _solve(prob: _Problem, intr: FloatArray, chain: FloatArray, poses: FloatArray
+def _solve(prob: _Problem, intr: FloatArray, chain: FloatArray, poses: FloatArray, lam0: float = 1e-3
            ) -> tuple[FloatArray, FloatArray, FloatArray, _Solution]:
     parts = []
     if prob.free_intrinsics:
@@ -599,7 +601,7 @@ def _solve(prob: _Problem, intr: FloatArray, chain: FloatArray, poses: FloatArra
         i, c, p = prob.split(x, intr, chain)
         return prob.jacobian(i, c, p)
 
-    sol = _levenberg_marquardt(fun, jac, x0)
+    sol = _levenberg_marquardt(fun, jac, x0, lam0=lam0)
     i, c, p = prob.split(sol.x, intr, chain)
     return i.copy(), c.copy(), p.copy(), sol
 
@@ -852,7 +854,7 @@ def _refine(full: _Problem, intr: FloatArray, chain: FloatArray, poses: FloatArr
         say(f"refining (round {rounds})")
         prob = _Problem(full.cams, full.obj[keep], full.uv[keep], full.cam_i[keep], full.view_i[keep],
                         full.n_views)
-        intr, chain, poses, sol = _solve(prob, intr, chain, poses)
+        intr, chain, poses, sol = _solve(prob, intr, chain, poses, 1e-3 if sol is None else sol.damping)
         new_keep = ~_outliers(full, full.residuals(intr, chain, poses), keep, outlier_sigma)
         if np.array_equal(new_keep, keep):
             break
