@@ -232,8 +232,10 @@ class Observations:
 
 # ------------------------------------------------------------------------------------- geometry
 def _T(rvec: npt.ArrayLike, tvec: npt.ArrayLike) -> FloatArray:
+    import cv2
+
     T = np.eye(4)
-    T[:3, :3] = rotvec_matrix(np.asarray(rvec, np.float64).ravel())[0]
+    T[:3, :3], _ = cv2.Rodrigues(np.asarray(rvec, np.float64).reshape(3, 1))
     T[:3, 3] = np.asarray(tvec, np.float64).ravel()
     return T
 
@@ -305,6 +307,23 @@ def _init_camera(obs: Observations, target: CalibrationTarget, views: list[int],
     return cam
 
 
+def _init_cameras(observations: Sequence[Observations], target: CalibrationTarget, usable: list[list[int]],
+                  distortion: str) -> list[CameraModel]:
+    """:func:`_init_camera` of every camera, in parallel threads (OpenCV releases the GIL)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from ibiscape_eval.core.cpus import usable_cpus
+
+    def one(n: int) -> CameraModel:
+        return _init_camera(observations[n], target, usable[n], distortion)
+
+    workers = min(len(observations), usable_cpus())
+    if workers < 2:
+        return [one(n) for n in range(len(observations))]
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        return list(pool.map(one, range(len(observations))))
+
+
 Rays = dict[int, tuple[FloatArray, npt.NDArray[np.bool_]]]
 
 
@@ -351,25 +370,26 @@ def _pose_distance(A: FloatArray, B: FloatArray, scale_m: float) -> float:
 
 
 def _consistent_numbering(ref_poses: dict[int, FloatArray], dets: list[Detection | None],
-                          rays: Rays, target: CalibrationTarget
-                          ) -> tuple[dict[int, Detection], FloatArray | None, int]:
+                          rays: Rays, target: CalibrationTarget, own: dict[int, FloatArray]
+                          ) -> tuple[dict[int, tuple[Detection, FloatArray]], FloatArray | None, int]:
     """Renumber camera n's detections so that ``T_cn_ref = T_cn_t T_ref_t^-1`` agrees over views.
 
-    Returns the renumbered detections (common views only), the consensus relative pose and the
-    number of views whose numbering changed.
+    ``own``: camera n's poses ``T_cn_t`` of its views in their current numbering (the identity
+    permutation's, not solved again).  Returns per common view the renumbered detection and its
+    pose ``T_cn_t``, the consensus relative pose and the number of views whose numbering changed.
     """
     obj = target.object_points()
     perms = target.symmetries()
-    cands: list[tuple[int, int, FloatArray]] = []  # (view, perm index, T_cn_ref)
+    cands: list[tuple[int, int, FloatArray, FloatArray]] = []  # (view, perm index, T_cn_ref, T_cn_t)
     for v, T_ref in ref_poses.items():
         d = dets[v]
         if d is None:
             continue
+        T_ref_inv = np.linalg.inv(T_ref)
         for k, perm in enumerate(perms):
-            ids = perm[d.ids]
-            T = _pnp_rays(obj[ids], *rays[v])
+            T = own.get(v) if k == 0 else _pnp_rays(obj[perm[d.ids]], *rays[v])
             if T is not None:
-                cands.append((v, k, T @ np.linalg.inv(T_ref)))
+                cands.append((v, k, T @ T_ref_inv, T))
     if not cands:
         return {}, None, 0
     scale = float(np.median([np.linalg.norm(T_ref[:3, 3]) for T_ref in ref_poses.values()]))
@@ -379,14 +399,14 @@ def _consistent_numbering(ref_poses: dict[int, FloatArray], dets: list[Detection
     ts = np.stack([c[2][:3, 3] for c in cands])
     best_score, best = -1, cands[0][2]
     step = max(1, len(cands) // 400)
-    for _, _, Tc in cands[::step]:
+    for _, _, Tc, _ in cands[::step]:
         cos = (np.einsum("ij,nij->n", Tc[:3, :3], Rs) - 1.0) / 2.0
         d = (np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
              + np.linalg.norm(ts - Tc[:3, 3], axis=1) / (0.01 * scale))
         score = len(np.unique(views[d < 4.0]))
         if score > best_score:
             best_score, best = score, Tc
-    out: dict[int, Detection] = {}
+    out: dict[int, tuple[Detection, FloatArray]] = {}
     changed = 0
     for v in np.unique(views):
         mine = [c for c in cands if c[0] == v]
@@ -394,12 +414,12 @@ def _consistent_numbering(ref_poses: dict[int, FloatArray], dets: list[Detection
         i = int(np.argmin(dist))
         if dist[i] > 20.0:  # no numbering of this view agrees: leave the view out of the pair
             continue
-        v_, k, _ = mine[i]
+        v_, k, _, T_cn_t = mine[i]
         d = dets[v_]
         assert d is not None
         ids = perms[k][d.ids]
         order = np.argsort(ids)
-        out[int(v_)] = Detection(ids[order], d.corners_px[order], d.image_size)
+        out[int(v_)] = (Detection(ids[order], d.corners_px[order], d.image_size), T_cn_t)
         changed += int(k != 0)
     return out, best, changed
 
@@ -747,7 +767,6 @@ def _chain_init(observations: Sequence[Observations], cams: Sequence[CameraModel
     """Initial ``T_cn_cnm1`` of every neighbouring pair, with every camera's corner numbering made
     consistent with the camera before it (``dets`` and ``poses_cam`` updated in place); returns
     the chain and the number of views renumbered."""
-    obj = target.object_points()
     chain_T: list[FloatArray] = []
     renumbered = 0
     for n in range(1, len(cams)):
@@ -757,17 +776,14 @@ def _chain_init(observations: Sequence[Observations], cams: Sequence[CameraModel
                 f"{observations[n - 1].name} and {observations[n].name} share no view in which both "
                 "see the target; the stereo extrinsics need simultaneous views (check the pairing "
                 "of the image sets)")
-        fixed, T_rel, changed = _consistent_numbering(common, dets[n], rays_cam[n], target)
+        fixed, T_rel, changed = _consistent_numbering(common, dets[n], rays_cam[n], target, poses_cam[n])
         if T_rel is None or not fixed:
             raise CalibrationError(f"{observations[n].name}: no consistent relative pose to "
                                    f"{observations[n - 1].name} over {len(common)} common views")
         renumbered += changed
-        rays = _view_rays(cams[n], fixed)
-        for v, d in fixed.items():
+        for v, (d, T) in fixed.items():  # the pose of the chosen numbering, solved above
             dets[n][v] = d
-            T = _pnp_rays(obj[d.ids], *rays[v])
-            if T is not None:
-                poses_cam[n][v] = T
+            poses_cam[n][v] = T
         # views of camera n not shared with n-1: keep their numbering only if no other camera sees
         # them (their pose is then free); otherwise drop them from camera n
         for v in list(poses_cam[n]):
@@ -958,7 +974,7 @@ def calibrate(target: CalibrationTarget, observations: Sequence[Observations], *
     say = progress or (lambda _s: None)
     usable = _usable_views(observations, target, min_c, n_v)
     say("initialising")
-    cams = [_init_camera(o, target, views, MODELS[model]) for o, views in zip(observations, usable, strict=True)]
+    cams = _init_cameras(observations, target, usable, MODELS[model])
     ok_views = [set(views) for views in usable]
     dets: list[list[Detection | None]] = [[d if v in ok else None for v, d in enumerate(o.detections)]
                                           for o, ok in zip(observations, ok_views, strict=True)]

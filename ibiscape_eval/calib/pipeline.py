@@ -229,6 +229,8 @@ def detect_frames(target: CalibrationTarget, cameras: Sequence[CameraFrames],
     # With many views a missed board is not searched exhaustively (8x the time): the others
     # supply the views
     runs = _detection_runs(views, picked, n_cam)
+    if not near_search:  # independent photos: one job each, so that the threads share them evenly
+        runs = [[job] for run in runs for job in run]
     if total is not None:
         total(sum(len(r) for r in runs))
     det = _run_detection(target, cameras, runs, len(picked), exhaustive=len(picked) < _EXHAUSTIVE_BELOW,
