@@ -41,7 +41,6 @@ from ._lsq import (
     project_jacobian,
     rotvec_from_matrix,
     rotvec_matrix,
-    skew,
     solve_damped,
 )
 from .detect import Detection
@@ -291,8 +290,11 @@ def _init_camera(obs: Observations, target: CalibrationTarget, views: list[int],
         i_pts.append(d.corners_px.astype(np.float32))
     w, h = obs.image_size
     try:
-        _, K, dist, _, _ = cv2.calibrateCamera(o_pts, i_pts, (w, h), None, None,
-                                               flags=cv2.CALIB_FIX_K3)
+        # 10 iterations instead of OpenCV's 30: the joint refinement polishes the start (on 13
+        # real views its RMS agrees to 1e-9 px after 5; 9 ms instead of 12 per camera)
+        _, K, dist, _, _ = cv2.calibrateCamera(o_pts, i_pts, (w, h), None, None, flags=cv2.CALIB_FIX_K3,
+                                               criteria=(cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS,
+                                                         10, float(np.finfo(float).eps)))
     except cv2.error as e:
         raise CalibrationError(f"{obs.name}: OpenCV could not initialise the intrinsics "
                                f"({str(e).strip().splitlines()[-1]}); give more varied views") from None
@@ -511,7 +513,7 @@ class _Problem:
         Rv = rotvec_matrix(poses[:, :3])[self.view_i]
         RX = np.einsum("mij,mj->mi", Rv, self.obj)
         p0 = RX + poses[self.view_i, 3:]
-        dp0_dw = -skew(RX) @ left_jacobian(poses[:, :3])[self.view_i]
+        Jlv = left_jacobian(poses[:, :3])[self.view_i]
         Rc = rotvec_matrix(chain[:, :3]) if len(chain) else np.zeros((0, 3, 3))
         Jlc = left_jacobian(chain[:, :3]) if len(chain) else np.zeros((0, 3, 3))
         for n in range(self.n_cams):
@@ -534,14 +536,22 @@ class _Problem:
             for k in range(n - 1, -1, -1):  # back through the chain: G = d uv / d p_k
                 if self.free_chain:
                     c = ni + 6 * k
-                    Jn[:, :, c:c + 3] = G @ (-skew(qs[k]) @ Jlc[k])
+                    Jn[:, :, c:c + 3] = _cross_rows(qs[k], G) @ Jlc[k]
                     Jn[:, :, c + 3:c + 6] = G
                 G = G @ Rc[k]
-            Jpn = np.concatenate([G @ dp0_dw[sel], G], axis=2)
+            Jpn = np.concatenate([_cross_rows(RX[sel], G) @ Jlv[sel], G], axis=2)
             bad = ~np.all(np.isfinite(uv), axis=1)
             Jn[bad], Jpn[bad] = 0.0, 0.0
             Ja[sel], Jp[sel] = Jn, Jpn
         return BlockJacobian(Ja, Jp, self.view_i, self.n_views)
+
+
+def _cross_rows(q: FloatArray, G: FloatArray) -> FloatArray:
+    """``G @ -[q]_x`` for rows ``G`` (M, 2, 3) and vectors ``q`` (M, 3): each row ``g`` becomes
+    ``q x g`` (the derivative of a rotated point ``q`` by its rotation, before the left Jacobian)."""
+    q0, q1, q2 = q[:, 0, None], q[:, 1, None], q[:, 2, None]
+    g0, g1, g2 = G[:, :, 0], G[:, :, 1], G[:, :, 2]
+    return np.stack([q1 * g2 - q2 * g1, q2 * g0 - q0 * g2, q0 * g1 - q1 * g0], axis=-1)
 
 
 @dataclass(frozen=True, eq=False)
