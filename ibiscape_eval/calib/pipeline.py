@@ -252,10 +252,12 @@ def detect_frames(target: CalibrationTarget, cameras: Sequence[CameraFrames],
 def _partial_view_corners(summary: DetectionSummary) -> int | None:
     """The corners a view needs when event cameras' views hold only their corners refined from the
     events (:data:`~ibiscape_eval.calib.events.REFINE_MIN_CORNERS`); None: whole boards."""
-    from .events import REFINE_MIN_CORNERS
-
     refined = summary.extra.get("event_corner_refinement") or {}
-    return REFINE_MIN_CORNERS if any(r.get("method") == "events" for r in refined.values()) else None
+    if not any(r.get("method") == "events" for r in refined.values()):
+        return None
+    from .events import REFINE_MIN_CORNERS  # event cameras only
+
+    return REFINE_MIN_CORNERS
 
 
 def calibrate_frames(target: CalibrationTarget, summary: DetectionSummary, *, model: str = "pinhole-radtan",
@@ -326,14 +328,14 @@ def camera_frames(seq: Recording, target: CalibrationTarget, *, reconstruction: 
     Event cameras need their sensor size: ``sensor_size`` (an override), else the size the
     sequence states; :class:`IbiscapeError` asks for ``--sensor-size`` when neither is known.
     """
-    from .events import event_set_frames
-
     frames: list[CameraFrames] = []
     recon: dict[str, dict[str, Any]] = {}
     for cam in seq.cameras:
         if cam.kind == "frames":
             frames.append(CameraFrames(cam.name, len(cam), cam.load, cam.label))
             continue
+        from .events import event_set_frames  # event cameras only
+
         size = sensor_size or cam.sensor_size
         if size is None:
             raise IbiscapeError(f"{cam.root}: sensor size unknown (the recording does not state it); "
