@@ -371,26 +371,45 @@ def _pose_distance(A: FloatArray, B: FloatArray, scale_m: float) -> float:
     return _rot_angle_deg(A[:3, :3].T @ B[:3, :3]) + float(np.linalg.norm(A[:3, 3] - B[:3, 3])) / (0.01 * scale_m)
 
 
+def _board_symmetries(obj: FloatArray, perms: list[IntArray]) -> list[FloatArray]:
+    """The rigid motion ``S`` (4x4, board frame) of every corner permutation: ``obj[perm] = S obj``
+    (Kabsch's least-squares rotation, exact for a symmetry of the board)."""
+    out = []
+    ca = obj.mean(axis=0)
+    for perm in perms:
+        b = obj[perm]
+        cb = b.mean(axis=0)
+        U, _, Vt = np.linalg.svd((obj - ca).T @ (b - cb))
+        D = np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T))])
+        S = np.eye(4)
+        S[:3, :3] = Vt.T @ D @ U.T
+        S[:3, 3] = cb - S[:3, :3] @ ca
+        out.append(S)
+    return out
+
+
 def _consistent_numbering(ref_poses: dict[int, FloatArray], dets: list[Detection | None],
-                          rays: Rays, target: CalibrationTarget, own: dict[int, FloatArray]
+                          target: CalibrationTarget, own: dict[int, FloatArray]
                           ) -> tuple[dict[int, tuple[Detection, FloatArray]], FloatArray | None, int]:
     """Renumber camera n's detections so that ``T_cn_ref = T_cn_t T_ref_t^-1`` agrees over views.
 
-    ``own``: camera n's poses ``T_cn_t`` of its views in their current numbering (the identity
-    permutation's, not solved again).  Returns per common view the renumbered detection and its
-    pose ``T_cn_t``, the consensus relative pose and the number of views whose numbering changed.
+    ``own``: camera n's poses ``T_cn_t`` of its views in their current numbering.  A renumbering
+    moves every corner by one rigid motion ``S`` of the board onto itself, so its pose is
+    ``T_cn_t S^-1`` (what a PnP of the renumbered corners finds, without solving it again).  Returns
+    per common view the renumbered detection and its pose ``T_cn_t``, the consensus relative pose
+    and the number of views whose numbering changed.
     """
-    obj = target.object_points()
     perms = target.symmetries()
+    S_inv = [np.linalg.inv(S) for S in _board_symmetries(target.object_points(), perms)]
     cands: list[tuple[int, int, FloatArray, FloatArray]] = []  # (view, perm index, T_cn_ref, T_cn_t)
     for v, T_ref in ref_poses.items():
-        d = dets[v]
-        if d is None:
+        T0 = own.get(v)
+        if dets[v] is None or T0 is None:
             continue
         T_ref_inv = np.linalg.inv(T_ref)
-        for k, perm in enumerate(perms):
-            T = own.get(v) if k == 0 else _pnp_rays(obj[perm[d.ids]], *rays[v])
-            if T is not None:
+        for k in range(len(perms)):
+            T = T0 @ S_inv[k]
+            if T[2, 3] > 0:  # the board's origin in front of the camera (as PnP requires)
                 cands.append((v, k, T @ T_ref_inv, T))
     if not cands:
         return {}, None, 0
@@ -608,7 +627,7 @@ def _levenberg_marquardt(fun: Callable[[FloatArray], FloatArray], jac: Callable[
         if not improved:
             break
         J = jac(x)
-        if rel < 1e-12 or np.max(np.abs(dx) / np.maximum(np.abs(x), 1.0)) < 1e-12:
+        if rel < 1e-10 or np.max(np.abs(dx) / np.maximum(np.abs(x), 1.0)) < 1e-12:
             break
     return _Solution(x, J, 0.5 * cost, it, lam)
 
@@ -745,11 +764,10 @@ def _usable_views(observations: Sequence[Observations], target: CalibrationTarge
 
 def _camera_poses(observations: Sequence[Observations], cams: Sequence[CameraModel],
                   dets: list[list[Detection | None]], usable: list[list[int]], obj: FloatArray,
-                  min_view_spread_deg: float) -> tuple[list[dict[int, FloatArray]], list[Rays]]:
-    """Per camera, the target pose of every usable view (and its corners' rays); a camera whose
-    views' target normals spread less than ``min_view_spread_deg`` is refused."""
+                  min_view_spread_deg: float) -> list[dict[int, FloatArray]]:
+    """Per camera, the target pose of every usable view; a camera whose views' target normals
+    spread less than ``min_view_spread_deg`` is refused."""
     poses_cam: list[dict[int, FloatArray]] = []
-    rays_cam: list[Rays] = []
     for n, cam in enumerate(cams):
         rays = _view_rays(cam, {v: d for v in usable[n] if (d := dets[n][v]) is not None})
         pc: dict[int, FloatArray] = {}
@@ -760,7 +778,6 @@ def _camera_poses(observations: Sequence[Observations], cams: Sequence[CameraMod
             if T is not None:
                 pc[v] = T
         poses_cam.append(pc)
-        rays_cam.append(rays)
         spread = _normal_spread_deg(list(pc.values()))
         if spread < min_view_spread_deg:
             raise CalibrationError(
@@ -768,12 +785,12 @@ def _camera_poses(observations: Sequence[Observations], cams: Sequence[CameraMod
                 f"{len(pc)} views (at least {min_view_spread_deg:g} deg needed: the focal length comes from "
                 "differently tilted views); record views with the target tilted by 20-40 deg in "
                 "different directions, or evaluate known intrinsics with --check camchain.yaml")
-    return poses_cam, rays_cam
+    return poses_cam
 
 
 def _chain_init(observations: Sequence[Observations], cams: Sequence[CameraModel],
                 dets: list[list[Detection | None]], poses_cam: list[dict[int, FloatArray]],
-                rays_cam: list[Rays], target: CalibrationTarget) -> tuple[list[FloatArray], int]:
+                target: CalibrationTarget) -> tuple[list[FloatArray], int]:
     """Initial ``T_cn_cnm1`` of every neighbouring pair, with every camera's corner numbering made
     consistent with the camera before it (``dets`` and ``poses_cam`` updated in place); returns
     the chain and the number of views renumbered."""
@@ -786,7 +803,7 @@ def _chain_init(observations: Sequence[Observations], cams: Sequence[CameraModel
                 f"{observations[n - 1].name} and {observations[n].name} share no view in which both "
                 "see the target; the stereo extrinsics need simultaneous views (check the pairing "
                 "of the image sets)")
-        fixed, T_rel, changed = _consistent_numbering(common, dets[n], rays_cam[n], target, poses_cam[n])
+        fixed, T_rel, changed = _consistent_numbering(common, dets[n], target, poses_cam[n])
         if T_rel is None or not fixed:
             raise CalibrationError(f"{observations[n].name}: no consistent relative pose to "
                                    f"{observations[n - 1].name} over {len(common)} common views")
@@ -988,8 +1005,8 @@ def calibrate(target: CalibrationTarget, observations: Sequence[Observations], *
     ok_views = [set(views) for views in usable]
     dets: list[list[Detection | None]] = [[d if v in ok else None for v, d in enumerate(o.detections)]
                                           for o, ok in zip(observations, ok_views, strict=True)]
-    poses_cam, rays_cam = _camera_poses(observations, cams, dets, usable, obj, min_view_spread_deg)
-    chain_T, renumbered = _chain_init(observations, cams, dets, poses_cam, rays_cam, target)
+    poses_cam = _camera_poses(observations, cams, dets, usable, obj, min_view_spread_deg)
+    chain_T, renumbered = _chain_init(observations, cams, dets, poses_cam, target)
     view_ids, pose0 = _first_poses(poses_cam, chain_T, n_v)
     full = _stack(cams, dets, view_ids, obj, poses_cam)
     intr = np.array([[c.fx, c.fy, c.cx, c.cy, *c.coeffs] for c in cams])
