@@ -567,9 +567,9 @@ def detect_many(load: Callable[[int], npt.NDArray[Any] | None], n: int, target: 
     progress
         Called with 1 after every image.
     """
-    from concurrent.futures import ThreadPoolExecutor
-
     from ibiscape_eval.core.cpus import usable_cpus
+
+    from ._threads import thread_map
 
     if n < 0:
         raise IbiscapeError(f"number of images {n}: give >= 0")
@@ -581,11 +581,7 @@ def detect_many(load: Callable[[int], npt.NDArray[Any] | None], n: int, target: 
             progress(1)
         return det
 
-    nw = max(1, workers or usable_cpus())
-    if nw == 1 or n < 2:
-        return [one(i) for i in range(n)]
-    with ThreadPoolExecutor(max_workers=nw) as pool:
-        return list(pool.map(one, range(n)))
+    return thread_map(one, range(n), max(1, workers or usable_cpus()))
 
 
 def detections_from_points(ids: Sequence[int], corners_px: npt.ArrayLike, image_size: tuple[int, int]) -> Detection:

@@ -127,7 +127,7 @@ def _run_detection(target: CalibrationTarget, cameras: Sequence[CameraFrames],
                    near_search: bool, workers: int,
                    progress: Callable[[int], Any] | None) -> _Detected:
     """Detect the target in every job of ``runs`` (runs in parallel threads, each in order)."""
-    from concurrent.futures import ThreadPoolExecutor
+    from ._threads import thread_map
 
     n_cam = len(cameras)
     sizes: list[dict[tuple[int, int], int]] = [{} for _ in range(n_cam)]
@@ -151,11 +151,7 @@ def _run_detection(target: CalibrationTarget, cameras: Sequence[CameraFrames],
             out.append((k, vi, det, img is None))
         return out
 
-    if workers > 1 and len(runs) > 1:
-        with ThreadPoolExecutor(max_workers=workers) as pool:
-            results = [r for rr in pool.map(one_run, runs) for r in rr]
-    else:
-        results = [r for run in runs for r in one_run(run)]
+    results = [r for rr in thread_map(one_run, runs, workers) for r in rr]
     out = _Detected([[None] * n_picked for _ in range(n_cam)], [0] * n_cam, [0] * n_cam,
                     [None] * n_cam, sizes)
     jobs = [j for r in runs for j in r]
