@@ -131,7 +131,7 @@ def _near_box(near: npt.NDArray[np.float64], gray: npt.NDArray[np.uint8],
 
 
 def _checkerboard(gray: npt.NDArray[np.uint8], target: CalibrationTarget, near: npt.NDArray[np.float64] | None,
-                  exhaustive: bool, fast: bool = True) -> Detection | None:
+                  exhaustive: bool, fast: bool = True, photo: bool = False) -> Detection | None:
     import cv2
 
     h, w = gray.shape
@@ -146,6 +146,8 @@ def _checkerboard(gray: npt.NDArray[np.uint8], target: CalibrationTarget, near: 
         if ok and corners is not None:
             pts = np.asarray(corners, np.float64).reshape(-1, 2) + np.array([x0, y0], np.float64)
     if pts is None:
+        pts = _classic_checkerboard(gray, size, photo) if fast else None
+    if pts is None:
         pts = _search_checkerboard(gray, size, exhaustive, fast)
     if pts is None:
         return None
@@ -157,6 +159,29 @@ def _checkerboard(gray: npt.NDArray[np.uint8], target: CalibrationTarget, near: 
             np.linalg.norm(np.diff(grid, axis=1), axis=-1).min())
     pts = _subpix(gray, pts, int(min(d / 3.0, 15)))
     return Detection(np.arange(target.n_corners, dtype=np.int64), pts, (w, h))
+
+
+def _classic_checkerboard(gray: npt.NDArray[np.uint8], size: tuple[int, int],
+                          photo: bool) -> npt.NDArray[np.float64] | None:
+    """OpenCV's classic quad-based search (adaptive threshold, normalised image; its quick check
+    for a board first unless ``photo``) in a :data:`_FAST_SEARCH_WIDTH_PX` wide copy, then in one
+    at most :data:`_SEARCH_WIDTH_PX` wide: the grid in full-size pixels, or None.  On OpenCV's 13
+    real 640x480 stereo pairs: 2.8 ms per photo at 400 px (4.0 ms at 640 px) against 32 ms for the
+    sector-based search at 400 px, every board found by both."""
+    import cv2
+
+    h, w = gray.shape
+    flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
+    if not photo:
+        flags |= cv2.CALIB_CB_FAST_CHECK
+    for scale in sorted({min(1.0, _FAST_SEARCH_WIDTH_PX / w), min(1.0, _SEARCH_WIDTH_PX / w)}):
+        img = gray if scale == 1.0 else cv2.resize(gray, (round(w * scale), round(h * scale)),
+                                                   interpolation=cv2.INTER_AREA)
+        ok, corners = cv2.findChessboardCorners(img, size, flags=flags)
+        if ok and corners is not None:
+            pts = np.asarray(corners, np.float64).reshape(-1, 2)
+            return pts if scale == 1.0 else (pts + 0.5) / scale - 0.5
+    return None
 
 
 def _search_checkerboard(gray: npt.NDArray[np.uint8], size: tuple[int, int],
@@ -471,7 +496,7 @@ def neighbour_residuals_px(board_xy: npt.ArrayLike, uv: npt.ArrayLike, *, k: int
 
 def detect_corners(image: npt.NDArray[Any], target: CalibrationTarget, *,
                    near: Detection | None = None, exhaustive: bool = True,
-                   event_frame: bool = False, fast: bool = True) -> Detection | None:
+                   event_frame: bool = False, fast: bool = True, photo: bool = False) -> Detection | None:
     """Detect the target in one image (grey or BGR, any dtype); None when it is not found.
 
     Parameters
@@ -493,10 +518,18 @@ def detect_corners(image: npt.NDArray[Any], target: CalibrationTarget, *,
         Checkerboards: search the whole image first in a :data:`_FAST_SEARCH_WIDTH_PX` wide copy
         (2x less CPU on 640x512 photos); False for images that often hold no board (event-frame
         reconstructions under trial), where a miss would cost that search on top of the full one.
+        Before that, OpenCV's classic quad-based ``findChessboardCorners`` is tried the same way
+        (2.8 ms on a 640x480 photo at 400 px, the sector-based search 32 ms): with its quick check
+        for a board first, unless ``photo``.
+    photo
+        The image is a photo of the board (``--images``), not a frame of a video that may miss it:
+        the classic search runs without its quick check (4.0 instead of 6.6 ms per 640x480 photo;
+        without a board it costs 99 ms instead of 14).
     """
     gray = _gray(image)
     if target.target_type == "checkerboard":
-        return _checkerboard(gray, target, None if near is None else near.corners_px, exhaustive, fast)
+        return _checkerboard(gray, target, None if near is None else near.corners_px, exhaustive, fast,
+                             photo)
     return _aprilgrid(gray, target, None if near is None else _grid_outline(near, target), event_frame)
 
 
@@ -534,9 +567,9 @@ def detect_many(load: Callable[[int], npt.NDArray[Any] | None], n: int, target: 
     progress
         Called with 1 after every image.
     """
-    from concurrent.futures import ThreadPoolExecutor
-
     from ibiscape_eval.core.cpus import usable_cpus
+
+    from ._threads import thread_map
 
     if n < 0:
         raise IbiscapeError(f"number of images {n}: give >= 0")
@@ -548,11 +581,7 @@ def detect_many(load: Callable[[int], npt.NDArray[Any] | None], n: int, target: 
             progress(1)
         return det
 
-    nw = max(1, workers or usable_cpus())
-    if nw == 1 or n < 2:
-        return [one(i) for i in range(n)]
-    with ThreadPoolExecutor(max_workers=nw) as pool:
-        return list(pool.map(one, range(n)))
+    return thread_map(one, range(n), max(1, workers or usable_cpus()))
 
 
 def detections_from_points(ids: Sequence[int], corners_px: npt.ArrayLike, image_size: tuple[int, int]) -> Detection:

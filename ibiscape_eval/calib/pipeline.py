@@ -127,7 +127,7 @@ def _run_detection(target: CalibrationTarget, cameras: Sequence[CameraFrames],
                    near_search: bool, workers: int,
                    progress: Callable[[int], Any] | None) -> _Detected:
     """Detect the target in every job of ``runs`` (runs in parallel threads, each in order)."""
-    from concurrent.futures import ThreadPoolExecutor
+    from ._threads import thread_map
 
     n_cam = len(cameras)
     sizes: list[dict[tuple[int, int], int]] = [{} for _ in range(n_cam)]
@@ -144,18 +144,14 @@ def _run_detection(target: CalibrationTarget, cameras: Sequence[CameraFrames],
                 det = detect_corners(img, target, near=prev if near_search else None,
                                      exhaustive=exhaustive,
                                      event_frame=cameras[k].reconstruction is not None,
-                                     fast=cameras[k].reconstruction is None)
+                                     fast=cameras[k].reconstruction is None, photo=not near_search)
             prev = det
             if progress is not None:
                 progress(1)
             out.append((k, vi, det, img is None))
         return out
 
-    if workers > 1 and len(runs) > 1:
-        with ThreadPoolExecutor(max_workers=workers) as pool:
-            results = [r for rr in pool.map(one_run, runs) for r in rr]
-    else:
-        results = [r for run in runs for r in one_run(run)]
+    results = [r for rr in thread_map(one_run, runs, workers) for r in rr]
     out = _Detected([[None] * n_picked for _ in range(n_cam)], [0] * n_cam, [0] * n_cam,
                     [None] * n_cam, sizes)
     jobs = [j for r in runs for j in r]
@@ -229,6 +225,8 @@ def detect_frames(target: CalibrationTarget, cameras: Sequence[CameraFrames],
     # With many views a missed board is not searched exhaustively (8x the time): the others
     # supply the views
     runs = _detection_runs(views, picked, n_cam)
+    if not near_search:  # independent photos: one job each, so that the threads share them evenly
+        runs = [[job] for run in runs for job in run]
     if total is not None:
         total(sum(len(r) for r in runs))
     det = _run_detection(target, cameras, runs, len(picked), exhaustive=len(picked) < _EXHAUSTIVE_BELOW,
@@ -250,10 +248,12 @@ def detect_frames(target: CalibrationTarget, cameras: Sequence[CameraFrames],
 def _partial_view_corners(summary: DetectionSummary) -> int | None:
     """The corners a view needs when event cameras' views hold only their corners refined from the
     events (:data:`~ibiscape_eval.calib.events.REFINE_MIN_CORNERS`); None: whole boards."""
-    from .events import REFINE_MIN_CORNERS
-
     refined = summary.extra.get("event_corner_refinement") or {}
-    return REFINE_MIN_CORNERS if any(r.get("method") == "events" for r in refined.values()) else None
+    if not any(r.get("method") == "events" for r in refined.values()):
+        return None
+    from .events import REFINE_MIN_CORNERS  # event cameras only
+
+    return REFINE_MIN_CORNERS
 
 
 def calibrate_frames(target: CalibrationTarget, summary: DetectionSummary, *, model: str = "pinhole-radtan",
@@ -324,14 +324,14 @@ def camera_frames(seq: Recording, target: CalibrationTarget, *, reconstruction: 
     Event cameras need their sensor size: ``sensor_size`` (an override), else the size the
     sequence states; :class:`IbiscapeError` asks for ``--sensor-size`` when neither is known.
     """
-    from .events import event_set_frames
-
     frames: list[CameraFrames] = []
     recon: dict[str, dict[str, Any]] = {}
     for cam in seq.cameras:
         if cam.kind == "frames":
             frames.append(CameraFrames(cam.name, len(cam), cam.load, cam.label))
             continue
+        from .events import event_set_frames  # event cameras only
+
         size = sensor_size or cam.sensor_size
         if size is None:
             raise IbiscapeError(f"{cam.root}: sensor size unknown (the recording does not state it); "

@@ -19,7 +19,7 @@ from collections.abc import Callable, Mapping
 from collections.abc import Sequence as Seq
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Generic, TypeVar
+from typing import TYPE_CHECKING, Any, Generic, TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -27,7 +27,9 @@ import numpy.typing as npt
 from .camera import CameraModel
 from .errors import IbiscapeError
 from .kalibr import ImuNoise
-from .trajectory import Trajectory
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .trajectory import Trajectory  # scipy: loaded by whoever reads a trajectory
 
 __all__ = ["SEQUENCE_LAYOUTS", "CameraStream", "ImuStream", "Lazy", "Sequence"]
 

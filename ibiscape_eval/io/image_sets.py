@@ -138,8 +138,8 @@ def pair_views(sets: Sequence[_Stamped], *, tolerance_ns: int = 1_000_000) -> li
                 + ", ".join(f"{k} {v}" for k, v in n.items())
                 + " images; give equally many, or names with a timestamp/number to pair by")
         return [[i] * len(sets) for i in range(len(sets[0]))]
-    allst = np.unique(np.concatenate([s.stamps_ns for s in sets if s.stamps_ns is not None]))
-    # merge stamps closer than the tolerance into one view
+    allst = np.sort(np.concatenate([s.stamps_ns for s in sets if s.stamps_ns is not None]))
+    # merge stamps closer than the tolerance (equal ones too) into one view
     keep = np.concatenate([[True], np.diff(allst) > tolerance_ns])
     views = allst[keep]
     table: list[list[int | None]] = [[None] * len(sets) for _ in range(len(views))]

@@ -36,7 +36,6 @@ from ibiscape_eval.core.camera import CameraModel
 from ibiscape_eval.core.errors import FormatError, IbiscapeError
 from ibiscape_eval.core.kalibr import CalibrationTarget, CameraChain, ChainCamera, ImuNoise
 
-from .atomic import atomic_write
 from .yaml_file import read_yaml_mapping
 
 __all__ = [
@@ -84,6 +83,8 @@ def read_target(path: str | os.PathLike[str]) -> CalibrationTarget:
 
 def write_target(path: str | os.PathLike[str], target: CalibrationTarget) -> None:
     """Write a Kalibr target yaml atomically."""
+    from .atomic import atomic_write  # tempfile, shutil: only when writing
+
     with atomic_write(path) as fh:
         fh.write(_dump(target.to_kalibr()))
 
@@ -130,6 +131,8 @@ def write_imu_noise(path: str | os.PathLike[str], noise: ImuNoise, *,
     doc = noise.to_kalibr()
     doc.setdefault("rostopic", "/imu0")
     doc["update_rate"] = doc.pop("update_rate")  # after rostopic, as Kalibr writes it
+    from .atomic import atomic_write  # tempfile, shutil: only when writing
+
     with atomic_write(path) as fh:
         for c in comments:
             fh.write(f"# {c}\n")
@@ -232,6 +235,8 @@ def write_camchain(path: str | os.PathLike[str], chain: CameraChain, *,
     """Write a Kalibr ``camchain.yaml`` (or ``camchain-imucam.yaml`` when the chain has
     ``T_cam_imu``) atomically: ``cam0``, ``cam1``, ... in chain order, 4x4 matrices one row per
     line, ``comments`` as ``#`` lines at the top."""
+    from .atomic import atomic_write  # tempfile, shutil: only when writing
+
     with atomic_write(path) as fh:
         fh.write(_dump(_camchain_doc(chain), comments))
 
@@ -253,6 +258,8 @@ def _strict(o: Any) -> Any:
 def write_json(path: str | os.PathLike[str], doc: Any) -> None:
     """Write a strict JSON document (NaN/Infinity as null) atomically."""
     text = json.dumps(_strict(doc), indent=2, allow_nan=False)
+    from .atomic import atomic_write  # tempfile, shutil: only when writing
+
     with atomic_write(path, "w") as f:
         f.write(text + "\n")
 

@@ -45,9 +45,7 @@ import numpy.typing as npt
 from ibiscape_eval.core.camera import CameraModel
 from ibiscape_eval.core.errors import FormatError, IbiscapeError, Remedy
 from ibiscape_eval.core.sequence import CameraStream, ImuStream, Lazy, Sequence
-from ibiscape_eval.core.transforms import invert_transforms
 
-from .asl import read_asl_sensor_yaml
 from .yaml_file import read_yaml_mapping
 
 __all__ = ["NoLayoutError", "apply_camchain", "open_sequence"]
@@ -244,6 +242,8 @@ def _asl_root(root: Path) -> Path | None:
 
 
 def _asl(root: Path, tumvi: bool) -> Sequence | str:
+    from .asl import read_asl_sensor_yaml  # with the trajectory readers (scipy): not for --images
+
     m = _asl_root(root)
     if m is None:
         return "no mav0/camN/data.csv"
@@ -271,6 +271,8 @@ def _asl(root: Path, tumvi: bool) -> Sequence | str:
             entry = {**model.to_kalibr(), **({"rostopic": cc.rostopic} if cc.rostopic else {})}
             src = str(camchain)
             if cc.T_cam_imu is not None:
+                from ibiscape_eval.core.transforms import invert_transforms
+
                 T_bc = invert_transforms(cc.T_cam_imu)
         elif (c / "sensor.yaml").is_file():
             from .asl import read_asl_camera
@@ -515,6 +517,7 @@ def apply_camchain(seq: Sequence, calib: str | os.PathLike[str]) -> Sequence:
         size the recording states (naming both).
     """
     from ibiscape_eval.core.kalibr import check_camchain_matches
+    from ibiscape_eval.core.transforms import invert_transforms
 
     from .kalibr import read_camchain
 

@@ -1,0 +1,244 @@
+"""Analytic Jacobians and the block-sparse normal equations of the calibration problem.
+
+The unknowns are ``a`` (every camera's 8 intrinsics, then the chain's 6-vectors ``T_cn_cnm1``) and
+one 6-vector target pose per view (rotation vector, translation).  A corner observation touches
+``a`` and its view's pose only, so the normal matrix is ``[[H_aa, H_ap], [H_pa, blockdiag(H_pp)]]``;
+the poses are eliminated by their 6x6 blocks (Schur complement, as in bundle adjustment) and the
+system left is ``K x K`` (22 for a stereo pair): no sparse factorisation, no large dense one.
+
+Derivatives are exact (chain rule through the projection, the distortion and the rotation
+vectors' left Jacobian), so a Jacobian costs one evaluation instead of one per group of columns.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+__all__ = [
+    "BlockJacobian",
+    "leading_inverse",
+    "left_jacobian",
+    "normal_equations",
+    "project_jacobian",
+    "rotvec_from_matrix",
+    "rotvec_matrix",
+    "skew",
+    "solve_damped",
+]
+
+
+# ------------------------------------------------------------------------------------ rotations
+def skew(v: FloatArray) -> FloatArray:
+    """Cross-product matrices ``[v]_x`` (N, 3, 3) of vectors (N, 3)."""
+    z = np.zeros(len(v))
+    return np.stack([np.stack([z, -v[:, 2], v[:, 1]], -1), np.stack([v[:, 2], z, -v[:, 0]], -1),
+                     np.stack([-v[:, 1], v[:, 0], z], -1)], axis=1)
+
+
+def _coefficients(w: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``sin t / t``, ``(1 - cos t) / t^2`` and ``(t - sin t) / t^3`` of ``t = |w|`` (Taylor series
+    below 1e-4 rad)."""
+    t2 = np.einsum("ij,ij->i", w, w)
+    t = np.sqrt(t2)
+    small = t < 1e-4
+    ts = np.where(small, 1.0, t)
+    a = np.where(small, 1.0 - t2 / 6.0, np.sin(ts) / ts)
+    b = np.where(small, 0.5 - t2 / 24.0, (1.0 - np.cos(ts)) / ts**2)
+    c = np.where(small, 1.0 / 6.0 - t2 / 120.0, (ts - np.sin(ts)) / ts**3)
+    return a, b, c
+
+
+def rotvec_matrix(w: FloatArray) -> FloatArray:
+    """Rotation matrices (N, 3, 3) of rotation vectors (N, 3) (Rodrigues)."""
+    w = np.asarray(w, np.float64).reshape(-1, 3)
+    a, b, _ = _coefficients(w)
+    K = skew(w)
+    return np.eye(3) + a[:, None, None] * K + b[:, None, None] * (K @ K)
+
+
+def left_jacobian(w: FloatArray) -> FloatArray:
+    """Left Jacobians (N, 3, 3) of SO(3): ``R(w + d) ~ exp([J_l(w) d]_x) R(w)``."""
+    w = np.asarray(w, np.float64).reshape(-1, 3)
+    _, b, c = _coefficients(w)
+    K = skew(w)
+    return np.eye(3) + b[:, None, None] * K + c[:, None, None] * (K @ K)
+
+
+def rotvec_from_matrix(R: FloatArray) -> FloatArray:
+    """The rotation vector (3,) of one rotation matrix (OpenCV's Rodrigues)."""
+    import cv2
+
+    w, _ = cv2.Rodrigues(np.ascontiguousarray(R, np.float64))
+    return np.asarray(w, np.float64).ravel()
+
+
+# ----------------------------------------------------------------------------------- projection
+def _distortion_radtan(x: FloatArray, y: FloatArray, k: FloatArray
+                       ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Distorted ``xd, yd``, their derivatives by ``(x, y)`` (M, 2, 2) and by the coefficients
+    ``k1, k2, p1, p2`` (M, 2, 4)."""
+    k1, k2, p1, p2 = k
+    r2 = x * x + y * y
+    s = 1.0 + r2 * (k1 + k2 * r2)
+    ds = 2.0 * (k1 + 2.0 * k2 * r2)  # d s / d x = ds * x
+    xd = x * s + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x)
+    yd = y * s + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y
+    off = ds * x * y + 2.0 * p1 * x + 2.0 * p2 * y
+    dxy = np.stack([np.stack([s + ds * x * x + 2.0 * p1 * y + 6.0 * p2 * x, off], -1),
+                    np.stack([off, s + ds * y * y + 6.0 * p1 * y + 2.0 * p2 * x], -1)], axis=1)
+    dk = np.stack([np.stack([x * r2, x * r2 * r2, 2.0 * x * y, r2 + 2.0 * x * x], -1),
+                   np.stack([y * r2, y * r2 * r2, r2 + 2.0 * y * y, 2.0 * x * y], -1)], axis=1)
+    return xd, yd, dxy, dk
+
+
+def _distortion_equi(x: FloatArray, y: FloatArray, k: FloatArray
+                     ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """As :func:`_distortion_radtan` for the equidistant model ``theta_d / r``, ``theta = atan r``."""
+    k1, k2, k3, k4 = k
+    r = np.hypot(x, y)
+    tiny = r < 1e-12
+    rs = np.where(tiny, 1.0, r)
+    th = np.arctan(r)
+    t2 = th * th
+    thd = th * (1.0 + t2 * (k1 + t2 * (k2 + t2 * (k3 + t2 * k4))))
+    scale = np.where(tiny, 1.0, thd / rs)
+    dthd = (1.0 + t2 * (3.0 * k1 + t2 * (5.0 * k2 + t2 * (7.0 * k3 + 9.0 * t2 * k4)))) / (1.0 + r * r)
+    # d scale / d r, divided by r (x and y carry the other factor r)
+    g = np.where(tiny, 0.0, (dthd * rs - thd) / rs**3)
+    dxy = np.stack([np.stack([scale + g * x * x, g * x * y], -1),
+                    np.stack([g * x * y, scale + g * y * y], -1)], axis=1)
+    powers = np.stack([th**3, th**5, th**7, th**9], -1) / rs[:, None]
+    powers[tiny] = 0.0
+    dk = np.stack([x[:, None] * powers, y[:, None] * powers], axis=1)
+    return x * scale, y * scale, dxy, dk
+
+
+def project_jacobian(distortion: str, intr: FloatArray, p: FloatArray
+                     ) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Pixels (M, 2) of camera-frame points (M, 3) and their derivatives by the 8 intrinsics
+    ``fx, fy, cx, cy, d0..d3`` (M, 2, 8) and by the point (M, 2, 3); points behind the camera give
+    NaN pixels (as :meth:`CameraModel.project`)."""
+    fx, fy, cx, cy = intr[:4]
+    z = np.where(p[:, 2] > 0, p[:, 2], np.nan)
+    x, y = p[:, 0] / z, p[:, 1] / z
+    if distortion == "equidistant":
+        xd, yd, dxy, dk = _distortion_equi(x, y, intr[4:])
+    elif distortion == "radtan":
+        xd, yd, dxy, dk = _distortion_radtan(x, y, intr[4:])
+    else:
+        xd, yd = x, y
+        dxy, dk = np.broadcast_to(np.eye(2), (len(x), 2, 2)), np.zeros((len(x), 2, 4))
+    uv = np.stack([fx * xd + cx, fy * yd + cy], -1)
+    m = len(x)
+    J_i = np.zeros((m, 2, 8))
+    J_i[:, 0, 0], J_i[:, 1, 1], J_i[:, 0, 2], J_i[:, 1, 3] = xd, yd, 1.0, 1.0
+    f = np.array([fx, fy])[None, :, None]
+    J_i[:, :, 4:] = f * dk
+    inv_z = 1.0 / z
+    dn = np.zeros((m, 2, 3))  # d (x, y) / d p
+    dn[:, 0, 0], dn[:, 1, 1] = inv_z, inv_z
+    dn[:, 0, 2], dn[:, 1, 2] = -x * inv_z, -y * inv_z
+    J_p = f * (dxy @ dn)
+    return uv, J_i, J_p
+
+
+# -------------------------------------------------------------------------- normal equations
+@dataclass(frozen=True, eq=False)
+class BlockJacobian:
+    """The Jacobian of the (M, 2) residuals by ``a`` (M, 2, K) and by their view's pose (M, 2, 6)."""
+
+    Ja: FloatArray
+    Jp: FloatArray
+    view_i: IntArray
+    n_views: int
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return 2 * self.Ja.shape[0], self.Ja.shape[2] + 6 * self.n_views
+
+    def view_slices(self) -> tuple[IntArray, IntArray]:
+        """The rows sorted by view and every view's start in that order (V + 1)."""
+        order = np.argsort(self.view_i, kind="stable")
+        return order, np.searchsorted(self.view_i[order], np.arange(self.n_views + 1))
+
+    def dense(self) -> FloatArray:
+        """The whole Jacobian (2M, K + 6V) (for the singular fallback only)."""
+        m, k = self.Ja.shape[0], self.Ja.shape[2]
+        J = np.zeros((m, 2, k + 6 * self.n_views))
+        J[:, :, :k] = self.Ja
+        cols = k + 6 * self.view_i[:, None] + np.arange(6)
+        J[np.arange(m)[:, None, None], np.arange(2)[None, :, None], cols[:, None, :]] = self.Jp
+        return J.reshape(2 * m, -1)
+
+
+@dataclass(frozen=True, eq=False)
+class Normal:
+    """``J^T J`` and ``J^T r`` in blocks: ``H_aa`` (K, K), ``H_ap`` (V, K, 6), ``H_pp`` (V, 6, 6),
+    ``g_a`` (K,), ``g_p`` (V, 6)."""
+
+    H_aa: FloatArray
+    H_ap: FloatArray
+    H_pp: FloatArray
+    g_a: FloatArray
+    g_p: FloatArray
+
+    def diagonal(self) -> tuple[FloatArray, FloatArray]:
+        return np.diagonal(self.H_aa).copy(), np.diagonal(self.H_pp, axis1=1, axis2=2).copy()
+
+
+def normal_equations(J: BlockJacobian, r: FloatArray) -> Normal:
+    """The blocks of ``J^T J`` and ``J^T r`` for residuals ``r`` (M, 2)."""
+    m, k = J.Ja.shape[0], J.Ja.shape[2]
+    A = J.Ja.reshape(2 * m, k)
+    rr = r.reshape(2 * m)
+    order, bounds = J.view_slices()
+    rows = (2 * order[:, None] + np.arange(2)).ravel()
+    P, As, rs = J.Jp.reshape(2 * m, 6)[rows], A[rows], rr[rows]
+    V = J.n_views
+    H_ap, H_pp, g_p = np.zeros((V, k, 6)), np.zeros((V, 6, 6)), np.zeros((V, 6))
+    for v in range(V):
+        s, e = 2 * bounds[v], 2 * bounds[v + 1]
+        Pv = P[s:e]
+        H_pp[v] = Pv.T @ Pv
+        H_ap[v] = As[s:e].T @ Pv
+        g_p[v] = Pv.T @ rs[s:e]
+    return Normal(A.T @ A, H_ap, H_pp, A.T @ rr, g_p)
+
+
+def solve_damped(N: Normal, lam: float, d_a: FloatArray, d_p: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """The step ``-(H + lam diag(d))^-1 g`` as ``(dx_a, dx_p (V, 6))`` by eliminating the poses;
+    :class:`numpy.linalg.LinAlgError` when a block or the reduced system is singular."""
+    D = N.H_pp + lam * (d_p[:, :, None] * np.eye(6))
+    D_inv = np.linalg.inv(D)
+    W = N.H_ap @ D_inv  # (V, K, 6)
+    S = N.H_aa + lam * np.diag(d_a) - np.einsum("vkj,vlj->kl", W, N.H_ap)
+    b = N.g_a - np.einsum("vkj,vj->k", W, N.g_p)
+    dx_a = -np.linalg.solve(S, b) if len(b) else np.zeros(0)
+    rhs = N.g_p + np.einsum("vkj,k->vj", N.H_ap, dx_a)
+    dx_p = -np.einsum("vij,vj->vi", D_inv, rhs)
+    return dx_a, dx_p
+
+
+def leading_inverse(N: Normal, J: BlockJacobian) -> tuple[FloatArray, FloatArray]:
+    """The columns of ``(J^T J)^-1`` of the ``K`` leading parameters: rows of ``a`` (K, K) and of
+    every view's pose (V, 6, K); from the dense pseudo-inverse when ``J^T J`` is singular."""
+    k = N.H_aa.shape[0]
+    try:
+        D_inv = np.linalg.inv(N.H_pp)
+        W = N.H_ap @ D_inv
+        S = N.H_aa - np.einsum("vkj,vlj->kl", W, N.H_ap)
+        X_a = np.linalg.inv(S) if k else np.zeros((0, 0))
+        X_p = -np.einsum("vij,vkj,kl->vil", D_inv, N.H_ap, X_a)
+        if np.all(np.isfinite(X_a)) and np.all(np.isfinite(X_p)):
+            return X_a, X_p
+    except np.linalg.LinAlgError:
+        pass
+    Jd = J.dense()
+    X = np.asarray(np.linalg.pinv(Jd.T @ Jd, rcond=1e-15, hermitian=True)[:, :k], np.float64)
+    return X[:k], X[k:].reshape(J.n_views, 6, k)
