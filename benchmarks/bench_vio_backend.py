@@ -66,7 +66,8 @@ def record(seq: Path) -> None:
 def load_obs(seq: Path) -> list[Any]:
     from ibiscape_eval.vio import StereoObservations
 
-    z = np.load(seq / OBS_FILE)
+    with np.load(seq / OBS_FILE) as f:
+        z = {k: f[k] for k in ("stamp", "n", "ids", "uL", "uR", "v")}  # each read decompresses
     edges = np.concatenate(([0], np.cumsum(z["n"])))
     return [StereoObservations(int(t), z["ids"][a:b], z["uL"][a:b], z["uR"][a:b], z["v"][a:b])
             for t, a, b in zip(z["stamp"], edges[:-1], edges[1:])]
