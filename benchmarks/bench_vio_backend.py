@@ -30,7 +30,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from bench_vio import _ate, _params  # noqa: E402
+from bench_vio import _ate, _params
 
 OBS_FILE = ".vio_obs.npz"
 
@@ -70,7 +70,7 @@ def load_obs(seq: Path) -> list[Any]:
         z = {k: f[k] for k in ("stamp", "n", "ids", "uL", "uR", "v")}  # each read decompresses
     edges = np.concatenate(([0], np.cumsum(z["n"])))
     return [StereoObservations(int(t), z["ids"][a:b], z["uL"][a:b], z["uR"][a:b], z["v"][a:b])
-            for t, a, b in zip(z["stamp"], edges[:-1], edges[1:])]
+            for t, a, b in zip(z["stamp"], edges[:-1], edges[1:], strict=True)]
 
 
 def replay(seq: Path, params: Any, profile: bool) -> dict[str, float]:
