@@ -67,7 +67,7 @@ class VioParams:
     kf_parallax_px: float = 12.0
     kf_track_ratio: float = 0.6
     kf_max_dt_s: float = 0.3
-    kf_min_dt_s: float = 0.1
+    kf_min_dt_s: float = 0.15
     lag_s: float = 3.0
     relinearize_skip: int = 1
     relinearize_threshold: float = 0.01
