@@ -48,8 +48,9 @@ def test_keyframe_states_equal_the_full_estimate(svi_seq, small_rig):
     est, _ = _run(svi_seq, small_rig, VioParams())
     b = est.backend
     full = b.smoother.calculateEstimate()
-    assert len(b.kf_t) > 5
-    for kf in b.kf_t:
+    live = [kf for kf in b.kf_t if full.exists(_sym("x", kf))]  # not marginalised yet
+    assert len(live) > 5
+    for kf in live:
         st = b.states[kf]
         assert np.allclose(st.T_world_body, full.atPose3(_sym("x", kf)).matrix(), atol=1e-12)
         assert np.allclose(st.vel_m_s, full.atVector(_sym("v", kf)), atol=1e-12)
