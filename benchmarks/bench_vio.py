@@ -17,7 +17,9 @@ of the back end (``Estimator``: keyframes, smoother), and the speed-up over real
 (sequence seconds per CPU second of reading + front end + back end) and by wall time.
 ``--cli`` runs ``ibiscape-eval vio SEQ -o est.txt --json`` in a fresh process instead (wall time,
 peak RSS, no split).  ``--speed-1024`` adds a 10 s 1024 x 1024 run for the speed factor there;
-``--max-frames N`` stops each run after N frames (a quick profile).
+``--max-frames N`` stops each run after N frames (a quick profile).  ``--keep DIR --render-only``
+renders the three sequences into DIR (and writes ``DIR/READY``) without running anything;
+``bench_vio_backend.py`` times the back end alone on them.
 
 Only the SVI setup has a baseline today (ESVI and RGB-D are issue #24's other parts).
 

@@ -57,9 +57,10 @@ def record(seq: Path) -> None:
         cols["n"].append(len(full))
         for c in ("ids", "uL", "uR", "v"):
             cols[c].append(getattr(full, c))
-    np.savez_compressed(seq / OBS_FILE, stamp=np.asarray(cols["stamp"], dtype=np.int64),
-                        n=np.asarray(cols["n"], dtype=np.int64),
-                        **{c: np.concatenate(cols[c]) for c in ("ids", "uL", "uR", "v")})
+    arrays: dict[str, Any] = {c: np.concatenate(cols[c]) for c in ("ids", "uL", "uR", "v")}
+    arrays["stamp"] = np.asarray(cols["stamp"], dtype=np.int64)
+    arrays["n"] = np.asarray(cols["n"], dtype=np.int64)
+    np.savez_compressed(seq / OBS_FILE, **arrays)
     print(f"{seq}: {s.n_frames} frames recorded")
 
 
