@@ -17,7 +17,9 @@ of the back end (``Estimator``: keyframes, smoother), and the speed-up over real
 (sequence seconds per CPU second of reading + front end + back end) and by wall time.
 ``--cli`` runs ``ibiscape-eval vio SEQ -o est.txt --json`` in a fresh process instead (wall time,
 peak RSS, no split).  ``--speed-1024`` adds a 10 s 1024 x 1024 run for the speed factor there;
-``--max-frames N`` stops each run after N frames (a quick profile).
+``--max-frames N`` stops each run after N frames (a quick profile).  ``--keep DIR --render-only``
+renders the three sequences into DIR (and writes ``DIR/READY``) without running anything;
+``bench_vio_backend.py`` times the back end alone on them.
 
 Only the SVI setup has a baseline today (ESVI and RGB-D are issue #24's other parts).
 
@@ -251,12 +253,16 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--speed-1024", action="store_true", help="also a 10 s run at 1024 x 1024")
     ap.add_argument("--keep", type=Path, default=None, help="keep generated sequences here")
+    ap.add_argument("--render-only", action="store_true",
+                    help="render the sequences into --keep (and write READY there), run nothing")
     ap.add_argument("--cli", action="store_true",
                     help="run the CLI in a fresh process (wall time, peak RSS; no front/back split)")
     ap.add_argument("--max-frames", type=int, default=None, help="stop each run after N frames")
     ap.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE",
                     help="VioParams options of the in-process runs, e.g. --set klt_levels=3")
     a = ap.parse_args()
+    if a.render_only and a.keep is None:
+        raise SystemExit("--render-only needs --keep DIR")
     params = _params(a.set)
 
     def vio(seq: Path) -> dict[str, float]:
@@ -285,7 +291,11 @@ def main() -> None:
                     else:
                         _render(weather, seq, seed=a.seed, duration_s=a.duration_s,
                                 resolution=a.resolution)
-                rows.append((seq.name, weather, _synthetic(seq) if a.synthetic else vio(seq)))
+                if not a.render_only:
+                    rows.append((seq.name, weather, _synthetic(seq) if a.synthetic else vio(seq)))
+        if a.render_only:
+            (root / "READY").write_text("rendered by benchmarks/bench_vio.py --render-only\n")
+            return
         if a.speed_1024 and not a.synthetic:
             seq = root / "SVI_clear_1024"
             if not seq.exists():

@@ -86,9 +86,9 @@ class KeyframeState:
 
 
 def _sym(c: str, i: int) -> int:
-    import gtsam
-
-    return int(gtsam.symbol(c, i))
+    """``gtsam.symbol(c, i)``: the character in the top byte, the index below (no call into
+    GTSAM: this runs for every factor)."""
+    return (ord(c) << 56) | int(i)
 
 
 def imu_params(noise: ImuNoise, scale: float, T_body_imu: FloatArray | None = None) -> Any:
@@ -149,6 +149,8 @@ class Backend:
             gtsam.noiseModel.mEstimator.Huber.Create(1.345),
             gtsam.noiseModel.Isotropic.Sigma(3, sigma))
         self.landmark_prior = gtsam.noiseModel.Isotropic.Sigma(3, 20.0)
+        self._factor_cls = gtsam.GenericStereoFactor3D
+        self._point_cls = gtsam.StereoPoint2
         self.min_disp_px = params.min_disparity_px * params.scale_px(rect.width_px)
         # latest estimate of every keyframe (kept across restarts: keyframe indices never repeat)
         self.states: dict[int, KeyframeState] = {}
@@ -300,18 +302,22 @@ class Backend:
             del self.lm_last_t[tid]
             del self.lm_key[tid]
             del self.lm_first_t[tid]
-        ok = (obs.uL - obs.uR) >= self.min_disp_px
+        ok = np.flatnonzero((obs.uL - obs.uR) >= self.min_disp_px)
         seen = set()
         used = 0
         T_w_cam = T_wb @ self.rect.T_body_rect
-        new_pts = self.rect.triangulate(obs.uL, obs.uR, obs.v)
-        for i in np.flatnonzero(ok):
-            tid = int(obs.ids[i])
+        pts_w = self.rect.triangulate(obs.uL, obs.uR, obs.v) @ T_w_cam[:3, :3].T + T_w_cam[:3, 3]
+        # plain Python numbers once per frame (indexing numpy arrays per element is slow)
+        ids, uL, uR, vv = (obs.ids[ok].tolist(), obs.uL[ok].tolist(), obs.uR[ok].tolist(),
+                           obs.v[ok].tolist())
+        for j, i in enumerate(ok.tolist()):
+            tid = ids[j]
             seen.add(tid)
-            meas = (k, float(obs.uL[i]), float(obs.uR[i]), float(obs.v[i]))
+            meas = (k, uL[j], uR[j], vv[j])
             if tid in self.lm_key:
-                self._stereo_factor(graph, meas, self.lm_key[tid])
-                stamps[self.lm_key[tid]] = t_ns
+                key = self.lm_key[tid]
+                self._stereo_factor(graph, meas, key)
+                stamps[key] = t_ns
                 self.lm_last_t[tid] = t_ns
                 used += 1
                 continue
@@ -322,7 +328,7 @@ class Backend:
                 continue
             key = _sym("l", self.n_landmarks)
             self.n_landmarks += 1
-            p_w = T_w_cam[:3, :3] @ new_pts[i] + T_w_cam[:3, 3]
+            p_w = pts_w[i]
             values.insert(key, gtsam.Point3(p_w))
             # a weak prior keeps the landmark's block positive definite when its depth is barely
             # observed (far points, Huber-downweighted observations): without it iSAM2 may stop
@@ -341,23 +347,25 @@ class Backend:
         return used
 
     def _stereo_factor(self, graph: Any, meas: tuple[int, float, float, float], key: int) -> None:
-        import gtsam
-
         kf, uL, uR, v = meas
-        graph.add(gtsam.GenericStereoFactor3D(gtsam.StereoPoint2(uL, uR, v), self.stereo_noise,
-                                              _sym("x", kf), key, self.K, self.body_P_cam))
+        graph.add(self._factor_cls(self._point_cls(uL, uR, v), self.stereo_noise,
+                                   (ord("x") << 56) | kf, key, self.K, self.body_P_cam))
 
     def _refresh(self, t_ns: int) -> None:
-        est = self.smoother.calculateEstimate()
+        # per-key estimates of the window's keyframes only: calculateEstimate() would retract
+        # every variable of the window (thousands of landmarks) into a new Values at each update
+        sm = self.smoother
         lag_ns = int(self.params.lag_s * 1e9)
         for kf in [i for i, t in self.kf_t.items() if t < t_ns - lag_ns]:
             del self.kf_t[kf]
         for kf, t in self.kf_t.items():
-            xk = _sym("x", kf)
-            if not est.exists(xk):
-                continue
-            b = est.atConstantBias(_sym("b", kf))
-            self.states[kf] = KeyframeState(t, est.atPose3(xk).matrix(),
-                                            np.asarray(est.atVector(_sym("v", kf)), dtype=float),
+            try:
+                pose = sm.calculateEstimatePose3(_sym("x", kf))
+            except (RuntimeError, IndexError, KeyError):
+                continue  # not in the smoother (marginalised, or dropped by a broken update)
+            b = sm.calculateEstimateConstantBias(_sym("b", kf))
+            self.states[kf] = KeyframeState(t, pose.matrix(),
+                                            np.asarray(sm.calculateEstimateVector(_sym("v", kf)),
+                                                       dtype=float),
                                             np.asarray(b.accelerometer(), dtype=float),
                                             np.asarray(b.gyroscope(), dtype=float))

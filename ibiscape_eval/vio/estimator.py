@@ -186,6 +186,11 @@ class Estimator:
         p = self.params
         if dt_s >= p.kf_max_dt_s:
             return True
+        if dt_s < p.kf_min_dt_s - 1e-4:
+            # at most one keyframe per kf_min_dt_s: in rain the tracks thin out so fast that the
+            # track-ratio rule would make nearly every frame a keyframe (and the smoother's
+            # window twice as many poses); the IMU bridges the frames between
+            return False
         ref = self._kf_obs
         if ref is None or len(ref) == 0:
             return len(obs) >= p.min_tracked and dt_s >= p.kf_max_dt_s / 3

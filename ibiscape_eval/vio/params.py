@@ -32,7 +32,8 @@ class VioParams:
         (1: whenever below 70 %).
     Keyframes
         a new keyframe when the median parallax since the last one exceeds ``kf_parallax_px``,
-        when fewer than ``kf_track_ratio`` of its tracks survive, or after ``kf_max_dt_s``.
+        when fewer than ``kf_track_ratio`` of its tracks survive, or after ``kf_max_dt_s``;
+        never sooner than ``kf_min_dt_s`` after the last one.
     Back end
         ``lag_s`` of the fixed-lag smoother (iSAM2 checks relinearisation every
         ``relinearize_skip`` updates, of variables that moved more than ``relinearize_threshold``),
@@ -66,6 +67,7 @@ class VioParams:
     kf_parallax_px: float = 12.0
     kf_track_ratio: float = 0.6
     kf_max_dt_s: float = 0.3
+    kf_min_dt_s: float = 0.15
     lag_s: float = 3.0
     relinearize_skip: int = 1
     relinearize_threshold: float = 0.01
