@@ -109,7 +109,29 @@ def run(mode: str, args: argparse.Namespace) -> dict[str, Any]:
 def replay(cfg: Any, recorded: dict[str, dict[int, np.ndarray]], stamps: np.ndarray, weather: Any,
            dvs: DvsConfig, args: argparse.Namespace) -> dict[str, Any]:
     """The DVS model again on the recorded renders: its CPU time alone (best of ``--replay``) and
-    the peak of the Python heap (tracemalloc) it adds."""
+    the peak of the Python heap (tracemalloc) it adds; first with the peer's quantile
+    (``np.partition``), then with ours (the same events)."""
+    from ibiscape_eval.sim.dvs import _kernels
+
+    out: dict[str, Any] = {}
+    kernel = _kernels.abs_diff_kth
+    try:  # the peer: the previous quantile, a full np.partition of |dL| per render (same value)
+        _kernels.abs_diff_kth = _partition_kth
+        peer = _replay_best(cfg, recorded, stamps, weather, dvs, args)
+    finally:
+        _kernels.abs_diff_kth = kernel
+    ours = _replay_best(cfg, recorded, stamps, weather, dvs, args)
+    out.update({f"peer_{k}": v for k, v in peer.items()})
+    out.update(ours)
+    return out
+
+
+def _partition_kth(l0: np.ndarray, l1: np.ndarray, k: int) -> float:
+    return float(np.partition(np.abs(l1 - l0), k)[k])
+
+
+def _replay_best(cfg: Any, recorded: dict[str, dict[int, np.ndarray]], stamps: np.ndarray,
+                 weather: Any, dvs: DvsConfig, args: argparse.Namespace) -> dict[str, Any]:
     import tracemalloc
 
     best = float("inf")
@@ -171,6 +193,11 @@ def main() -> None:
                   f"(DVS share {100 * r['dvs_cpu_s'] / (r['dvs_cpu_s'] + r['render_cpu_s']):.0f} %); "
                   f"heap peak {r['dvs_peak_mb']:.1f} MB; events {r['replay_events']} "
                   f"({'identical count' if r['replay_events'] == r['events'] else 'COUNT DIFFERS'})")
+            pp = 1e3 * r["peer_dvs_cpu_s"] / max(r["renders"], 1)
+            print(f"  peer (np.partition quantile, same run): {r['peer_dvs_cpu_s']:.2f} s cpu = "
+                  f"{pp:.2f} ms per render, heap peak {r['peer_dvs_peak_mb']:.1f} MB; ours / peer "
+                  f"{r['dvs_cpu_s'] / r['peer_dvs_cpu_s']:.2f}x; events "
+                  f"{'identical count' if r['peer_replay_events'] == r['replay_events'] else 'DIFFER'}")
     print("(cpu s: CPU time of this process, the cost on an idle machine; wall s includes waiting "
           "for a busy machine's cores)")
     by = {r["mode"]: r for r in rows}

@@ -97,6 +97,9 @@ def run_one(seq_dir: Path, setup: str, options: Any) -> dict[str, Any]:
                imu_only_s=sum(f.duration_s for f in spans if f.kind == "tracking"),
                lost_s=sum(f.duration_s for f in spans if f.kind == "lost"),
                resets=sum(f.kind in ("reset", "diverged") for f in spans), n_spans=len(spans),
+               diverged=sum(f.kind == "diverged" for f in spans),
+               spans=[(f.kind, round((f.start_ns - int(s.frame_stamps_ns[0])) * 1e-9, 2),
+                       round(f.duration_s, 2)) for f in spans],
                read_ms=1e3 * cpu["read"] / n, front_ms=1e3 * cpu["front"] / n,
                back_ms=1e3 * cpu["back"] / n,
                duration_s=(int(s.frame_stamps_ns[-1]) - int(s.frame_stamps_ns[0])) * 1e-9)
@@ -171,8 +174,9 @@ def main() -> None:
             if a.as_setups:
                 r["setup"] = f"{_setup_of(sq)} drive"
             rows.append(r)
-            print(f"{sq.name}: {r['setup']} {r['weather']} ATE {r['ate_pct']:.2f} % usable "
-                  f"{r['usable']}/{r['frames']}", flush=True)
+            print(f"{r['name']}: {r['setup']} {r['weather']} ATE {r['ate_pct']:.2f} % usable "
+                  f"{r['usable']}/{r['frames']}, {r['diverged']} diverged; failure spans (kind, "
+                  f"start s, seconds): {r['spans']}", flush=True)
     _table(rows)
 
 
