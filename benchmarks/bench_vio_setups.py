@@ -4,6 +4,8 @@ failure spans and CPU time per frame of the front end and the back end.
     .venv/bin/python benchmarks/bench_vio_setups.py --sequences ESVI_clear RGBD_clear ...
     .venv/bin/python benchmarks/bench_vio_setups.py --render --setups esvi rgbd --duration-s 60
     .venv/bin/python benchmarks/bench_vio_setups.py --sequences ESVI_clear --reconstruction accumulate-signed
+    .venv/bin/python benchmarks/bench_vio_setups.py --render --setups full --weathers clear \
+        --duration-s 8 --as-setups full svi rgbd esvi     # FULL: each sensor subset of one drive
 
 Each sequence runs in this process frame by frame like ``run_vio`` (``make_frontend`` picks the
 setup's front end), with each stage timed by the process CPU time (all threads), which other load
@@ -95,10 +97,20 @@ def run_one(seq_dir: Path, setup: str, options: Any) -> dict[str, Any]:
                imu_only_s=sum(f.duration_s for f in spans if f.kind == "tracking"),
                lost_s=sum(f.duration_s for f in spans if f.kind == "lost"),
                resets=sum(f.kind in ("reset", "diverged") for f in spans), n_spans=len(spans),
+               diverged=sum(f.kind == "diverged" for f in spans),
+               spans=[(f.kind, round((f.start_ns - int(s.frame_stamps_ns[0])) * 1e-9, 2),
+                       round(f.duration_s, 2)) for f in spans],
                read_ms=1e3 * cpu["read"] / n, front_ms=1e3 * cpu["front"] / n,
                back_ms=1e3 * cpu["back"] / n,
                duration_s=(int(s.frame_stamps_ns[-1]) - int(s.frame_stamps_ns[0])) * 1e-9)
     return row
+
+
+def _setup_of(seq_dir: Path) -> str:
+    import yaml
+
+    doc = yaml.safe_load((seq_dir / "sequence.yaml").read_text()) or {}
+    return str((doc.get("summary") or {}).get("setup", "?")).lower()
 
 
 def _table(rows: list[dict[str, Any]]) -> None:
@@ -126,6 +138,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sequences", nargs="*", type=Path, default=[], help="sequence folders")
     ap.add_argument("--setup", default="auto", choices=["auto", "svi", "esvi", "rgbd", "full"])
+    ap.add_argument("--as-setups", nargs="*", default=None, choices=["svi", "esvi", "rgbd", "full"],
+                    help="run every sequence once per setup (a FULL drive: which sensors help)")
     ap.add_argument("--render", action="store_true", help="generate the sequences first")
     ap.add_argument("--setups", nargs="*", default=["esvi", "rgbd"])
     ap.add_argument("--weathers", nargs="*", default=["clear", "moderate", "dynamic"])
@@ -154,12 +168,15 @@ def main() -> None:
                     _render(setup, w, out, seed=a.seed, duration_s=a.duration_s, resolution=a.resolution)
                     seqs.append(out)
         rows = []
-        for sq in seqs:
-            r = run_one(sq, a.setup, options)
-            r["name"] = sq.name
+        for sq, setup in ((sq, st) for sq in seqs for st in (a.as_setups or [a.setup])):
+            r = run_one(sq, setup, options)
+            r["name"] = sq.name if not a.as_setups else f"{sq.name} as {setup}"
+            if a.as_setups:
+                r["setup"] = f"{_setup_of(sq)} drive"
             rows.append(r)
-            print(f"{sq.name}: {r['setup']} {r['weather']} ATE {r['ate_pct']:.2f} % usable "
-                  f"{r['usable']}/{r['frames']}", flush=True)
+            print(f"{r['name']}: {r['setup']} {r['weather']} ATE {r['ate_pct']:.2f} % usable "
+                  f"{r['usable']}/{r['frames']}, {r['diverged']} diverged; failure spans (kind, "
+                  f"start s, seconds): {r['spans']}", flush=True)
     _table(rows)
 
 

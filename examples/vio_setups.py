@@ -11,12 +11,15 @@ import sys
 import tempfile
 from pathlib import Path
 
+import numpy as np
+
 from ibiscape_eval import open_sequence
+from ibiscape_eval.core.camera import CameraModel
 from ibiscape_eval.metrics import ate
 from ibiscape_eval.sim import generate, preset
 from ibiscape_eval.sim.config import with_resolution
 from ibiscape_eval.vio import run_vio
-from ibiscape_eval.vio.depth import DepthOptions
+from ibiscape_eval.vio.depth import DepthOptions, DepthReader, depth_sigma_m
 from ibiscape_eval.vio.events_input import EsviOptions, event_stereo_frames
 from ibiscape_eval.vio.inputs import resolve_setup
 
@@ -63,3 +66,12 @@ rgbd = [f for f in folders if resolve_setup(open_sequence(f)) == "rgbd"]
 if rgbd:
     res = run_vio(open_sequence(rgbd[0]), options=DepthOptions(baseline_m=0.5, max_depth_m=30.0))
     print(f"RGB-D, 0.5 m virtual baseline, depth <= 30 m: {res}")
+
+# %% Depth files of real sensors: the reader's units (mm: IBISCape's depth/mm/, Redwood, ORB-SLAM3's
+# DepthMapFactor 1000; tum: the TUM RGB-D recordings, 5000 per metre; carla-log: CARLA's 8-bit log)
+tum = Path(__file__).resolve().parents[1] / "tests" / "data" / "real" / "tum_rgbd_depth" / "TUM_depth.png"
+if tum.is_file():
+    kinect = CameraModel(640, 480, 517.3, 516.5, 318.6, 255.3)  # TUM freiburg1
+    z = DepthReader([tum], "tum", kinect, np.eye(4), kinect, np.eye(4))(0)  # metres, NaN = none
+    print(f"TUM depth frame: median {np.nanmedian(z):.2f} m, {np.isfinite(z).mean():.0%} of the "
+          f"pixels; Kinect noise at 3 m {1e3 * depth_sigma_m(np.array([3.0]), 'tum')[0]:.0f} mm")

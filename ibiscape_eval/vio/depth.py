@@ -16,6 +16,14 @@ Depth files of an IBISCape sequence (``depth/``, ``sim`` writes both):
 - ``frames/<ns>.png``: CARLA's 8-bit logarithmic depth (the published dataset); one code step is a
   factor ``exp(5.70378 / 255)`` (2.26 %), so ``sigma_z = z (5.70378 / 255) / sqrt(12)`` (0.65 %).
 
+A third unit, ``tum`` (``DepthReader(files, "tum", ...)``), reads the TUM RGB-D recordings' 16-bit
+files, 5000 per metre (their ``depth/*.png``, Open3D's ``create_from_tum_format``); the noise is the
+Kinect v1's rather than the quantisation's, about 4 cm at 5 m (Khoshelham and Elberink, Sensors
+2012): ``sigma_z = 1.6e-3 z^2``.  A TUM file read as millimetres would come out 5 times too far
+and no check of the image alone can tell, so the unit is the caller's to give.  Checked on real
+files (``tests/io/test_depth_real.py``): a TUM frame (``tum``) and a Redwood frame (``mm``), each
+decoded as Open3D decodes it.
+
 Registration: when the depth camera's intrinsics or pose differ from the RGB camera's, every depth
 pixel is back-projected, moved into the RGB camera with the calibration (``T_body_cam`` of both)
 and projected there, keeping the nearest depth per RGB pixel (a z-buffer).  A depth image of
@@ -48,7 +56,11 @@ F32 = npt.NDArray[np.float32]
 
 #: CARLA's log-depth scale: depth = 1000 m * exp((code / 255 - 1) * 5.70378)
 CARLA_LOG_SCALE = 5.70378
-DEPTH_UNITS = ("mm", "carla-log")
+DEPTH_UNITS = ("mm", "carla-log", "tum")
+#: metres per count of the 16-bit units
+DEPTH_STEP_M = {"mm": 1e-3, "tum": 1.0 / 5000.0}
+#: the Kinect v1's depth noise, sigma_z = KINECT_SIGMA_PER_M2 * z^2 (about 4 cm at 5 m)
+KINECT_SIGMA_PER_M2 = 1.6e-3
 
 
 @dataclass(frozen=True)
@@ -87,6 +99,8 @@ def depth_sigma_m(z_m: npt.ArrayLike, unit: str) -> FloatArray:
         return np.full_like(z, 1e-3 / math.sqrt(12.0))
     if unit == "carla-log":
         return z * (CARLA_LOG_SCALE / 255.0) / math.sqrt(12.0)
+    if unit == "tum":
+        return KINECT_SIGMA_PER_M2 * z * z
     raise IbiscapeError(f"depth unit {unit!r}: use one of {', '.join(DEPTH_UNITS)}")
 
 
@@ -127,17 +141,8 @@ class DepthReader:
         if img.shape[:2] != (h, w):
             raise FormatError(f, f"depth image is {img.shape[1]}x{img.shape[0]} px, the depth "
                               f"camera's calibration says {w}x{h}")
-        if self.unit == "mm":
-            if img.dtype != np.uint16 or img.ndim != 2:
-                raise FormatError(f, f"expected 16-bit millimetre depth, got {img.dtype} "
-                                  f"{'x'.join(map(str, img.shape))}; give the mm/ folder's files")
-            valid = img[img > 0]
-            if valid.size and float(np.median(valid)) < 100.0:
-                raise FormatError(f, f"median depth {float(np.median(valid)):.0f} mm (< 0.1 m): the "
-                                  "file looks like metres or another unit, not millimetres")
-            d = img.astype(np.float32) / np.float32(1000.0)
-            d[img == 0] = np.nan
-            return d
+        if self.unit in DEPTH_STEP_M:
+            return _sixteen_bit_depth(f, img, self.unit)
         if img.dtype != np.uint8:
             raise FormatError(f, f"CARLA log depth is 8-bit, got {img.dtype} (16-bit millimetres "
                               "belong in depth/mm/)")
@@ -174,6 +179,24 @@ class DepthReader:
         out = np.full(H * W, np.nan, np.float32)
         out[idx[order]] = zz[order]
         return out.reshape(H, W)
+
+
+def _sixteen_bit_depth(f: Path, img: npt.NDArray[Any], unit: str) -> F32:
+    """Depth [m] of a 16-bit image in ``unit`` (``mm``: 1 mm per count, ``tum``: 0.2 mm); 0 = none.
+    Refuses another bit depth, and a median under 0.1 m (metres written as integers, or a
+    disparity image): no depth camera sees most of its pixels that close."""
+    name = "millimetre" if unit == "mm" else "TUM (5000 per metre)"
+    if img.dtype != np.uint16 or img.ndim != 2:
+        raise FormatError(f, f"expected 16-bit {name} depth, got {img.dtype} "
+                          f"{'x'.join(map(str, img.shape))}; give the mm/ folder's files")
+    step = DEPTH_STEP_M[unit]
+    valid = img[img > 0]
+    if valid.size and float(np.median(valid)) * step < 0.1:
+        raise FormatError(f, f"median depth {float(np.median(valid)) * step * 1e3:.0f} mm (< 0.1 m) "
+                          f"read as {name}: the file looks like metres or another unit")
+    d = img.astype(np.float32) / np.float32(1.0 / step)
+    d[img == 0] = np.nan
+    return d
 
 
 class DepthFrontEnd(StereoFrontEnd):

@@ -88,3 +88,38 @@ def crossings(l0, l1, ref, last_t, t0_ns, dt_ns, c_pos, c_neg, c_noise, sigma_po
             ref[i] = cross
             cross += step
     return out_t[:k], out_i[:k], out_p[:k], dropped
+
+
+@njit(cache=True, nogil=True)
+def _exponent(x):
+    """The biased IEEE exponent of a float64 >= 0 (the order of the values is the order of their
+    bit patterns, so the exponent buckets are ordered)."""
+    return (x >> np.uint64(52)) & np.uint64(0x7FF)
+
+
+@njit(cache=True, nogil=True)
+def abs_diff_kth(l0, l1, k):
+    """The exact ``k``-th smallest (0-based) of ``|l1 - l0|`` (what ``np.partition(d, k)[k]``
+    gives), without the full partition: a histogram of the binary exponents finds the bucket that
+    holds the ``k``-th value, and only that bucket is partitioned."""
+    n = l0.shape[0]
+    d = np.empty(n, np.float64)
+    for i in range(n):
+        d[i] = abs(l1[i] - l0[i])
+    bits = d.view(np.uint64)
+    hist = np.zeros(2048, np.int64)
+    for i in range(n):
+        hist[_exponent(bits[i])] += 1
+    below = 0
+    b = 0
+    while below + hist[b] <= k:
+        below += hist[b]
+        b += 1
+    bucket = np.empty(hist[b], np.float64)
+    m = 0
+    for i in range(n):
+        if _exponent(bits[i]) == b:
+            bucket[m] = d[i]
+            m += 1
+    r = k - below
+    return np.partition(bucket, r)[r]

@@ -526,3 +526,46 @@ FAMILIES["events_hdf5"] = Family(_event_file_seed("events.h5", "hdf5"),
 FAMILIES["events_bag_ros1"] = Family(_event_file_seed("events.bag", "bag"), _hotpix_argv, text=False)
 FAMILIES["events_bag_ros2"] = Family(_event_file_seed("events_ros2", "bag"), _hotpix_argv,
                                      mutable=lambda p: p / f"{p.name}.db3", text=False)
+
+
+# ---- the RGB-D depth reader (vio --setup rgbd): one depth image of a generated sequence ----
+
+#: the generated RGB-D sequence (64x48, 2 s), built once per campaign and copied into each seed
+_RGBD_TEMPLATE: dict[str, Path] = {}
+
+
+def _rgbd_seed(unit: str):  # type: ignore[no-untyped-def]
+    """Seed: a copy of the RGB-D template; ``carla-log`` drops ``depth/mm/`` so that the reader
+    takes CARLA's 8-bit log files in ``depth/frames/``."""
+    def build(folder: Path) -> Path:
+        key = str(folder.parent)
+        if key not in _RGBD_TEMPLATE:
+            from ibiscape_eval.sim.config import preset, with_resolution
+            from ibiscape_eval.sim.generator import generate
+
+            d = folder.parent / ".rgbd_template" / "RGBD_1_town"
+            generate(with_resolution(preset("rgbd", "slam", "clear", duration_s=2.0, seed=3), 64, 48), d,
+                     render=True)
+            _RGBD_TEMPLATE[key] = d
+        dst = folder / "RGBD_1_town"
+        shutil.copytree(_RGBD_TEMPLATE[key], dst)
+        if unit == "carla-log":
+            shutil.rmtree(dst / "depth" / "mm")
+        return dst
+
+    return build
+
+
+def _depth_image(sub: str):  # type: ignore[no-untyped-def]
+    return lambda p: sorted((p / "depth" / sub).glob("*.png"))[3]
+
+
+def _rgbd_argv(p: Path, o: Path) -> list[str]:
+    return ["vio", str(p), "-o", str(o / "est.txt"), "--setup", "rgbd", "--max-frames",
+            str(VIO_FRAMES), "--json"]
+
+
+FAMILIES["rgbd_depth_mm"] = Family(_rgbd_seed("mm"), _rgbd_argv, mutable=_depth_image("mm"),
+                                   text=False)
+FAMILIES["rgbd_depth_carla_log"] = Family(_rgbd_seed("carla-log"), _rgbd_argv,
+                                          mutable=_depth_image("frames"), text=False)

@@ -322,3 +322,21 @@ def test_sequence_yaml_records_the_dvs_settings_and_calib_uses_them(tmp_path: Pa
     _, guessed = event_set_frames([p for _, _, p in windows], [(a, b) for a, b, _ in windows], (40, 32),
                                   target, reconstruction="log-intensity", camera_doc={})
     assert guessed["contrast_from"] == "polarity balance"
+
+
+@settings(max_examples=200, deadline=None)
+@given(data=hs.data())
+def test_adaptive_quantile_kernel_is_np_partition_exactly(data: hs.DataObject) -> None:
+    """The adaptive step's quantile of |dL| (an exponent-bucket selection) equals np.partition's
+    value bit for bit, so the render times, hence the events, are unchanged (zeros, ties, tiny and
+    huge differences included)."""
+    from ibiscape_eval.sim.dvs._kernels import abs_diff_kth
+
+    n = data.draw(hs.integers(1, 400))
+    floats = hs.one_of(hs.just(0.0), hs.floats(-1e6, 1e6, allow_nan=False, width=64),
+                       hs.floats(-1e-300, 1e-300, allow_nan=False))
+    l0 = data.draw(hnp.arrays(np.float64, n, elements=floats))
+    step = data.draw(hnp.arrays(np.float64, n, elements=floats))
+    l1 = l0 + step * (np.arange(n) % data.draw(hs.integers(1, 4)) == 0)
+    k = data.draw(hs.integers(0, n - 1))
+    assert abs_diff_kth(l0, l1, k) == np.partition(np.abs(l1 - l0), k)[k]
