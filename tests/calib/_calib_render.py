@@ -50,6 +50,8 @@ def render(cam: CameraModel, T_cam_target: np.ndarray, kind: str, *, ss: int = 2
 def render_float(cam: CameraModel, T_cam_target: np.ndarray, kind: str, *, ss: int = 3,
                  contrast: float = 1.0) -> np.ndarray:
     """Float grey image (h, w) in [0, 255] before noise and quantisation."""
+    if contrast == 0.0:  # the face washed out to the background: the same float32 image, no rays cast
+        return np.full((cam.height_px, cam.width_px), BACKGROUND, np.float32)
     board, tex = _board(kind)
     d = _rays(cam, ss)
     T_tc = np.linalg.inv(T_cam_target)
