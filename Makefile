@@ -35,8 +35,13 @@ lint: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/mypy
 
+# The suite on every core (pytest-xdist); tests/conftest.py groups the tests that share data built
+# once onto one worker and starts the longest groups first. `make test PYTEST_N=0` runs it serially;
+# PYTEST_ARGS adds options (`make test PYTEST_ARGS=--durations=20`).
+PYTEST_N ?= auto
+PYTEST_ARGS ?=
 test: $(STAMP) sysdeps lint
-	MPLBACKEND=Agg $(BIN)/python -m pytest
+	MPLBACKEND=Agg $(BIN)/python -m pytest -n $(PYTEST_N) --dist loadfile --no-loadscope-reorder $(PYTEST_ARGS)
 
 bench: $(STAMP) sysdeps
 	MPLBACKEND=Agg $(BIN)/python benchmarks/run_all.py

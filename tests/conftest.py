@@ -1,15 +1,126 @@
-"""Suite-wide test settings."""
+"""Suite-wide test settings, and how the suite is spread over pytest-xdist workers.
 
+``make test`` runs ``pytest -n auto --dist loadfile --no-loadscope-reorder`` (see the Makefile).
+Work that is built once is built on one worker:
+
+- the tests of a file run on one worker (``--dist loadfile``): module-scoped fixtures (``bench``,
+  ``scheduler``...) and the files' ``lru_cache`` helpers are computed once, as in a serial run;
+- the files that use a session-scoped fixture of a folder's conftest (``tests/vio``: the
+  generated SVI drive and its rendered street; ``tests/sim``: the town renderer) run on one
+  worker, one after the other (``pytest_xdist_make_scheduler`` below): the fixture is built once;
+- the tests of the ``SPLIT`` files share nothing (each its own data or subprocess, each slow):
+  they spread over the workers one by one.
+
+The groups start longest first (the seconds measured in the last run, kept in pytest's cache, or
+``SLOW_FIRST`` on a fresh clone) so that no long group starts last and holds the run up. Without
+xdist (``pytest tests/x.py``) nothing here changes the order.
+"""
+
+from __future__ import annotations
+
+import functools
+import re
+from pathlib import Path
+
+import pytest
 from hypothesis import HealthCheck, settings
+from shared_data import require_shared  # (tests/ is on sys.path: rootdir conftest)
 
 # Property tests must not fail on a slow or busy CI machine: no per-example deadline and no
 # "too slow" health check (generating file fixtures is legitimately slow).
 settings.register_profile("ibiscape", deadline=None, suppress_health_check=[HealthCheck.too_slow])
 settings.load_profile("ibiscape")
 
+TESTS = Path(__file__).resolve().parent
+#: Files whose tests share nothing built once (each test its own data or subprocess).
+SPLIT = ("tests/examples/test_examples.py",)
+#: The longest groups of a full run (seconds on the quiet machine), for a clone without a cache.
+SLOW_FIRST = {
+    "tests/test_readme.py": 85.0,
+    "tests/benchmark/test_benchmark.py": 110.0,
+    "tests/calib/test_calib_dvs_cli.py": 75.0,
+    "tests/calib/test_imu_camera_dvs.py": 50.0,
+    "tests/calib/test_calib_rendered.py": 45.0,
+    "tests/mutation/test_mutation_campaign.py": 50.0,
+    "tests/calib/test_imu_camera_coverage.py": 45.0,
+}
+CACHE_KEY = "ibiscape/xdist_group_seconds"
+_SESSION_FIXTURE = re.compile(r'@pytest\.fixture\(scope="session"[^)]*\)\s*\ndef (\w+)')
 
-import pytest  # noqa: E402
-from shared_data import require_shared  # noqa: E402  (tests/ is on sys.path: rootdir conftest)
+
+@functools.cache
+def shared_fixture_groups() -> dict[str, str]:
+    """``{test file: conftest folder}`` for the files that use a session-scoped fixture of a
+    conftest below ``tests/`` (read from the sources: the controller collects no tests)."""
+    root = TESTS.parent
+    groups = {}
+    for conftest in TESTS.glob("*/**/conftest.py"):
+        names = _SESSION_FIXTURE.findall(conftest.read_text())
+        if not names:
+            continue
+        uses = re.compile(r"\b(" + "|".join(names) + r")\b")
+        folder = conftest.parent.relative_to(root).as_posix()
+        for f in conftest.parent.rglob("test_*.py"):
+            if uses.search(f.read_text()):
+                groups[f.relative_to(root).as_posix()] = folder
+    return groups
+
+
+def group_of(nodeid: str) -> str:
+    """The work unit of a test: its file, its conftest folder (shared session fixture), or
+    itself (``SPLIT``)."""
+    path = nodeid.split("::", 1)[0]
+    if path in SPLIT:
+        return nodeid
+    return shared_fixture_groups().get(path, path)
+
+
+@pytest.hookimpl(optionalhook=True, tryfirst=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log):
+    """``--dist loadfile`` with the groups of ``group_of`` as its work units."""
+    if config.getvalue("dist") != "loadfile":
+        return None
+    from xdist.scheduler import LoadFileScheduling
+
+    class GroupScheduling(LoadFileScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            return group_of(nodeid)
+
+    return GroupScheduling(config, log)
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """On an xdist worker: the groups longest first (every worker sorts the same collection by
+    the same cache, as xdist requires), then in collection order."""
+    if not hasattr(config, "workerinput"):
+        return
+    cache = getattr(config, "cache", None)
+    seconds = {**SLOW_FIRST, **(cache.get(CACHE_KEY, {}) if cache else {})}
+    first: dict[str, int] = {}
+    for i, item in enumerate(items):
+        first.setdefault(group_of(item.nodeid), i)
+    items.sort(key=lambda it: (-seconds.get(group_of(it.nodeid), 0.0), first[group_of(it.nodeid)]))
+
+
+_seconds: dict[str, float] = {}
+
+
+def pytest_runtest_logreport(report: pytest.TestReport) -> None:
+    _seconds[report.nodeid] = _seconds.get(report.nodeid, 0.0) + report.duration
+
+
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    """Keep each group's measured seconds (controller or serial run) for the next run's order."""
+    config = session.config
+    cache = getattr(config, "cache", None)
+    if hasattr(config, "workerinput") or cache is None or not _seconds:
+        return
+    per_group: dict[str, float] = {}
+    for nodeid, s in _seconds.items():
+        per_group[group_of(nodeid)] = per_group.get(group_of(nodeid), 0.0) + s
+    kept = cache.get(CACHE_KEY, {})
+    kept.update({g: round(s, 2) for g, s in per_group.items() if s >= 1.0})
+    cache.set(CACHE_KEY, kept)
 
 
 @pytest.fixture

@@ -3,12 +3,15 @@ in-process through the command line and held to the bad-input contract (see camp
 
 from __future__ import annotations
 
+import shutil
 import sys
 from pathlib import Path
 
+import pytest
+
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from campaign import N_MUTANTS, campaign, plan
+from campaign import N_MUTANTS, campaign, plan, prepare
 from families import FAMILIES
 from mutators import BYTE_MUTATORS, PATH_MUTATORS
 from shared_data import require_shared
@@ -23,14 +26,21 @@ def test_plan_covers_every_family_and_mutator() -> None:
     assert set(BYTE_MUTATORS) <= used
 
 
-def test_every_mutant_keeps_the_contract(tmp_path: Path) -> None:
+@pytest.fixture(scope="module")
+def campaign_root(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The campaign's folder: each family's seed is built once there (``campaign.prepare``) and
+    copied by every mutant and by the unmutated run below."""
+    return tmp_path_factory.mktemp("mutation")
+
+
+def test_every_mutant_keeps_the_contract(campaign_root: Path) -> None:
     require_shared("trajectories")  # the EuRoC / ROS 2 bag seeds: fails under CI when missing
-    broke = [o for o in campaign(tmp_path) if o.problem]
+    broke = [o for o in campaign(campaign_root) if o.problem]
     assert not broke, f"{len(broke)} of {N_MUTANTS} mutants broke the contract:\n" + "\n".join(
         map(str, broke[:20]))
 
 
-def test_every_seed_passes_unmutated(tmp_path: Path) -> None:
+def test_every_seed_passes_unmutated(campaign_root: Path, tmp_path: Path) -> None:
     """The campaign is only meaningful if each family's seed is accepted as it is."""
     require_shared("trajectories")  # fails under CI when missing
     from click.testing import CliRunner
@@ -38,9 +48,10 @@ def test_every_seed_passes_unmutated(tmp_path: Path) -> None:
     from ibiscape_eval.cli.main import cli
 
     for name, fam in FAMILIES.items():
+        seed = prepare(campaign_root / "seeds", name)  # the campaign's seed, as each mutant copies it
         folder = tmp_path / name
-        folder.mkdir()
-        inp = fam.build(folder)
+        shutil.copytree(seed.parent, folder, symlinks=True)
+        inp = folder / seed.name
         out = folder / "out"
         out.mkdir()
         res = CliRunner().invoke(cli, fam.argv(inp, out))
