@@ -93,3 +93,19 @@ def test_stereo_odometry_chains_tracks_shorter_than_the_window(svi_seq, small_ri
     i0, i1 = np.searchsorted(gt.stamps_ns, stamps[[0, -1]])
     d_true = np.linalg.norm(gt.pos_m[i1] - gt.pos_m[i0])
     assert abs(d_est - d_true) < 0.05 * d_true  # metric distance, within 5 %
+
+
+def test_lost_then_restarts_at_the_stop_without_vision(svi_seq, small_rig):
+    # no vision from 5 s to 13 s: lost while driving (~6 s), the car stops at ~9.5 s; the quiet
+    # IMU (and its prediction through the lost span: speed near zero) restarts the estimate there
+    params = VioParams(max_imu_only_s=1.0)
+    est, traj, gt, _ = _run(svi_seq, small_rig, (5.0, 13.0), params=params)
+    t0 = gt.stamps_ns[0]
+    lost = [f for f in est.failures if f.kind == "lost"]
+    assert len(lost) == 1
+    assert t0 + int(9.5e9) < lost[0].end_ns < t0 + int(10.5e9)  # restarted in the stop
+    assert any(f.kind == "standstill" for f in est.failures)   # then held still
+    stop = (traj.stamps_ns > lost[0].end_ns) & (traj.stamps_ns < t0 + int(12.5e9))
+    assert stop.sum() > 30
+    assert np.ptp(traj.pos_m[stop], axis=0).max() < 0.05
+    assert (traj.stamps_ns > t0 + int(13.5e9)).sum() > 5  # and drove on
