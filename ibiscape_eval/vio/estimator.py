@@ -116,6 +116,7 @@ class Estimator:
         self._pim: Any = None
         self._kf_obs: StereoObservations | None = None
         self._kf_t = 0
+        self._frame_t = 0                          # stamp the preintegration has reached
         self._fail_start: int | None = None     # first failing keyframe stamp of this span
         self._lost_start: int | None = None
         self._still_start: int | None = None     # first keyframe held still by the IMU (this span)

@@ -250,7 +250,7 @@ def stereo_odometry(frames: Sequence[StereoObservations], rect: RectifiedStereo,
     max_z = 80.0 * rect.baseline_m / 0.4
     map_ids = np.zeros(0, dtype=np.int64)
     map_pts = np.zeros((0, 3))
-    T_r0_rk = np.eye(4)
+    T_r0_rk: FloatArray = np.eye(4)
     out = []
     K = rect.K
     thr = 2.0 * rect.width_px / 512.0
@@ -269,7 +269,7 @@ def stereo_odometry(frames: Sequence[StereoObservations], rect: RectifiedStereo,
             T_rk_r0 = np.eye(4)
             T_rk_r0[:3, :3] = cv2.Rodrigues(rvec)[0]
             T_rk_r0[:3, 3] = tvec.ravel()
-            T_r0_rk = np.linalg.inv(T_rk_r0)
+            T_r0_rk = np.asarray(np.linalg.inv(T_rk_r0), dtype=np.float64)
         out.append(T_br @ T_r0_rk @ T_rb)
         ok_d = (fr.uL - fr.uR) > 0.5  # NaN uR (left-only tracks) compares False
         new = ok_d & ~np.isin(fr.ids, map_ids)
