@@ -10,9 +10,14 @@ keyframe's smoothed state (its last estimate before it left the window):
 ``R_f = R_k Delta R``, ``p_f = p_k + v_k dt + g dt^2 / 2 + R_k Delta p``.
 
 Tracking failure: a keyframe with fewer than ``min_tracked`` landmark observations.  The state
-then continues on the IMU factors; after ``max_imu_only_s`` without vision the following frames
-are *lost* (not written) until the stereo odometry re-initialises velocity and gravity, and the
-estimate resumes from the last pose held (position and yaw kept).  Every span is reported.
+then continues on the IMU factors; after ``max_imu_only_s`` of it while moving the following
+frames are *lost* (not written) until the stereo odometry re-initialises velocity and gravity, or
+the IMU stands still (zero velocity, gravity from the accelerometer), and the estimate resumes, a
+new segment, from the last position held.  A failing keyframe at which the IMU stands still (its
+variance test, the estimated speed below 0.5 m/s and the specific force gravity in the estimated
+attitude: a quiet IMU alone cannot tell a stop from a steady cruise) gets a zero-velocity update
+instead (*standstill* span): a vehicle waiting in the rain is held, not lost.  Every span is
+reported.
 """
 
 from __future__ import annotations
@@ -57,7 +62,9 @@ class FailureSpan:
     ``kind``: ``"tracking"`` (IMU only, estimate written), ``"lost"`` (beyond the IMU-only bound
     or before initialisation: no estimate written), ``"reset"`` (the smoother failed numerically
     and was restarted from its last state), ``"diverged"`` (an implausible state: speed, biases;
-    the estimate stops there and re-initialises like after a lost span).
+    the estimate stops there and re-initialises like after a lost span), ``"standstill"`` (inside
+    a tracking span: no vision, the IMU stood still and its zero-velocity update held the pose;
+    this time does not count towards ``max_imu_only_s``).
     """
 
     kind: str
