@@ -238,10 +238,11 @@ def stereo_odometry(frames: Sequence[StereoObservations], rect: RectifiedStereo,
                     min_points: int) -> list[FloatArray] | None:
     """``T_b0_bk`` of every frame from PnP against a map of stereo landmarks, or None.
 
-    The map starts with frame 0's triangulated points and grows, after each frame's PnP, by the
-    points that frame triangulates first (expressed in frame 0 through its pose), so tracks
-    shorter than the window (event frames: a corner lives a few frames) still chain the poses;
-    with tracks spanning the window every frame is resected against frame 0's points alone.
+    Each frame is resected against frame 0's triangulated points when it still sees
+    ``min_points`` of them (the poses then do not chain errors); otherwise against the map, frame
+    0's points grown after each frame's PnP by the points that frame triangulates first (expressed
+    in frame 0 through its pose), so tracks shorter than the window (event frames: a corner lives
+    a few frames) still chain the poses.
     """
     import cv2
 
@@ -254,12 +255,17 @@ def stereo_odometry(frames: Sequence[StereoObservations], rect: RectifiedStereo,
     out = []
     K = rect.K
     thr = 2.0 * rect.width_px / 512.0
+    ids0 = pts0 = map_ids
     for k, fr in enumerate(frames):
         if k > 0:
-            common, i0, i1 = np.intersect1d(map_ids, fr.ids, return_indices=True)
+            common, i0, i1 = np.intersect1d(ids0, fr.ids, return_indices=True)
+            ref = pts0
+            if len(common) < min_points:
+                common, i0, i1 = np.intersect1d(map_ids, fr.ids, return_indices=True)
+                ref = map_pts
             if len(common) < min_points:
                 return None
-            obj = map_pts[i0].astype(np.float64)
+            obj = ref[i0].astype(np.float64)
             img = np.stack([fr.uL[i1], fr.v[i1]], axis=1).astype(np.float64)
             ok, rvec, tvec, inl = cv2.solvePnPRansac(obj, img, K, None, reprojectionError=thr,
                                                      iterationsCount=100, confidence=0.999,
@@ -279,8 +285,8 @@ def stereo_odometry(frames: Sequence[StereoObservations], rect: RectifiedStereo,
             p_0 = p[keep] @ T_r0_rk[:3, :3].T + T_r0_rk[:3, 3]
             map_ids = np.concatenate((map_ids, fr.ids[new][keep]))
             map_pts = np.concatenate((map_pts, p_0))
-            order = np.argsort(map_ids, kind="stable")
-            map_ids, map_pts = map_ids[order], map_pts[order]
+        if k == 0:
+            ids0, pts0 = map_ids, map_pts
     return out
 
 

@@ -77,7 +77,7 @@ def test_lost_then_resumes_on_short_tracks(svi_seq, small_rig):
     # the new segment follows the truth on its own (aligned separately: its start is the last
     # held position, as after every lost span)
     seg = traj.take(np.flatnonzero(after))
-    assert ate(seg, gt, align="yaw").translation_m.rmse < 0.5
+    assert ate(seg, gt, align="yaw").translation_m.rmse < 1.0  # ~20 m driven on 0.3 s tracks
 
 
 def test_stereo_odometry_chains_tracks_shorter_than_the_window(svi_seq, small_rig):
