@@ -255,7 +255,7 @@ def stereo_odometry(frames: Sequence[StereoObservations], rect: RectifiedStereo,
     out = []
     K = rect.K
     thr = 2.0 * rect.width_px / 512.0
-    ids0 = pts0 = map_ids
+    ids0, pts0 = map_ids, map_pts
     for k, fr in enumerate(frames):
         if k > 0:
             common, i0, i1 = np.intersect1d(ids0, fr.ids, return_indices=True)
