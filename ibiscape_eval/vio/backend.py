@@ -264,6 +264,26 @@ class Backend:
         self._refresh(t_ns)
         return used
 
+    def hold_still(self, sigma_vel_m_s: float = 0.01, sigma_rot_rad: float = 1e-3,
+                   sigma_pos_m: float = 0.01) -> bool:
+        """Zero-velocity update of the newest keyframe (the IMU says the body stands still): its
+        velocity is zero and its pose that of the keyframe before.  False when there is no
+        keyframe before it in the smoother (right after a start)."""
+        import gtsam
+
+        k = self.k
+        if k - 1 not in self.kf_t or k not in self.kf_t:
+            return False
+        graph = gtsam.NonlinearFactorGraph()
+        graph.add(gtsam.PriorFactorVector(_sym("v", k), np.zeros(3),
+                                          gtsam.noiseModel.Isotropic.Sigma(3, sigma_vel_m_s)))
+        graph.add(gtsam.BetweenFactorPose3(_sym("x", k - 1), _sym("x", k), gtsam.Pose3(),
+                                           gtsam.noiseModel.Diagonal.Sigmas(
+                                               np.array([sigma_rot_rad] * 3 + [sigma_pos_m] * 3))))
+        self.smoother.update(graph, gtsam.Values(), self._stamps({}))
+        self._refresh(self.kf_t[k])
+        return True
+
     def newest(self) -> KeyframeState | None:
         """The newest keyframe's estimate, or None when the smoother dropped it (a numerically
         broken graph, reported as a divergence)."""

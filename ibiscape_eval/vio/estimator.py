@@ -10,9 +10,14 @@ keyframe's smoothed state (its last estimate before it left the window):
 ``R_f = R_k Delta R``, ``p_f = p_k + v_k dt + g dt^2 / 2 + R_k Delta p``.
 
 Tracking failure: a keyframe with fewer than ``min_tracked`` landmark observations.  The state
-then continues on the IMU factors; after ``max_imu_only_s`` without vision the following frames
-are *lost* (not written) until the stereo odometry re-initialises velocity and gravity, and the
-estimate resumes from the last pose held (position and yaw kept).  Every span is reported.
+then continues on the IMU factors; after ``max_imu_only_s`` of it while moving the following
+frames are *lost* (not written) until the stereo odometry re-initialises velocity and gravity, or
+the IMU stands still (zero velocity, gravity from the accelerometer), and the estimate resumes, a
+new segment, from the last position held.  A failing keyframe at which the IMU stands still (its
+variance test, the estimated speed below 0.5 m/s and the specific force gravity in the estimated
+attitude: a quiet IMU alone cannot tell a stop from a steady cruise) gets a zero-velocity update
+instead (*standstill* span): a vehicle waiting in the rain is held, not lost.  Every span is
+reported.
 """
 
 from __future__ import annotations
@@ -41,6 +46,14 @@ __all__ = ["Estimator", "FailureSpan"]
 
 FloatArray = npt.NDArray[np.float64]
 
+#: a quiet IMU is taken for a stop only below this estimated speed (a steady cruise is quiet too)
+STILL_MAX_SPEED_M_S = 0.5
+#: ... and, after a lost span, only when the IMU propagated through it gives a speed below this
+STILL_MAX_LOST_SPEED_M_S = 2.0
+#: ... and when the mean specific force, turned into the world by the estimated attitude, is
+#: gravity within this (a constant acceleration passes the variance test like a tilt)
+STILL_MAX_ACCEL_M_S2 = 0.2
+
 
 @dataclass(frozen=True)
 class FailureSpan:
@@ -49,7 +62,9 @@ class FailureSpan:
     ``kind``: ``"tracking"`` (IMU only, estimate written), ``"lost"`` (beyond the IMU-only bound
     or before initialisation: no estimate written), ``"reset"`` (the smoother failed numerically
     and was restarted from its last state), ``"diverged"`` (an implausible state: speed, biases;
-    the estimate stops there and re-initialises like after a lost span).
+    the estimate stops there and re-initialises like after a lost span), ``"standstill"`` (inside
+    a tracking span: no vision, the IMU stood still and its zero-velocity update held the pose;
+    this time does not count towards ``max_imu_only_s``).
     """
 
     kind: str
@@ -108,8 +123,11 @@ class Estimator:
         self._pim: Any = None
         self._kf_obs: StereoObservations | None = None
         self._kf_t = 0
+        self._frame_t = 0                          # stamp the preintegration has reached
         self._fail_start: int | None = None     # first failing keyframe stamp of this span
         self._lost_start: int | None = None
+        self._still_start: int | None = None     # first keyframe held still by the IMU (this span)
+        self._imu_only_s = 0.0                   # moving IMU-only time of the open tracking span
         self._last_pose: FloatArray | None = None  # latest pose estimate (for re-initialisation)
         self._prev_t: int | None = None
         self.last_error = ""
@@ -161,6 +179,8 @@ class Estimator:
             self._try_initialise(idx, obs)
             return
         if self._lost_start is not None:
+            if self._pim is not None:  # the IMU prediction through the lost span (its speed)
+                integrate_imu(self._pim, *self.imu, self._frame_t, t)
             self._frame_t = t
             self._lost_frame(idx, obs)
             return
@@ -228,21 +248,57 @@ class Estimator:
             self._buffer = []
             self._record(t, len(obs))
             return
+        still = used < p.min_tracked and self._standing_still(t) and self.backend.hold_still()
+        dt_s = (t - self._kf_t) * 1e-9
         self._kf_obs = obs
         self._kf_t = t
         self._pim = self.backend.preintegration()
         self._last_pose = self.backend.latest().T_world_body
         self.frames.append(_FrameRecord(t, self.backend.k, np.eye(3), np.zeros(3), np.zeros(3),
                                         0.0, len(obs)))
+        self._track_still(t, still)
         if used < p.min_tracked:
             if self._fail_start is None:
-                self._fail_start = t
-            elif (t - self._fail_start) * 1e-9 > p.max_imu_only_s:
+                self._fail_start, self._imu_only_s = t, 0.0
+            elif not still:
+                self._imu_only_s += dt_s
+            if self._imu_only_s > p.max_imu_only_s:
                 self._close_failure(t, "tracking")
                 self._lost_start = t
                 self._buffer = []
         elif self._fail_start is not None:
             self._close_failure(t, "tracking")
+
+    def _standing_still(self, t: int) -> bool:
+        """The IMU stood still over the last ``still_window_s`` (:func:`standstill_at`) and the
+        estimate's speed is below ``STILL_MAX_SPEED_M_S``: a quiet IMU alone cannot tell a stop
+        from a steady cruise, the estimated speed (the deceleration into the stop) can."""
+        st = self.backend.latest()
+        return (bool(np.linalg.norm(st.vel_m_s) < STILL_MAX_SPEED_M_S)
+                and self._imu_still(t, st.T_world_body[:3, :3], st.bias_acc_m_s2))
+
+    def _imu_still(self, t: int, R_world_body: FloatArray, bias_acc_m_s2: FloatArray) -> bool:
+        """:func:`standstill_at` over the last ``still_window_s`` before ``t``, and the mean
+        specific force in the world (attitude ``R_world_body``) is gravity within
+        ``STILL_MAX_ACCEL_M_S2``."""
+        p = self.params
+        t0 = t - int(p.still_window_s * 1e9)
+        if not standstill_at(*self.imu, t0, p).still:
+            return False
+        stamps, _, acc = self.imu
+        f = acc[(stamps >= t0) & (stamps <= t)].mean(axis=0) - bias_acc_m_s2
+        if self.T_body_imu is not None:
+            f = self.T_body_imu[:3, :3] @ f
+        a_w = R_world_body @ f - np.array([0.0, 0.0, GRAVITY_M_S2])
+        return bool(np.linalg.norm(a_w) < STILL_MAX_ACCEL_M_S2)
+
+    def _track_still(self, t: int, still: bool) -> None:
+        """Open or close the ``standstill`` span (keyframes held by the zero-velocity update)."""
+        if still and self._still_start is None:
+            self._still_start = t
+        elif not still and self._still_start is not None:
+            self.failures.append(FailureSpan("standstill", self._still_start, t))
+            self._still_start = None
 
     @staticmethod
     def _plausible(st: Any) -> bool:
@@ -254,6 +310,7 @@ class Estimator:
 
     def _close_failure(self, t: int, kind: str) -> None:
         assert self._fail_start is not None
+        self._track_still(t, False)
         self.failures.append(FailureSpan(kind, self._fail_start, t))
         self._fail_start = None
 
@@ -325,10 +382,13 @@ class Estimator:
         return bool(np.median(d) < 1.5 * self.params.scale_px(self.rect.width_px))
 
     def _lost_frame(self, idx: int, obs: StereoObservations) -> None:
-        """After a lost span: buffer tracked frames, run the moving initialisation on them and
-        resume from the last held position and heading."""
+        """After a lost span: restart at a standstill (:meth:`_still_restart`), or buffer tracked
+        frames, run the moving initialisation on them and resume from the last held position and
+        heading."""
         p = self.params
         self._record(obs.stamp_ns, len(obs))
+        if self._still_restart(idx, obs):
+            return
         if len(obs) < p.min_tracked:
             self._buffer = []
             return
@@ -352,11 +412,45 @@ class Estimator:
         G[:3, 3] = self._last_pose[:3, 3] - (G[:3, :3] @ first_pose[:3, 3])
         moved = InitialState(st.index, st.stamp_ns, G @ st.T_world_body, G[:3, :3] @ st.vel_m_s,
                              st.bias_gyro_rad_s, "moving", {i: G @ T for i, T in st.frame_poses.items()})
+        self._resume(idx, obs, moved, first)
+
+    def _still_restart(self, idx: int, obs: StereoObservations) -> bool:
+        """Restart at a standstill while lost: the IMU stood still over the last
+        ``still_window_s`` and its prediction through the lost span gives a speed below
+        ``STILL_MAX_LOST_SPEED_M_S`` (a steady cruise is quiet too).  Velocity zero, attitude
+        from gravity, heading from the gyro, position the last one held."""
+        p = self.params
+        t = int(obs.stamp_ns)
+        w_ns = int(p.still_window_s * 1e9)
+        assert self._lost_start is not None
+        if (t - self._lost_start < w_ns or self._pim is None or self._last_pose is None
+                or self.backend.newest() is None):
+            return False
+        pred = self.backend.predict(self._pim)
+        if not (np.linalg.norm(pred.vel_m_s) < STILL_MAX_LOST_SPEED_M_S
+                and self._imu_still(t, pred.T_world_body[:3, :3], pred.bias_acc_m_s2)):
+            return False
+        R_bi = None if self.T_body_imu is None else self.T_body_imu[:3, :3]
+        st = initialise_standstill(*self.imu, t - w_ns, p, R_bi)
+        if st is None:
+            return False
+        yaw = np.arctan2(pred.T_world_body[1, 0], pred.T_world_body[0, 0])
+        T = st.T_world_body.copy()
+        c, s = np.cos(yaw), np.sin(yaw)
+        T[:3, :3] = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ T[:3, :3]
+        T[:3, 3] = self._last_pose[:3, 3]
+        self._resume(idx, obs, InitialState(idx, t, T, np.zeros(3), st.bias_gyro_rad_s,
+                                            "standstill", {}), idx)
+        return True
+
+    def _resume(self, idx: int, obs: StereoObservations, st: InitialState, first: int) -> None:
+        """Close the lost span at frame ``first`` and restart the smoother from ``st`` (a new
+        segment of the estimate, continuing from the last held position)."""
         assert self._lost_start is not None
         self.failures.append(FailureSpan("lost", self._lost_start, self.frames[first].stamp_ns))
         self._lost_start = None
-        self._start(moved)
-        for i, T in moved.frame_poses.items():
+        self._start(st)
+        for i, T in st.frame_poses.items():
             self.frames[i].pose = T
             self.frames[i].kf = -1
         self.frames[idx].kf = self.backend.k
@@ -366,7 +460,7 @@ class Estimator:
         self._kf_obs = obs
         self.backend.seed(obs)
         self._buffer = []
-        self._last_pose = moved.T_world_body
+        self._last_pose = st.T_world_body
 
     # ------------------------------------------------------------------------------ output
     def finish(self) -> None:
@@ -374,6 +468,7 @@ class Estimator:
         if not self.frames:
             return
         t_end = self.frames[-1].stamp_ns
+        self._track_still(t_end, False)
         if self._fail_start is not None:
             self._close_failure(t_end, "tracking")
         if self._lost_start is not None:

@@ -236,35 +236,57 @@ def standstill_at(stamps_ns: npt.NDArray[np.int64], gyro_rad_s: FloatArray, acce
 
 def stereo_odometry(frames: Sequence[StereoObservations], rect: RectifiedStereo,
                     min_points: int) -> list[FloatArray] | None:
-    """``T_b0_bk`` of every frame from PnP against frame 0's stereo landmarks, or None."""
+    """``T_b0_bk`` of every frame from PnP against a map of stereo landmarks, or None.
+
+    Each frame is resected against frame 0's triangulated points when it still sees
+    ``min_points`` of them (the poses then do not chain errors); otherwise against the map, frame
+    0's points grown after each frame's PnP by the points that frame triangulates first (expressed
+    in frame 0 through its pose), so tracks shorter than the window (event frames: a corner lives
+    a few frames) still chain the poses.
+    """
     import cv2
 
-    f0 = frames[0]
-    ok0 = (f0.uL - f0.uR) > 0.5
-    pts0 = rect.triangulate(f0.uL[ok0], f0.uR[ok0], f0.v[ok0])
-    ids0 = f0.ids[ok0]
-    keep = pts0[:, 2] < 80.0 * rect.baseline_m / 0.4
-    pts0, ids0 = pts0[keep], ids0[keep]
     T_br = rect.T_body_rect
     T_rb = np.linalg.inv(T_br)
-    out = [np.eye(4)]
+    max_z = 80.0 * rect.baseline_m / 0.4
+    map_ids = np.zeros(0, dtype=np.int64)
+    map_pts = np.zeros((0, 3))
+    T_r0_rk: FloatArray = np.eye(4)
+    out = []
     K = rect.K
     thr = 2.0 * rect.width_px / 512.0
-    for fr in frames[1:]:
-        common, i0, i1 = np.intersect1d(ids0, fr.ids, return_indices=True)
-        if len(common) < min_points:
-            return None
-        obj = pts0[i0].astype(np.float64)
-        img = np.stack([fr.uL[i1], fr.v[i1]], axis=1).astype(np.float64)
-        ok, rvec, tvec, inl = cv2.solvePnPRansac(obj, img, K, None, reprojectionError=thr,
-                                                 iterationsCount=100, confidence=0.999,
-                                                 flags=cv2.SOLVEPNP_ITERATIVE)
-        if not ok or inl is None or len(inl) < min_points:
-            return None
-        T_rk_r0 = np.eye(4)
-        T_rk_r0[:3, :3] = cv2.Rodrigues(rvec)[0]
-        T_rk_r0[:3, 3] = tvec.ravel()
-        out.append(T_br @ np.linalg.inv(T_rk_r0) @ T_rb)
+    ids0, pts0 = map_ids, map_pts
+    for k, fr in enumerate(frames):
+        if k > 0:
+            common, i0, i1 = np.intersect1d(ids0, fr.ids, return_indices=True)
+            ref = pts0
+            if len(common) < min_points:
+                common, i0, i1 = np.intersect1d(map_ids, fr.ids, return_indices=True)
+                ref = map_pts
+            if len(common) < min_points:
+                return None
+            obj = ref[i0].astype(np.float64)
+            img = np.stack([fr.uL[i1], fr.v[i1]], axis=1).astype(np.float64)
+            ok, rvec, tvec, inl = cv2.solvePnPRansac(obj, img, K, None, reprojectionError=thr,
+                                                     iterationsCount=100, confidence=0.999,
+                                                     flags=cv2.SOLVEPNP_ITERATIVE)
+            if not ok or inl is None or len(inl) < min_points:
+                return None
+            T_rk_r0 = np.eye(4)
+            T_rk_r0[:3, :3] = cv2.Rodrigues(rvec)[0]
+            T_rk_r0[:3, 3] = tvec.ravel()
+            T_r0_rk = np.asarray(np.linalg.inv(T_rk_r0), dtype=np.float64)
+        out.append(T_br @ T_r0_rk @ T_rb)
+        ok_d = (fr.uL - fr.uR) > 0.5  # NaN uR (left-only tracks) compares False
+        new = ok_d & ~np.isin(fr.ids, map_ids)
+        if new.any():
+            p = rect.triangulate(fr.uL[new], fr.uR[new], fr.v[new])
+            keep = p[:, 2] < max_z
+            p_0 = p[keep] @ T_r0_rk[:3, :3].T + T_r0_rk[:3, 3]
+            map_ids = np.concatenate((map_ids, fr.ids[new][keep]))
+            map_pts = np.concatenate((map_pts, p_0))
+        if k == 0:
+            ids0, pts0 = map_ids, map_pts
     return out
 
 

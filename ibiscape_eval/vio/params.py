@@ -49,8 +49,9 @@ class VioParams:
         ``init_frames`` frames aligned with the preintegrated IMU.
     Robustness
         a keyframe with fewer than ``min_tracked`` landmark observations is a tracking failure;
-        the estimate continues on the IMU for at most ``max_imu_only_s``; after that the
-        frames are reported lost (not written) until tracking re-initialises.
+        the estimate continues on the IMU for at most ``max_imu_only_s`` of motion (a standstill
+        of the IMU is held by a zero-velocity update and does not count); after that the frames
+        are reported lost (not written) until tracking or a standstill re-initialises.
     """
 
     max_features: int = 200
