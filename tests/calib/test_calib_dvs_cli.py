@@ -76,11 +76,13 @@ def test_reconstruction_is_selectable_and_reported(tmp_path, method):
         assert (rec["contrast_pos"], rec["contrast_neg"], rec["bidirectional"]) == (0.2, 0.2, True)
     # a blinking board does not move: no view is refined, the frames' corners are kept
     assert (rec["refine_corners"], refinement["method"], refinement["views_refinable"]) == ("events", "frames", 0)
-    assert refinement["views_not_moving"] == refinement["views_detected"]
     assert refinement["corners_refined"] == refinement["corners_detected"]
     # one quantised blink per view, 10 views of a 330 px camera: a sanity bound, not the accuracy
     assert doc["ground_truth"]["max_focal_error_px"] < 2.5
-    if method == "accumulate-signed":  # the frames' corners: 0.03 px (refined: 0.74 px)
+    if method == "accumulate-signed":
+        # every view has two others within 100 ms (log-intensity finds the board in fewer windows)
+        assert refinement["views_not_moving"] == refinement["views_detected"] == 14
+        # the frames' corners: 0.028 px (refined from the events: 0.74 px)
         assert doc["ground_truth"]["max_focal_error_px"] < 0.1
 
 
