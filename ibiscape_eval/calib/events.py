@@ -37,7 +37,10 @@ motion (about 0.2 px with the simulator's 0.7 px blur): a pixel fires its first 
 transition one full contrast step after the level it stopped at, so every run of same-polarity
 events lacks its starting level.  Dropping the last event of every run makes the levels of rising
 and falling runs alike, and the lag goes (0.19 -> 0.002 px on an analytic moving checkerboard
-through the simulator's pixel model, ``tests/calib/test_calib_events_refine.py``).
+through the simulator's pixel model, ``tests/calib/test_calib_events_refine.py``).  The events
+of a board that blinks instead of moving are not those of moving edges: a view whose corners lie
+off the line through their positions in the two nearest views (:data:`REFINE_MAX_JUMP_PX`)
+keeps its frame's corners.
 """
 
 from __future__ import annotations
@@ -93,6 +96,13 @@ REFINE_MAX_SIGMA_PX = 0.1
 REFINE_MIN_CORNERS = 8
 #: with fewer refined views a camera keeps its frames' corners
 REFINE_MIN_VIEWS = 10
+#: a view whose corners lie farther than this [px] from the straight line through their
+#: positions in the two nearest views (a board that jumps: one blinking at a new pose each view)
+#: is not refined: its events are not those of edges moving at the velocity the neighbours give;
+#: it keeps its frame's corners
+REFINE_MAX_JUMP_PX = 3.0
+#: ... views within this time of it [ns] (twice the longest the refinement spans either side)
+REFINE_JUMP_SPAN_NS = 2 * REFINE_HALF_WINDOW_NS[1]
 
 ReadWindow = Callable[[int], Events | None]
 
@@ -284,9 +294,12 @@ class EventFrameSource:
         velocity comes from its positions in the nearest detections before and after (within
         0.3 s).  A view keeps only its refined corners, and is dropped (None) with fewer than
         :data:`REFINE_MIN_CORNERS`.  With fewer than :data:`REFINE_MIN_VIEWS` refined views (a
-        still or blinking board) the detections are returned unchanged, with a warning.  Returns
-        the detections and ``{corners_detected, corners_refined, views_detected, views_kept,
-        method}`` (``method``: ``events``, ``frames`` after that fallback, or ``none``).
+        still or blinking board) the detections are returned unchanged, with a warning.  A view
+        whose corners jump (:func:`_jumps`: a board blinking at one pose, then at the next) is not
+        refined, nor its events read: it keeps the frame's corners and counts in
+        ``views_not_moving``.  Returns the detections and ``{corners_detected, corners_refined,
+        views_detected, views_not_moving, views_kept, method}`` (``method``: ``events``,
+        ``frames`` after that fallback, or ``none``).
         """
         from .detect import Detection
 
@@ -307,15 +320,22 @@ class EventFrameSource:
                 pos[j, d.ids] = d.corners_px
         max_gap_ns = 300_000_000
         out: list[Any] = []
-        n_ref = 0
+        n_ref = n_frames = 0
+        seen = [j for j, d in enumerate(dets) if d is not None and t_of[j] is not None]
         for j, det in enumerate(dets):
             t = t_of[j]
             if det is None or t is None or len(det) < 4:
                 out.append(None if det is None or len(det) < 4 else det)
                 continue
-            near = [q for q in (j - 1, j + 1) if 0 <= q < len(dets) and t_of[q] is not None
-                    and dets[q] is not None and abs(int(t_of[q]) - t) <= max_gap_ns]  # type: ignore[arg-type]
-            vel = _corner_velocity(pos, det, t, [(q, int(t_of[q])) for q in near])  # type: ignore[arg-type]
+            k = seen.index(j)
+            near = [(q, int(t_of[q])) for q in seen[max(k - 2, 0):k + 3]  # type: ignore[arg-type]
+                    if q != j and abs(int(t_of[q]) - t) <= max_gap_ns]  # type: ignore[arg-type]
+            vel = _corner_velocity(pos, det, t, [(q, tq) for q, tq in near if abs(q - j) == 1])
+            ref = sorted((n for n in near if abs(n[1] - t) <= REFINE_JUMP_SPAN_NS), key=lambda n: abs(n[1] - t))
+            if _jumps(pos, det, t, ref[:2]):
+                out.append(det)  # blinking at new poses: keep the frame's corners
+                n_frames += 1
+                continue
             lines = _edge_lines(obj[det.ids], det.corners_px, step)
             if lines is None:
                 out.append(None)
@@ -328,7 +348,8 @@ class EventFrameSource:
             n_ref += int(ok.sum())
             out.append(Detection(det.ids[ok], refined[ok], det.image_size)
                        if ok.sum() >= REFINE_MIN_CORNERS else None)
-        kept = sum(d is not None for d in out)
+        kept = sum(d is not None for d in out) - n_frames
+        stats["views_not_moving"] = n_frames
         if kept < REFINE_MIN_VIEWS:  # a still or blinking board: its frames are all there is
             import warnings
 
@@ -339,7 +360,7 @@ class EventFrameSource:
                           "are used", IbiscapeWarning, stacklevel=2)
             stats.update(views_kept=stats["views_detected"], views_refinable=kept, method="frames")
             return dets, stats
-        stats.update(corners_refined=n_ref, views_kept=kept, method="events")
+        stats.update(corners_refined=n_ref, views_kept=kept + n_frames, method="events")
         return out, stats
 
     def _screen(self, frame: npt.NDArray[np.uint8]) -> npt.NDArray[np.uint8]:
@@ -729,6 +750,22 @@ def _corner_velocity(pos: npt.NDArray[np.float64], det: Any, t_ns: int,
         both = (pos[q1, det.ids] - pos[q0, det.ids]) / ((t1 - t0) * 1e-9)
         vel = np.where(np.isnan(both), vel, both)
     return vel
+
+
+def _jumps(pos: npt.NDArray[np.float64], det: Any, t_ns: int, ref: list[tuple[int, int]]) -> bool:
+    """Whether the corners of view ``det`` (at ``t_ns``) lie farther than
+    :data:`REFINE_MAX_JUMP_PX` (median) from the straight line through their positions
+    ``pos[q, id]`` in the two views ``ref`` (``(q, t_q_ns)``, within
+    :data:`REFINE_JUMP_SPAN_NS`), interpolated or extrapolated to ``t_ns``: a board blinking at
+    one pose, then at the next, sits at one end of that line, not on it (10-106 px off in
+    ``tests/calib/test_calib_dvs_cli.py``); one moving smoothly sits on it (ESVI's moving DVS,
+    160 px, 16 s: 0.92 px at most, measured)."""
+    if len(ref) < 2:
+        return False
+    (q0, t0), (q1, t1) = ref
+    a = (t_ns - t0) / (t1 - t0)
+    jump = np.hypot(*(det.corners_px - pos[q0, det.ids] * (1.0 - a) - pos[q1, det.ids] * a).T)
+    return bool(np.isfinite(jump).any() and float(np.nanmedian(jump)) > REFINE_MAX_JUMP_PX)
 
 
 def _edge_lines(P: npt.NDArray[np.float64], uv: npt.NDArray[np.float64], step: npt.NDArray[np.float64]

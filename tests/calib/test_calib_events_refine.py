@@ -126,3 +126,22 @@ def test_a_board_without_refinable_views_keeps_its_frame_corners() -> None:
         out, stats = src.refine_detections(board, list(range(12)), dets)
     assert out == dets
     assert stats["method"] == "frames" and stats["views_refinable"] == 0
+    assert stats["views_not_moving"] == 0  # 0.1 px per view, steadily: it does not jump
+
+
+def test_a_board_jumping_between_views_is_not_refined() -> None:
+    """A board blinking at a new pose every other view (on, off at the same pose, on at the next):
+    its corners jump, the velocity from the neighbours is not that of its edges.  No view is
+    refined and no event is read; the frames' corners stay."""
+    from ibiscape_eval.core.errors import IbiscapeWarning
+
+    board = CalibrationTarget("checkerboard", rows=3, cols=3, spacing_x_m=0.1, spacing_y_m=0.1)
+    windows = np.array([[i * 25_000_000, (i + 1) * 25_000_000] for i in range(12)], np.int64)
+    reads: list[int] = []
+    src = EventFrameSource(lambda i: reads.append(i) or Events.empty(), windows, (64, 48), "log-intensity")
+    xy = board.object_points()[:, :2] * 100 + 10
+    dets = [Detection(np.arange(9, dtype=np.int64), xy + np.array([8.0 * (i // 2), 0.0]), (64, 48)) for i in range(12)]
+    with pytest.warns(IbiscapeWarning, match="frames' corners are used"):
+        out, stats = src.refine_detections(board, list(range(12)), dets)
+    assert out == dets and reads == []
+    assert stats["method"] == "frames" and stats["views_not_moving"] == 12
