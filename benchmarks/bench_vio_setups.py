@@ -65,7 +65,7 @@ def run_one(seq_dir: Path, setup: str, options: Any) -> dict[str, Any]:
     from ibiscape_eval.vio.pipeline import make_frontend
 
     s = stereo_inputs(open_sequence(seq_dir), setup=setup, options=options)
-    p = VioParams()
+    p = VioParams.for_setup(s.setup)
     fe = make_frontend(s, p, options)
     est = Estimator(s.rig.rectified(), s.imu, s.noise, p, s.T_body_imu)
     cpu = {"read": 0.0, "front": 0.0, "back": 0.0}

@@ -95,7 +95,7 @@ def vio(sequence: Path, out: Path, calib: Path | None, imu_yaml: Path | None,
         kw["lag_s"] = lag_s
     if max_features is not None:
         kw["max_features"] = max_features
-    params = VioParams(**kw)
+    params = VioParams.for_setup(seq.setup, **kw)
 
     from .progress import progress_bar
 

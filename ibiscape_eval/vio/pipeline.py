@@ -151,7 +151,7 @@ def run_vio(seq: StereoSequence | Sequence, params: VioParams | None = None, *,
         from .inputs import stereo_inputs
 
         seq = stereo_inputs(seq, calib=calib, imu_yaml=imu_yaml, setup=setup, options=options)
-    p = params or VioParams()
+    p = params or VioParams.for_setup(seq.setup)
     n = _frames_to_run(seq, p, max_frames)
     fe = make_frontend(seq, p, options)
     est = Estimator(seq.rig.rectified(), seq.imu, seq.noise, p, seq.T_body_imu)

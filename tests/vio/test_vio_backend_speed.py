@@ -79,3 +79,18 @@ def test_keyframes_are_at_least_kf_min_dt_apart(svi_seq, small_rig):
     for est in (fast, slow):
         res = ate(est.trajectory(), gt, align="yaw")
         assert res.translation_m.rmse < 0.02 * res.ref.path_length_m()[-1]
+
+
+def test_event_frames_allow_a_keyframe_at_once():
+    """ESVI's defaults have no minimum time between keyframes (its tracks live a few frames);
+    the frame setups keep 0.15 s; 0 is accepted only for that option."""
+    from ibiscape_eval.core.errors import IbiscapeError
+    from ibiscape_eval.vio import VioParams
+
+    assert VioParams.for_setup("esvi").kf_min_dt_s == 0.0
+    assert VioParams.for_setup("svi").kf_min_dt_s == VioParams().kf_min_dt_s == 0.15
+    assert VioParams.for_setup("esvi", lag_s=2.0).lag_s == 2.0
+    with pytest.raises(IbiscapeError, match="kf_min_dt_s"):
+        VioParams(kf_min_dt_s=-0.1)
+    with pytest.raises(IbiscapeError, match="lag_s"):
+        VioParams(lag_s=0.0)
