@@ -47,6 +47,8 @@ __all__ = ["Estimator", "FailureSpan"]
 FloatArray = npt.NDArray[np.float64]
 
 #: a quiet IMU is taken for a stop only below this estimated speed (a steady cruise is quiet too)
+#: a zero-velocity hold only after the estimate has once been faster than this
+HOLD_AFTER_SPEED_M_S = 2.0
 STILL_MAX_SPEED_M_S = 0.5
 #: ... and, after a lost span, only when the IMU propagated through it gives a speed below this
 STILL_MAX_LOST_SPEED_M_S = 2.0
@@ -133,6 +135,8 @@ class Estimator:
         self.last_error = ""
         #: the first standstill test of the run (what was measured, the limits), None before it
         self.standstill_test: StandstillTest | None = None
+        #: the highest estimated speed so far (a zero-velocity hold needs a stop after motion)
+        self._peak_speed_m_s = 0.0
 
     # ------------------------------------------------------------------------------ frames
     def gyro_rotation(self, t0_ns: int, t1_ns: int) -> FloatArray | None:
@@ -248,7 +252,11 @@ class Estimator:
             self._buffer = []
             self._record(t, len(obs))
             return
-        still = used < p.min_tracked and self._standing_still(t) and self.backend.hold_still()
+        # a hold needs a stop after motion: at the start a vehicle pulling away gently looks still to
+        # the IMU (3 s ESVI dynamic drive of the demo: held 0.6 s, ATE 0.224 m; without: 0.042 m)
+        self._peak_speed_m_s = max(self._peak_speed_m_s, float(np.linalg.norm(self.backend.latest().vel_m_s)))
+        still = (used < p.min_tracked and self._peak_speed_m_s > HOLD_AFTER_SPEED_M_S
+                 and self._standing_still(t) and self.backend.hold_still())
         dt_s = (t - self._kf_t) * 1e-9
         self._kf_obs = obs
         self._kf_t = t
