@@ -7,6 +7,7 @@ generated 14 s drive (still start, drive, a stop from ~9.5 s to ~12.7 s, drive).
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from ibiscape_eval.metrics import ate
 from ibiscape_eval.vio.backend import StereoObservations
@@ -109,3 +110,17 @@ def test_lost_then_restarts_at_the_stop_without_vision(svi_seq, small_rig):
     assert stop.sum() > 30
     assert np.ptp(traj.pos_m[stop], axis=0).max() < 0.05
     assert (traj.stamps_ns > t0 + int(13.5e9)).sum() > 5  # and drove on
+
+
+@pytest.mark.parametrize("hold_after_m_s", [None, 0.0])
+def test_a_pull_away_without_vision_is_not_held(svi_seq, small_rig, monkeypatch, hold_after_m_s):
+    # no vision from 0.6 s to 3 s, while the car pulls away from its start: a quiet IMU at low speed
+    # is not a stop when the estimate has never moved (the hold needs a stop after motion); with
+    # the guard off (0 m/s, the earlier behaviour) the pull-away is held and reported as a stop
+    from ibiscape_eval.vio import estimator
+
+    if hold_after_m_s is not None:
+        monkeypatch.setattr(estimator, "HOLD_AFTER_SPEED_M_S", hold_after_m_s)
+    est, traj, gt, _ = _run(svi_seq, small_rig, (0.6, 3.0), params=VioParams(max_imu_only_s=5.0))
+    still = [f for f in est.failures if f.kind == "standstill"]
+    assert bool(still) == (hold_after_m_s is not None), est.failures
