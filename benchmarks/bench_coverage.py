@@ -126,7 +126,7 @@ def imu_errors(res: Any, T_truth: dict[str, np.ndarray], shift_truth: dict[str, 
                ) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Per camera: error (rotation rad about IMU axes, translation m, offset s) and the std
     after and before (``uncertainty['std_plain']``), in the same units."""
-    from ibiscape_eval.calib.imu_camera.spline import log_so3
+    from ibiscape_eval.core.so3 import log_so3
 
     out = {}
     for cal in res.cameras:

@@ -50,8 +50,8 @@ from ibiscape_eval.calib.imu_camera import (
     calibrate_imu_camera,
     errors_against_truth,
 )
-from ibiscape_eval.calib.imu_camera.spline import log_so3
 from ibiscape_eval.calib.imu_camera.synthetic import calibration_scene
+from ibiscape_eval.core.so3 import log_so3
 from ibiscape_eval.sim import preset
 from ibiscape_eval.sim.calib_scene import simulate_calibration
 from ibiscape_eval.sim.config import MotionSpec

@@ -23,53 +23,14 @@ IntArray = npt.NDArray[np.int64]
 __all__ = [
     "BlockJacobian",
     "leading_inverse",
-    "left_jacobian",
     "normal_equations",
     "project_jacobian",
     "rotvec_from_matrix",
-    "rotvec_matrix",
-    "skew",
     "solve_damped",
 ]
 
 
 # ------------------------------------------------------------------------------------ rotations
-def skew(v: FloatArray) -> FloatArray:
-    """Cross-product matrices ``[v]_x`` (N, 3, 3) of vectors (N, 3)."""
-    z = np.zeros(len(v))
-    return np.stack([np.stack([z, -v[:, 2], v[:, 1]], -1), np.stack([v[:, 2], z, -v[:, 0]], -1),
-                     np.stack([-v[:, 1], v[:, 0], z], -1)], axis=1)
-
-
-def _coefficients(w: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """``sin t / t``, ``(1 - cos t) / t^2`` and ``(t - sin t) / t^3`` of ``t = |w|`` (Taylor series
-    below 1e-4 rad)."""
-    t2 = np.einsum("ij,ij->i", w, w)
-    t = np.sqrt(t2)
-    small = t < 1e-4
-    ts = np.where(small, 1.0, t)
-    a = np.where(small, 1.0 - t2 / 6.0, np.sin(ts) / ts)
-    b = np.where(small, 0.5 - t2 / 24.0, (1.0 - np.cos(ts)) / ts**2)
-    c = np.where(small, 1.0 / 6.0 - t2 / 120.0, (ts - np.sin(ts)) / ts**3)
-    return a, b, c
-
-
-def rotvec_matrix(w: FloatArray) -> FloatArray:
-    """Rotation matrices (N, 3, 3) of rotation vectors (N, 3) (Rodrigues)."""
-    w = np.asarray(w, np.float64).reshape(-1, 3)
-    a, b, _ = _coefficients(w)
-    K = skew(w)
-    return np.eye(3) + a[:, None, None] * K + b[:, None, None] * (K @ K)
-
-
-def left_jacobian(w: FloatArray) -> FloatArray:
-    """Left Jacobians (N, 3, 3) of SO(3): ``R(w + d) ~ exp([J_l(w) d]_x) R(w)``."""
-    w = np.asarray(w, np.float64).reshape(-1, 3)
-    _, b, c = _coefficients(w)
-    K = skew(w)
-    return np.eye(3) + b[:, None, None] * K + c[:, None, None] * (K @ K)
-
-
 def rotvec_from_matrix(R: FloatArray) -> FloatArray:
     """The rotation vector (3,) of one rotation matrix (OpenCV's Rodrigues)."""
     import cv2

@@ -32,15 +32,14 @@ import numpy.typing as npt
 from ibiscape_eval.core.camera import CameraModel
 from ibiscape_eval.core.errors import CalibrationError, IbiscapeError
 from ibiscape_eval.core.kalibr import CalibrationTarget
+from ibiscape_eval.core.so3 import exp_so3, left_jacobian_so3
 
 from ._lsq import (
     BlockJacobian,
     leading_inverse,
-    left_jacobian,
     normal_equations,
     project_jacobian,
     rotvec_from_matrix,
-    rotvec_matrix,
     solve_damped,
 )
 from .detect import Detection
@@ -497,7 +496,7 @@ class _Problem:
         if last_p is not None and last_p[0] == key[1]:
             p = last_p[1]
         else:
-            R = rotvec_matrix(poses[:, :3])
+            R = exp_so3(poses[:, :3])
             p = np.einsum("mij,mj->mi", R[self.view_i], self.obj) + poses[self.view_i, 3:]
             self._memo["points"] = (key[1], p)
         out: list[FloatArray | None] = []
@@ -505,7 +504,7 @@ class _Problem:
         Rn, tn = np.eye(3), np.zeros(3)
         for n in range(self.n_cams):
             if n > 0:
-                Rc = rotvec_matrix(chain[n - 1, :3])[0]
+                Rc = exp_so3(chain[n - 1, :3])
                 Rn, tn = Rc @ Rn, Rc @ tn + chain[n - 1, 3:]
             sel = self._camera_rows(n)
             out.append(p[sel] @ Rn.T + tn if sel.any() else None)
@@ -533,12 +532,12 @@ class _Problem:
         ni, nc, _ = self.layout()
         m = len(self.uv)
         Ja, Jp = np.zeros((m, 2, ni + nc)), np.zeros((m, 2, 6))
-        Rv = rotvec_matrix(poses[:, :3])[self.view_i]
+        Rv = exp_so3(poses[:, :3])[self.view_i]
         RX = np.einsum("mij,mj->mi", Rv, self.obj)
         p0 = RX + poses[self.view_i, 3:]
-        Jlv = left_jacobian(poses[:, :3])[self.view_i]
-        Rc = rotvec_matrix(chain[:, :3]) if len(chain) else np.zeros((0, 3, 3))
-        Jlc = left_jacobian(chain[:, :3]) if len(chain) else np.zeros((0, 3, 3))
+        Jlv = left_jacobian_so3(poses[:, :3])[self.view_i]
+        Rc = exp_so3(chain[:, :3]) if len(chain) else np.zeros((0, 3, 3))
+        Jlc = left_jacobian_so3(chain[:, :3]) if len(chain) else np.zeros((0, 3, 3))
         for n in range(self.n_cams):
             sel = self._camera_rows(n)
             if not sel.any():

@@ -322,12 +322,13 @@ class EventFrameSource:
         out: list[Any] = []
         n_ref = n_frames = 0
         seen = [j for j, d in enumerate(dets) if d is not None and t_of[j] is not None]
+        rank = {j: k for k, j in enumerate(seen)}
         for j, det in enumerate(dets):
             t = t_of[j]
             if det is None or t is None or len(det) < 4:
                 out.append(None if det is None or len(det) < 4 else det)
                 continue
-            k = seen.index(j)
+            k = rank[j]
             near = [(q, int(t_of[q])) for q in seen[max(k - 2, 0):k + 3]  # type: ignore[arg-type]
                     if q != j and abs(int(t_of[q]) - t) <= max_gap_ns]  # type: ignore[arg-type]
             vel = _corner_velocity(pos, det, t, [(q, tq) for q, tq in near if abs(q - j) == 1])

@@ -369,7 +369,7 @@ class Backend:
     def _stereo_factor(self, graph: Any, meas: tuple[int, float, float, float], key: int) -> None:
         kf, uL, uR, v = meas
         graph.add(self._factor_cls(self._point_cls(uL, uR, v), self.stereo_noise,
-                                   (ord("x") << 56) | kf, key, self.K, self.body_P_cam))
+                                   _sym("x", kf), key, self.K, self.body_P_cam))
 
     def _refresh(self, t_ns: int) -> None:
         # per-key estimates of the window's keyframes only: calculateEstimate() would retract

@@ -294,7 +294,8 @@ class Estimator:
         if not standstill_at(*self.imu, t0, p).still:
             return False
         stamps, _, acc = self.imu
-        f = acc[(stamps >= t0) & (stamps <= t)].mean(axis=0) - bias_acc_m_s2
+        i0, i1 = np.searchsorted(stamps, t0, side="left"), np.searchsorted(stamps, t, side="right")
+        f = acc[i0:i1].mean(axis=0) - bias_acc_m_s2
         if self.T_body_imu is not None:
             f = self.T_body_imu[:3, :3] @ f
         a_w = R_world_body @ f - np.array([0.0, 0.0, GRAVITY_M_S2])

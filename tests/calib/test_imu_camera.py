@@ -16,10 +16,11 @@ from ibiscape_eval.calib.imu_camera import (
     ImuRateError,
     calibrate_imu_camera,
 )
-from ibiscape_eval.calib.imu_camera.spline import exp_so3, log_so3, position, rotation
+from ibiscape_eval.calib.imu_camera.spline import position, rotation
 from ibiscape_eval.calib.imu_camera.synthetic import CalibrationScene, calibration_scene
 from ibiscape_eval.core.errors import CalibrationError, FormatError
 from ibiscape_eval.core.kalibr import ImuNoise
+from ibiscape_eval.core.so3 import exp_so3, log_so3
 from ibiscape_eval.sim import preset
 from ibiscape_eval.sim.calib_scene import simulate_calibration
 from ibiscape_eval.sim.config import MotionSpec

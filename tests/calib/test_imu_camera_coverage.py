@@ -16,8 +16,8 @@ from functools import lru_cache
 import numpy as np
 
 from ibiscape_eval.calib.imu_camera import ImuCameraOptions, calibrate_imu_camera
-from ibiscape_eval.calib.imu_camera.spline import log_so3
 from ibiscape_eval.calib.imu_camera.synthetic import CalibrationScene, calibration_scene
+from ibiscape_eval.core.so3 import log_so3
 from ibiscape_eval.sim import preset
 from ibiscape_eval.sim.calib_scene import simulate_calibration
 from ibiscape_eval.sim.config import MotionSpec

@@ -33,6 +33,7 @@ import numpy.typing as npt
 
 from ibiscape_eval.core.errors import CalibrationError, IbiscapeError, IbiscapeWarning
 from ibiscape_eval.core.kalibr import ImuNoise
+from ibiscape_eval.core.so3 import exp_so3
 
 from .errors import ImuCoverageError, ImuRateError
 from .initial import FramePoses, align_rotations, frame_poses, integrate_gyro
@@ -50,7 +51,7 @@ from .problem import (
     normal_equations,
 )
 from .result import CameraImuCalibration, Excitation, ImuCameraResult, ResidualSeries
-from .spline import basis, exp_so3, position, rotation
+from .spline import basis, position, rotation
 
 __all__ = ["calibrate_imu_camera"]
 

@@ -14,8 +14,9 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from ibiscape_eval.core.so3 import exp_so3, log_so3
+
 from .inputs import CameraObservations
-from .spline import exp_so3, log_so3
 
 __all__ = ["FramePoses", "RotationAlignment", "align_rotations", "frame_poses", "integrate_gyro"]
 

@@ -9,9 +9,9 @@ from typing import Any
 import numpy as np
 
 from ibiscape_eval.core.kalibr import CameraChain
+from ibiscape_eval.core.so3 import log_so3
 
 from .result import ImuCameraResult
-from .spline import log_so3
 
 __all__ = ["camchain_imucam", "errors_against_truth"]
 

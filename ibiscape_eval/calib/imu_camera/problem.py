@@ -39,8 +39,9 @@ import numpy as np
 import numpy.typing as npt
 
 from ibiscape_eval.core.camera import CameraModel
+from ibiscape_eval.core.so3 import exp_so3, hat
 
-from .spline import basis, exp_so3, hat, position, rotation
+from .spline import basis, position, rotation
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]

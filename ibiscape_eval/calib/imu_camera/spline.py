@@ -23,45 +23,11 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["basis", "cumulative_basis", "exp_so3", "hat", "log_so3", "position", "rotation"]
+from ibiscape_eval.core.so3 import exp_so3, log_so3
+
+__all__ = ["basis", "cumulative_basis", "position", "rotation"]
 
 FloatArray = npt.NDArray[np.float64]
-
-
-def hat(v: npt.ArrayLike) -> FloatArray:
-    """Skew matrices ``[v]x`` of vectors (..., 3) -> (..., 3, 3)."""
-    v = np.asarray(v, dtype=np.float64)
-    z = np.zeros(v.shape[:-1])
-    return np.stack((np.stack((z, -v[..., 2], v[..., 1]), -1),
-                     np.stack((v[..., 2], z, -v[..., 0]), -1),
-                     np.stack((-v[..., 1], v[..., 0], z), -1)), -2)
-
-
-def exp_so3(phi: npt.ArrayLike) -> FloatArray:
-    """Rodrigues' formula for rotation vectors (..., 3) -> matrices (..., 3, 3)."""
-    phi = np.asarray(phi, dtype=np.float64)
-    th2 = np.einsum("...i,...i->...", phi, phi)
-    th = np.sqrt(th2)
-    small = th2 < 1e-12
-    safe = np.where(small, 1.0, th)
-    # sin(th)/th and (1 - cos th)/th^2 with their Taylor series near 0
-    a = np.where(small, 1.0 - th2 / 6.0, np.sin(safe) / safe)
-    b = np.where(small, 0.5 - th2 / 24.0, (1.0 - np.cos(safe)) / (safe * safe))
-    K = hat(phi)
-    return np.eye(3) + a[..., None, None] * K + b[..., None, None] * (K @ K)
-
-
-def log_so3(R: npt.ArrayLike) -> FloatArray:
-    """Rotation vectors (..., 3) of rotation matrices (..., 3, 3) with angles below pi."""
-    R = np.asarray(R, dtype=np.float64)
-    cos = np.clip((np.trace(R, axis1=-2, axis2=-1) - 1.0) * 0.5, -1.0, 1.0)
-    th = np.arccos(cos)
-    w = np.stack((R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0],
-                  R[..., 1, 0] - R[..., 0, 1]), -1)
-    s = np.sin(th)
-    small = th < 1e-6
-    factor = np.where(small, 0.5 + th * th / 12.0, th / (2.0 * np.where(small, 1.0, s)))
-    return w * factor[..., None]
 
 
 def basis(u: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
