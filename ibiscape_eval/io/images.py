@@ -123,15 +123,22 @@ def imread_checked(path: str | os.PathLike[str], flags: int, *, missing: str,
     file or one OpenCV cannot decode is a :class:`FormatError` with the given message."""
     import cv2
 
+    p = _image_input(path, missing)
+    img = cv2.imread(str(p), flags)
+    if img is None:
+        raise FormatError(p, unreadable)
+    return np.asarray(img)
+
+
+def _image_input(path: str | os.PathLike[str], missing: str) -> Path:
+    """``path`` after :func:`~ibiscape_eval.io.paths.check_input`; a missing file is a
+    :class:`FormatError` with the message ``missing``."""
     p = Path(path)
     try:
         check_input(p, what="image")
     except FileNotFoundError:
         raise FormatError(p, missing) from None
-    img = cv2.imread(str(p), flags)
-    if img is None:
-        raise FormatError(p, unreadable)
-    return np.asarray(img)
+    return p
 
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -219,11 +226,7 @@ def read_grey(path: str | os.PathLike[str], *, missing: str, unreadable: str) ->
     :func:`decode_png_grey` handles decoded there (bit-identical, twice as fast)."""
     import cv2
 
-    p = Path(path)
-    try:
-        check_input(p, what="image")
-    except FileNotFoundError:
-        raise FormatError(p, missing) from None
+    p = _image_input(path, missing)
     try:
         data = p.read_bytes()
     except OSError:  # no permission...: OpenCV's read below fails the same way as before

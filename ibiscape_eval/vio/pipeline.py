@@ -160,7 +160,7 @@ def run_vio(seq: StereoSequence | Sequence, params: VioParams | None = None, *,
     t_start = time.perf_counter()
     cpu_start = time.process_time()
     # PNG decoding costs as much as tracking: a reader thread decodes the next frames meanwhile
-    # (cv2.imread releases the GIL)
+    # (the PNG decoder's inflate and kernel, and OpenCV, release the GIL)
     from concurrent.futures import ThreadPoolExecutor
 
     def read(i: int) -> tuple[Any, Any]:

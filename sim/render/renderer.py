@@ -45,6 +45,28 @@ __all__ = ["RenderCamera", "RenderOptions", "RenderedView", "Renderer"]
 F32 = npt.NDArray[np.float32]
 GRAY_WEIGHTS = np.array([0.2989, 0.587, 0.114], np.float32)
 _SHADOW_EPS_M = 0.02
+
+
+# the board code of a ray (``Renderer._radiance(board_code=True)``): 0 no board, else
+# 1 + 4 board + 2 front + lit; the helpers below are its only encoding and decoding
+def _board_code(var: npt.NDArray[Any], front: npt.NDArray[Any], lit: npt.NDArray[Any] | int) -> npt.NDArray[np.uint16]:
+    """The code of rays seeing board ``var`` (uint), side ``front`` (bool), ``lit`` (bool or 0/1)."""
+    return (1 + 4 * var.astype(np.uint16) + 2 * front.astype(np.uint16) + lit).astype(np.uint16)
+
+
+def _code_board(code: npt.NDArray[np.uint16]) -> npt.NDArray[np.intp]:
+    """The board index of codes > 0."""
+    return ((code - 1) >> 2).astype(np.intp)
+
+
+def _code_front(code: npt.NDArray[np.uint16]) -> npt.NDArray[np.bool_]:
+    """Whether codes > 0 see a board's front side."""
+    return ((code - 1) >> 1) % 2 == 1
+
+
+def _code_lit(code: npt.NDArray[np.uint16]) -> npt.NDArray[np.uint16]:
+    """The codes of lit board rays, 0 elsewhere (a lit code is even)."""
+    return np.where((code > 0) & (code % 2 == 0), code, 0).astype(np.uint16)
 _MOVER_SHADOW_MARGIN_M = 0.3  # a mover's outline seen along the sun, grown by this
 _NEAR_PLANE_M = 0.05  # movers are clipped here when they straddle the camera plane
 
@@ -314,7 +336,7 @@ class Renderer:
         uniform = (c > 0) & (cv2.dilate(c2, k)[rows, cols] == cv2.erode(c2, k)[rows, cols])
         if uniform.any():
             poses, diffs = board_footprint_tables(self.static.targets)
-            flat = board_footprints_flat(sub, s * s, uniform, ((c - 1) >> 2).astype(np.intp), poses,
+            flat = board_footprints_flat(sub, s * s, uniform, _code_board(c), poses,
                                          board_tables(self.static.targets), diffs,
                                          np.empty(len(rows), np.bool_))
             cross = ~flat
@@ -328,7 +350,7 @@ class Renderer:
             keep[done] = False
             rows, cols, c, uniform = rows[keep], cols[keep], c[keep], uniform[keep]
             sub = sub.reshape(-1, n, 6)[keep].reshape(-1, 6)
-        lit = np.repeat(np.where(uniform & (c % 2 == 0), c, 0).astype(np.uint16), n)  # lit: c even
+        lit = np.repeat(np.where(uniform, _code_lit(c), 0).astype(np.uint16), n)
         rs = self._radiance(sub, t_ns, w, light, scale=scale, lit_code=lit)[0]
         pixel_means(rs, n, rows * W + cols, rad)
 
@@ -348,19 +370,19 @@ class Renderer:
         u = np.flatnonzero(uniform)
         cu = c[u]
         coarse = np.ascontiguousarray(sub.reshape(-1, n, 6)[u][:, coarse_idx].reshape(-1, 6))
-        lit = np.repeat(np.where(cu % 2 == 0, cu, 0).astype(np.uint16), len(coarse_idx))
+        lit = np.repeat(_code_lit(cu), len(coarse_idx))
         seen = self._radiance(coarse, t_ns, w, light, scale=scale, board_code=True, lit_code=lit)[4]
         ok = (seen.reshape(len(u), -1) == cu[:, None]).all(axis=1)
         done = u[ok]
         rays = np.ascontiguousarray(sub.reshape(-1, n, 6)[done].reshape(-1, 6))
         code = np.repeat(c[done], n)
-        var = ((code - 1) >> 2).astype(np.uint8)
+        var = _code_board(code).astype(np.uint8)
         m = len(rays)
         depth, uv = np.empty(m, np.float32), np.empty((m, 2), np.float32)
         ndl, amb, alb = np.empty(m, np.float32), np.empty(m, np.float32), np.empty((m, 3), np.float32)
         poses, _ = board_footprint_tables(self.static.targets)
         board_plane_samples(rays, var, code, poses, np.asarray(light.sun_dir, np.float64), depth, uv, ndl, amb)
-        board_texels(np.full(m, MAT["target"], np.uint8), uv, var, ((code - 1) >> 1) % 2 == 1,
+        board_texels(np.full(m, MAT["target"], np.uint8), uv, var, _code_front(code),
                      board_tables(self.static.targets), alb)
         rs = self._finish(alb, ndl, amb, depth, rays, np.zeros(m, np.float32), uv, w, light, scale)
         return done, rs
@@ -429,16 +451,14 @@ class Renderer:
             board_albedo(mat, uv, var, targets, front, alb)
         if count:
             spix, keep = spix[:count], slice(None)
-            if lit_code is not None:  # 2 + 4 board + 2 front: the code of a board ray lit so far
-                keep = (mat[spix] != MAT["target"]) | (2 + 4 * var[spix].astype(np.uint16)
-                                                       + 2 * front[spix].astype(np.uint16) != lit_code[spix])
+            if lit_code is not None:  # the rays whose board side lit_code says is lit skip their shadow ray
+                keep = (mat[spix] != MAT["target"]) | (_board_code(var[spix], front[spix], 1) != lit_code[spix])
             occ = self._occluded(srays[:count][keep], smov[:count][keep], t_ns)
             ndl[spix[keep][occ]] = 0.0
         rad = self._finish(alb, ndl, amb, depth, rays, paved, uv, w, light, scale, rad_buffer)
         code = np.zeros(0, np.uint16)
         if board_code:
-            code = np.where(mat == MAT["target"], 1 + 4 * var.astype(np.uint16) + 2 * front.astype(np.uint16)
-                            + (ndl > 0.0), 0).astype(np.uint16)
+            code = np.where(mat == MAT["target"], _board_code(var, front, ndl > 0.0), 0).astype(np.uint16)
         return rad, depth, mat, labels, code
 
     def _workspace(self, n: int) -> tuple[np.ndarray, ...]:

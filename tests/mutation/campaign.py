@@ -30,7 +30,9 @@ from families import FAMILIES, Family
 from mutators import BYTE_MUTATORS, PATH_MUTATORS, TEXT_ONLY
 
 #: Mutants per campaign (split evenly over the families) and the seed of every mutation.
-N_MUTANTS = 660  # 20 per family for up to 33 families: every byte mutator reaches one (s8-vio-setups)
+#: (enough for every path mutator and every byte mutator once per family: derived, so that a new
+#: family does not silently push mutators out of the others' plans)
+N_MUTANTS = (len(PATH_MUTATORS) + len(BYTE_MUTATORS)) * len(FAMILIES)
 SEED = 20261123
 #: Seconds one mutant may run before it counts as a hang.
 TIMEOUT_S = 30

@@ -569,3 +569,8 @@ FAMILIES["rgbd_depth_mm"] = Family(_rgbd_seed("mm"), _rgbd_argv, mutable=_depth_
                                    text=False)
 FAMILIES["rgbd_depth_carla_log"] = Family(_rgbd_seed("carla-log"), _rgbd_argv,
                                           mutable=_depth_image("frames"), text=False)
+
+
+# ---- the PNG decoder (io.images.decode_png_grey) behind every VIO image: one RGB frame ----
+FAMILIES["vio_rgb_png"] = Family(_rgbd_seed("mm"), _rgbd_argv,
+                                 mutable=lambda p: sorted((p / "rgb" / "frames").glob("*.png"))[3], text=False)
