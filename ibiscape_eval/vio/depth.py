@@ -191,8 +191,9 @@ def _sixteen_bit_depth(f: Path, img: npt.NDArray[Any], unit: str) -> F32:
                           f"{'x'.join(map(str, img.shape))}; give the mm/ folder's files")
     step = DEPTH_STEP_M[unit]
     valid = img[img > 0]
-    if valid.size and float(np.median(valid)) * step < 0.1:
-        raise FormatError(f, f"median depth {float(np.median(valid)) * step * 1e3:.0f} mm (< 0.1 m) "
+    median_m = float(np.median(valid)) * step if valid.size else np.inf
+    if median_m < 0.1:
+        raise FormatError(f, f"median depth {median_m * 1e3:.0f} mm (< 0.1 m) "
                           f"read as {name}: the file looks like metres or another unit")
     d = img.astype(np.float32) / np.float32(1.0 / step)
     d[img == 0] = np.nan

@@ -446,7 +446,7 @@ def _frames(seq: Sequence, left_name: str, right_name: str, listname: str, requi
     names = seq.camera_names
     if left_name not in names or right_name not in names:
         gone = [n for n in (left_name, right_name) if n not in names]
-        if require_images and len(gone) == 1:  # one camera of the pair (s8-vio-setups)
+        if require_images and len(gone) == 1:  # one camera of the pair
             raise FormatError(seq.path / gone[0] / listname, f"camera {gone[0]} of the stereo pair "
                               f"{left_name}/{right_name} has no frames; record both or use --setup")
         if require_images:
