@@ -266,7 +266,9 @@ def compact_parts(t, x, y, p, keep, off, to, xo, yo, po):
 
 @njit(cache=True, parallel=True)
 def compact_parts_simd(t, x, y, p, keep, off, to, xo, yo, po):
-    """:func:`compact_parts` with :func:`compact_simd`."""
+    """:func:`compact_parts` with :func:`compact_simd` (a function of its own, not a flag of
+    :func:`compact_parts`: numba compiles both branches of a flag, and the AVX-512 intrinsics do
+    not compile for a CPU without them; this one compiles only where :func:`simd_ok`)."""
     n, n_parts = t.shape[0], off.shape[0] - 1
     for c in prange(n_parts):
         a, b = n * c // n_parts, n * (c + 1) // n_parts
