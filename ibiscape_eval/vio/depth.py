@@ -214,24 +214,29 @@ class DepthFrontEnd(StereoFrontEnd):
         self.sigma_px = params.pixel_sigma_px * params.scale_px(rig.size[0])
 
     def process(self, stamp_ns: int, left: npt.NDArray[np.uint8], right: Any,
-                R_b0_b1: FloatArray | None = None) -> StereoObservations:
+                R_b0_b1: FloatArray | None = None, *, gated: bool = True) -> StereoObservations:
         """Track into a new RGB frame (:meth:`StereoFrontEnd.track`); ``right`` is the registered
-        depth [m] (H, W)."""
+        depth [m] (H, W).  ``gated=False`` keeps every corner with a depth off a depth edge,
+        whatever its value and noise (the depth unit's check against the IMU,
+        :mod:`ibiscape_eval.vio.scale_check`, must see depths that are wrong by a factor)."""
         tr = self.track(stamp_ns, left, R_b0_b1)
         if len(tr) == 0:
             return StereoObservations.empty(stamp_ns)
-        z, ok = self._depth_at(np.asarray(right, np.float32), self.pts)
+        z, ok = self._depth_at(np.asarray(right, np.float32), self.pts, gated)
         with np.errstate(divide="ignore", invalid="ignore"):
             disp = self.rect.fx * self.options.baseline_m / z
             sigma_d = self.rect.fx * self.options.baseline_m * depth_sigma_m(z, self.unit) / (z * z)
-        ok &= np.isfinite(disp) & (sigma_d <= self.sigma_px)
+        ok &= np.isfinite(disp) & (disp > 0)
+        if gated:
+            ok &= sigma_d <= self.sigma_px
         sel = np.flatnonzero(ok)
         return StereoObservations(int(stamp_ns), tr.ids[sel], tr.uL[sel], tr.uL[sel] - disp[sel],
                                   tr.v[sel])
 
-    def _depth_at(self, depth: F32, pts: npt.NDArray[np.float32]
+    def _depth_at(self, depth: F32, pts: npt.NDArray[np.float32], gated: bool = True
                   ) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
-        """Depth at each corner (nearest pixel) and whether its 3x3 neighbourhood is one surface."""
+        """Depth at each corner (nearest pixel) and whether its 3x3 neighbourhood is one surface
+        (and, ``gated``, within the camera's range)."""
         h, w = depth.shape
         xi = np.clip(np.round(pts[:, 0]).astype(int), 1, w - 2)
         yi = np.clip(np.round(pts[:, 1]).astype(int), 1, h - 2)
@@ -239,6 +244,7 @@ class DepthFrontEnd(StereoFrontEnd):
         z = depth[yi, xi].astype(np.float64)
         o = self.options
         with np.errstate(invalid="ignore"):
-            ok = (np.isfinite(nb).all(axis=0) & (z >= o.min_depth_m) & (z <= o.max_depth_m)
-                  & ((nb.max(axis=0) - nb.min(axis=0)) <= o.edge_ratio * z))
+            ok = np.isfinite(nb).all(axis=0) & ((nb.max(axis=0) - nb.min(axis=0)) <= o.edge_ratio * z)
+            if gated:
+                ok &= (z >= o.min_depth_m) & (z <= o.max_depth_m)
         return z, ok

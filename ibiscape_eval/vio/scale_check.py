@@ -1,0 +1,332 @@
+"""The depth unit checked by physics: the IMU measures metric motion, the depth gives it too.
+
+A depth image read in the wrong unit is wrong by a factor (a TUM RGB-D file, 5000 per metre, read
+as millimetres: 5x too far; millimetres read as TUM: 5x too near; metres against millimetres:
+1000x), and nothing in one image tells.  Over a window of frames the RGB-D odometry (KLT tracks,
+their 3D points from the depth, PnP against a keyframe) gives the camera's path at the depth's
+scale ``c_k``; the IMU, preintegrated from the window's first frame (``Delta p_0k``, body frame),
+gives it in metres.  With the start velocity ``v_0`` and gravity ``g`` (body frame) unknown, the
+inverse scale ``lam`` solves the linear least-squares problem
+
+    lam R_bc c_k + (t_bc - R_0k t_bc) = v_0 t_k + g t_k^2 / 2 + Delta p_0k
+
+(the lever arm ``t_bc`` of the camera is metric whatever the depth's unit; Qin and Shen's
+visual-inertial alignment, IROS 2017, with the scale of a monocular map in place of the depth's).
+``factor = 1 / lam`` is the depth's distance over the true one: 1 for the right unit, 5 for a TUM
+file read as millimetres.  Its uncertainty comes from the residuals; the fit also gives ``|g|``,
+which must be gravity for the fit to mean anything.
+
+The scale is only observable while the acceleration changes (a start, a brake, a turn): a still
+platform, or constant velocity along a line, leaves ``lam`` free.  Windows of ``window_s``
+(overlapping by half) are fitted along the first ``max_s`` of the sequence until two agree;
+when none is conclusive the check says so (a warning from :func:`check_depth_scale`), never a
+refusal.  Factors between 1/2 and 2 are never refused: the units a depth file can be misread in
+differ by 5x or more, and a calibration error is not the unit's.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ibiscape_eval.core.errors import FormatError, IbiscapeWarning
+
+from .backend import GRAVITY_M_S2, StereoObservations, imu_params, integrate_imu
+from .depth import DEPTH_STEP_M, DepthFrontEnd, DepthOptions
+from .params import VioParams
+from .rig import RectifiedStereo
+
+__all__ = ["DepthScale", "check_depth_scale", "measure_depth_scale"]
+
+FloatArray = npt.NDArray[np.float64]
+
+#: seconds of frames per fitted window, and how far into the sequence to look for motion
+WINDOW_S = 3.0
+MAX_S = 30.0
+#: factors within [1 / BAND, BAND] are never refused
+BAND = 2.0
+#: the smallest factor a misread unit gives (TUM's 5000 per metre against millimetres)
+DETECT = 5.0
+#: a fit whose |g| is further than this from gravity is not trusted
+GRAVITY_TOL_M_S2 = 1.0
+#: the image is still when the median track moves less than this between frames [px]
+STILL_FLOW_PX = 0.2
+#: how many sigmas the factor must lie outside the band to be refused
+N_SIGMA = 2.0
+
+
+@dataclass(frozen=True)
+class DepthScale:
+    """The depth's scale measured against the IMU.
+
+    Attributes
+    ----------
+    status : str
+        ``ok`` (the factor is within the band), ``wrong`` (outside it by ``N_SIGMA``),
+        ``not measured`` (no window was conclusive; ``reason`` says why).
+    factor : float
+        Depth-derived distance over the IMU's (NaN when not measured).
+    sigma_log : float
+        1-sigma of ``ln(factor)``.
+    start_s, end_s : float
+        The window that decided, from the first frame.
+    motion_m : float
+        Path of the camera in that window [m, metric].
+    gravity_m_s2 : float
+        ``|g|`` of the fit.
+    windows : int
+        Windows fitted.
+    reason : str
+    """
+
+    status: str
+    factor: float = float("nan")
+    sigma_log: float = float("nan")
+    start_s: float = float("nan")
+    end_s: float = float("nan")
+    motion_m: float = float("nan")
+    gravity_m_s2: float = float("nan")
+    windows: int = 0
+    reason: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain mapping (JSON; NaN as None)."""
+        return {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+                for k, v in self.__dict__.items()}
+
+
+@dataclass(frozen=True)
+class _Window:
+    factor: float
+    sigma_log: float
+    motion_m: float
+    gravity_m_s2: float
+    start_ns: int
+    end_ns: int
+    anchored: bool = False
+
+    @property
+    def verdict(self) -> str:
+        """``wrong``: the factor lies ``N_SIGMA`` outside ``[1 / BAND, BAND]``; ``ok``: within
+        the band, and ``N_SIGMA`` short of ``DETECT`` either way (a misread unit would have shown);
+        empty: the window cannot tell (or its fit is not physics: ``|g|`` is not gravity)."""
+        if not (math.isfinite(self.sigma_log) and math.isfinite(self.factor)
+                and abs(self.gravity_m_s2 - GRAVITY_M_S2) <= GRAVITY_TOL_M_S2):
+            return ""
+        ln, reach = math.log(self.factor), N_SIGMA * self.sigma_log
+        if abs(ln) - reach > math.log(BAND):
+            return "wrong"
+        if abs(ln) <= math.log(BAND) and abs(ln) + reach < math.log(DETECT):
+            return "ok"
+        return ""
+
+
+def _preintegrated(imu: tuple[Any, FloatArray, FloatArray], pim_params: Any, t0: int, t1: int
+                   ) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``(Delta R, Delta v, Delta p)`` of the IMU between two frames (body frame, zero bias)."""
+    import gtsam
+
+    pim = gtsam.PreintegratedCombinedMeasurements(pim_params, gtsam.imuBias.ConstantBias())
+    integrate_imu(pim, imu[0], imu[1], imu[2], t0, t1)
+    return (np.asarray(pim.deltaRij().matrix()), np.asarray(pim.deltaVij()),
+            np.asarray(pim.deltaPij()))
+
+
+def _odometry(frames: list[StereoObservations], rect: RectifiedStereo, min_points: int
+              ) -> list[FloatArray] | None:
+    """``T_c0_ck`` (rectified camera) of every frame at the depth's scale, by PnP of each frame
+    against a keyframe's 3D points (a new keyframe when fewer than half of them are seen)."""
+    import cv2
+
+    thr = max(1.0, 2.0 * rect.width_px / 512.0)
+    T_c0_cref = np.eye(4)
+    ref = frames[0]
+    if len(ref) < min_points:
+        return None
+    # in units of the first frame's median depth: PnP's iterations stop at absolute tolerances,
+    # and depth wrong by a factor must give the same path times that factor
+    unit = float(np.median(rect.triangulate(ref.uL, ref.uR, ref.v)[:, 2]))
+    ref_pts = rect.triangulate(ref.uL, ref.uR, ref.v) / unit
+    out = [np.eye(4)]
+    for fr in frames[1:]:
+        common, i0, i1 = np.intersect1d(ref.ids, fr.ids, return_indices=True)
+        if len(common) < min_points:
+            return None
+        img = np.stack([fr.uL[i1], fr.v[i1]], axis=1).astype(np.float64)
+        ok, rvec, tvec, inl = cv2.solvePnPRansac(ref_pts[i0].astype(np.float64), img, rect.K, None,
+                                                 reprojectionError=thr, iterationsCount=100,
+                                                 confidence=0.999, flags=cv2.SOLVEPNP_ITERATIVE)
+        if not ok or inl is None or len(inl) < min_points:
+            return None
+        T_ck_cref = np.eye(4)
+        T_ck_cref[:3, :3] = cv2.Rodrigues(rvec)[0]
+        T_ck_cref[:3, 3] = np.asarray(tvec).ravel()
+        T_c0_ck = T_c0_cref @ np.linalg.inv(T_ck_cref)
+        out.append(T_c0_ck)
+        if len(common) < max(2 * min_points, len(ref.ids) // 2):
+            ref, T_c0_cref = fr, T_c0_ck
+            ref_pts = rect.triangulate(ref.uL, ref.uR, ref.v) / unit
+    for T in out:
+        T[:3, 3] *= unit
+    return out
+
+
+def _fit(frames: list[StereoObservations], deltas: list[tuple[FloatArray, FloatArray, FloatArray]],
+         rect: RectifiedStereo, min_points: int, g_body: FloatArray | None = None) -> _Window | None:
+    """The factor of one window (module docstring); ``deltas[k]`` is the IMU from frame k-1 to
+    k (``deltas[0]`` unused); ``g_body``: gravity in the first frame's body frame when known (a
+    standstill before it), else fitted.  None when the odometry fails."""
+    poses = _odometry(frames, rect, min_points)
+    if poses is None:
+        return None
+    R_bc, t_bc = rect.T_body_rect[:3, :3], rect.T_body_rect[:3, 3]
+    t0 = frames[0].stamp_ns
+    R, v, p = np.eye(3), np.zeros(3), np.zeros(3)
+    k_g = 4 if g_body is None else 0
+    rows, rhs = [], []
+    for k in range(1, len(frames)):
+        dR, dv, dp = deltas[k]
+        dt = (frames[k].stamp_ns - frames[k - 1].stamp_ns) * 1e-9
+        p = p + v * dt + R @ dp
+        v = v + R @ dv
+        R = R @ dR
+        t = (frames[k].stamp_ns - t0) * 1e-9
+        T = poses[k]
+        row = np.zeros((3, 4 + 3 * (g_body is None)))
+        row[:, 0] = R_bc @ T[:3, 3]
+        row[:, 1:4] = -t * np.eye(3)
+        b = p - (t_bc - R_bc @ T[:3, :3] @ R_bc.T @ t_bc)
+        if g_body is None:
+            row[:, 4:] = -0.5 * t * t * np.eye(3)
+        else:
+            b = b + 0.5 * t * t * g_body
+        rows.append(row)
+        rhs.append(b)
+    A, b = np.concatenate(rows), np.concatenate(rhs)
+    x, *_ = np.linalg.lstsq(A, b, rcond=None)
+    r = b - A @ x
+    # the odometry's errors drift (correlated along the window): the residuals are not counted
+    # as independent, so the sum of their squares, not its mean, scales the covariance
+    try:
+        var_lam = float(r @ r) * float(np.linalg.inv(A.T @ A)[0, 0])
+    except np.linalg.LinAlgError:
+        var_lam = math.inf
+    lam = float(x[0])
+    sig = math.sqrt(max(var_lam, 0.0)) / lam if lam > 0 else math.inf
+    cams = np.array([P[:3, 3] for P in poses]) * (lam if lam > 0 else np.nan)
+    motion = float(np.linalg.norm(np.diff(cams, axis=0), axis=1).sum())
+    g = float(np.linalg.norm(x[k_g:k_g + 3])) if g_body is None else float(np.linalg.norm(g_body))
+    return _Window(1.0 / lam if lam > 0 else math.inf, sig, motion, g, int(t0),
+                   int(frames[-1].stamp_ns), g_body is not None)
+
+
+def measure_depth_scale(seq: Any, params: VioParams | None = None, options: DepthOptions | None = None,
+                        *, window_s: float = WINDOW_S, max_s: float = MAX_S,
+                        scale: float = 1.0) -> DepthScale:
+    """The depth's scale against the IMU over the first ``max_s`` of an RGB-D
+    :class:`~ibiscape_eval.vio.inputs.StereoSequence` (module docstring).  ``scale`` multiplies
+    every depth read (tests and the benchmark: a misread unit without rewriting files)."""
+    p = params or VioParams.for_setup("rgbd")
+    stamps = np.asarray(seq.frame_stamps_ns, np.int64)
+    n = int(np.searchsorted(stamps, stamps[0] + int(max_s * 1e9), side="right")) if len(stamps) else 0
+    fps = (len(stamps) - 1) / max((int(stamps[-1]) - int(stamps[0])) * 1e-9, 1e-9) if n > 1 else 0.0
+    per = max(int(round(window_s * fps)) + 1, 10)
+    if n < per:
+        return DepthScale("not measured", reason=f"{n} frames, fewer than a {window_s:g} s window")
+    fe = DepthFrontEnd(seq.rig, p, seq.depth_unit or "mm", options)
+    rect = seq.rig.rectified()
+    pim_params = imu_params(seq.noise, 1.0, seq.T_body_imu)
+    w, h = seq.rig.size
+    obs: list[StereoObservations] = []
+    deltas: list[tuple[FloatArray, FloatArray, FloatArray]] = []
+    fitted: list[_Window] = []
+    anchor: tuple[int, FloatArray] | None = None  # the last still frame and gravity there
+    g_run: FloatArray | None = None
+    for i in range(n):
+        t = int(stamps[i])
+        d = (_preintegrated(seq.imu, pim_params, int(stamps[i - 1]), t) if i
+             else (np.eye(3), np.zeros(3), np.zeros(3)))
+        left, depth = seq.read_pair(i)
+        if left.shape != (h, w) or depth.shape != (h, w):
+            break  # the estimator's own pass names the file
+        deltas.append(d)
+        obs.append(fe.process(t, left, depth if scale == 1.0 else depth * np.float32(scale),
+                              d[0] if i else None, gated=False))
+        # a standstill: the IMU quiet and the image still; gravity from the quiet run's first
+        # window (a departing car already accelerates at its end, and the IMU is still quiet)
+        g = _quiet_gravity(seq, p, t)
+        g_run = None if g is None else g if g_run is None else g_run
+        first = int(np.searchsorted(stamps, t - int(p.still_window_s * 1e9)))
+        wins = []
+        if g_run is not None and first < i and _image_still(obs, first, p.min_tracked):
+            anchor = (i, g_run)
+        elif anchor is not None and i + 1 - anchor[0] >= per:
+            wins.append(_fit(obs[anchor[0]:], deltas[anchor[0]:], rect, p.min_tracked, anchor[1]))
+            anchor = None
+        if i + 1 >= per and (i + 1 - per) % (per // 2) == 0:
+            wins.append(_fit(obs[i + 1 - per:], deltas[i + 1 - per:], rect, p.min_tracked))
+        fitted += [x for x in wins if x is not None]
+        done = _decided(fitted, stamps[0]) if wins else None
+        if done is not None:
+            return done
+    return _undecided(fitted, stamps[0], n, window_s)
+
+
+def _quiet_gravity(seq: Any, p: VioParams, t_ns: int) -> FloatArray | None:
+    """Gravity in the body frame (minus the mean specific force) when the IMU was quiet over the
+    ``still_window_s`` up to ``t_ns`` (:func:`~ibiscape_eval.vio.initialise.standstill_at`), else
+    None.  Quiet is not still: a steady cruise is quiet too (and its mean specific force is
+    gravity as well), and so is a smooth start (whose is not: the first window of a quiet run is
+    the one to take)."""
+    from .initialise import standstill_at
+
+    stamps, _, acc = seq.imu
+    t0 = t_ns - int(p.still_window_s * 1e9)
+    if not standstill_at(stamps, seq.gyro_rad_s, acc, t0, p).still:
+        return None
+    sel = slice(int(np.searchsorted(stamps, t0)), int(np.searchsorted(stamps, t_ns, side="right")))
+    f = np.asarray(seq.T_body_imu, np.float64)[:3, :3] @ acc[sel].mean(axis=0)
+    return np.asarray(-f, np.float64)
+
+
+def _image_still(obs: list[StereoObservations], first: int, min_points: int) -> bool:
+    """The median track moved less than ``STILL_FLOW_PX`` from frame ``first`` to the last."""
+    a, b = obs[first], obs[-1]
+    _, i0, i1 = np.intersect1d(a.ids, b.ids, return_indices=True)
+    if len(i0) < min_points:
+        return False
+    return float(np.median(np.hypot(b.uL[i1] - a.uL[i0], b.v[i1] - a.v[i0]))) <= STILL_FLOW_PX
+
+
+def _result(status: str, w: _Window, t0: int, n: int, reason: str = "") -> DepthScale:
+    return DepthScale(status, w.factor, w.sigma_log, (w.start_ns - t0) * 1e-9, (w.end_ns - t0) * 1e-9,
+                      w.motion_m, w.gravity_m_s2, n, reason)
+
+
+def _decided(fitted: list[_Window], t0: int) -> DepthScale | None:
+    """The verdict of the latest window when it starts at a standstill (gravity known), or of
+    the latest two when they agree."""
+    last = fitted[-1]
+    if last.anchored and last.verdict:
+        return _result(last.verdict, last, t0, len(fitted))
+    free = [w for w in fitted if not w.anchored]
+    if len(free) >= 2 and free[-1] is last and free[-2].verdict == last.verdict != "":
+        return _result(last.verdict, last, t0, len(fitted))
+    return None
+
+
+def _undecided(fitted: list[_Window], t0: int, n: int, window_s: float) -> DepthScale:
+    if not fitted:
+        why = "the RGB-D odometry held in no window (too few tracked corners with depth)"
+    else:
+        best = min(fitted, key=lambda w: w.sigma_log)
+        why = (f"too little change of acceleration (a start, a brake, a turn): ln(factor) to "
+               f"+-{best.sigma_log:.2f} at best")
+    return DepthScale("not measured", windows=len(fitted),
+                      reason=f"{why}, in {len(fitted)} windows of {window_s:g} s over {n} frames")
