@@ -60,6 +60,9 @@ Examples:
               help="SEQUENCE is a ROS bag with several sensor_msgs/Imu topics: the one to use.")
 @click.option("--setup", type=click.Choice(["auto", "svi", "esvi", "rgbd", "full"]), default="auto",
               show_default=True, help="Cameras: stereo RGB, stereo events, RGB + depth, or the best there is.")
+@click.option("--depth-unit", type=click.Choice(["mm", "tum", "carla-log"]), default=None,
+              help="RGB-D: the depth files' unit (tum: 16-bit, 5000 per metre); default by the "
+              "folder: depth/mm/ millimetres, depth/frames/ CARLA's 8-bit log depth.")
 @click.option("--max-frames", type=click.IntRange(min=2), default=None,
               help="Process only the first N stereo frames.")
 @click.option("--lag-s", type=click.FloatRange(min=0.5), default=None,
@@ -73,7 +76,8 @@ Examples:
               help="Top view of the estimate with the ground truth (PNG/PDF/SVG).")
 @user_errors
 def vio(sequence: Path, out: Path, calib: Path | None, imu_yaml: Path | None,
-        topics: tuple[str, ...], imu_topic: str | None, setup: str, max_frames: int | None, lag_s: float | None, max_features: int | None, as_json: bool,
+        topics: tuple[str, ...], imu_topic: str | None, setup: str, depth_unit: str | None,
+        max_frames: int | None, lag_s: float | None, max_features: int | None, as_json: bool,
         plot: Path | None) -> None:
     """Stereo visual-inertial odometry (OpenCV front end, GTSAM fixed-lag smoother).
 
@@ -88,8 +92,18 @@ def vio(sequence: Path, out: Path, calib: Path | None, imu_yaml: Path | None,
     from ibiscape_eval.vio.params import VioParams
     from ibiscape_eval.vio.pipeline import run_vio
 
-    seq = stereo_inputs(open_sequence(sequence, image_topics=topics or None, imu_topic=imu_topic),
-                        calib=calib, imu_yaml=imu_yaml, setup=setup)
+    opened = open_sequence(sequence, image_topics=topics or None, imu_topic=imu_topic)
+    depth = None
+    if depth_unit is not None:
+        from ibiscape_eval.core.errors import IbiscapeError
+        from ibiscape_eval.vio.depth import DepthOptions
+        from ibiscape_eval.vio.inputs import resolve_setup
+
+        if (chosen := resolve_setup(opened, setup)) != "rgbd":
+            raise IbiscapeError(f"{sequence}: --depth-unit is for RGB + depth; this run is {chosen} "
+                                "(give --setup rgbd on a sequence with a depth camera)")
+        depth = DepthOptions(depth_unit=depth_unit)
+    seq = stereo_inputs(opened, calib=calib, imu_yaml=imu_yaml, setup=setup, options=depth)
     kw: dict[str, Any] = {}
     if lag_s is not None:
         kw["lag_s"] = lag_s
@@ -107,7 +121,7 @@ def vio(sequence: Path, out: Path, calib: Path | None, imu_yaml: Path | None,
         bar.update(done - bar.n)
 
     try:
-        res = run_vio(seq, params, max_frames=max_frames, progress=progress)
+        res = run_vio(seq, params, max_frames=max_frames, progress=progress, options=depth)
     finally:
         bar.close()
     write_trajectory(out, res.trajectory, "tum")

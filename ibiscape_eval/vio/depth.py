@@ -76,12 +76,17 @@ class DepthOptions:
         The depth camera's usable range.
     edge_ratio : float
         Largest relative depth spread in a corner's 3x3 neighbourhood.
+    depth_unit : str or None
+        The depth files' unit (``mm``, ``tum`` or ``carla-log``); None: by the folder, ``mm``
+        for ``depth/mm/``, ``carla-log`` for ``depth/frames/``.  ``mm`` and ``tum`` read
+        ``depth/mm/`` when there is one, else ``depth/frames/``.
     """
 
     baseline_m: float = 1.0
     min_depth_m: float = 0.3
     max_depth_m: float = 60.0
     edge_ratio: float = 0.05
+    depth_unit: str | None = None
 
     def __post_init__(self) -> None:
         for k in ("baseline_m", "min_depth_m", "max_depth_m", "edge_ratio"):
@@ -90,6 +95,8 @@ class DepthOptions:
                 raise IbiscapeError(f"depth option {k} = {v!r}: give a positive number")
         if self.max_depth_m <= self.min_depth_m:
             raise IbiscapeError("depth option max_depth_m must exceed min_depth_m")
+        if self.depth_unit is not None and self.depth_unit not in DEPTH_UNITS:
+            raise IbiscapeError(f"depth unit {self.depth_unit!r}: use one of {', '.join(DEPTH_UNITS)}")
 
 
 def depth_sigma_m(z_m: npt.ArrayLike, unit: str) -> FloatArray:

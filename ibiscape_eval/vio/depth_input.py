@@ -89,6 +89,9 @@ def rgbd_parts(seq: Sequence, cams: dict[str, Any], calib: Any, options: DepthOp
     folder = seq.path / str(cams[depth].get("folder", depth))
     t_d, names = read_frame_timestamps(folder / "timestamps.csv")
     sub, unit = ("mm", "mm") if (folder / "mm").is_dir() else ("frames", "carla-log")
+    if o.depth_unit is not None:  # given: the 16-bit units read mm/ when there is one
+        unit = o.depth_unit
+        sub = "mm" if unit != "carla-log" and (folder / "mm").is_dir() else "frames"
     t_rgb = np.asarray(stream.stamps_ns, np.int64)
     common = np.intersect1d(t_rgb, t_d)
     if len(common) < 2:

@@ -154,6 +154,10 @@ def run_vio(seq: StereoSequence | Sequence, params: VioParams | None = None, *,
     p = params or VioParams.for_setup(seq.setup)
     n = _frames_to_run(seq, p, max_frames)
     fe = make_frontend(seq, p, options)
+    if seq.setup == "rgbd":  # a depth unit misread by a factor is refused before any estimate
+        from .scale_check import check_depth_scale
+
+        check_depth_scale(seq, p, options, max_frames=n)
     est = Estimator(seq.rig.rectified(), seq.imu, seq.noise, p, seq.T_body_imu)
     times = np.zeros(n)
     tracked = np.zeros(n, dtype=np.int64)

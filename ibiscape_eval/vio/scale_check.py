@@ -228,15 +228,17 @@ def _fit(frames: list[StereoObservations], deltas: list[tuple[FloatArray, FloatA
 
 def measure_depth_scale(seq: Any, params: VioParams | None = None, options: DepthOptions | None = None,
                         *, window_s: float = WINDOW_S, max_s: float = MAX_S,
-                        scale: float = 1.0) -> DepthScale:
+                        max_frames: int | None = None, scale: float = 1.0) -> DepthScale:
     """The depth's scale against the IMU over the first ``max_s`` of an RGB-D
     :class:`~ibiscape_eval.vio.inputs.StereoSequence` (module docstring).  ``scale`` multiplies
-    every depth read (tests and the benchmark: a misread unit without rewriting files)."""
+    every depth read (tests and the benchmark: a misread unit without rewriting files);
+    ``max_frames`` bounds the frames read."""
     p = params or VioParams.for_setup("rgbd")
     stamps = np.asarray(seq.frame_stamps_ns, np.int64)
     n = int(np.searchsorted(stamps, stamps[0] + int(max_s * 1e9), side="right")) if len(stamps) else 0
+    n = n if max_frames is None else min(n, max_frames)
     fps = (len(stamps) - 1) / max((int(stamps[-1]) - int(stamps[0])) * 1e-9, 1e-9) if n > 1 else 0.0
-    per = max(int(round(window_s * fps)) + 1, 10)
+    per = max(round(window_s * fps) + 1, 10)
     if n < per:
         return DepthScale("not measured", reason=f"{n} frames, fewer than a {window_s:g} s window")
     fe = DepthFrontEnd(seq.rig, p, seq.depth_unit or "mm", options)
@@ -330,3 +332,72 @@ def _undecided(fitted: list[_Window], t0: int, n: int, window_s: float) -> Depth
                f"+-{best.sigma_log:.2f} at best")
     return DepthScale("not measured", windows=len(fitted),
                       reason=f"{why}, in {len(fitted)} windows of {window_s:g} s over {n} frames")
+
+
+def check_depth_scale(seq: Any, params: VioParams | None = None, options: Any = None, *,
+                      max_frames: int | None = None) -> DepthScale:
+    """:func:`measure_depth_scale`, acted on: a depth ``wrong`` by a factor is refused, naming
+    the depth folder, the factor and the unit that explains it; a check that could not run is a
+    warning (so is a median depth outside the front end's range, which holds without motion).
+    ``max_frames``: look at no more frames than the run reads.
+
+    Raises
+    ------
+    FormatError
+        The depth is ``wrong`` (:class:`DepthScale`); its ``hint`` is the unit that explains the
+        factor, when one does.
+    """
+    from ibiscape_eval.core.errors import Remedy
+
+    o = options if isinstance(options, DepthOptions) else DepthOptions()
+    unit = seq.depth_unit or "mm"
+    depth_file = Path(seq.frame_labels(0)[1])
+    folder = depth_file.parent
+    _check_range(seq, o, depth_file, unit)
+    res = measure_depth_scale(seq, params, o, max_frames=max_frames)
+    if res.status == "not measured":
+        warnings.warn(f"{folder}: the depth unit ({unit}) could not be checked against the IMU: "
+                      f"{res.reason}; make sure it is right", IbiscapeWarning, stacklevel=2)
+    elif res.status == "wrong":
+        f = res.factor
+        how = f"{f:.3g}x too far" if f > 1 else f"{1 / f:.3g}x too near"
+        seen = (f"(its path over {res.start_s:.1f}-{res.end_s:.1f} s is {f:.3g}x the IMU's, "
+                f"sigma of ln {res.sigma_log:.2f})")
+        better = _explaining_unit(unit, f)
+        if better is None:
+            raise FormatError(folder, f"depth looks {how} {seen}; no depth unit explains it: check "
+                              "the depth camera's scale (ORB-SLAM3's DepthMapFactor) and the "
+                              "calibration")
+        raise FormatError(folder, f"depth looks {how} {seen}: the depth unit is probably {better} "
+                          f"({UNIT_NAMES[better]}), not {unit}; use {{0}}",
+                          hint=(Remedy("depth_unit", better),))
+    return res
+
+
+#: what each depth unit is, for messages
+UNIT_NAMES = {"mm": "16-bit millimetres", "tum": "16-bit, 5000 per metre",
+              "carla-log": "CARLA's 8-bit logarithmic depth"}
+
+
+def _explaining_unit(unit: str, factor: float) -> str | None:
+    """The 16-bit unit in which the files would give a factor within the band."""
+    if unit not in DEPTH_STEP_M:
+        return None
+    for u, step in DEPTH_STEP_M.items():
+        if u != unit and abs(math.log(factor * step / DEPTH_STEP_M[unit])) <= math.log(BAND):
+            return u
+    return None
+
+
+def _check_range(seq: Any, o: DepthOptions, depth_file: Path, unit: str) -> None:
+    """Warns when the first frame's median depth lies outside the front end's range: almost no
+    corner would get a depth (a unit 1000x off, a disparity image)."""
+    depth = np.asarray(seq.read_pair(0)[1], np.float64)
+    valid = depth[np.isfinite(depth) & (depth > 0)]
+    if valid.size == 0:
+        return
+    med = float(np.median(valid))
+    if not o.min_depth_m <= med <= o.max_depth_m:
+        warnings.warn(f"{depth_file}: median depth {med:.3g} m, outside the depth front end's "
+                      f"{o.min_depth_m:g}-{o.max_depth_m:g} m: few corners will get a depth; is "
+                      f"the depth unit ({unit}) right?", IbiscapeWarning, stacklevel=3)
