@@ -53,10 +53,18 @@ MAX_S = 30.0
 BAND = 2.0
 #: the smallest factor a misread unit gives (TUM's 5000 per metre against millimetres)
 DETECT = 5.0
+#: uncertainty of the standstill's gravity per axis [m/s^2]: an accelerometer bias, the tilt of a
+#: standstill that is not quite one, the gyro's drift until the window starts
+GRAVITY_SIGMA_M_S2 = 0.1
 #: a fit whose |g| is further than this from gravity is not trusted
 GRAVITY_TOL_M_S2 = 1.0
 #: the image is still when the median track moves less than this between frames [px]
 STILL_FLOW_PX = 0.2
+#: the fewest corners with depth a frame's PnP (and the still image's flow) takes: a 16-bit unit
+#: of 0.2 mm ends at 13 m, so outdoors a misread TUM file leaves few corners with a depth
+MIN_POINTS = 6
+#: a new keyframe when fewer corners than this (or than half of its own) are still tracked
+KEYFRAME_POINTS = 24
 #: how many sigmas the factor must lie outside the band to be refused
 N_SIGMA = 2.0
 
@@ -140,8 +148,10 @@ def _preintegrated(imu: tuple[Any, FloatArray, FloatArray], pim_params: Any, t0:
 
 def _odometry(frames: list[StereoObservations], rect: RectifiedStereo, min_points: int
               ) -> list[FloatArray] | None:
-    """``T_c0_ck`` (rectified camera) of every frame at the depth's scale, by PnP of each frame
-    against a keyframe's 3D points (a new keyframe when fewer than half of them are seen)."""
+    """``T_c0_ck`` (rectified camera) of the frames at the depth's scale, by PnP of each frame
+    against a keyframe's 3D points (a new keyframe when fewer than half of them or than
+    ``KEYFRAME_POINTS`` are seen); up to
+    the first frame whose PnP fails (fog, a blank wall)."""
     import cv2
 
     thr = max(1.0, 2.0 * rect.width_px / 512.0)
@@ -157,19 +167,19 @@ def _odometry(frames: list[StereoObservations], rect: RectifiedStereo, min_point
     for fr in frames[1:]:
         common, i0, i1 = np.intersect1d(ref.ids, fr.ids, return_indices=True)
         if len(common) < min_points:
-            return None
+            break
         img = np.stack([fr.uL[i1], fr.v[i1]], axis=1).astype(np.float64)
         ok, rvec, tvec, inl = cv2.solvePnPRansac(ref_pts[i0].astype(np.float64), img, rect.K, None,
                                                  reprojectionError=thr, iterationsCount=100,
                                                  confidence=0.999, flags=cv2.SOLVEPNP_ITERATIVE)
         if not ok or inl is None or len(inl) < min_points:
-            return None
+            break
         T_ck_cref = np.eye(4)
         T_ck_cref[:3, :3] = cv2.Rodrigues(rvec)[0]
         T_ck_cref[:3, 3] = np.asarray(tvec).ravel()
         T_c0_ck = T_c0_cref @ np.linalg.inv(T_ck_cref)
         out.append(T_c0_ck)
-        if len(common) < max(2 * min_points, len(ref.ids) // 2):
+        if len(common) < max(KEYFRAME_POINTS, len(ref.ids) // 2):
             ref, T_c0_cref = fr, T_c0_ck
             ref_pts = rect.triangulate(ref.uL, ref.uR, ref.v) / unit
     for T in out:
@@ -183,8 +193,9 @@ def _fit(frames: list[StereoObservations], deltas: list[tuple[FloatArray, FloatA
     k (``deltas[0]`` unused); ``g_body``: gravity in the first frame's body frame when known (a
     standstill before it), else fitted.  None when the odometry fails."""
     poses = _odometry(frames, rect, min_points)
-    if poses is None:
+    if poses is None or len(poses) < max(len(frames) // 2, 10):
         return None
+    frames = frames[:len(poses)]
     R_bc, t_bc = rect.T_body_rect[:3, :3], rect.T_body_rect[:3, 3]
     t0 = frames[0].stamp_ns
     R, v, p = np.eye(3), np.zeros(3), np.zeros(3)
@@ -217,6 +228,12 @@ def _fit(frames: list[StereoObservations], deltas: list[tuple[FloatArray, FloatA
         var_lam = float(r @ r) * float(np.linalg.inv(A.T @ A)[0, 0])
     except np.linalg.LinAlgError:
         var_lam = math.inf
+    if g_body is not None:  # a gravity off by dg moves lam by (dlam/dg) dg: a steady
+        # acceleration is told from a tilt only by the standstill's gravity
+        tt = np.repeat([(fr.stamp_ns - t0) * 1e-9 for fr in frames[1:]], 3)
+        G = 0.5 * tt[:, None] ** 2 * np.tile(np.eye(3), (len(frames) - 1, 1))
+        dlam_dg = np.linalg.lstsq(A, G, rcond=None)[0][0]
+        var_lam += GRAVITY_SIGMA_M_S2 ** 2 * float(dlam_dg @ dlam_dg)
     lam = float(x[0])
     sig = math.sqrt(max(var_lam, 0.0)) / lam if lam > 0 else math.inf
     cams = np.array([P[:3, 3] for P in poses]) * (lam if lam > 0 else np.nan)
@@ -248,8 +265,7 @@ def measure_depth_scale(seq: Any, params: VioParams | None = None, options: Dept
     obs: list[StereoObservations] = []
     deltas: list[tuple[FloatArray, FloatArray, FloatArray]] = []
     fitted: list[_Window] = []
-    anchor: tuple[int, FloatArray] | None = None  # the last still frame and gravity there
-    g_run: FloatArray | None = None
+    still = _Standstill(max(round(p.still_window_s * fps), 2))
     for i in range(n):
         t = int(stamps[i])
         d = (_preintegrated(seq.imu, pim_params, int(stamps[i - 1]), t) if i
@@ -260,24 +276,47 @@ def measure_depth_scale(seq: Any, params: VioParams | None = None, options: Dept
         deltas.append(d)
         obs.append(fe.process(t, left, depth if scale == 1.0 else depth * np.float32(scale),
                               d[0] if i else None, gated=False))
-        # a standstill: the IMU quiet and the image still; gravity from the quiet run's first
-        # window (a departing car already accelerates at its end, and the IMU is still quiet)
         g = _quiet_gravity(seq, p, t)
-        g_run = None if g is None else g if g_run is None else g_run
         first = int(np.searchsorted(stamps, t - int(p.still_window_s * 1e9)))
+        still.update(i, g if g is not None and first < i and _image_still(obs, first, MIN_POINTS)
+                     else None, d[0])
         wins = []
-        if g_run is not None and first < i and _image_still(obs, first, p.min_tracked):
-            anchor = (i, g_run)
-        elif anchor is not None and i + 1 - anchor[0] >= per:
-            wins.append(_fit(obs[anchor[0]:], deltas[anchor[0]:], rect, p.min_tracked, anchor[1]))
-            anchor = None
+        if still.anchor is not None and i + 1 - still.anchor[0] >= per:
+            a, g_a = still.anchor
+            wins.append(_fit(obs[a:], deltas[a:], rect, MIN_POINTS, g_a))
+            still.anchor = None
         if i + 1 >= per and (i + 1 - per) % (per // 2) == 0:
-            wins.append(_fit(obs[i + 1 - per:], deltas[i + 1 - per:], rect, p.min_tracked))
-        fitted += [x for x in wins if x is not None]
-        done = _decided(fitted, stamps[0]) if wins else None
+            wins.append(_fit(obs[i + 1 - per:], deltas[i + 1 - per:], rect, MIN_POINTS))
+        new = [x for x in wins if x is not None]
+        fitted += new
+        done = _decided(fitted, int(stamps[0])) if new else None
         if done is not None:
             return done
     return _undecided(fitted, stamps[0], n, window_s)
+
+
+class _Standstill:
+    """Where the last standstill ended (the window to fit starts there) and gravity in the body
+    frame then: measured at the standstill's FIRST still frame (at its end a departing car may
+    already accelerate while the IMU looks quiet and the image still at a low resolution) and
+    carried to its end by the gyro.  A standstill counts from ``min_frames`` still frames in a
+    row (a still test flickering on for a frame or two while the car pulls away is none)."""
+
+    def __init__(self, min_frames: int) -> None:
+        self.min_frames = min_frames
+        self.anchor: tuple[int, FloatArray] | None = None
+        self._g: FloatArray | None = None  # gravity of the running standstill, at the last frame
+        self._run = 0
+
+    def update(self, i: int, g_still: FloatArray | None, dR: FloatArray) -> None:
+        """Frame ``i``: gravity when it is still, else None; ``dR`` the rotation since frame i-1."""
+        if g_still is None:
+            self._g, self._run = None, 0
+            return
+        self._g = g_still if self._g is None else dR.T @ self._g
+        self._run += 1
+        if self._run >= self.min_frames:
+            self.anchor = (i, self._g)
 
 
 def _quiet_gravity(seq: Any, p: VioParams, t_ns: int) -> FloatArray | None:
@@ -297,17 +336,32 @@ def _quiet_gravity(seq: Any, p: VioParams, t_ns: int) -> FloatArray | None:
     return np.asarray(-f, np.float64)
 
 
+def _rows(have: npt.NDArray[np.int64], want: npt.NDArray[np.int64]) -> npt.NDArray[np.intp]:
+    """Where each of ``want`` (all present) sits in ``have``."""
+    order = np.argsort(have, kind="stable")
+    return np.asarray(order[np.searchsorted(have, want, sorter=order)], np.intp)
+
+
 def _image_still(obs: list[StereoObservations], first: int, min_points: int) -> bool:
-    """The median track moved less than ``STILL_FLOW_PX`` from frame ``first`` to the last."""
-    a, b = obs[first], obs[-1]
-    _, i0, i1 = np.intersect1d(a.ids, b.ids, return_indices=True)
-    if len(i0) < min_points:
+    """The corners seen in every frame from ``first`` to the last did not move beyond their
+    jitter: a median displacement within ``STILL_FLOW_PX``, or tracks that wander rather than
+    go somewhere (median displacement under half of the path along the frames: motion adds up,
+    jitter does not; rain and noise at a low resolution jitter by half a pixel)."""
+    ids = obs[first].ids
+    for o in obs[first + 1:]:
+        ids = np.intersect1d(ids, o.ids)
+    if len(ids) < min_points:
         return False
-    return float(np.median(np.hypot(b.uL[i1] - a.uL[i0], b.v[i1] - a.v[i0]))) <= STILL_FLOW_PX
+    pts = np.stack([np.column_stack([o.uL, o.v])[_rows(o.ids, ids)] for o in obs[first:]])
+    disp = np.linalg.norm(pts[-1] - pts[0], axis=1)
+    path = np.linalg.norm(np.diff(pts, axis=0), axis=2).sum(axis=0)
+    if float(np.median(disp)) <= STILL_FLOW_PX:
+        return True
+    return float(np.median(disp / np.maximum(path, 1e-9))) < 0.5
 
 
 def _result(status: str, w: _Window, t0: int, n: int, reason: str = "") -> DepthScale:
-    return DepthScale(status, w.factor, w.sigma_log, (w.start_ns - t0) * 1e-9, (w.end_ns - t0) * 1e-9,
+    return DepthScale(status, w.factor, w.sigma_log, float(w.start_ns - t0) * 1e-9, float(w.end_ns - t0) * 1e-9,
                       w.motion_m, w.gravity_m_s2, n, reason)
 
 
