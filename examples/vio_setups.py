@@ -75,3 +75,16 @@ if tum.is_file():
     z = DepthReader([tum], "tum", kinect, np.eye(4), kinect, np.eye(4))(0)  # metres, NaN = none
     print(f"TUM depth frame: median {np.nanmedian(z):.2f} m, {np.isfinite(z).mean():.0%} of the "
           f"pixels; Kinect noise at 3 m {1e3 * depth_sigma_m(np.array([3.0]), 'tum')[0]:.0f} mm")
+
+# %% The depth unit checked by physics: the RGB-D odometry's path against the IMU's from a
+# standstill (a TUM file read as millimetres is 5x too far; run_vio refuses it with the unit to
+# give, DepthOptions(depth_unit="tum") / --depth-unit tum)
+if rgbd:
+    from ibiscape_eval.vio.inputs import stereo_inputs
+    from ibiscape_eval.vio.scale_check import measure_depth_scale
+
+    seq = stereo_inputs(open_sequence(rgbd[0]), setup="rgbd")
+    for scale in (1.0, 5.0):
+        r = measure_depth_scale(seq, scale=scale)
+        print(f"depth x{scale:g}: {r.status}, factor {r.factor:.2f} (sigma of ln {r.sigma_log:.2f}, "
+              f"{r.start_s:.1f}-{r.end_s:.1f} s)")
