@@ -366,13 +366,14 @@ def _result(status: str, w: _Window, t0: int, n: int, reason: str = "") -> Depth
 
 
 def _decided(fitted: list[_Window], t0: int) -> DepthScale | None:
-    """The verdict of the latest window when it starts at a standstill (gravity known), or of
-    the latest two when they agree."""
+    """The verdict of the latest window when it starts at a standstill (gravity known), or that
+    of the latest two free windows with a verdict when they agree (a cruise between them tells
+    nothing: constant velocity leaves the factor free)."""
     last = fitted[-1]
     if last.anchored and last.verdict:
         return _result(last.verdict, last, t0, len(fitted))
-    free = [w for w in fitted if not w.anchored]
-    if len(free) >= 2 and free[-1] is last and free[-2].verdict == last.verdict != "":
+    told = [w for w in fitted if not w.anchored and w.verdict]
+    if len(told) >= 2 and told[-1] is last and told[-2].verdict == last.verdict:
         return _result(last.verdict, last, t0, len(fitted))
     return None
 
