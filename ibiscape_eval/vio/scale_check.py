@@ -13,15 +13,22 @@ inverse scale ``lam`` solves the linear least-squares problem
 (the lever arm ``t_bc`` of the camera is metric whatever the depth's unit; Qin and Shen's
 visual-inertial alignment, IROS 2017, with the scale of a monocular map in place of the depth's).
 ``factor = 1 / lam`` is the depth's distance over the true one: 1 for the right unit, 5 for a TUM
-file read as millimetres.  Its uncertainty comes from the residuals; the fit also gives ``|g|``,
-which must be gravity for the fit to mean anything.
+file read as millimetres.
 
 The scale is only observable while the acceleration changes (a start, a brake, a turn): a still
-platform, or constant velocity along a line, leaves ``lam`` free.  Windows of ``window_s``
-(overlapping by half) are fitted along the first ``max_s`` of the sequence until two agree;
-when none is conclusive the check says so (a warning from :func:`check_depth_scale`), never a
-refusal.  Factors between 1/2 and 2 are never refused: the units a depth file can be misread in
-differ by 5x or more, and a calibration error is not the unit's.
+platform, or constant velocity along a line, leaves ``lam`` free, and a steady acceleration is
+told from a tilted gravity only by a known gravity.  So the window that counts starts where a
+standstill ends (the IMU quiet and the image still for ``still_window_s``), with gravity measured
+at the standstill's first still frame and carried to its end by the gyro, and ``v_0`` still free;
+its uncertainty (``GRAVITY_SIGMA_M_S2``) enters the factor's.  Without a standstill, windows of
+``window_s`` (overlapping by half) fit gravity too, and the latest two that can tell must agree.
+The odometry's residuals drift along a window, so they are counted as ONE error (their sum of
+squares scales the covariance): ``sigma_log``, the 1-sigma of ``ln(factor)``, is a conservative
+bound.  A factor ``N_SIGMA`` sigmas outside ``[1/BAND, BAND]`` is ``wrong``; within the band and
+``N_SIGMA`` sigmas short of ``DETECT`` either way it is ``ok``; else the window cannot tell.
+Factors between 1/2 and 2 are never refused: the units a depth file can be misread in differ by
+5x or more, and a calibration error is not the unit's.  When no window tells within the first
+``max_s`` the check says so (a warning from :func:`check_depth_scale`), never a refusal.
 """
 
 from __future__ import annotations
