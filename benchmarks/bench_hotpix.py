@@ -143,7 +143,8 @@ def _steps(ev: Events, hot: np.ndarray) -> list[tuple[str, Callable[..., object]
         return filter_events(ev, hot, sensor_size=SENSOR, threads=th)
 
     def ib_inplace(th: int, cols: list[np.ndarray]) -> object:
-        return filter_arrays(*cols, hot, sensor_size=SENSOR, threads=th, inplace=True)
+        tc, xc, yc, pc = cols
+        return filter_arrays(tc, xc, yc, pc, hot, sensor_size=SENSOR, threads=th, inplace=True)
 
     def ib_both_inplace(th: int, cols: list[np.ndarray]) -> object:
         count_events(cols[1], cols[2], sensor_size=SENSOR, threads=th)
