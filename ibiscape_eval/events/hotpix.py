@@ -11,7 +11,7 @@ Two criteria from the IBISCape paper (section "Event-based evaluation", figure
 Plus libcaer's rate criterion (hot if a pixel fires at least K events within a time window).
 
 Counting and filtering run in numba kernels over the raw ``uint16`` coordinates: one pass, a flat
-``uint16`` count array per thread, a bit table of the pixels to keep, and single-pass compaction.
+``uint8`` count array per thread (with a list of wrap-arounds), a bit table of the pixels to keep, and single-pass compaction.
 """
 
 from __future__ import annotations
@@ -142,7 +142,7 @@ def count_events(
     if pa is None:
         _check_inside(xa, ya, w, h)
         total = np.zeros((h, w), np.int64)
-        _count16(xa, ya, w, h, total, _threads(xa.shape[0], threads))
+        _count8(xa, ya, w, h, total, _threads(xa.shape[0], threads))
         return total
     # uint32 cannot overflow: a pixel holds at most N events; split larger inputs.
     step = 2**31
@@ -196,28 +196,28 @@ def _in_parts(fn: Callable[[int, int], _T], n: int, parts: int) -> list[_T]:
 
 
 _PAD = 16  # uint32 counters = one 64-byte cache line of row padding (see _kernels.count_xy)
-_PAD16 = 32  # the same for uint16 counters
+_PAD8 = 64  # the same for uint8 counters
 
 
-def _count16(x: np.ndarray, y: np.ndarray, w: int, h: int, out: np.ndarray, parts: int) -> None:
+def _count8(x: np.ndarray, y: np.ndarray, w: int, h: int, out: np.ndarray, parts: int) -> None:
     """Add the events per pixel (inside the sensor, checked) to the int64 (H, W) ``out`` through
-    uint16 counters, one set per thread (see ``_kernels.count_xy16``), then fold them (rows
+    uint8 counters, one set per thread (see ``_kernels.count_xy8``), then fold them (rows
     split over the threads too)."""
     from . import _kernels
 
-    stride = w + _PAD16
+    stride = w + _PAD8
     n = x.shape[0]
-    counts = np.zeros((parts, h * stride), np.uint16)
-    wrapped = np.empty((parts, n // 65536 + 1), np.int64)
+    counts = np.zeros((parts, h * stride), np.uint8)
+    wrapped = np.empty((parts, (n // parts + 1) // 256 + 1), np.int64)  # touched only where used
     bd = _bounds(n, parts)
 
     def count(a: int, b: int) -> int:
         c = bd.index(a)
-        return int(_kernels.count_xy16(x[a:b], y[a:b], stride, counts[c], wrapped[c]))
+        return int(_kernels.count_xy8(x[a:b], y[a:b], stride, counts[c], wrapped[c]))
 
     n_wraps = np.array(_in_parts(count, n, parts), np.int64)
-    _in_parts(lambda r0, r1: _kernels.fold16_rows(counts, w, stride, r0, r1, out), h, parts)
-    _kernels.fold_wraps(wrapped, n_wraps, stride, out)
+    _in_parts(lambda r0, r1: _kernels.fold_rows(counts, w, stride, r0, r1, out), h, parts)
+    _kernels.fold_wraps(wrapped, n_wraps, stride, 256, out)
 
 
 def _count_padded(

@@ -1,4 +1,4 @@
-"""The fast paths of hot-pixel counting and filtering (uint16 counters with wrap-around, AVX-512
+"""The fast paths of hot-pixel counting and filtering (uint8 counters with wrap-around, AVX-512
 compaction, two-pass parallel compaction) against plain numpy on generated data: the same
 counts, the same kept events in the same order, the same refusals."""
 
@@ -111,18 +111,22 @@ def test_any_dtypes_are_kept_exactly(threads, simd):
 
 
 def test_counters_wrap_around_exactly(threads):
-    """More than 65535 events on a pixel (the uint16 counters wrap, twice here) and a pixel with
-    exactly 65536: the counts stay exact."""
+    """More than 65535 events on a pixel (the uint8 counters wrap hundreds of times) and a pixel
+    with exactly 65536, pixels with 255, 256, 257 and 512 events: the counts stay exact."""
     w, h = 8, 4
     rng = np.random.default_rng(3)
-    x = np.concatenate([np.full(140_000, 7), np.full(65_536, 0), rng.integers(0, w, 5000)])
-    y = np.concatenate([np.full(140_000, 3), np.full(65_536, 1), rng.integers(0, h, 5000)])
+    edges = [(1, 0, 255), (2, 0, 256), (3, 0, 257), (4, 0, 512)]
+    x = np.concatenate([np.full(140_000, 7), np.full(65_536, 0), rng.integers(0, w, 5000),
+                        *(np.full(k, px) for px, _, k in edges)])
+    y = np.concatenate([np.full(140_000, 3), np.full(65_536, 1), np.full(5000, 2),
+                        *(np.full(k, py) for _, py, k in edges)])
     order = rng.permutation(len(x))
     x, y = x[order].astype(np.uint16), y[order].astype(np.uint16)
     counts = count_events(x, y, sensor_size=(w, h))
     assert counts.dtype == np.int64
     np.testing.assert_array_equal(counts.ravel(), np.bincount(y.astype(np.int64) * w + x, minlength=w * h))
-    assert counts[3, 7] >= 140_000 and counts[1, 0] >= 65_536
+    assert counts[3, 7] == 140_000 and counts[1, 0] == 65_536
+    assert [counts[py, px] for px, py, _ in edges] == [k for _, _, k in edges]
 
 
 @pytest.mark.parametrize("bad", [(5, 0), (0, 4), (-1, 0), (0, -3)])
