@@ -91,9 +91,15 @@ def _first_outside(x: np.ndarray, y: np.ndarray, w: int, h: int) -> int:
     return -1
 
 
-def _check_inside(x: np.ndarray, y: np.ndarray, w: int, h: int) -> None:
-    """Refuse events outside the sensor, naming the first."""
-    bad = _first_outside(x, y, w, h)
+def _check_inside(x: np.ndarray, y: np.ndarray, w: int, h: int, parts: int = 1) -> None:
+    """Refuse events outside the sensor, naming the first (slices on ``parts`` threads: numpy
+    releases the GIL in its min / max)."""
+    def first(a: int, b: int) -> int:
+        i = _first_outside(x[a:b], y[a:b], w, h)
+        return a + i if i >= 0 else -1
+
+    found = [i for i in _in_parts(first, x.shape[0], parts) if i >= 0]
+    bad = found[0] if found else -1
     if bad >= 0:
         raise _outside(x, y, bad, w, h)
 
@@ -140,9 +146,10 @@ def count_events(
         if pa.shape != xa.shape:
             raise IbiscapeError(f"p has shape {pa.shape}, x and y have {xa.shape}")
     if pa is None:
-        _check_inside(xa, ya, w, h)
+        parts = _threads(xa.shape[0], threads)
+        _check_inside(xa, ya, w, h, parts)
         total = np.zeros((h, w), np.int64)
-        _count8(xa, ya, w, h, total, _threads(xa.shape[0], threads))
+        _count8(xa, ya, w, h, total, parts)
         return total
     # uint32 cannot overflow: a pixel holds at most N events; split larger inputs.
     step = 2**31
@@ -548,12 +555,12 @@ def hot_pixel_mask(
     w, h = _check_sensor_size(sensor_size)
     xa, ya = _coords(x, y)
     bits = _keep_bits(pixels, w, h)
-    _check_inside(xa, ya, w, h)
     n = xa.shape[0]
+    parts = _threads(n, threads)
+    _check_inside(xa, ya, w, h, parts)
     out = np.empty(n, np.bool_)
     u8 = out.view(np.uint8)
-    _in_parts(lambda a, b: _kernels.keep_mask(xa[a:b], ya[a:b], w, bits, u8[a:b]), n,
-              _threads(n, threads))
+    _in_parts(lambda a, b: _kernels.keep_mask(xa[a:b], ya[a:b], w, bits, u8[a:b]), n, parts)
     return out
 
 
@@ -630,9 +637,9 @@ def filter_arrays(
     if ta.shape != xa.shape or pa.shape != xa.shape:
         raise IbiscapeError(f"t, x, y, p lengths differ: {ta.shape}, {xa.shape}, {ya.shape}, {pa.shape}")
     bits = _keep_bits(pixels, w, h)
-    _check_inside(xa, ya, w, h)
     n = xa.shape[0]
     parts = _threads(n, threads)
+    _check_inside(xa, ya, w, h, parts)
     keep = np.empty(n, np.uint8)
 
     def mask(a: int, b: int) -> int:
