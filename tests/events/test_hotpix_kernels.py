@@ -99,15 +99,18 @@ def test_every_pixel_of_the_sensor_edge(size, threads, simd):
 
 def test_any_dtypes_are_kept_exactly(threads, simd):
     """filter_arrays on non-canonical dtypes (float time, int32 / int64 coordinates, uint8
-    polarity): the outputs have the input dtypes and values."""
+    polarity), into new arrays and in place: the outputs have the input dtypes and values."""
     w, h = 50, 40
     t, x, y, p = stream(5000, w, h, seed=7)
     pixels = all_pixels(w, h)[::7]
     ins = (t.astype(np.float64) / 3, x.astype(np.int32), y.astype(np.int64), p.astype(np.uint8))
-    out = filter_arrays(*ins, pixels, sensor_size=(w, h))
-    for got, want in zip(out, reference(*ins, pixels, w), strict=True):
-        assert got.dtype == want.dtype
-        np.testing.assert_array_equal(got, want)
+    want = reference(*ins, pixels, w)
+    for inplace in (False, True):
+        cols = [a.copy() for a in ins]
+        out = filter_arrays(*cols, pixels, sensor_size=(w, h), inplace=inplace)
+        for got, ref in zip(out, want, strict=True):
+            assert got.dtype == ref.dtype
+            np.testing.assert_array_equal(got, ref)
 
 
 def test_counters_wrap_around_exactly(threads):
