@@ -230,7 +230,13 @@ def _compress64(typingctx, src, i, dst, k, bits):
 def compact_simd(t, x, y, p, keep, to, xo, yo, po, k, limit):
     """:func:`compact_into` with AVX-512 compress stores, 64 events at a time while a whole
     vector still fits before ``limit`` (the rest by :func:`compact_into`).  Only for CPUs with
-    AVX512F/BW/VBMI2 and element sizes of 1, 2, 4 or 8 bytes (see :func:`simd_ok`)."""
+    AVX512F/BW/VBMI2 and element sizes of 1, 2, 4 or 8 bytes (see :func:`simd_ok`).
+
+    The keep-mask stays a pass of its own: the keep bits of 64 events gathered with AVX-512
+    inside this loop (no mask array) ran no faster than the two passes (78 against 83 ms for
+    5e7 events, session 9), and the kept count it then needs first took 49 ms on its own.
+    In place (outputs = inputs) is safe: every store lands at or before the block just
+    loaded."""
     n = t.shape[0]
     i = 0
     while i + 64 <= n and k + 64 <= limit:
