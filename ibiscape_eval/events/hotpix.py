@@ -11,7 +11,8 @@ Two criteria from the IBISCape paper (section "Event-based evaluation", figure
 Plus libcaer's rate criterion (hot if a pixel fires at least K events within a time window).
 
 Counting and filtering run in numba kernels over the raw ``uint16`` coordinates: one pass, a flat
-``uint8`` count array per thread (with a list of wrap-arounds), a bit table of the pixels to keep, and single-pass compaction.
+``uint8`` count array per thread (with a list of wrap-arounds), a bit table of the pixels to
+keep, and single-pass compaction; ``threads=`` splits the events into contiguous slices.
 """
 
 from __future__ import annotations
@@ -145,8 +146,8 @@ def count_events(
         pa = np.ascontiguousarray(p, dtype=np.bool_)
         if pa.shape != xa.shape:
             raise IbiscapeError(f"p has shape {pa.shape}, x and y have {xa.shape}")
+    parts = _threads(xa.shape[0], threads)  # checked with p too
     if pa is None:
-        parts = _threads(xa.shape[0], threads)
         _check_inside(xa, ya, w, h, parts)
         total = np.zeros((h, w), np.int64)
         _count8(xa, ya, w, h, total, parts)
