@@ -1,8 +1,11 @@
 """Hot-pixel counting and filtering: ibiscape-eval's numba kernels against the plain numpy
-bincount-and-mask baseline, in the same run, on one thread (CPU time) and on two threads (wall
-time, with the load average: the machine may be shared), with the peak memory each step adds
-over the events already in memory; then ``ibiscape-eval hotpix`` streaming an IBISCape DVS
-folder from disk (count + write the filtered folder), its wall time and peak memory.
+bincount-and-mask baseline, in the same run: on one thread (best CPU time) and with
+``threads=2`` (wall time, best and median, with the load average: the machine may be shared;
+and the CPU time over both threads), with the peak memory each step adds over the events
+already in memory.  The filter both into new arrays and in place (``filter_arrays(...,
+inplace=True)`` on copies of the events, made outside the timing).  Then ``ibiscape-eval
+hotpix`` streaming an IBISCape DVS folder from disk (count + write the filtered folder), its
+wall time and peak memory.
 
 Run::
 
@@ -34,6 +37,7 @@ from _runner import run
 from ibiscape_eval.core.events import Events
 from ibiscape_eval.events import (
     count_events,
+    filter_arrays,
     filter_events,
     hot_pixel_mask,
     hot_pixels_from_counts,
@@ -48,16 +52,19 @@ def best_of(fn: Callable[[], object], repeat: int) -> float:
     return best_times(fn, repeat)[0]
 
 
-def best_times(fn: Callable[[], object], repeat: int) -> tuple[float, float]:
-    """Best CPU time and best wall time of ``repeat`` runs after a warm-up."""
-    fn()  # warm-up (numba compile / page faults)
-    cpu, wall = [], []
-    for _ in range(repeat):
+def best_times(fn: Callable[..., object], repeat: int,
+               setup: Callable[[], Any] | None = None) -> tuple[float, float, float]:
+    """Best CPU time, best and median wall time of ``repeat`` runs after a warm-up; with
+    ``setup``, each run is ``fn(setup())`` and the setup is not timed."""
+    def once() -> tuple[float, float]:
+        arg = () if setup is None else (setup(),)
         t0, w0 = time.process_time(), time.perf_counter()
-        fn()
-        cpu.append(time.process_time() - t0)
-        wall.append(time.perf_counter() - w0)
-    return min(cpu), min(wall)
+        fn(*arg)
+        return time.process_time() - t0, time.perf_counter() - w0
+
+    once()  # warm-up (numba compile / page faults)
+    cpu, wall = zip(*(once() for _ in range(repeat)), strict=True)
+    return min(cpu), min(wall), float(np.median(wall))
 
 
 def _rss_bytes() -> int:
@@ -65,12 +72,14 @@ def _rss_bytes() -> int:
         return int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
 
 
-def peak_added_mb(fn: Callable[[], object]) -> float:
+def peak_added_mb(fn: Callable[..., object], setup: Callable[[], Any] | None = None) -> float:
     """Peak resident memory added while ``fn`` runs (its result included), MB, sampled every
-    millisecond by a thread (the kernels release the GIL)."""
+    millisecond by a thread (the kernels release the GIL); ``setup()``'s result, made before,
+    is not counted."""
     import gc
     import threading
 
+    arg = () if setup is None else (setup(),)
     gc.collect()
     try:  # hand memory freed by earlier runs back to the OS, or reusing it hides the peak
         import ctypes
@@ -89,11 +98,11 @@ def peak_added_mb(fn: Callable[[], object]) -> float:
 
     th = threading.Thread(target=sample)
     th.start()
-    out = fn()
+    out = fn(*arg)
     peak[0] = max(peak[0], _rss_bytes())
     done.set()
     th.join()
-    del out
+    del out, arg
     return (peak[0] - base) / 1e6
 
 
@@ -108,84 +117,106 @@ def make_stream(n_events: int, seed: int = 0) -> tuple[Events, np.ndarray]:
     return Events.concatenate(parts), hot
 
 
-def in_memory(n_events: int, repeat: int) -> None:
-    t0 = time.process_time()
-    ev, planted = make_stream(n_events)
-    n = len(ev)
-    print(f"in memory: {n:,} events on a {SENSOR[0]}x{SENSOR[1]} sensor "
-          f"(generated in {time.process_time() - t0:.1f} s), best of {repeat}")
+def _steps(ev: Events, hot: np.ndarray) -> list[tuple[str, Callable[..., object], Callable[..., object], bool]]:
+    """(name, numpy, ours(threads, [copies]), in place) of every measured step."""
     w, h = SENSOR
     x, y, t, p = ev.x, ev.y, ev.t_ns, ev.p
-    ev_mb = sum(a.nbytes for a in (x, y, t, p)) / 1e6
-    hot = hot_pixels_from_counts(count_events(x, y, sensor_size=SENSOR), top_n=200).pixels
-
-    def np_count() -> np.ndarray:
-        return np.bincount(y.astype(np.int64) * w + x, minlength=w * h)
-
     hot_bool = np.zeros(w * h, bool)
     hot_bool[hot[:, 1] * w + hot[:, 0]] = True
+
+    def np_count(*_: object) -> np.ndarray:
+        return np.bincount(y.astype(np.int64) * w + x, minlength=w * h)
 
     def np_mask() -> np.ndarray:
         return ~hot_bool[y.astype(np.int64) * w + x]
 
-    def np_filter() -> tuple[np.ndarray, ...]:
+    def np_filter(*_: object) -> tuple[np.ndarray, ...]:
         m = np_mask()
         return t[m], x[m], y[m], p[m]
 
-    def np_both() -> object:
+    def np_both(*_: object) -> object:
         np_count()
         return np_filter()
 
-    def ib_count() -> np.ndarray:
-        return count_events(x, y, sensor_size=SENSOR)
+    def ib_both(th: int) -> object:
+        count_events(x, y, sensor_size=SENSOR, threads=th)
+        return filter_events(ev, hot, sensor_size=SENSOR, threads=th)
 
-    def ib_mask() -> np.ndarray:
-        return hot_pixel_mask(x, y, hot, sensor_size=SENSOR)
+    def ib_inplace(th: int, cols: list[np.ndarray]) -> object:
+        tc, xc, yc, pc = cols
+        return filter_arrays(tc, xc, yc, pc, hot, sensor_size=SENSOR, threads=th, inplace=True)
 
-    def ib_filter() -> Events:
-        return filter_events(ev, hot, sensor_size=SENSOR)
+    def ib_both_inplace(th: int, cols: list[np.ndarray]) -> object:
+        count_events(cols[1], cols[2], sensor_size=SENSOR, threads=th)
+        return ib_inplace(th, cols)
 
-    def ib_both() -> object:
-        ib_count()
-        return ib_filter()
-
-    # same answers
-    assert np.array_equal(np_count(), ib_count().ravel())
-    assert np.array_equal(np_mask(), ib_mask())
-    fe = ib_filter()
-    tn, xn, yn, pn = np_filter()
-    assert np.array_equal(fe.y, yn)
-    assert np.array_equal(fe.t_ns, tn) and np.array_equal(fe.x, xn) and np.array_equal(fe.p, pn)
-    print(f"  planted hot pixels found by top-200: {len({tuple(r) for r in planted} & {tuple(r) for r in hot})}/200; "
-          f"discarded {100 * (1 - len(fe) / n):.2f} %")
-    rows = [
-        ("count (per-pixel histogram)", np_count, ib_count),
-        ("keep-mask", np_mask, ib_mask),
-        ("filter (t, x, y, p compaction)", np_filter, ib_filter),
-        ("count + filter", np_both, ib_both),
+    return [
+        ("count (per-pixel histogram)", np_count,
+         lambda th: count_events(x, y, sensor_size=SENSOR, threads=th), False),
+        ("keep-mask", np_mask, lambda th: hot_pixel_mask(x, y, hot, sensor_size=SENSOR, threads=th), False),
+        ("filter, new arrays", np_filter, lambda th: filter_events(ev, hot, sensor_size=SENSOR, threads=th),
+         False),
+        ("filter in place (inplace=True)", np_filter, ib_inplace, True),
+        ("count + filter, new arrays", np_both, ib_both, False),
+        ("count + filter in place", np_both, ib_both_inplace, True),
     ]
-    import numba
 
-    threads = min(2, numba.config.NUMBA_NUM_THREADS)
-    print(f"  Mev/s: one thread by CPU time, {threads} threads by wall time (load average "
-          f"{os.getloadavg()[0]:.1f}) and by CPU time over the threads (the wall time a quiet "
-          f"machine would give at perfect scaling: events / CPU s x {threads}); peak MB added "
-          f"over the {ev_mb:.0f} MB of events")
-    print(f"  {'step':32s} {'numpy':>7s} {'ours 1T':>8s} {'RATIO':>6s} {'numpy wall':>10s} "
-          f"{f'ours {threads}T wall':>13s} {'RATIO':>6s} {f'{threads}T CPU':>7s} "
+
+def _check_same(ev: Events, hot: np.ndarray, steps: list[Any]) -> None:
+    """Our counts, mask and kept events (new arrays and in place) are numpy's."""
+    by = {name: (a, b) for name, a, b, _ in steps}
+    np_count, ib_count = by["count (per-pixel histogram)"]
+    assert np.array_equal(np_count(), ib_count(1).ravel())
+    np_mask, ib_mask = by["keep-mask"]
+    assert np.array_equal(np_mask(), ib_mask(2))
+    want = by["filter, new arrays"][0]()
+    for th in (1, 2):
+        fe = by["filter, new arrays"][1](th)
+        got = by["filter in place (inplace=True)"][1](th, [a.copy() for a in (ev.t_ns, ev.x, ev.y, ev.p)])
+        for a, b, c in zip((fe.t_ns, fe.x, fe.y, fe.p), got, want, strict=True):
+            assert np.array_equal(a, c) and np.array_equal(b, c)
+
+
+def in_memory(n_events: int, repeat: int) -> None:
+    from functools import partial
+
+    t0 = time.process_time()
+    ev, planted = make_stream(n_events)
+    n = len(ev)
+    print(f"in memory: {n:,} events on a {SENSOR[0]}x{SENSOR[1]} sensor "
+          f"(generated in {time.process_time() - t0:.1f} s), {repeat} runs after a warm-up")
+    cols = (ev.t_ns, ev.x, ev.y, ev.p)
+    ev_mb = sum(a.nbytes for a in cols) / 1e6
+    hot = hot_pixels_from_counts(count_events(ev.x, ev.y, sensor_size=SENSOR), top_n=200).pixels
+    steps = _steps(ev, hot)
+    _check_same(ev, hot, steps)
+    kept = len(filter_events(ev, hot, sensor_size=SENSOR))
+    print(f"  planted hot pixels found by top-200: {len({tuple(r) for r in planted} & {tuple(r) for r in hot})}/200; "
+          f"discarded {100 * (1 - kept / n):.2f} %; the same counts, mask and kept events as numpy")
+    threads = 2
+    print(f"  Mev/s: numpy and ours on one thread by best CPU time; ours on threads={threads} by wall "
+          f"time, best / median (load average {os.getloadavg()[0]:.1f}: on a shared machine only CPU "
+          f"times are stable), and by CPU time over the threads (events / CPU s x {threads}: the wall "
+          f"time of a quiet machine at perfect scaling); RATIO = numpy's time / ours; peak MB added "
+          f"over the {ev_mb:.0f} MB of events (in place: over their copies)")
+    print(f"  {'step':31s} {'numpy':>6s} {'ours 1T':>8s} {'RATIO':>6s} {'numpy wall':>10s} "
+          f"{f'ours {threads}T wall best/med':>21s} {'RATIO':>6s} {f'{threads}T CPU':>7s} "
           f"{'peak MB numpy/1T/' + str(threads) + 'T':>22s}")
-    for name, a, b in rows:
-        numba.set_num_threads(1)
-        (ta, wa), tb = best_times(a, repeat), best_of(b, repeat)
-        pa, pb = peak_added_mb(a), peak_added_mb(b)
-        numba.set_num_threads(threads)
-        cb, wb = best_times(b, repeat)
-        pc = peak_added_mb(b)
-        print(f"  {name:32s} {n / ta / 1e6:7.0f} {n / tb / 1e6:8.0f} {ta / tb:5.1f}x "
-              f"{n / wa / 1e6:10.0f} {n / wb / 1e6:13.0f} {wa / wb:5.1f}x "
-              f"{threads * n / cb / 1e6:7.0f} {pa:8.0f}/{pb:.0f}/{pc:.0f}")
-    numba.set_num_threads(1)
-    roofline(n, (t, x, y, p), repeat, threads)
+
+    def copies() -> list[np.ndarray]:
+        return [a.copy() for a in cols]
+
+    for name, a, b, inplace in steps:
+        setup = copies if inplace else None
+        ta, wa, _ = best_times(a, repeat, setup)
+        tb = best_times(partial(b, 1), repeat, setup)[0]
+        cb, wb, mb = best_times(partial(b, threads), repeat, setup)
+        pa, pb, pc = (peak_added_mb(f, setup) for f in (a, partial(b, 1), partial(b, threads)))
+        print(f"  {name:31s} {n / ta / 1e6:6.0f} {n / tb / 1e6:8.0f} {ta / tb:5.1f}x "
+              f"{n / wa / 1e6:10.0f} {n / wb / 1e6:14.0f} / {n / mb / 1e6:4.0f} {wa / wb:5.1f}x "
+              f"{threads * n / cb / 1e6:7.0f} {pa:10.0f}/{pb:.0f}/{pc:.0f}")
+    print(f"  (load average at the end {os.getloadavg()[0]:.1f})")
+    roofline(n, cols, repeat, threads)
 
 
 def roofline(n: int, cols: tuple[np.ndarray, ...], repeat: int, threads: int) -> None:
@@ -328,7 +359,7 @@ def streamed(n_events: int, tmp_root: Path) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--n-events", type=float, default=5e7, help="in-memory stream size (0: skip)")
-    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--stream-events", type=float, default=1e7, help="streamed folder size (0: skip)")
     ap.add_argument("--tmp", type=Path, default=Path(tempfile.gettempdir()))
     ap.add_argument("--against", type=Path, default=None,

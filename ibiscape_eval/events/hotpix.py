@@ -11,14 +11,15 @@ Two criteria from the IBISCape paper (section "Event-based evaluation", figure
 Plus libcaer's rate criterion (hot if a pixel fires at least K events within a time window).
 
 Counting and filtering run in numba kernels over the raw ``uint16`` coordinates: one pass, a flat
-``uint32`` count array, a ``uint8`` lookup table of hot pixels, and single-pass compaction.
+``uint8`` count array per thread (with a list of wrap-arounds), a bit table of the pixels to
+keep, and single-pass compaction; ``threads=`` splits the events into contiguous slices.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -41,6 +42,8 @@ __all__ = [
     "hot_pixels_from_counts",
     "rate_hot_pixels",
 ]
+
+_T = TypeVar("_T")
 
 DEFAULT_N_SIGMA = 5.0  # dvs_tools' default (--n_std)
 
@@ -89,9 +92,15 @@ def _first_outside(x: np.ndarray, y: np.ndarray, w: int, h: int) -> int:
     return -1
 
 
-def _check_inside(x: np.ndarray, y: np.ndarray, w: int, h: int) -> None:
-    """Refuse events outside the sensor, naming the first."""
-    bad = _first_outside(x, y, w, h)
+def _check_inside(x: np.ndarray, y: np.ndarray, w: int, h: int, parts: int = 1) -> None:
+    """Refuse events outside the sensor, naming the first (slices on ``parts`` threads: numpy
+    releases the GIL in its min / max)."""
+    def first(a: int, b: int) -> int:
+        i = _first_outside(x[a:b], y[a:b], w, h)
+        return a + i if i >= 0 else -1
+
+    found = [i for i in _in_parts(first, x.shape[0], parts) if i >= 0]
+    bad = found[0] if found else -1
     if bad >= 0:
         raise _outside(x, y, bad, w, h)
 
@@ -102,6 +111,7 @@ def count_events(
     *,
     sensor_size: tuple[int, int],
     p: npt.ArrayLike | None = None,
+    threads: int | None = None,
 ) -> npt.NDArray[np.int64]:
     """Number of events per pixel.
 
@@ -113,6 +123,10 @@ def count_events(
         Sensor width and height in pixels.
     p : array_like, shape (N,), bool, optional
         Polarities; if given, the counts are split by polarity.
+    threads : int, optional
+        Threads to count on (without ``p``): each counts a contiguous slice into counters of its
+        own.  Default: numba's thread count (``NUMBA_NUM_THREADS``) for streams of at least
+        :data:`PARALLEL_MIN_EVENTS` events, else 1.
 
     Returns
     -------
@@ -132,10 +146,11 @@ def count_events(
         pa = np.ascontiguousarray(p, dtype=np.bool_)
         if pa.shape != xa.shape:
             raise IbiscapeError(f"p has shape {pa.shape}, x and y have {xa.shape}")
+    parts = _threads(xa.shape[0], threads)  # checked with p too
     if pa is None:
-        _check_inside(xa, ya, w, h)
+        _check_inside(xa, ya, w, h, parts)
         total = np.zeros((h, w), np.int64)
-        _count16(xa, ya, w, h, total)
+        _count8(xa, ya, w, h, total, parts)
         return total
     # uint32 cannot overflow: a pixel holds at most N events; split larger inputs.
     step = 2**31
@@ -149,38 +164,68 @@ def count_events(
     return total3
 
 
-#: Streams shorter than this run on one thread (starting the numba threads costs more).
+#: Streams shorter than this run on one thread unless ``threads`` says otherwise (starting the
+#: threads costs more).
 PARALLEL_MIN_EVENTS = 4_000_000
 
 
-def _threads(n: int) -> int:
-    """numba threads to use for ``n`` events (``NUMBA_NUM_THREADS`` / ``numba.set_num_threads``
-    decide the most; 1 for short streams)."""
-    if n < PARALLEL_MIN_EVENTS:
+def _threads(n: int, threads: int | None = None) -> int:
+    """Threads to use for ``n`` events: ``threads`` if given, else numba's thread count for the
+    calling thread (``NUMBA_NUM_THREADS`` / ``numba.set_num_threads`` set the most), and 1 for
+    streams shorter than :data:`PARALLEL_MIN_EVENTS`."""
+    if threads is not None:
+        if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
+            raise IbiscapeError(f"threads must be a whole number >= 1, got {threads!r}")
+        want = int(threads)
+    elif n < PARALLEL_MIN_EVENTS:
         return 1
-    import numba
+    else:
+        import numba
 
-    return int(numba.get_num_threads())
+        want = int(numba.get_num_threads())
+    return max(1, min(want, n))  # no empty slices
+
+
+def _bounds(n: int, parts: int) -> list[int]:
+    """Start of each of ``parts`` contiguous slices of ``n`` items, and ``n``."""
+    return [n * c // parts for c in range(parts + 1)]
+
+
+def _in_parts(fn: Callable[[int, int], _T], n: int, parts: int) -> list[_T]:
+    """``fn(a, b)`` on every slice ``[a, b)`` of :func:`_bounds`, on ``parts`` threads of a
+    pool of this call's own (the kernels release the GIL; nothing process-wide changes)."""
+    bd = _bounds(n, parts)
+    if parts == 1:
+        return [fn(0, n)]
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(parts) as pool:
+        return list(pool.map(fn, bd[:-1], bd[1:]))
 
 
 _PAD = 16  # uint32 counters = one 64-byte cache line of row padding (see _kernels.count_xy)
-_PAD16 = 32  # the same for uint16 counters
+_PAD8 = 64  # the same for uint8 counters
 
 
-def _count16(x: np.ndarray, y: np.ndarray, w: int, h: int, out: np.ndarray) -> None:
+def _count8(x: np.ndarray, y: np.ndarray, w: int, h: int, out: np.ndarray, parts: int) -> None:
     """Add the events per pixel (inside the sensor, checked) to the int64 (H, W) ``out`` through
-    uint16 counters (one set per thread, see ``_kernels.count_xy16``)."""
+    uint8 counters, one set per thread (see ``_kernels.count_xy8``), then fold them (rows
+    split over the threads too)."""
     from . import _kernels
 
-    stride = w + _PAD16
-    threads = _threads(x.shape[0])
-    counts = np.zeros((threads, h * stride), np.uint16)
-    wrapped = np.empty((threads, x.shape[0] // 65536 + 1), np.int64)
-    if threads > 1:
-        n_wraps = _kernels.count_xy16_threads(x, y, stride, counts, wrapped, threads)
-    else:
-        n_wraps = np.array([_kernels.count_xy16(x, y, stride, counts[0], wrapped[0])], np.int64)
-    _kernels.fold16(counts, wrapped, n_wraps, w, h, stride, out)
+    stride = w + _PAD8
+    n = x.shape[0]
+    counts = np.zeros((parts, h * stride), np.uint8)
+    wrapped = np.empty((parts, (n // parts + 1) // 256 + 1), np.int64)  # touched only where used
+    bd = _bounds(n, parts)
+
+    def count(a: int, b: int) -> int:
+        c = bd.index(a)
+        return int(_kernels.count_xy8(x[a:b], y[a:b], stride, counts[c], wrapped[c]))
+
+    n_wraps = np.array(_in_parts(count, n, parts), np.int64)
+    _in_parts(lambda r0, r1: _kernels.fold_rows(counts, w, stride, r0, r1, out), h, parts)
+    _kernels.fold_wraps(wrapped, n_wraps, stride, 256, out)
 
 
 def _count_padded(
@@ -426,6 +471,7 @@ def detect_hot_pixels(
     sensor_size: tuple[int, int],
     top_n: int | None = None,
     n_sigma: float | None = None,
+    threads: int | None = None,
 ) -> HotPixelResult:
     """Find the hot pixels of a recording from its per-pixel event counts.
 
@@ -440,6 +486,8 @@ def detect_hot_pixels(
     n_sigma : float, optional
         Threshold criterion: ``count > mean + n_sigma * std`` over the pixels that fired
         (population std).  Default 5 when neither criterion is given; with both, their union.
+    threads : int, optional
+        Threads to count on (see :func:`count_events`).
 
     Returns
     -------
@@ -451,27 +499,31 @@ def detect_hot_pixels(
     >>> res = detect_hot_pixels(x, y, sensor_size=(346, 260), n_sigma=5)  # doctest: +SKIP
     >>> keep = hot_pixel_mask(x, y, res.pixels, sensor_size=(346, 260))  # doctest: +SKIP
     """
-    counts = count_events(x, y, sensor_size=sensor_size)
+    counts = count_events(x, y, sensor_size=sensor_size, threads=threads)
     return hot_pixels_from_counts(counts, top_n=top_n, n_sigma=n_sigma)
 
 
-def _hot_lut(pixels: npt.ArrayLike, w: int, h: int) -> np.ndarray:
+def _keep_bits(pixels: npt.ArrayLike, w: int, h: int) -> np.ndarray:
+    """The pixels to keep as a bit table (see ``_kernels.keep_mask``): uint32 words, bit
+    ``j % 32`` of word ``j // 32`` set for pixel ``j = y * w + x`` unless it is hot."""
     px = np.asarray(pixels)
-    if px.size == 0:
-        return np.zeros(w * h, np.uint8)
-    if px.ndim != 2 or px.shape[1] != 2 or px.dtype.kind not in "iu":
-        raise IbiscapeError(f"pixels must be an integer (K, 2) array of x, y; got {px.shape} {px.dtype}")
-    px = px.astype(np.int64)
-    bad = (px[:, 0] < 0) | (px[:, 0] >= w) | (px[:, 1] < 0) | (px[:, 1] >= h)
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
-        raise IbiscapeError(
-            f"hot pixel {i} (x={px[i, 0]}, y={px[i, 1]}) lies outside the {w}x{h} sensor; "
-            "check the hot-pixel list and the sensor size"
-        )
-    lut = np.zeros(w * h, np.uint8)
-    lut[px[:, 1] * w + px[:, 0]] = 1
-    return lut
+    keep = np.ones(w * h, np.bool_)
+    if px.size:
+        if px.ndim != 2 or px.shape[1] != 2 or px.dtype.kind not in "iu":
+            raise IbiscapeError(
+                f"pixels must be an integer (K, 2) array of x, y; got {px.shape} {px.dtype}")
+        px = px.astype(np.int64)
+        bad = (px[:, 0] < 0) | (px[:, 0] >= w) | (px[:, 1] < 0) | (px[:, 1] >= h)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise IbiscapeError(
+                f"hot pixel {i} (x={px[i, 0]}, y={px[i, 1]}) lies outside the {w}x{h} sensor; "
+                "check the hot-pixel list and the sensor size"
+            )
+        keep[px[:, 1] * w + px[:, 0]] = False
+    packed = np.packbits(keep, bitorder="little")
+    packed = np.concatenate([packed, np.zeros(-packed.size % 4, np.uint8)])
+    return packed.view("<u4").astype(np.uint32, copy=False)
 
 
 def hot_pixel_mask(
@@ -480,6 +532,7 @@ def hot_pixel_mask(
     pixels: npt.ArrayLike,
     *,
     sensor_size: tuple[int, int],
+    threads: int | None = None,
 ) -> npt.NDArray[np.bool_]:
     """Boolean keep-mask: True for events that do not come from a hot pixel.
 
@@ -491,6 +544,8 @@ def hot_pixel_mask(
         Hot pixels as x, y (e.g. ``HotPixelResult.pixels`` or a ``hot_pixels.txt``).
     sensor_size : (int, int)
         Sensor width and height in pixels.
+    threads : int, optional
+        Threads to work on, each on a contiguous slice (default as in :func:`count_events`).
 
     Returns
     -------
@@ -500,17 +555,22 @@ def hot_pixel_mask(
 
     w, h = _check_sensor_size(sensor_size)
     xa, ya = _coords(x, y)
-    lut = _hot_lut(pixels, w, h)
-    _check_inside(xa, ya, w, h)
-    out = np.empty(xa.shape[0], np.bool_)
-    _kernels.keep_mask(xa, ya, w, lut, out.view(np.uint8))
+    bits = _keep_bits(pixels, w, h)
+    n = xa.shape[0]
+    parts = _threads(n, threads)
+    _check_inside(xa, ya, w, h, parts)
+    out = np.empty(n, np.bool_)
+    u8 = out.view(np.uint8)
+    _in_parts(lambda a, b: _kernels.keep_mask(xa[a:b], ya[a:b], w, bits, u8[a:b]), n, parts)
     return out
 
 
 def filter_events(
-    events: Events, pixels: npt.ArrayLike, *, sensor_size: tuple[int, int]
+    events: Events, pixels: npt.ArrayLike, *, sensor_size: tuple[int, int],
+    threads: int | None = None,
 ) -> Events:
-    """The events that do not come from a hot pixel, in their order (one pass, no mask array).
+    """The events that do not come from a hot pixel, in their order (new arrays; see
+    :func:`filter_arrays` for the filter in place).
 
     Parameters
     ----------
@@ -520,45 +580,121 @@ def filter_events(
         Hot pixels as x, y.
     sensor_size : (int, int)
         Sensor width and height in pixels.
+    threads : int, optional
+        Threads to filter on, each on a contiguous slice (default as in :func:`count_events`).
     """
-    t, x, y, p = filter_arrays(events.t_ns, events.x, events.y, events.p, pixels, sensor_size=sensor_size)
+    t, x, y, p = filter_arrays(events.t_ns, events.x, events.y, events.p, pixels,
+                               sensor_size=sensor_size, threads=threads)
     return Events(t, x, y, p)
+
+
+def _check_inplace(cols: tuple[Any, ...]) -> None:
+    """Refuse ``inplace=True`` on what cannot be overwritten in place."""
+    for name, a in zip(("t", "x", "y", "p"), cols, strict=True):
+        if not isinstance(a, np.ndarray) or not a.flags.c_contiguous or not a.flags.writeable:
+            raise IbiscapeError(
+                f"inplace=True needs writeable C-contiguous numpy arrays, and {name} is not one "
+                "(an Events' arrays are read-only): use inplace=False or pass copies")
+    for i in range(4):
+        for j in range(i + 1, 4):
+            if np.may_share_memory(cols[i], cols[j]):
+                raise IbiscapeError(
+                    "inplace=True needs four arrays that share no memory; "
+                    f"{'txyp'[i]} and {'txyp'[j]} overlap: use inplace=False")
 
 
 def filter_arrays(
     t: np.ndarray, x: np.ndarray, y: np.ndarray, p: np.ndarray, pixels: npt.ArrayLike,
-    *, sensor_size: tuple[int, int],
+    *, sensor_size: tuple[int, int], threads: int | None = None, inplace: bool = False,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`filter_events` on plain arrays of any dtypes (kept exactly, as are the inputs)."""
+    """:func:`filter_events` on plain arrays of any dtypes (kept exactly, as are the inputs).
+
+    Two passes over the events, each split over ``threads`` threads (contiguous slices; default
+    as in :func:`count_events`): a keep-mask with the number of kept events per slice, then
+    every slice compacted to its place in the output (AVX-512 compress stores where the CPU has
+    them, else a scalar loop; the same events either way).
+
+    ``inplace=True`` compacts into the given arrays themselves and returns views of their
+    first K elements (the kept events, in order); their elements from K on are left
+    unspecified.  It needs writeable, C-contiguous numpy arrays that share no memory (so not
+    an :class:`Events`' read-only arrays), and spares the new output arrays: their allocation
+    and first-touch page faults cost as much as the compaction itself.  Extra memory: the
+    one-byte keep-mask and, on several threads, a copy of the events that the later slices'
+    output overwrites before the earlier slices have read them (the events discarded before
+    each slice boundary; one thread is used when that would exceed the kept events).
+
+    Examples
+    --------
+    >>> t, x, y, p = (np.array(a) for a in (ev.t_ns, ev.x, ev.y, ev.p))  # doctest: +SKIP
+    >>> t, x, y, p = filter_arrays(t, x, y, p, hot, sensor_size=(346, 260), inplace=True)  # doctest: +SKIP
+    """
     from . import _kernels
 
     w, h = _check_sensor_size(sensor_size)
+    if inplace:
+        _check_inplace((t, x, y, p))
     xa, ya = _coords(x, y)
     ta, pa = np.ascontiguousarray(t), np.ascontiguousarray(p)
     if ta.shape != xa.shape or pa.shape != xa.shape:
         raise IbiscapeError(f"t, x, y, p lengths differ: {ta.shape}, {xa.shape}, {ya.shape}, {pa.shape}")
-    lut = _hot_lut(pixels, w, h)
-    keep = np.empty(xa.shape[0], np.uint8)
-    _check_inside(xa, ya, w, h)
-    threads = _threads(xa.shape[0])
-    if threads > 1:
-        off = _kernels.mask_parts(xa, ya, w, lut, keep, threads)
-    else:
-        _kernels.keep_mask(xa, ya, w, lut, keep)
-        off = np.array([0, _kernels.count_kept(keep)], np.int64)
+    bits = _keep_bits(pixels, w, h)
+    n = xa.shape[0]
+    parts = _threads(n, threads)
+    _check_inside(xa, ya, w, h, parts)
+    keep = np.empty(n, np.uint8)
+
+    def mask(a: int, b: int) -> int:
+        _kernels.keep_mask(xa[a:b], ya[a:b], w, bits, keep[a:b])
+        return int(_kernels.count_kept(keep[a:b]))
+
+    off = [0, *np.cumsum(_in_parts(mask, n, parts)).tolist()]
+    cols = (ta, xa, ya, pa)
+    compact: Any = (_kernels.compact_simd if _kernels.simd_ok(*(a.dtype for a in cols))
+                    else _kernels.compact_into)
+    if inplace:
+        return _compact_inplace(cols, keep, off, compact)
     # exactly sized outputs, allocated by numpy, which asks for transparent huge pages: their
     # first write costs 57-74 ms per 600 MB against 280 ms for 4 KiB pages (numba's allocator),
     # though where memory is fragmented it can stall in page compaction (median 590 ms at load
-    # 22 in session 8, numba's 330 ms: numpy's own filtering pays the same)
-    outs = tuple(np.empty(int(off[-1]), a.dtype) for a in (ta, xa, ya, pa))
-    simd = _kernels.simd_ok(ta.dtype, xa.dtype, ya.dtype, pa.dtype)
-    if threads > 1:
-        parts: Any = _kernels.compact_parts_simd if simd else _kernels.compact_parts
-        parts(ta, xa, ya, pa, keep, off, *outs)
-    else:
-        one: Any = _kernels.compact_simd if simd else _kernels.compact_into
-        one(ta, xa, ya, pa, keep, *outs, 0, off[-1])
+    # 22 in session 8, numba's 330 ms: numpy's own filtering pays the same); the first write
+    # happens in the threads, which share that cost
+    outs = tuple(np.empty(off[-1], a.dtype) for a in cols)
+    bd = _bounds(n, parts)
+
+    def run(a: int, b: int) -> None:
+        c = bd.index(a)
+        compact(*(col[a:b] for col in cols), keep[a:b], *outs, off[c], off[c + 1])
+
+    _in_parts(run, n, parts)
     to, xo, yo, po = outs
+    return to, xo, yo, po
+
+
+def _compact_inplace(cols: tuple[np.ndarray, ...], keep: np.ndarray, off: list[int],
+                     compact: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Compact ``cols`` into themselves: slice ``c`` (of ``len(off) - 1``, see :func:`_bounds`)
+    to ``[off[c], off[c + 1])``.  A slice writes at or before the places it reads, so one
+    slice alone is safe; but the slices after ``c`` write from ``off[c + 1]`` on, over slice
+    ``c``'s own input ``[off[c + 1], end of slice c)`` before slice ``c`` may have read it:
+    that tail is copied first and slice ``c`` reads it from the copy."""
+    n, k, parts = keep.shape[0], off[-1], len(off) - 1
+    bd = _bounds(n, parts)
+    cut = [max(off[c + 1], bd[c]) for c in range(parts - 1)] + [n]
+    n_saved = sum(bd[c + 1] - cut[c] for c in range(parts))
+    if parts == 1 or n_saved > k:
+        compact(*cols, keep, *cols, 0, k)
+    else:
+        tails = [tuple(a[cut[c]:bd[c + 1]].copy() for a in (*cols, keep)) for c in range(parts - 1)]
+
+        def run(a: int, b: int) -> None:
+            c = bd.index(a)
+            end = off[c + 1]
+            kk = compact(*(col[a:cut[c]] for col in cols), keep[a:cut[c]], *cols, off[c], end)
+            if c < parts - 1:
+                compact(*tails[c], *cols, kk, end)
+
+        _in_parts(run, n, parts)
+    to, xo, yo, po = (a[:k] for a in cols)
     return to, xo, yo, po
 
 

@@ -206,12 +206,10 @@ def test_result_to_dict_is_strict_json() -> None:
 
 
 @pytest.mark.parametrize("hot_fraction", [0.0, 0.3, 1.0])
-def test_threaded_count_and_filter_equal_the_one_thread_results(monkeypatch, hot_fraction):
+def test_threaded_count_and_filter_equal_the_one_thread_results(hot_fraction):
     """Counting into per-thread histograms and filtering slice by slice (the path of long
     streams) give exactly the one-thread counts and filtered events, also when a slice ends
     in discarded events or keeps none."""
-    from ibiscape_eval.events import hotpix
-
     rng = np.random.default_rng(7)
     n, w, h = 10_007, 37, 23
     x = rng.integers(0, w, n).astype(np.uint16)
@@ -222,9 +220,8 @@ def test_threaded_count_and_filter_equal_the_one_thread_results(monkeypatch, hot
     hot = np.stack([hot_flat % w, hot_flat // w], axis=1)
     one_counts = count_events(x, y, sensor_size=(w, h))
     one = filter_events(ev, hot, sensor_size=(w, h))
-    monkeypatch.setattr(hotpix, "_threads", lambda n_events: 3)
-    counts = count_events(x, y, sensor_size=(w, h))
-    many = filter_events(ev, hot, sensor_size=(w, h))
+    counts = count_events(x, y, sensor_size=(w, h), threads=3)
+    many = filter_events(ev, hot, sensor_size=(w, h), threads=3)
     assert np.array_equal(counts, one_counts)
     for f in ("t_ns", "x", "y", "p"):
         assert np.array_equal(getattr(many, f), getattr(one, f))

@@ -1,4 +1,4 @@
-"""The fast paths of hot-pixel counting and filtering (uint16 counters with wrap-around, AVX-512
+"""The fast paths of hot-pixel counting and filtering (uint8 counters with wrap-around, AVX-512
 compaction, two-pass parallel compaction) against plain numpy on generated data: the same
 counts, the same kept events in the same order, the same refusals."""
 
@@ -99,30 +99,37 @@ def test_every_pixel_of_the_sensor_edge(size, threads, simd):
 
 def test_any_dtypes_are_kept_exactly(threads, simd):
     """filter_arrays on non-canonical dtypes (float time, int32 / int64 coordinates, uint8
-    polarity): the outputs have the input dtypes and values."""
+    polarity), into new arrays and in place: the outputs have the input dtypes and values."""
     w, h = 50, 40
     t, x, y, p = stream(5000, w, h, seed=7)
     pixels = all_pixels(w, h)[::7]
     ins = (t.astype(np.float64) / 3, x.astype(np.int32), y.astype(np.int64), p.astype(np.uint8))
-    out = filter_arrays(*ins, pixels, sensor_size=(w, h))
-    for got, want in zip(out, reference(*ins, pixels, w), strict=True):
-        assert got.dtype == want.dtype
-        np.testing.assert_array_equal(got, want)
+    want = reference(*ins, pixels, w)
+    for inplace in (False, True):
+        cols = [a.copy() for a in ins]
+        out = filter_arrays(*cols, pixels, sensor_size=(w, h), inplace=inplace)
+        for got, ref in zip(out, want, strict=True):
+            assert got.dtype == ref.dtype
+            np.testing.assert_array_equal(got, ref)
 
 
 def test_counters_wrap_around_exactly(threads):
-    """More than 65535 events on a pixel (the uint16 counters wrap, twice here) and a pixel with
-    exactly 65536: the counts stay exact."""
+    """More than 65535 events on a pixel (the uint8 counters wrap hundreds of times) and a pixel
+    with exactly 65536, pixels with 255, 256, 257 and 512 events: the counts stay exact."""
     w, h = 8, 4
     rng = np.random.default_rng(3)
-    x = np.concatenate([np.full(140_000, 7), np.full(65_536, 0), rng.integers(0, w, 5000)])
-    y = np.concatenate([np.full(140_000, 3), np.full(65_536, 1), rng.integers(0, h, 5000)])
+    edges = [(1, 0, 255), (2, 0, 256), (3, 0, 257), (4, 0, 512)]
+    x = np.concatenate([np.full(140_000, 7), np.full(65_536, 0), rng.integers(0, w, 5000),
+                        *(np.full(k, px) for px, _, k in edges)])
+    y = np.concatenate([np.full(140_000, 3), np.full(65_536, 1), np.full(5000, 2),
+                        *(np.full(k, py) for _, py, k in edges)])
     order = rng.permutation(len(x))
     x, y = x[order].astype(np.uint16), y[order].astype(np.uint16)
     counts = count_events(x, y, sensor_size=(w, h))
     assert counts.dtype == np.int64
     np.testing.assert_array_equal(counts.ravel(), np.bincount(y.astype(np.int64) * w + x, minlength=w * h))
-    assert counts[3, 7] >= 140_000 and counts[1, 0] >= 65_536
+    assert counts[3, 7] == 140_000 and counts[1, 0] == 65_536
+    assert [counts[py, px] for px, py, _ in edges] == [k for _, _, k in edges]
 
 
 @pytest.mark.parametrize("bad", [(5, 0), (0, 4), (-1, 0), (0, -3)])
@@ -162,3 +169,114 @@ def test_streamed_counter_refuses_a_bad_chunk_and_keeps_its_counts(per_polarity)
     got = acc.count_map.sum(axis=0) if per_polarity else acc.count_map
     np.testing.assert_array_equal(got, want)
     assert acc.n_events == 1400
+
+
+@pytest.fixture(params=["threads", "last slice first"])
+def order(request, monkeypatch):
+    """The slices on threads as they come, or one after the other from the last: the order
+    in which a slice's output overwrites most of the input of the slices before it."""
+    if request.param == "last slice first":
+        def backwards(fn, n, parts):
+            bd = hotpix._bounds(n, parts)
+            return [fn(a, b) for a, b in zip(bd[-2::-1], bd[:0:-1], strict=True)][::-1]
+
+        monkeypatch.setattr(hotpix, "_in_parts", backwards)
+    return request.param
+
+
+@pytest.mark.parametrize("n_threads", [1, 2, 3])
+@pytest.mark.parametrize("hot_fraction", [0.0, 0.08, 0.5, 0.97, 1.0])
+@pytest.mark.parametrize("n", [0, 1, 64, 4097, 100_003])
+def test_in_place_filter_keeps_what_numpy_keeps(n, hot_fraction, n_threads, simd, order):
+    """filter_arrays(inplace=True) on one or several threads (slice tails copied first, or one
+    thread when that copy would exceed the kept events): the kept events of numpy, returned as
+    views of the start of the given arrays."""
+    w, h = 37, 23
+    t, x, y, p = stream(n, w, h, seed=n + 1)
+    pixels = all_pixels(w, h)[np.random.default_rng(2).random(w * h) < hot_fraction]
+    want = reference(t, x, y, p, pixels, w)
+    cols = [a.copy() for a in (t, x, y, p)]
+    out = filter_arrays(*cols, pixels, sensor_size=(w, h), threads=n_threads, inplace=True)
+    for got, col, ref in zip(out, cols, want, strict=True):
+        assert got.dtype == ref.dtype
+        np.testing.assert_array_equal(got, ref)
+        assert got.size == 0 or (np.shares_memory(got, col) and got.ctypes.data == col.ctypes.data)
+
+
+@pytest.mark.parametrize("n_threads", [2, 3])
+def test_in_place_when_later_slices_overwrite_whole_earlier_ones(n_threads, simd, order):
+    """The first slices all hot, the last all kept: the later slices' output lands on the
+    whole input of the earlier ones (read from their copies); and the reverse."""
+    w, h = 16, 8
+    n = 6000
+    rng = np.random.default_rng(5)
+    x = rng.integers(1, w, n).astype(np.uint16)
+    y = rng.integers(0, h, n).astype(np.uint16)
+    t, p = np.arange(n, dtype=np.int64) * 3, rng.random(n) < 0.5
+    for hot_part in (slice(0, 2 * n // 3), slice(n // 3, n)):
+        xs = x.copy()
+        xs[hot_part] = 0
+        pixels = np.stack([np.zeros(h, np.int64), np.arange(h)], 1)
+        want = reference(t, xs, y, p, pixels, w)
+        cols = [a.copy() for a in (t, xs, y, p)]
+        out = filter_arrays(*cols, pixels, sensor_size=(w, h), threads=n_threads, inplace=True)
+        for got, ref in zip(out, want, strict=True):
+            np.testing.assert_array_equal(got, ref)
+
+
+def test_in_place_refuses_what_it_cannot_overwrite():
+    """Read-only (an Events' arrays), strided or overlapping arrays, and events outside the
+    sensor, are refused before anything is written."""
+    from ibiscape_eval.core.events import Events
+
+    w, h = 10, 6
+    t, x, y, p = stream(500, w, h, seed=4)
+    pixels = np.array([[1, 1], [2, 3]])
+    ev = Events(t, x, y, p)
+    with pytest.raises(IbiscapeError, match=r"t is not one.*read-only"):
+        filter_arrays(ev.t_ns, ev.x, ev.y, ev.p, pixels, sensor_size=(w, h), inplace=True)
+    xy = np.stack([x, y], 1)
+    with pytest.raises(IbiscapeError, match="x is not one"):
+        filter_arrays(t.copy(), xy[:, 0], y.copy(), p.copy(), pixels, sensor_size=(w, h), inplace=True)
+    both = np.concatenate([x, y])
+    with pytest.raises(IbiscapeError, match="x and y overlap"):
+        filter_arrays(t.copy(), both[:500], both[:500], p.copy(), pixels, sensor_size=(w, h),
+                      inplace=True)
+    cols = [a.copy() for a in (t, x, y, p)]
+    cols[1][321] = w
+    before = [a.copy() for a in cols]
+    with pytest.raises(IbiscapeError, match="event 321 at pixel"):
+        filter_arrays(*cols, pixels, sensor_size=(w, h), inplace=True, threads=2)
+    for a, b in zip(cols, before, strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("bad", [0, -1, 1.5, True, "2"])
+def test_threads_must_be_a_whole_number(bad):
+    t, x, y, p = stream(100, 5, 5)
+    for call in (lambda: count_events(x, y, sensor_size=(5, 5), threads=bad),
+                 lambda: hot_pixel_mask(x, y, np.array([[1, 1]]), sensor_size=(5, 5), threads=bad),
+                 lambda: filter_arrays(t, x, y, p, np.array([[1, 1]]), sensor_size=(5, 5), threads=bad)):
+        with pytest.raises(IbiscapeError, match="threads must be a whole number"):
+            call()
+
+
+@pytest.mark.parametrize("n_threads", [2, 3, 7])
+def test_threads_argument_gives_the_one_thread_answers(n_threads, simd):
+    """threads= (a pool of the call's own, whatever numba's thread count) on a short stream:
+    the counts, mask and kept events of one thread, with counters wrapping around."""
+    w, h = 9, 7
+    rng = np.random.default_rng(11)
+    n = 300_000
+    x = np.where(rng.random(n) < 0.5, 4, rng.integers(0, w, n)).astype(np.uint16)
+    y = np.where(x == 4, 2, rng.integers(0, h, n)).astype(np.uint16)
+    t, p = np.arange(n, dtype=np.int64), rng.random(n) < 0.5
+    pixels = np.array([[4, 2], [0, 0], [8, 6]])
+    np.testing.assert_array_equal(count_events(x, y, sensor_size=(w, h), threads=n_threads),
+                                  count_events(x, y, sensor_size=(w, h), threads=1))
+    assert count_events(x, y, sensor_size=(w, h), threads=n_threads)[2, 4] > 2 * 65536
+    np.testing.assert_array_equal(hot_pixel_mask(x, y, pixels, sensor_size=(w, h), threads=n_threads),
+                                  hot_pixel_mask(x, y, pixels, sensor_size=(w, h), threads=1))
+    for got, want in zip(filter_arrays(t, x, y, p, pixels, sensor_size=(w, h), threads=n_threads),
+                         reference(t, x, y, p, pixels, w), strict=True):
+        np.testing.assert_array_equal(got, want)
