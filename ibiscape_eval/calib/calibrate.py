@@ -283,7 +283,10 @@ def _usable(det: Detection | None, target: CalibrationTarget, min_corners: int) 
 
 
 def _init_camera(obs: Observations, target: CalibrationTarget, views: list[int], distortion: str,
-                 max_init_views: int = 40) -> CameraModel:
+                 max_init_views: int = 40) -> tuple[CameraModel, dict[int, FloatArray]]:
+    """OpenCV's ``calibrateCamera`` on (up to ``max_init_views`` of) the usable ``views``: the
+    initial camera and the target pose ``T_cam_target`` it found for each view it used (a start
+    for the joint refinement, so those views are not solved again by PnP)."""
     import cv2
 
     obj = target.object_points().astype(np.float32)
@@ -299,9 +302,9 @@ def _init_camera(obs: Observations, target: CalibrationTarget, views: list[int],
     try:
         # 10 iterations instead of OpenCV's 30: the joint refinement polishes the start (on 13
         # real views its RMS agrees to 1e-9 px after 5; 9 ms instead of 12 per camera)
-        _, K, dist, _, _ = cv2.calibrateCamera(o_pts, i_pts, (w, h), None, None, flags=cv2.CALIB_FIX_K3,
-                                               criteria=(cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS,
-                                                         10, float(np.finfo(float).eps)))
+        _, K, dist, rvecs, tvecs = cv2.calibrateCamera(
+            o_pts, i_pts, (w, h), None, None, flags=cv2.CALIB_FIX_K3,
+            criteria=(cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 10, float(np.finfo(float).eps)))
     except cv2.error as e:
         raise CalibrationError(f"{obs.name}: OpenCV could not initialise the intrinsics "
                                f"({str(e).strip().splitlines()[-1]}); give more varied views") from None
@@ -313,17 +316,18 @@ def _init_camera(obs: Observations, target: CalibrationTarget, views: list[int],
         rmax = float(np.max(np.hypot((corners[:, 0] - cam.cx) / cam.fx, (corners[:, 1] - cam.cy) / cam.fy)))
         cam = replace(cam, distortion="equidistant",
                       coeffs=_equi_from_radtan(cam.coeffs[0], cam.coeffs[1], rmax))
-    return cam
+    poses = {v: _T(r, t) for v, r, t in zip(pick, rvecs, tvecs, strict=True)}
+    return cam, {v: T for v, T in poses.items() if T[2, 3] > 0 and np.all(np.isfinite(T))}
 
 
 def _init_cameras(observations: Sequence[Observations], target: CalibrationTarget, usable: list[list[int]],
-                  distortion: str) -> list[CameraModel]:
+                  distortion: str) -> list[tuple[CameraModel, dict[int, FloatArray]]]:
     """:func:`_init_camera` of every camera, in parallel threads (OpenCV releases the GIL)."""
     from ibiscape_eval.core.cpus import usable_cpus
 
     from ._threads import thread_map
 
-    def one(n: int) -> CameraModel:
+    def one(n: int) -> tuple[CameraModel, dict[int, FloatArray]]:
         return _init_camera(observations[n], target, usable[n], distortion)
 
     return thread_map(one, range(len(observations)), usable_cpus())
@@ -579,10 +583,16 @@ def _cross_rows(q: FloatArray, G: FloatArray) -> FloatArray:
 @dataclass(frozen=True, eq=False)
 class _Solution:
     x: FloatArray
-    jac: BlockJacobian
+    jac: BlockJacobian | None  # at x; None when the last accepted step converged (not evaluated)
     cost: float  # 0.5 * sum of squares (scipy's convention)
     iterations: int
     damping: float  # the last Levenberg-Marquardt damping
+
+
+#: Levenberg-Marquardt stops when a step lowers the cost by less than this fraction (scipy's
+#: ``ftol`` default): on 13 real stereo views the next steps moved the focal lengths by 1e-5 of
+#: their standard deviation
+_FTOL = 1e-8
 
 
 def _levenberg_marquardt(fun: Callable[[FloatArray], FloatArray], jac: Callable[[FloatArray], BlockJacobian],
@@ -595,15 +605,18 @@ def _levenberg_marquardt(fun: Callable[[FloatArray], FloatArray], jac: Callable[
     25 stereo views took 0.2-0.5 s per step on a loaded 2-core machine (OpenBLAS threads waiting
     for each other), a sparse LU 2-4 ms (with 0.3 s of scipy imports), the reduced system well
     under 1 ms.  The Jacobian is exact (:meth:`_Problem.jacobian`): one evaluation, where finite
-    differences took 20.  ``lam0``: the first damping (a problem re-solved from a nearby solution
-    starts with the damping it ended with)."""
+    differences took 20; it is evaluated after an accepted step only when another step follows
+    (the caller evaluates it at the solution when it needs it: a solve followed by another
+    round of outlier rejection does not).  ``lam0``: the first damping (a problem re-solved
+    from a nearby solution starts with the damping it ended with)."""
     x = x0.copy()
     r = fun(x)
     cost = float(np.sum(r * r))
     lam = lam0
-    J = jac(x)
+    J: BlockJacobian | None = jac(x)
     it = 0
     for it in range(1, max_iter + 1):  # noqa: B007
+        assert J is not None
         N = normal_equations(J, r)
         d_a, d_p = (np.maximum(d, 1e-12) for d in N.diagonal())
         improved = False
@@ -629,9 +642,10 @@ def _levenberg_marquardt(fun: Callable[[FloatArray], FloatArray], jac: Callable[
             lam *= 5.0
         if not improved:
             break
-        J = jac(x)
-        if rel < 1e-10 or np.max(np.abs(dx) / np.maximum(np.abs(x), 1.0)) < 1e-12:
+        J = None
+        if rel < _FTOL or np.max(np.abs(dx) / np.maximum(np.abs(x), 1.0)) < 1e-12:
             break
+        J = jac(x)
     return _Solution(x, J, 0.5 * cost, it, lam)
 
 
@@ -686,6 +700,7 @@ def _covariance(sol: _Solution, n_fixed_tail: int, res: FloatArray, cam_i: IntAr
     The result is multiplied by :data:`STD_INFLATION` squared (see there).
     """
     J = sol.jac
+    assert J is not None
     m, p = J.shape
     k = p - n_fixed_tail
     X_a, X_p = leading_inverse(normal_equations(J, res), J)  # (J^T J)^-1 [:, :k] in blocks
@@ -767,17 +782,21 @@ def _usable_views(observations: Sequence[Observations], target: CalibrationTarge
 
 def _camera_poses(observations: Sequence[Observations], cams: Sequence[CameraModel],
                   dets: list[list[Detection | None]], usable: list[list[int]], obj: FloatArray,
-                  min_view_spread_deg: float) -> list[dict[int, FloatArray]]:
-    """Per camera, the target pose of every usable view; a camera whose views' target normals
-    spread less than ``min_view_spread_deg`` is refused."""
+                  min_view_spread_deg: float, known: Sequence[dict[int, FloatArray]] = ()
+                  ) -> list[dict[int, FloatArray]]:
+    """Per camera, the target pose of every usable view (``known[n]``'s, the initialisation's,
+    where given; else by PnP); a camera whose views' target normals spread less than
+    ``min_view_spread_deg`` is refused."""
     poses_cam: list[dict[int, FloatArray]] = []
     for n, cam in enumerate(cams):
-        rays = _view_rays(cam, {v: d for v in usable[n] if (d := dets[n][v]) is not None})
+        given = known[n] if n < len(known) else {}
+        rest = [v for v in usable[n] if v not in given]
+        rays = _view_rays(cam, {v: d for v in rest if (d := dets[n][v]) is not None})
         pc: dict[int, FloatArray] = {}
         for v in usable[n]:
             d = dets[n][v]
             assert d is not None
-            T = _pnp_rays(obj[d.ids], *rays[v])
+            T = given[v] if v in given else _pnp_rays(obj[d.ids], *rays[v])
             if T is not None:
                 pc[v] = T
         poses_cam.append(pc)
@@ -910,6 +929,8 @@ def _refine(full: _Problem, intr: FloatArray, chain: FloatArray, poses: FloatArr
             raise CalibrationError("outlier rejection removed every corner of a camera; the "
                                    "detections are inconsistent (wrong target description?)")
     assert sol is not None
+    if sol.jac is None:  # the covariance needs the Jacobian at the solution
+        sol = replace(sol, jac=prob.jacobian(intr, chain, poses))
     return _Refined(prob, intr, chain, poses, sol, keep, rounds)
 
 
@@ -1005,11 +1026,13 @@ def calibrate(target: CalibrationTarget, observations: Sequence[Observations], *
     say = progress or (lambda _s: None)
     usable = _usable_views(observations, target, min_c, n_v)
     say("initialising")
-    cams = _init_cameras(observations, target, usable, MODELS[model])
+    inits = _init_cameras(observations, target, usable, MODELS[model])
+    cams = [c for c, _ in inits]
     ok_views = [set(views) for views in usable]
     dets: list[list[Detection | None]] = [[d if v in ok else None for v, d in enumerate(o.detections)]
                                           for o, ok in zip(observations, ok_views, strict=True)]
-    poses_cam = _camera_poses(observations, cams, dets, usable, obj, min_view_spread_deg)
+    poses_cam = _camera_poses(observations, cams, dets, usable, obj, min_view_spread_deg,
+                              [T for _, T in inits])
     chain_T, renumbered = _chain_init(observations, cams, dets, poses_cam, target)
     view_ids, pose0 = _first_poses(poses_cam, chain_T, n_v)
     full = _stack(cams, dets, view_ids, obj, poses_cam)
