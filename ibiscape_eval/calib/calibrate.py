@@ -487,6 +487,18 @@ class _Problem:
         rows: npt.NDArray[np.bool_] = self._memo[key]
         return rows
 
+    def _target_points(self, poses: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """The target points of the observations rotated into camera 0 (``R X``) and placed there
+        (``R X + t``); kept for the last poses (the Jacobian at a point follows its residuals)."""
+        key = poses.tobytes()
+        last = self._memo.get("points")
+        if last is not None and last[0] == key:
+            return last[1], last[2]
+        RX = np.einsum("mij,mj->mi", exp_so3(poses[:, :3])[self.view_i], self.obj)
+        p = RX + poses[self.view_i, 3:]
+        self._memo["points"] = (key, RX, p)
+        return RX, p
+
     def _camera_points(self, chain: FloatArray, poses: FloatArray) -> list[FloatArray | None]:
         """Per camera, the target points of its observations in its frame (None: no observation);
         kept for the last chain and poses (the finite differences of the intrinsics leave them
@@ -496,13 +508,7 @@ class _Problem:
         if last is not None and last[0] == key:
             kept: list[FloatArray | None] = last[1]
             return kept
-        last_p = self._memo.get("points")
-        if last_p is not None and last_p[0] == key[1]:
-            p = last_p[1]
-        else:
-            R = exp_so3(poses[:, :3])
-            p = np.einsum("mij,mj->mi", R[self.view_i], self.obj) + poses[self.view_i, 3:]
-            self._memo["points"] = (key[1], p)
+        _, p = self._target_points(poses)
         out: list[FloatArray | None] = []
         # chain: T_cn_c0 = T_cn_cnm1 ... T_c1_c0
         Rn, tn = np.eye(3), np.zeros(3)
@@ -536,9 +542,7 @@ class _Problem:
         ni, nc, _ = self.layout()
         m = len(self.uv)
         Ja, Jp = np.zeros((m, 2, ni + nc)), np.zeros((m, 2, 6))
-        Rv = exp_so3(poses[:, :3])[self.view_i]
-        RX = np.einsum("mij,mj->mi", Rv, self.obj)
-        p0 = RX + poses[self.view_i, 3:]
+        RX, p0 = self._target_points(poses)
         Jlv = left_jacobian_so3(poses[:, :3])[self.view_i]
         Rc = exp_so3(chain[:, :3]) if len(chain) else np.zeros((0, 3, 3))
         Jlc = left_jacobian_so3(chain[:, :3]) if len(chain) else np.zeros((0, 3, 3))
@@ -850,8 +854,8 @@ def _stack(cams: Sequence[CameraModel], dets: Sequence[Sequence[Detection | None
     when given); ``free=False``: only the poses are estimated (intrinsics and chain given)."""
     vindex = {v: i for i, v in enumerate(view_ids)}
     o_pts, uv, cam_i, view_i = [], [], [], []
-    for n in range(len(cams)):
-        for v in view_ids:
+    for v in view_ids:  # rows by view (the normal equations take each view's rows as one slice)
+        for n in range(len(cams)):
             d = dets[n][v]
             if d is None or (posed is not None and v not in posed[n]):
                 continue
