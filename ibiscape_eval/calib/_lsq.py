@@ -215,7 +215,7 @@ def leading_inverse(N: Normal, J: BlockJacobian) -> tuple[FloatArray, FloatArray
         W = N.H_ap @ D_inv
         S = N.H_aa - np.einsum("vkj,vlj->kl", W, N.H_ap)
         X_a = np.linalg.inv(S) if k else np.zeros((0, 0))
-        X_p = -np.einsum("vij,vkj,kl->vil", D_inv, N.H_ap, X_a)
+        X_p = -np.swapaxes(W, 1, 2) @ X_a  # D_inv H_pa X_a, D_inv symmetric
         if np.all(np.isfinite(X_a)) and np.all(np.isfinite(X_p)):
             return X_a, X_p
     except np.linalg.LinAlgError:
