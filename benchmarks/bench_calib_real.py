@@ -15,7 +15,8 @@ pairs, Apache-2.0, see its PROVENANCE.md).
   intrinsics fixed; one process, no threads of its own.
 
 Both run as installed (bytecode caches written by one untimed run first, whatever
-``PYTHONDONTWRITEBYTECODE`` says).  Printed per tool: wall, CPU (user + system) and peak RSS (GNU time), the median of ``--repeat``
+``PYTHONDONTWRITEBYTECODE`` says), taking turns run by run so that both see the same load.
+Printed per tool: wall, CPU (user + system) and peak RSS (GNU time), the median of ``--repeat``
 runs, the wall and CPU RATIO ours / OpenCV, the load average, and the results side by side (fx, fy
 per camera, baseline, RMS; ours with its standard deviations).  ``--json PATH`` writes them.
 """
@@ -93,12 +94,21 @@ def timed(cmd: list[str]) -> tuple[dict[str, float], str]:
     return {"wall_s": float(wall), "cpu_s": float(user) + float(sys_s), "peak_mb": int(rss) / 1024}, proc.stdout
 
 
-def median_runs(cmd: list[str], repeat: int) -> tuple[dict[str, float], str]:
-    """The median of ``repeat`` runs after one untimed run (which writes the bytecode caches)."""
-    timed(cmd)
-    runs = [timed(cmd) for _ in range(repeat)]
-    keys = runs[0][0]
-    return {k: statistics.median(r[0][k] for r in runs) for k in keys}, runs[-1][1]
+def interleaved_runs(cmds: dict[str, list[str]], repeat: int) -> dict[str, tuple[dict[str, float], str]]:
+    """Per command, the median of ``repeat`` runs and the last run's output, the commands taking
+    turns (so that both see the same load), after one untimed run each (which writes the
+    bytecode caches)."""
+    for cmd in cmds.values():
+        timed(cmd)
+    runs: dict[str, list[tuple[dict[str, float], str]]] = {name: [] for name in cmds}
+    for _ in range(repeat):
+        for name, cmd in cmds.items():
+            runs[name].append(timed(cmd))
+    out = {}
+    for name, rr in runs.items():
+        keys = rr[0][0]
+        out[name] = ({k: statistics.median(r[0][k] for r in rr) for k in keys}, rr[-1][1])
+    return out
 
 
 def ours_cmd(d: Path) -> list[str]:
@@ -127,15 +137,18 @@ def main() -> None:
     a = ap.parse_args()
     d = a.images_dir.resolve()
     n_pairs = len(list(d.glob("left*.jpg")))
+    load0 = os.getloadavg()
     with tempfile.TemporaryDirectory() as tmp:
         peer_py = Path(tmp) / "opencv_stereo.py"
         peer_py.write_text(PEER)
-        peer_t, peer_out = median_runs([sys.executable, str(peer_py), str(d)], a.repeat)
-        ours_t, ours_out = median_runs(ours_cmd(d), a.repeat)
+        res = interleaved_runs({"opencv": [sys.executable, str(peer_py), str(d)], "ours": ours_cmd(d)},
+                               a.repeat)
+    (peer_t, peer_out), (ours_t, ours_out) = res["opencv"], res["ours"]
     peer, ours = json.loads(peer_out), ours_numbers(json.loads(ours_out))
     load = os.getloadavg()
-    print(f"{n_pairs} real stereo pairs in {d}; median of {a.repeat} runs each; load average "
-          f"{load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f} (2 cores)")
+    print(f"{n_pairs} real stereo pairs in {d}; median of {a.repeat} runs each, taking turns; load "
+          f"average {load0[0]:.1f} at the start, {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f} at the "
+          f"end ({os.cpu_count()} cores)")
     print(f"{'':22s}{'wall s':>9s}{'CPU s':>9s}{'peak MB':>9s}")
     for name, t in (("ibiscape-eval calib", ours_t), ("plain OpenCV script", peer_t)):
         print(f"{name:22s}{t['wall_s']:9.2f}{t['cpu_s']:9.2f}{t['peak_mb']:9.0f}")
@@ -151,7 +164,8 @@ def main() -> None:
     print(f"{'RMS px':22s}{ours['rms_px']:12.4f}{'':9s}{peer['rms_px']:12.4f}")
     print(f"{'views':22s}{ours['views']:12d}{'':9s}{peer['views']:12d}")
     if a.json:
-        a.json.write_text(json.dumps({"pairs": n_pairs, "load_avg": load, "ours": ours_t,
+        a.json.write_text(json.dumps({"pairs": n_pairs, "load_avg_start": load0, "load_avg": load,
+                                      "ours": ours_t,
                                       "opencv": peer_t, "ratio": ratio, "results_ours": ours,
                                       "results_opencv": peer}, indent=1, default=float))
 
