@@ -38,6 +38,7 @@ from .shading import (
     horizon_radiance,
     lighting,
 )
+from .sun_grid import SunGrid, build_sun_grid
 from .textures import board_albedo, board_footprint_tables, board_tables, kernel_tables
 
 __all__ = ["RenderCamera", "RenderOptions", "RenderedView", "Renderer"]
@@ -182,6 +183,7 @@ class Renderer:
         self._movers: tuple[Any, TriangleTables] | None = None
         self._lock = threading.Lock()  # views of one instant may render on parallel threads
         self._local = threading.local()  # per thread: the kernels' reusable buffers
+        self._sun_grid_cache: SunGrid | None = None
 
     # ----------------------------------------------------------------------------- construction
     @classmethod
@@ -499,15 +501,35 @@ class Renderer:
                            wet_fog, np.float32(scale), np.empty((len(depth), 3), np.float32) if out is None else out)
 
     def _occluded(self, rays: F32, mover_may: npt.NDArray[np.bool_], t_ns: int) -> npt.NDArray[np.bool_]:
-        """Shadow rays (N, 6) that hit something; the movers' scene is asked only for the rays
-        flagged in ``mover_may`` that the static scene left free."""
-        occ = self.static.scene.test_occlusions(tensor(rays), nthreads=0).numpy().astype(bool)
+        """Shadow rays (N, 6) toward the sun that hit something: the static scene through its grid
+        across the sun (:meth:`_shadow_grid`; open3d's any-hit query without one), the movers'
+        scene only for the rays flagged in ``mover_may`` that the static scene left free."""
+        grid = self._shadow_grid(rays[0, 3:6]) if len(rays) else None
+        if grid is None:
+            occ = self.static.scene.test_occlusions(tensor(rays), nthreads=0).numpy().astype(bool)
+        else:
+            occ = grid.occluded(rays, rays[0, 3:6])
         movers = self._mover_scene(t_ns)
         if movers is not None:
             sel = np.flatnonzero(mover_may & ~occ)
             if sel.size:
                 occ[sel] = movers[0].test_occlusions(tensor(rays[sel]), nthreads=0).numpy().astype(bool)
         return occ
+
+    def _shadow_grid(self, sun: F32) -> SunGrid | None:
+        """The static scene's grid across the sun (:mod:`.sun_grid`) answering for ``sun``, built
+        again when the sun has moved too far since the last one (``None`` for a sun at or below
+        the horizon: the grid leaves the ground out)."""
+        if not float(sun[2]) > 1e-3 or self.static.occluder_vertices is None:
+            return None
+        with self._lock:
+            g = self._sun_grid_cache
+            if g is None or not g.covers(sun):
+                st = self.static
+                terrain = st.tables.material[len(st.tables.material) - 1 - len(st.occluder_triangles):-1] == MAT["ground"]
+                g = self._sun_grid_cache = build_sun_grid(st.occluder_vertices, st.occluder_triangles, sun,
+                                                          terrain=terrain)
+            return g
 
     def _sun_grid(self, t_ns: int, sun: F32, want: bool) -> tuple[Any, ...]:
         """Where the movers may cast shadows: their bounding boxes (grown by a margin) seen along
