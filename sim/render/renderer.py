@@ -520,15 +520,14 @@ class Renderer:
         """The static scene's grid across the sun (:mod:`.sun_grid`) answering for ``sun``, built
         again when the sun has moved too far since the last one (``None`` for a sun at or below
         the horizon: the grid leaves the ground out)."""
-        if not float(sun[2]) > 1e-3 or self.static.occluder_vertices is None:
+        V, T = self.static.occluder_vertices, self.static.occluder_triangles
+        if not float(sun[2]) > 1e-3 or V is None or T is None:
             return None
         with self._lock:
             g = self._sun_grid_cache
             if g is None or not g.covers(sun):
-                st = self.static
-                terrain = st.tables.material[len(st.tables.material) - 1 - len(st.occluder_triangles):-1] == MAT["ground"]
-                g = self._sun_grid_cache = build_sun_grid(st.occluder_vertices, st.occluder_triangles, sun,
-                                                          terrain=terrain)
+                mat = self.static.tables.material  # the ground quad first, the sentinel last
+                g = self._sun_grid_cache = build_sun_grid(V, T, sun, terrain=mat[-1 - len(T):-1] == MAT["ground"])
             return g
 
     def _sun_grid(self, t_ns: int, sun: F32, want: bool) -> tuple[Any, ...]:
