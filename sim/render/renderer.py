@@ -315,9 +315,13 @@ class Renderer:
         :meth:`_radiance`), and whose ``s x s`` rays all meet that board's plane inside one
         uniform patch of the print (a texel of margin) keeps its centre sample: its rays would
         all return that sample's radiance (the ~35 % of candidates beside an edge that does not
-        cross them).  The rays of such a pixel (its neighbours all lit) that meet that board side
-        are taken as lit without shadow rays: like the centre-sample test itself, this assumes no
-        shadow edge thinner than the pixel spacing."""
+        cross them).  The others cast a coarse 3 x 3 subset of their rays first
+        (:meth:`_plane_supersamples`): the pixels whose coarse rays all see one board side, lit
+        alike, get all their rays on that board's plane (also beside the board's outline); the
+        rest cast their other rays (the coarse ones are kept).  The rays of a
+        pixel whose neighbours all see one lit board side that meet that side are taken as lit
+        without shadow rays.  Like the centre-sample test, this assumes no shadow edge, occluder
+        or board corner thinner than a third of the pixel between the coarse rays."""
         import cv2
 
         from ._kernels import board_footprints_flat, pixel_means
@@ -336,48 +340,57 @@ class Renderer:
         c2 = code.reshape(H, W)
         c = c2[rows, cols]
         uniform = (c > 0) & (cv2.dilate(c2, k)[rows, cols] == cv2.erode(c2, k)[rows, cols])
+        n = s * s
         if uniform.any():
             poses, diffs = board_footprint_tables(self.static.targets)
-            flat = board_footprints_flat(sub, s * s, uniform, _code_board(c), poses,
+            flat = board_footprints_flat(sub, n, uniform, _code_board(c), poses,
                                          board_tables(self.static.targets), diffs,
                                          np.empty(len(rows), np.bool_))
             cross = ~flat
             rows, cols, c, uniform = rows[cross], cols[cross], c[cross], uniform[cross]
-            sub = sub.reshape(-1, s * s, 6)[cross].reshape(-1, 6)
-        n = s * s
-        if uniform.any():  # a coarse cast, the rest on the board's plane where it sees only the board
-            done, rs = self._plane_supersamples(sub, s, c, uniform, t_ns, w, light, scale)
-            pixel_means(rs, n, rows[done] * W + cols[done], rad)
-            keep = np.ones(len(rows), bool)
-            keep[done] = False
-            rows, cols, c, uniform = rows[keep], cols[keep], c[keep], uniform[keep]
-            sub = sub.reshape(-1, n, 6)[keep].reshape(-1, 6)
-        lit = np.repeat(np.where(uniform, _code_lit(c), 0).astype(np.uint16), n)
-        rs = self._radiance(sub, t_ns, w, light, scale=scale, lit_code=lit)[0]
-        pixel_means(rs, n, rows * W + cols, rad)
+            sub = sub.reshape(-1, n, 6)[cross].reshape(-1, 6)
+        if not len(rows):
+            return
+        means, decided, coarse_rad, coarse_idx = self._plane_supersamples(sub, s, c, uniform, t_ns, w, light,
+                                                                          scale)
+        rad[rows[decided] * W + cols[decided]] = means[decided]
+        m = np.flatnonzero(~decided)
+        rest_idx = np.setdiff1d(np.arange(n), coarse_idx)
+        rest = np.ascontiguousarray(sub.reshape(-1, n, 6)[m][:, rest_idx].reshape(-1, 6))
+        lit = np.repeat(np.where(uniform[m], _code_lit(c[m]), 0).astype(np.uint16), len(rest_idx))
+        full = np.empty((len(m), n, 3), np.float32)
+        full[:, coarse_idx] = coarse_rad[m]
+        full[:, rest_idx] = self._radiance(rest, t_ns, w, light, scale=scale, lit_code=lit)[0].reshape(len(m), -1, 3)
+        pixel_means(full.reshape(-1, 3), n, rows[m] * W + cols[m], rad)
 
     def _plane_supersamples(self, sub: F32, s: int, c: npt.NDArray[np.uint16], uniform: npt.NDArray[np.bool_],
                             t_ns: int, w: WeatherState, light: Lighting, scale: float
-                            ) -> tuple[npt.NDArray[np.intp], F32]:
-        """The supersamples of the ``uniform`` pixels (board code ``c``, rays ``sub`` (K s s, 6))
-        whose coarse 3 x 3 subset of rays, cast into the scene, all see the pixel's board side as
-        the pixel's neighbours do: those pixels (indices into K) and the radiance (s s per pixel)
-        of all their rays where they meet the board's plane, shaded like a cast hit (lit as the
-        code says; no occluder thinner than a third of the pixel between the coarse rays)."""
-        from ._kernels import board_plane_samples, board_texels
+                            ) -> tuple[F32, npt.NDArray[np.bool_], F32, npt.NDArray[np.intp]]:
+        """Cast a coarse 3 x 3 subset of the ``s x s`` rays ``sub`` (K s s, 6) of K pixels (board
+        code ``c`` of their centre, ``uniform`` where their neighbours all see that side) and
+        decide the pixels whose coarse rays agree.  Returns the mean radiance (K, 3) of the
+        decided pixels, which pixels are decided (K,), the coarse rays' radiance (K, 9, 3) and
+        their indices in the s x s grid (9,).
+
+        Decided are the pixels whose coarse rays all see one board side lit alike: the mean of all
+        ``s x s`` rays where they meet the board's plane, shaded like a cast hit (lit as the
+        coarse rays say).  The coarse rays of a ``uniform`` pixel that see its lit board side
+        skip their shadow rays."""
+        from ._kernels import board_plane_samples, board_texels, pixel_means
 
         n = s * s
         q = np.round(np.linspace(0, s - 1, 3)).astype(int)
         coarse_idx = (q[:, None] * s + q[None, :]).ravel()
-        u = np.flatnonzero(uniform)
-        cu = c[u]
-        coarse = np.ascontiguousarray(sub.reshape(-1, n, 6)[u][:, coarse_idx].reshape(-1, 6))
-        lit = np.repeat(_code_lit(cu), len(coarse_idx))
-        seen = self._radiance(coarse, t_ns, w, light, scale=scale, board_code=True, lit_code=lit)[4]
-        ok = (seen.reshape(len(u), -1) == cu[:, None]).all(axis=1)
-        done = u[ok]
-        rays = np.ascontiguousarray(sub.reshape(-1, n, 6)[done].reshape(-1, 6))
-        code = np.repeat(c[done], n)
+        K, nc = len(c), len(coarse_idx)
+        coarse = np.ascontiguousarray(sub.reshape(K, n, 6)[:, coarse_idx].reshape(-1, 6))
+        lit = np.repeat(np.where(uniform, _code_lit(c), 0).astype(np.uint16), nc)
+        crad, _, _, _, seen = self._radiance(coarse, t_ns, w, light, scale=scale, board_code=True, lit_code=lit)
+        seen = seen.reshape(K, nc)
+        decided = (seen == seen[:, :1]).all(axis=1) & (seen[:, 0] > 0)
+        means = np.zeros((K, 3), np.float32)
+        done = np.flatnonzero(decided)
+        rays = np.ascontiguousarray(sub.reshape(K, n, 6)[done].reshape(-1, 6))
+        code = np.repeat(seen[done, 0], n)
         var = _code_board(code).astype(np.uint8)
         m = len(rays)
         depth, uv = np.empty(m, np.float32), np.empty((m, 2), np.float32)
@@ -387,7 +400,8 @@ class Renderer:
         board_texels(np.full(m, MAT["target"], np.uint8), uv, var, _code_front(code),
                      board_tables(self.static.targets), alb)
         rs = self._finish(alb, ndl, amb, depth, rays, np.zeros(m, np.float32), uv, w, light, scale)
-        return done, rs
+        pixel_means(rs, n, done, means)
+        return means, decided, crad.reshape(K, nc, 3), coarse_idx
 
     def _mover_scene(self, t_ns: int) -> tuple[Any, TriangleTables] | None:
         if len(self.world.agents) == 0:

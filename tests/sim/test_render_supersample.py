@@ -1,6 +1,8 @@
-"""Target supersampling that skips the pixels whose footprint lies in one printed patch and the
-shadow rays of supersamples whose neighbourhood is one lit board side (#25): the image equals the
-one that casts every candidate's rays with their shadow rays, and both skips are really taken."""
+"""Target supersampling that skips the pixels whose footprint lies in one printed patch, the
+shadow rays of supersamples whose neighbourhood is one lit board side and the casts of pixels
+whose coarse rays all see one board side (also beside the board's outline) (#25): the image
+equals the one that casts every candidate's rays with their shadow rays, and the skips are really
+taken."""
 
 from __future__ import annotations
 
@@ -70,10 +72,13 @@ def test_skipped_footprints_equal_casting_every_candidate(calib: Any, monkeypatc
 
     real_plane = Renderer._plane_supersamples
     plane_pixels: list[int] = []
+    outline_pixels: list[int] = []
 
-    def no_plane(self: Renderer, sub: np.ndarray, s: int, *a: Any) -> Any:
-        plane_pixels.append(len(real_plane(self, sub, s, *a)[0]))
-        return np.zeros(0, np.intp), np.zeros((0, 3), np.float32)
+    def no_plane(self: Renderer, *a: Any) -> Any:  # every candidate casts all its rays
+        means, decided, coarse, idx = real_plane(self, *a)
+        plane_pixels.append(int(decided.sum()))
+        outline_pixels.append(int((decided & ~a[3]).sum()))  # a neighbour off the board side
+        return means, np.zeros_like(decided), coarse, idx
 
     monkeypatch.setattr(kernels, "board_footprints_flat", never)
     monkeypatch.setattr(Renderer, "_radiance", every_shadow_ray)
@@ -81,6 +86,7 @@ def test_skipped_footprints_equal_casting_every_candidate(calib: Any, monkeypatc
     ref = r.render_pose(model, T, weather=DAY).radiance
     assert max(shadow_skips) > 1000  # lit supersamples without shadow rays in the fast image
     assert plane_pixels and plane_pixels[0] > 100  # pixels whose supersamples met the plane
+    assert outline_pixels[0] > 20  # ... also beside the board's outline
     diff = np.abs(fast - ref).max(axis=-1)
     assert diff.max() < 0.05  # 0..255 scale: float rounding of the 36-ray mean only
 
