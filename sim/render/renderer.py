@@ -376,7 +376,7 @@ class Renderer:
         ``s x s`` rays where they meet the board's plane, shaded like a cast hit (lit as the
         coarse rays say).  The coarse rays of a ``uniform`` pixel that see its lit board side
         skip their shadow rays."""
-        from ._kernels import board_plane_samples, board_texels, pixel_means
+        from ._kernels import board_plane_means
 
         n = s * s
         q = np.round(np.linspace(0, s - 1, 3)).astype(int)
@@ -389,18 +389,10 @@ class Renderer:
         decided = (seen == seen[:, :1]).all(axis=1) & (seen[:, 0] > 0)
         means = np.zeros((K, 3), np.float32)
         done = np.flatnonzero(decided)
-        rays = np.ascontiguousarray(sub.reshape(K, n, 6)[done].reshape(-1, 6))
-        code = np.repeat(seen[done, 0], n)
-        var = _code_board(code).astype(np.uint8)
-        m = len(rays)
-        depth, uv = np.empty(m, np.float32), np.empty((m, 2), np.float32)
-        ndl, amb, alb = np.empty(m, np.float32), np.empty(m, np.float32), np.empty((m, 3), np.float32)
         poses, _ = board_footprint_tables(self.static.targets)
-        board_plane_samples(rays, var, code, poses, np.asarray(light.sun_dir, np.float64), depth, uv, ndl, amb)
-        board_texels(np.full(m, MAT["target"], np.uint8), uv, var, _code_front(code),
-                     board_tables(self.static.targets), alb)
-        rs = self._finish(alb, ndl, amb, depth, rays, np.zeros(m, np.float32), uv, w, light, scale)
-        pixel_means(rs, n, done, means)
+        board_plane_means(np.ascontiguousarray(sub.reshape(K, n, 6)[done].reshape(-1, 6)), n, seen[done, 0], poses,
+                          board_tables(self.static.targets), np.asarray(light.sun_dir, np.float64),
+                          *self._shading(w, light)[1:], np.float32(scale), done, means)
         return means, decided, crad.reshape(K, nc, 3), coarse_idx
 
     def _mover_scene(self, t_ns: int) -> tuple[Any, TriangleTables] | None:
@@ -501,6 +493,13 @@ class Renderer:
         """``_kernels.finish_into`` (``out``, or a new array) with this renderer's weather optics."""
         from ._kernels import finish_into
 
+        tab, sky, wet_fog = self._shading(w, light)
+        return finish_into(alb, ndl, amb, depth, rays, paved, uv, tab, sky, wet_fog, np.float32(scale),
+                           np.empty((len(depth), 3), np.float32) if out is None else out)
+
+    def _shading(self, w: WeatherState, light: Lighting) -> tuple[Any, tuple[Any, ...], tuple[Any, ...]]:
+        """The noise table and the ``sky`` and ``optics`` arguments of ``_kernels.finish_into``
+        with this renderer's weather optics."""
         optics = self.options.weather_optics
         wet = w.wetness / 100.0 if optics else 0.0
         puddle_level = 1.6 - 2.2 * w.precipitation_deposits / 100.0  # more deposits: more water
@@ -511,8 +510,7 @@ class Renderer:
                np.float32(w.cloudiness / 100.0), np.float32(1.6 * light.e_sky + 0.25 * light.e_sun))
         wet_fog = (np.float32(wet), np.float32(puddle_level), np.float32(beta), horizon_radiance(w, light),
                    np.float32(_SKY_DISTANCE_M))
-        return finish_into(alb, ndl, amb, depth, rays, paved, uv, kernel_tables(self.static.ground)[0], sky,
-                           wet_fog, np.float32(scale), np.empty((len(depth), 3), np.float32) if out is None else out)
+        return kernel_tables(self.static.ground)[0], sky, wet_fog
 
     def _occluded(self, rays: F32, mover_may: npt.NDArray[np.bool_], t_ns: int) -> npt.NDArray[np.bool_]:
         """Shadow rays (N, 6) toward the sun that hit something: the static scene through its grid
