@@ -317,8 +317,9 @@ class Renderer:
         all return that sample's radiance (the ~35 % of candidates beside an edge that does not
         cross them).  The others cast a coarse 3 x 3 subset of their rays first
         (:meth:`_plane_supersamples`): the pixels whose coarse rays all see one board side, lit
-        alike, get all their rays on that board's plane (also beside the board's outline); the
-        rest cast their other rays (the coarse ones are kept).  The rays of a
+        alike, get all their rays on that board's plane (also beside the board's outline), those
+        whose coarse rays see no board (the background beside the board's outline) the mean of
+        the coarse rays, and only the rest cast their other rays (the coarse ones are kept).  The rays of a
         pixel whose neighbours all see one lit board side that meet that side are taken as lit
         without shadow rays.  Like the centre-sample test, this assumes no shadow edge, occluder
         or board corner thinner than a third of the pixel between the coarse rays."""
@@ -351,10 +352,11 @@ class Renderer:
             sub = sub.reshape(-1, n, 6)[cross].reshape(-1, 6)
         if not len(rows):
             return
-        means, decided, coarse_rad, coarse_idx = self._plane_supersamples(sub, s, c, uniform, t_ns, w, light,
-                                                                          scale)
-        rad[rows[decided] * W + cols[decided]] = means[decided]
-        m = np.flatnonzero(~decided)
+        means, decided, clear, coarse_rad, coarse_idx = self._plane_supersamples(sub, s, c, uniform, t_ns, w,
+                                                                                 light, scale)
+        d = decided | clear
+        rad[rows[d] * W + cols[d]] = means[d]
+        m = np.flatnonzero(~d)
         rest_idx = np.setdiff1d(np.arange(n), coarse_idx)
         rest = np.ascontiguousarray(sub.reshape(-1, n, 6)[m][:, rest_idx].reshape(-1, 6))
         lit = np.repeat(np.where(uniform[m], _code_lit(c[m]), 0).astype(np.uint16), len(rest_idx))
@@ -365,18 +367,19 @@ class Renderer:
 
     def _plane_supersamples(self, sub: F32, s: int, c: npt.NDArray[np.uint16], uniform: npt.NDArray[np.bool_],
                             t_ns: int, w: WeatherState, light: Lighting, scale: float
-                            ) -> tuple[F32, npt.NDArray[np.bool_], F32, npt.NDArray[np.intp]]:
+                            ) -> tuple[F32, npt.NDArray[np.bool_], npt.NDArray[np.bool_], F32, npt.NDArray[np.intp]]:
         """Cast a coarse 3 x 3 subset of the ``s x s`` rays ``sub`` (K s s, 6) of K pixels (board
         code ``c`` of their centre, ``uniform`` where their neighbours all see that side) and
         decide the pixels whose coarse rays agree.  Returns the mean radiance (K, 3) of the
-        decided pixels, which pixels are decided (K,), the coarse rays' radiance (K, 9, 3) and
-        their indices in the s x s grid (9,).
+        decided pixels (the coarse rays' mean where they see no board), which pixels are decided
+        (K,), which see no board with any coarse ray (K,), the coarse rays' radiance (K, 9, 3)
+        and their indices in the s x s grid (9,).
 
         Decided are the pixels whose coarse rays all see one board side lit alike: the mean of all
         ``s x s`` rays where they meet the board's plane, shaded like a cast hit (lit as the
         coarse rays say).  The coarse rays of a ``uniform`` pixel that see its lit board side
         skip their shadow rays."""
-        from ._kernels import board_plane_means
+        from ._kernels import board_plane_means, pixel_means
 
         n = s * s
         q = np.round(np.linspace(0, s - 1, 3)).astype(int)
@@ -393,7 +396,10 @@ class Renderer:
         board_plane_means(np.ascontiguousarray(sub.reshape(K, n, 6)[done].reshape(-1, 6)), n, seen[done, 0], poses,
                           board_tables(self.static.targets), np.asarray(light.sun_dir, np.float64),
                           *self._shading(w, light)[1:], np.float32(scale), done, means)
-        return means, decided, crad.reshape(K, nc, 3), coarse_idx
+        clear = (seen == 0).all(axis=1)
+        none = np.flatnonzero(clear)
+        pixel_means(np.ascontiguousarray(crad.reshape(K, nc, 3)[none]).reshape(-1, 3), nc, none, means)
+        return means, decided, clear, crad.reshape(K, nc, 3), coarse_idx
 
     def _mover_scene(self, t_ns: int) -> tuple[Any, TriangleTables] | None:
         if len(self.world.agents) == 0:
