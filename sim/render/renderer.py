@@ -4,10 +4,12 @@ One :class:`Renderer` per sequence holds the static scene (built once), the came
 weather log.  Per view it casts one ray per pixel (``cast_rays(nthreads=0)``), takes the nearer of
 the static and the movers' hit, interpolates the hit triangle's texture coordinates with the
 barycentric coordinates open3d returns, shades (one shadow ray toward the sun per lit pixel
-facing it, a ``test_occlusions`` any-hit query; against the movers only where a mover's outline
-seen along the sun covers the point), adds the weather and, for RGB, the sensor's noise.  Pixels
-that see a calibration target are rendered again with ``s x s`` rays each and averaged
-(antialiasing where it matters, at a fraction of the cost of supersampling the whole image).
+facing it: against the static scene through its grid across the sun, :mod:`.sun_grid`, exact
+triangle tests; against the movers, an open3d ``test_occlusions`` any-hit query, only where a
+mover's outline seen along the sun covers the point), adds the weather and, for RGB, the sensor's
+noise.  Pixels that see a calibration target are rendered again with ``s x s`` rays each and
+averaged (antialiasing where it matters, at a fraction of the cost of supersampling the whole
+image).
 
 The per-ray work around the casts is two fused numba passes (``_kernels.surfaces`` before the
 shadow rays, ``_kernels.finish`` after them) and one for the sensor (``_kernels.quantize``).
