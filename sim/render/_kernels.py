@@ -640,3 +640,22 @@ def board_plane_means(rays, per_pixel, code, poses, boards, sun, sky, optics, sc
         j = rows_flat[k]
         out[j, 0], out[j, 1], out[j, 2] = a0 / per_pixel, a1 / per_pixel, a2 / per_pixel
     return out
+
+
+@nb.njit(cache=True, nogil=True)
+def hit_board_codes(rays, t, prim, normal, material, variant, board_flip, sun, out):
+    """``out[i]``: ``Renderer._radiance``'s board code of ray i's hit in the static scene
+    (``t``, ``prim``, ``normal`` as open3d returns them; 0 where it sees no board), lit where the
+    board side faces the sun, without a shadow ray: :func:`surfaces`' arithmetic, for rays whose
+    neighbours saw that side lit."""
+    for i in range(t.shape[0]):
+        out[i] = 0
+        if not np.isfinite(t[i]) or material[prim[i]] != _TARGET:
+            continue
+        vi = variant[prim[i]]
+        nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
+        f = nx * rays[i, 3] + ny * rays[i, 4] + nz * rays[i, 5] < 0.0
+        s = 1.0 if f else -1.0
+        ndl = s * nx * sun[0] + s * ny * sun[1] + s * nz * sun[2]
+        out[i] = 1 + 4 * vi + (2 if f != board_flip[vi] else 0) + (1 if ndl > 0.0 else 0)
+    return out

@@ -388,9 +388,14 @@ class Renderer:
         coarse_idx = (q[:, None] * s + q[None, :]).ravel()
         K, nc = len(c), len(coarse_idx)
         coarse = np.ascontiguousarray(sub.reshape(K, n, 6)[:, coarse_idx].reshape(-1, 6))
-        lit = np.repeat(np.where(uniform, _code_lit(c), 0).astype(np.uint16), nc)
-        crad, _, _, _, seen = self._radiance(coarse, t_ns, w, light, scale=scale, board_code=True, lit_code=lit)
-        seen = seen.reshape(K, nc)
+        lit_c = np.where(uniform, _code_lit(c), 0).astype(np.uint16)
+        seen = np.repeat(lit_c[:, None], nc, axis=1)
+        crad = np.zeros((K, nc, 3), np.float32)  # not needed where the codes alone decide
+        cast = np.flatnonzero(~self._lit_side_seen(coarse, lit_c, nc, light))
+        rays = np.ascontiguousarray(coarse.reshape(K, nc, 6)[cast].reshape(-1, 6))
+        rc, _, _, _, sc = self._radiance(rays, t_ns, w, light, scale=scale, board_code=True,
+                                         lit_code=np.repeat(lit_c[cast], nc))
+        crad[cast], seen[cast] = rc.reshape(-1, nc, 3), sc.reshape(-1, nc)
         decided = (seen == seen[:, :1]).all(axis=1) & (seen[:, 0] > 0)
         means = np.zeros((K, 3), np.float32)
         done = np.flatnonzero(decided)
@@ -401,7 +406,29 @@ class Renderer:
         clear = (seen == 0).all(axis=1)
         none = np.flatnonzero(clear)
         pixel_means(np.ascontiguousarray(crad.reshape(K, nc, 3)[none]).reshape(-1, 3), nc, none, means)
-        return means, decided, clear, crad.reshape(K, nc, 3), coarse_idx
+        return means, decided, clear, crad, coarse_idx
+
+    def _lit_side_seen(self, rays: F32, lit_c: npt.NDArray[np.uint16], nc: int, light: Lighting
+                       ) -> npt.NDArray[np.bool_]:
+        """Which pixels (``nc`` rays each) see with every ray the lit board side ``lit_c`` (0: none)
+        that all their neighbours see: from the static scene's cast alone (the board code, no
+        shading, no shadow ray; what :meth:`_radiance` would find with ``lit_code``).  None in a
+        world with movers."""
+        from ._kernels import hit_board_codes
+
+        ok = np.zeros(len(lit_c), bool)
+        sel = np.flatnonzero(lit_c > 0)
+        if len(self.world.agents) or not len(sel):
+            return ok
+        rr = np.ascontiguousarray(rays.reshape(-1, nc, 6)[sel].reshape(-1, 6))
+        hit = self.static.scene.cast_rays(tensor(rr), nthreads=0)
+        st = self.static.tables
+        flip = np.array([not t.z_toward_observer for t in self.static.targets] or [False], bool)
+        codes = hit_board_codes(rr, hit["t_hit"].numpy(), hit["primitive_ids"].numpy(),
+                                hit["primitive_normals"].numpy(), st.material, st.variant, flip,
+                                np.asarray(light.sun_dir, np.float32), np.empty(len(rr), np.uint16))
+        ok[sel] = (codes.reshape(-1, nc) == lit_c[sel, None]).all(axis=1)
+        return ok
 
     def _mover_scene(self, t_ns: int) -> tuple[Any, TriangleTables] | None:
         if len(self.world.agents) == 0:

@@ -1,8 +1,8 @@
 """Target supersampling that skips the pixels whose footprint lies in one printed patch, the
-shadow rays of supersamples whose neighbourhood is one lit board side and the casts of pixels
-whose coarse rays all see one board side (also beside the board's outline) (#25): the image
-equals the one that casts every candidate's rays with their shadow rays, and the skips are really
-taken."""
+shadow rays of supersamples whose neighbourhood is one lit board side, the shading of coarse rays
+that see that side and the casts of pixels whose coarse rays all see one board side (also beside
+the board's outline) (#25): the image equals the one that casts every candidate's rays with their
+shadow rays, and the skips are really taken."""
 
 from __future__ import annotations
 
@@ -54,9 +54,19 @@ def test_skipped_footprints_equal_casting_every_candidate(calib: Any, monkeypatc
         flat_counts.append(int(out.sum()))
         return out
 
+    real_seen = Renderer._lit_side_seen
+    seen_by_codes: list[int] = []
+
+    def seen(self: Renderer, *a: Any) -> Any:
+        out = real_seen(self, *a)
+        seen_by_codes.append(int(out.sum()))
+        return out
+
     monkeypatch.setattr(kernels, "board_footprints_flat", counted)
+    monkeypatch.setattr(Renderer, "_lit_side_seen", seen)
     fast = r.render_pose(model, T, weather=DAY).radiance
     assert flat_counts and flat_counts[0] > 100  # the skip is taken
+    assert seen_by_codes[0] > 100  # pixels whose coarse rays were only cast, not shaded
 
     def never(*a: Any) -> Any:
         out = a[-1]
@@ -84,6 +94,7 @@ def test_skipped_footprints_equal_casting_every_candidate(calib: Any, monkeypatc
     monkeypatch.setattr(kernels, "board_footprints_flat", never)
     monkeypatch.setattr(Renderer, "_radiance", every_shadow_ray)
     monkeypatch.setattr(Renderer, "_plane_supersamples", no_plane)
+    monkeypatch.setattr(Renderer, "_lit_side_seen", lambda self, rays, lit_c, *a: np.zeros(len(lit_c), bool))
     ref_clear = r.render_pose(model, T, weather=DAY).radiance  # every skip but the coarse mean
     keep_clear[0] = False
     ref = r.render_pose(model, T, weather=DAY).radiance  # every candidate's s x s rays cast
