@@ -380,7 +380,8 @@ class Renderer:
         Decided are the pixels whose coarse rays all see one board side lit alike: the mean of all
         ``s x s`` rays where they meet the board's plane, shaded like a cast hit (lit as the
         coarse rays say).  The coarse rays of a ``uniform`` pixel that see its lit board side
-        skip their shadow rays."""
+        skip their shadow rays and, when all of them do, their shading too
+        (:meth:`_lit_side_seen`: such a pixel is decided by its rays' board codes alone)."""
         from ._kernels import board_plane_means, pixel_means
 
         n = s * s
