@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import threading
 from dataclasses import dataclass, fields
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -40,8 +40,10 @@ from .shading import (
     horizon_radiance,
     lighting,
 )
-from .sun_grid import SunGrid, build_sun_grid
 from .textures import board_albedo, board_footprint_tables, board_tables, kernel_tables
+
+if TYPE_CHECKING:
+    from .sun_grid import SunGrid
 
 __all__ = ["RenderCamera", "RenderOptions", "RenderedView", "Renderer"]
 
@@ -185,7 +187,7 @@ class Renderer:
         self._movers: tuple[Any, TriangleTables] | None = None
         self._lock = threading.Lock()  # views of one instant may render on parallel threads
         self._local = threading.local()  # per thread: the kernels' reusable buffers
-        self._sun_grid_cache: SunGrid | None = None
+        self._sun_grid_cache: SunGrid | None = None  # numba loads with the first render, not here
 
     # ----------------------------------------------------------------------------- construction
     @classmethod
@@ -568,6 +570,8 @@ class Renderer:
         """The static scene's grid across the sun (:mod:`.sun_grid`) answering for ``sun``, built
         again when the sun has moved too far since the last one (``None`` for a sun at or below
         the horizon: the grid leaves the ground out)."""
+        from .sun_grid import build_sun_grid
+
         V, T = self.static.occluder_vertices, self.static.occluder_triangles
         if not float(sun[2]) > 1e-3 or V is None or T is None:
             return None
