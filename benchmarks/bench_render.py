@@ -17,9 +17,11 @@ one: on two idle cores the two-thread step takes about half its CPU time).  The 
 raycaster alone: ``cast_rays(nthreads=0)`` of the same rays against the same static scene, twice
 (one per view).  RATIO = render time / raw cast time (1 would be a renderer that adds nothing to
 the ray cast).  ``--stages`` adds the CPU time per stage of the sequential 1024 step (the casts, the
-fused numba passes, blur, noise, target supersampling and its board-plane path; inclusive times,
-benchmark-only instrumentation of internals) and, outside the step's total, the PNG encoding of
-its two RGB views as ``sim`` writes them (``write_png(photo=True)``) and with the default settings.
+fused numba passes, the shadow rays' grid across the sun, blur, noise, target supersampling and its
+board-plane path; inclusive times, benchmark-only instrumentation of internals) and, outside the
+step's total, the PNG encoding of its two RGB views as ``sim`` writes them (``write_png(photo=True)``)
+and with the default settings, and the build of the shadow rays' grid (``sim.render.sun_grid``: the
+step reuses it; a sequence builds one whenever the sun has moved 0.5 deg, every ~2 s of a drive).
 
 The sequence row runs the command line (``ibiscape-eval sim --setup svi --resolution 1024``, PNG
 writing included) in fresh processes, once for 0.5 s and once for ``--svi-seconds``: the difference
@@ -88,7 +90,7 @@ def _time(fn: Callable[[], Any], repeat: int) -> tuple[float, float]:
 def _stages(r: Any, step: Callable[[], None], repeat: int) -> list[tuple[str, float]]:
     """CPU time per stage of ``step`` [s per step], by wrapping the renderer's internals (the views
     must run one after the other: process CPU time is charged to the stage running)."""
-    from ibiscape_eval.sim.render import _kernels, renderer
+    from ibiscape_eval.sim.render import _kernels, renderer, sun_grid
 
     acc: dict[str, float] = collections.defaultdict(float)
 
@@ -114,11 +116,13 @@ def _stages(r: Any, step: Callable[[], None], repeat: int) -> list[tuple[str, fl
                (_kernels, "surfaces", "numba: hits, albedo, shadow rays (surfaces)"),
                (_kernels, "finish_into", "numba: shading, wet road, fog (finish)"),
                (renderer.Renderer, "_occluded", "shadow rays (static + movers)"),
+               (sun_grid.SunGrid, "occluded", "sun grid: shadow rays, static scene"),
                (renderer.Renderer, "_mover_pixels", "movers' pixels"),
                (renderer.Renderer, "_radiance", "per-ray work (casts + kernels)"),
                (renderer.Renderer, "_supersample_targets", "target supersampling (all of it)"),
                (_kernels, "board_texels", "numba: board texels"),
                (_kernels, "board_footprints_flat", "numba: footprints in one printed patch"),
+               (_kernels, "board_plane_means", "numba: supersamples on the board's plane"),
                (renderer.Renderer, "_plane_supersamples", "supersamples on the board's plane (coarse cast + numba)"),
                (renderer.Renderer, "render_pose", "whole view")]
     import cv2
@@ -137,6 +141,7 @@ def _stages(r: Any, step: Callable[[], None], repeat: int) -> list[tuple[str, fl
             step()
         acc["TOTAL stereo step"] = time.process_time() - c0
         acc.update(_png_stage(r, repeat))
+        acc.update(_grid_stage(r, repeat))
     finally:
         for obj, name, fn in saved:
             setattr(obj, name, fn)
@@ -161,6 +166,22 @@ def _png_stage(r: Any, repeat: int) -> dict[str, float]:
                     write_png(Path(d) / f"{i}.png", v.rgb, photo=photo)
             out[label] = time.process_time() - c0
     return out
+
+
+def _grid_stage(r: Any, repeat: int) -> dict[str, float]:
+    """CPU time of building the static scene's shadow grid for the step's sun (outside the step's
+    total: the step reuses the grid)."""
+    from ibiscape_eval.sim.render import sun_grid
+    from ibiscape_eval.sim.render.scene import MAT
+
+    grid, st = r._sun_grid_cache, r.static
+    if grid is None:
+        return {}
+    terrain = st.tables.material[-1 - len(st.occluder_triangles):-1] == MAT["ground"]
+    c0 = time.process_time()
+    for _ in range(repeat):
+        sun_grid.build_sun_grid(st.occluder_vertices, st.occluder_triangles, grid.s0, terrain=terrain)
+    return {"(not in TOTAL) sun grid build, once per 0.5 deg of sun motion": time.process_time() - c0}
 
 
 def _svi(seconds: float) -> tuple[float, float, float, int]:

@@ -328,12 +328,18 @@ def board_texels(mat, uv, var, front, boards, col):
             col[i, 0] = col[i, 1] = col[i, 2] = np.float32(0.35)
             continue
         tex, x0, y0, sign, ppm = boards[var[i]]
-        cf = (np.float64(uv[i, 0]) - x0) * ppm - 0.5
-        rf = (np.float64(uv[i, 1]) - y0) * ppm - 0.5 if sign > 0 else (y0 - np.float64(uv[i, 1])) * ppm - 0.5
-        c = min(max(int(np.floor(cf + 0.5)), 0), tex.shape[1] - 1)
-        r = min(max(int(np.floor(rf + 0.5)), 0), tex.shape[0] - 1)
-        col[i, 0] = col[i, 1] = col[i, 2] = tex[r, c]
+        col[i, 0] = col[i, 1] = col[i, 2] = _texel(tex, x0, y0, sign, ppm, uv[i, 0], uv[i, 1])
     return col
+
+
+@nb.njit(cache=True, inline="always")
+def _texel(tex, x0, y0, sign, ppm, u, v):
+    # the nearest texel of a board's print at target coordinates u, v (float32) [m]
+    cf = (np.float64(u) - x0) * ppm - 0.5
+    rf = (np.float64(v) - y0) * ppm - 0.5 if sign > 0 else (y0 - np.float64(v)) * ppm - 0.5
+    c = min(max(int(np.floor(cf + 0.5)), 0), tex.shape[1] - 1)
+    r = min(max(int(np.floor(rf + 0.5)), 0), tex.shape[0] - 1)
+    return tex[r, c]
 
 
 @nb.njit(cache=True, inline="always")
@@ -578,19 +584,78 @@ def board_plane_samples(rays, var, code, poses, sun, depth, uv, ndl, amb):
     ``Renderer._radiance``'s board code) and ``amb`` (``0.6 + 0.4 n_z``).  A ray parallel to the
     plane gets ``inf`` (the caller casts only rays whose neighbours saw the plane)."""
     for i in range(rays.shape[0]):
-        P = poses[var[i]]
-        ox, oy, oz = rays[i, 0] - P[0, 3], rays[i, 1] - P[1, 3], rays[i, 2] - P[2, 3]
-        dx, dy, dz = np.float64(rays[i, 3]), np.float64(rays[i, 4]), np.float64(rays[i, 5])
-        nx, ny, nz = P[0, 2], P[1, 2], P[2, 2]
-        dn = nx * dx + ny * dy + nz * dz
-        t = -(nx * ox + ny * oy + nz * oz) / dn if dn != 0.0 else np.inf
-        px, py, pz = ox + t * dx, oy + t * dy, oz + t * dz
-        depth[i] = t
-        uv[i, 0] = P[0, 0] * px + P[1, 0] * py + P[2, 0] * pz
-        uv[i, 1] = P[0, 1] * px + P[1, 1] * py + P[2, 1] * pz
-        if dn > 0.0:  # the normal facing the viewer
-            nx, ny, nz = -nx, -ny, -nz
-        amb[i] = 0.6 + 0.4 * nz
-        lit = (code[i] - 1) % 2 == 1
-        ndl[i] = max(nx * sun[0] + ny * sun[1] + nz * sun[2], 0.0) if lit else 0.0
+        depth[i], uv[i, 0], uv[i, 1], ndl[i], amb[i] = _plane_hit(rays, i, poses[var[i]], sun,
+                                                                  (code[i] - 1) % 2 == 1)
     return depth
+
+
+@nb.njit(cache=True, inline="always")
+def _plane_hit(rays, i, P, sun, lit):
+    # ray i meets the plane of the board at pose P: t, target x, y and the shading terms
+    ox, oy, oz = rays[i, 0] - P[0, 3], rays[i, 1] - P[1, 3], rays[i, 2] - P[2, 3]
+    dx, dy, dz = np.float64(rays[i, 3]), np.float64(rays[i, 4]), np.float64(rays[i, 5])
+    nx, ny, nz = P[0, 2], P[1, 2], P[2, 2]
+    dn = nx * dx + ny * dy + nz * dz
+    t = -(nx * ox + ny * oy + nz * oz) / dn if dn != 0.0 else np.inf
+    px, py, pz = ox + t * dx, oy + t * dy, oz + t * dz
+    if dn > 0.0:  # the normal facing the viewer
+        nx, ny, nz = -nx, -ny, -nz
+    ndl = max(nx * sun[0] + ny * sun[1] + nz * sun[2], 0.0) if lit else 0.0
+    return (t, P[0, 0] * px + P[1, 0] * py + P[2, 0] * pz, P[0, 1] * px + P[1, 1] * py + P[2, 1] * pz, ndl,
+            0.6 + 0.4 * nz)
+
+
+@nb.njit(cache=True, nogil=True)
+def board_plane_means(rays, per_pixel, code, poses, boards, sun, sky, optics, scale, rows_flat, out):
+    """``out[rows_flat[k]]``: the mean radiance (times ``scale``) of the ``per_pixel`` rays of
+    pixel k (rows ``k per_pixel ...`` of ``rays``) where they meet the plane of the board side
+    that ``code[k]`` names (``Renderer._radiance``'s board code; lit as it says), textured and
+    shaded as :func:`board_plane_samples`, :func:`board_texels` and :func:`finish_into` do for a
+    board (no wet road; float32 depth, target coordinates and shading terms, as those arrays
+    hold them), summed in float64.  Every ray must meet the plane in front (``t > 0``: the
+    caller's coarse rays saw the board around them)."""
+    e_sun, e_sky = sky[0], sky[1]
+    beta, airlight, sky_distance = optics[2], optics[3], optics[4]
+    f0, f1, f2 = airlight[0], airlight[1], airlight[2]
+    for k in range(rows_flat.shape[0]):
+        c = code[k] - 1
+        b, front, lit = c >> 2, (c >> 1) % 2 == 1, c % 2 == 1
+        P = poses[b]
+        tex, x0, y0, sign, ppm = boards[b]
+        a0 = a1 = a2 = 0.0
+        for i in range(k * per_pixel, (k + 1) * per_pixel):
+            t, u, v, ndl, amb = _plane_hit(rays, i, P, sun, lit)
+            alb = _texel(tex, x0, y0, sign, ppm, np.float32(u), np.float32(v)) if front else np.float32(0.35)
+            e = e_sun * np.float32(ndl) + e_sky * np.float32(amb)
+            r = g = bl = alb * e
+            if beta > 0.0:
+                dn = np.sqrt(rays[i, 3] * rays[i, 3] + rays[i, 4] * rays[i, 4] + rays[i, 5] * rays[i, 5])
+                tr = np.exp(-beta * min(np.float32(t) * dn, sky_distance))
+                r = r * tr + f0 * (1.0 - tr)
+                g = g * tr + f1 * (1.0 - tr)
+                bl = bl * tr + f2 * (1.0 - tr)
+            a0 += float(np.float32(r * scale))
+            a1 += float(np.float32(g * scale))
+            a2 += float(np.float32(bl * scale))
+        j = rows_flat[k]
+        out[j, 0], out[j, 1], out[j, 2] = a0 / per_pixel, a1 / per_pixel, a2 / per_pixel
+    return out
+
+
+@nb.njit(cache=True, nogil=True)
+def hit_board_codes(rays, t, prim, normal, material, variant, board_flip, sun, out):
+    """``out[i]``: ``Renderer._radiance``'s board code of ray i's hit in the static scene
+    (``t``, ``prim``, ``normal`` as open3d returns them; 0 where it sees no board), lit where the
+    board side faces the sun, without a shadow ray: :func:`surfaces`' arithmetic, for rays whose
+    neighbours saw that side lit."""
+    for i in range(t.shape[0]):
+        out[i] = 0
+        if not np.isfinite(t[i]) or material[prim[i]] != _TARGET:
+            continue
+        vi = variant[prim[i]]
+        nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
+        f = nx * rays[i, 3] + ny * rays[i, 4] + nz * rays[i, 5] < 0.0
+        s = 1.0 if f else -1.0
+        ndl = s * nx * sun[0] + s * ny * sun[1] + s * nz * sun[2]
+        out[i] = 1 + 4 * vi + (2 if f != board_flip[vi] else 0) + (1 if ndl > 0.0 else 0)
+    return out

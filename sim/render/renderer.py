@@ -4,10 +4,12 @@ One :class:`Renderer` per sequence holds the static scene (built once), the came
 weather log.  Per view it casts one ray per pixel (``cast_rays(nthreads=0)``), takes the nearer of
 the static and the movers' hit, interpolates the hit triangle's texture coordinates with the
 barycentric coordinates open3d returns, shades (one shadow ray toward the sun per lit pixel
-facing it, a ``test_occlusions`` any-hit query; against the movers only where a mover's outline
-seen along the sun covers the point), adds the weather and, for RGB, the sensor's noise.  Pixels
-that see a calibration target are rendered again with ``s x s`` rays each and averaged
-(antialiasing where it matters, at a fraction of the cost of supersampling the whole image).
+facing it: against the static scene through its grid across the sun, :mod:`.sun_grid`, exact
+triangle tests; against the movers, an open3d ``test_occlusions`` any-hit query, only where a
+mover's outline seen along the sun covers the point), adds the weather and, for RGB, the sensor's
+noise.  Pixels that see a calibration target are rendered again with ``s x s`` rays each and
+averaged (antialiasing where it matters, at a fraction of the cost of supersampling the whole
+image).
 
 The per-ray work around the casts is two fused numba passes (``_kernels.surfaces`` before the
 shadow rays, ``_kernels.finish`` after them) and one for the sensor (``_kernels.quantize``).
@@ -17,7 +19,7 @@ from __future__ import annotations
 
 import threading
 from dataclasses import dataclass, fields
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -39,6 +41,9 @@ from .shading import (
     lighting,
 )
 from .textures import board_albedo, board_footprint_tables, board_tables, kernel_tables
+
+if TYPE_CHECKING:
+    from .sun_grid import SunGrid
 
 __all__ = ["RenderCamera", "RenderOptions", "RenderedView", "Renderer"]
 
@@ -182,6 +187,7 @@ class Renderer:
         self._movers: tuple[Any, TriangleTables] | None = None
         self._lock = threading.Lock()  # views of one instant may render on parallel threads
         self._local = threading.local()  # per thread: the kernels' reusable buffers
+        self._sun_grid_cache: SunGrid | None = None  # numba loads with the first render, not here
 
     # ----------------------------------------------------------------------------- construction
     @classmethod
@@ -313,9 +319,14 @@ class Renderer:
         :meth:`_radiance`), and whose ``s x s`` rays all meet that board's plane inside one
         uniform patch of the print (a texel of margin) keeps its centre sample: its rays would
         all return that sample's radiance (the ~35 % of candidates beside an edge that does not
-        cross them).  The rays of such a pixel (its neighbours all lit) that meet that board side
-        are taken as lit without shadow rays: like the centre-sample test itself, this assumes no
-        shadow edge thinner than the pixel spacing."""
+        cross them).  The others cast a coarse 3 x 3 subset of their rays first
+        (:meth:`_plane_supersamples`): the pixels whose coarse rays all see one board side, lit
+        alike, get all their rays on that board's plane (also beside the board's outline), those
+        whose coarse rays see no board (the background beside the board's outline) the mean of
+        the coarse rays, and only the rest cast their other rays (the coarse ones are kept).  The rays of a
+        pixel whose neighbours all see one lit board side that meet that side are taken as lit
+        without shadow rays.  Like the centre-sample test, this assumes no shadow edge, occluder
+        or board corner thinner than a third of the pixel between the coarse rays."""
         import cv2
 
         from ._kernels import board_footprints_flat, pixel_means
@@ -334,58 +345,93 @@ class Renderer:
         c2 = code.reshape(H, W)
         c = c2[rows, cols]
         uniform = (c > 0) & (cv2.dilate(c2, k)[rows, cols] == cv2.erode(c2, k)[rows, cols])
+        n = s * s
         if uniform.any():
             poses, diffs = board_footprint_tables(self.static.targets)
-            flat = board_footprints_flat(sub, s * s, uniform, _code_board(c), poses,
+            flat = board_footprints_flat(sub, n, uniform, _code_board(c), poses,
                                          board_tables(self.static.targets), diffs,
                                          np.empty(len(rows), np.bool_))
             cross = ~flat
             rows, cols, c, uniform = rows[cross], cols[cross], c[cross], uniform[cross]
-            sub = sub.reshape(-1, s * s, 6)[cross].reshape(-1, 6)
-        n = s * s
-        if uniform.any():  # a coarse cast, the rest on the board's plane where it sees only the board
-            done, rs = self._plane_supersamples(sub, s, c, uniform, t_ns, w, light, scale)
-            pixel_means(rs, n, rows[done] * W + cols[done], rad)
-            keep = np.ones(len(rows), bool)
-            keep[done] = False
-            rows, cols, c, uniform = rows[keep], cols[keep], c[keep], uniform[keep]
-            sub = sub.reshape(-1, n, 6)[keep].reshape(-1, 6)
-        lit = np.repeat(np.where(uniform, _code_lit(c), 0).astype(np.uint16), n)
-        rs = self._radiance(sub, t_ns, w, light, scale=scale, lit_code=lit)[0]
-        pixel_means(rs, n, rows * W + cols, rad)
+            sub = sub.reshape(-1, n, 6)[cross].reshape(-1, 6)
+        if not len(rows):
+            return
+        means, decided, clear, coarse_rad, coarse_idx = self._plane_supersamples(sub, s, c, uniform, t_ns, w,
+                                                                                 light, scale)
+        d = decided | clear
+        rad[rows[d] * W + cols[d]] = means[d]
+        m = np.flatnonzero(~d)
+        rest_idx = np.setdiff1d(np.arange(n), coarse_idx)
+        rest = np.ascontiguousarray(sub.reshape(-1, n, 6)[m][:, rest_idx].reshape(-1, 6))
+        lit = np.repeat(np.where(uniform[m], _code_lit(c[m]), 0).astype(np.uint16), len(rest_idx))
+        full = np.empty((len(m), n, 3), np.float32)
+        full[:, coarse_idx] = coarse_rad[m]
+        full[:, rest_idx] = self._radiance(rest, t_ns, w, light, scale=scale, lit_code=lit)[0].reshape(len(m), -1, 3)
+        pixel_means(full.reshape(-1, 3), n, rows[m] * W + cols[m], rad)
 
     def _plane_supersamples(self, sub: F32, s: int, c: npt.NDArray[np.uint16], uniform: npt.NDArray[np.bool_],
                             t_ns: int, w: WeatherState, light: Lighting, scale: float
-                            ) -> tuple[npt.NDArray[np.intp], F32]:
-        """The supersamples of the ``uniform`` pixels (board code ``c``, rays ``sub`` (K s s, 6))
-        whose coarse 3 x 3 subset of rays, cast into the scene, all see the pixel's board side as
-        the pixel's neighbours do: those pixels (indices into K) and the radiance (s s per pixel)
-        of all their rays where they meet the board's plane, shaded like a cast hit (lit as the
-        code says; no occluder thinner than a third of the pixel between the coarse rays)."""
-        from ._kernels import board_plane_samples, board_texels
+                            ) -> tuple[F32, npt.NDArray[np.bool_], npt.NDArray[np.bool_], F32, npt.NDArray[np.intp]]:
+        """Cast a coarse 3 x 3 subset of the ``s x s`` rays ``sub`` (K s s, 6) of K pixels (board
+        code ``c`` of their centre, ``uniform`` where their neighbours all see that side) and
+        decide the pixels whose coarse rays agree.  Returns the mean radiance (K, 3) of the
+        decided pixels (the coarse rays' mean where they see no board), which pixels are decided
+        (K,), which see no board with any coarse ray (K,), the coarse rays' radiance (K, 9, 3)
+        and their indices in the s x s grid (9,).
+
+        Decided are the pixels whose coarse rays all see one board side lit alike: the mean of all
+        ``s x s`` rays where they meet the board's plane, shaded like a cast hit (lit as the
+        coarse rays say).  The coarse rays of a ``uniform`` pixel that see its lit board side
+        skip their shadow rays and, when all of them do, their shading too
+        (:meth:`_lit_side_seen`: such a pixel is decided by its rays' board codes alone)."""
+        from ._kernels import board_plane_means, pixel_means
 
         n = s * s
         q = np.round(np.linspace(0, s - 1, 3)).astype(int)
         coarse_idx = (q[:, None] * s + q[None, :]).ravel()
-        u = np.flatnonzero(uniform)
-        cu = c[u]
-        coarse = np.ascontiguousarray(sub.reshape(-1, n, 6)[u][:, coarse_idx].reshape(-1, 6))
-        lit = np.repeat(_code_lit(cu), len(coarse_idx))
-        seen = self._radiance(coarse, t_ns, w, light, scale=scale, board_code=True, lit_code=lit)[4]
-        ok = (seen.reshape(len(u), -1) == cu[:, None]).all(axis=1)
-        done = u[ok]
-        rays = np.ascontiguousarray(sub.reshape(-1, n, 6)[done].reshape(-1, 6))
-        code = np.repeat(c[done], n)
-        var = _code_board(code).astype(np.uint8)
-        m = len(rays)
-        depth, uv = np.empty(m, np.float32), np.empty((m, 2), np.float32)
-        ndl, amb, alb = np.empty(m, np.float32), np.empty(m, np.float32), np.empty((m, 3), np.float32)
+        K, nc = len(c), len(coarse_idx)
+        coarse = np.ascontiguousarray(sub.reshape(K, n, 6)[:, coarse_idx].reshape(-1, 6))
+        lit_c = np.where(uniform, _code_lit(c), 0).astype(np.uint16)
+        seen = np.repeat(lit_c[:, None], nc, axis=1)
+        crad = np.zeros((K, nc, 3), np.float32)  # not needed where the codes alone decide
+        cast = np.flatnonzero(~self._lit_side_seen(coarse, lit_c, nc, light))
+        rays = np.ascontiguousarray(coarse.reshape(K, nc, 6)[cast].reshape(-1, 6))
+        rc, _, _, _, sc = self._radiance(rays, t_ns, w, light, scale=scale, board_code=True,
+                                         lit_code=np.repeat(lit_c[cast], nc))
+        crad[cast], seen[cast] = rc.reshape(-1, nc, 3), sc.reshape(-1, nc)
+        decided = (seen == seen[:, :1]).all(axis=1) & (seen[:, 0] > 0)
+        means = np.zeros((K, 3), np.float32)
+        done = np.flatnonzero(decided)
         poses, _ = board_footprint_tables(self.static.targets)
-        board_plane_samples(rays, var, code, poses, np.asarray(light.sun_dir, np.float64), depth, uv, ndl, amb)
-        board_texels(np.full(m, MAT["target"], np.uint8), uv, var, _code_front(code),
-                     board_tables(self.static.targets), alb)
-        rs = self._finish(alb, ndl, amb, depth, rays, np.zeros(m, np.float32), uv, w, light, scale)
-        return done, rs
+        board_plane_means(np.ascontiguousarray(sub.reshape(K, n, 6)[done].reshape(-1, 6)), n, seen[done, 0], poses,
+                          board_tables(self.static.targets), np.asarray(light.sun_dir, np.float64),
+                          *self._shading(w, light)[1:], np.float32(scale), done, means)
+        clear = (seen == 0).all(axis=1)
+        none = np.flatnonzero(clear)
+        pixel_means(np.ascontiguousarray(crad.reshape(K, nc, 3)[none]).reshape(-1, 3), nc, none, means)
+        return means, decided, clear, crad, coarse_idx
+
+    def _lit_side_seen(self, rays: F32, lit_c: npt.NDArray[np.uint16], nc: int, light: Lighting
+                       ) -> npt.NDArray[np.bool_]:
+        """Which pixels (``nc`` rays each) see with every ray the lit board side ``lit_c`` (0: none)
+        that all their neighbours see: from the static scene's cast alone (the board code, no
+        shading, no shadow ray; what :meth:`_radiance` would find with ``lit_code``).  None in a
+        world with movers."""
+        from ._kernels import hit_board_codes
+
+        ok = np.zeros(len(lit_c), bool)
+        sel = np.flatnonzero(lit_c > 0)
+        if len(self.world.agents) or not len(sel):
+            return ok
+        rr = np.ascontiguousarray(rays.reshape(-1, nc, 6)[sel].reshape(-1, 6))
+        hit = self.static.scene.cast_rays(tensor(rr), nthreads=0)
+        st = self.static.tables
+        flip = np.array([not t.z_toward_observer for t in self.static.targets] or [False], bool)
+        codes = hit_board_codes(rr, hit["t_hit"].numpy(), hit["primitive_ids"].numpy(),
+                                hit["primitive_normals"].numpy(), st.material, st.variant, flip,
+                                np.asarray(light.sun_dir, np.float32), np.empty(len(rr), np.uint16))
+        ok[sel] = (codes.reshape(-1, nc) == lit_c[sel, None]).all(axis=1)
+        return ok
 
     def _mover_scene(self, t_ns: int) -> tuple[Any, TriangleTables] | None:
         if len(self.world.agents) == 0:
@@ -485,6 +531,13 @@ class Renderer:
         """``_kernels.finish_into`` (``out``, or a new array) with this renderer's weather optics."""
         from ._kernels import finish_into
 
+        tab, sky, wet_fog = self._shading(w, light)
+        return finish_into(alb, ndl, amb, depth, rays, paved, uv, tab, sky, wet_fog, np.float32(scale),
+                           np.empty((len(depth), 3), np.float32) if out is None else out)
+
+    def _shading(self, w: WeatherState, light: Lighting) -> tuple[Any, tuple[Any, ...], tuple[Any, ...]]:
+        """The noise table and the ``sky`` and ``optics`` arguments of ``_kernels.finish_into``
+        with this renderer's weather optics."""
         optics = self.options.weather_optics
         wet = w.wetness / 100.0 if optics else 0.0
         puddle_level = 1.6 - 2.2 * w.precipitation_deposits / 100.0  # more deposits: more water
@@ -495,19 +548,39 @@ class Renderer:
                np.float32(w.cloudiness / 100.0), np.float32(1.6 * light.e_sky + 0.25 * light.e_sun))
         wet_fog = (np.float32(wet), np.float32(puddle_level), np.float32(beta), horizon_radiance(w, light),
                    np.float32(_SKY_DISTANCE_M))
-        return finish_into(alb, ndl, amb, depth, rays, paved, uv, kernel_tables(self.static.ground)[0], sky,
-                           wet_fog, np.float32(scale), np.empty((len(depth), 3), np.float32) if out is None else out)
+        return kernel_tables(self.static.ground)[0], sky, wet_fog
 
     def _occluded(self, rays: F32, mover_may: npt.NDArray[np.bool_], t_ns: int) -> npt.NDArray[np.bool_]:
-        """Shadow rays (N, 6) that hit something; the movers' scene is asked only for the rays
-        flagged in ``mover_may`` that the static scene left free."""
-        occ = self.static.scene.test_occlusions(tensor(rays), nthreads=0).numpy().astype(bool)
+        """Shadow rays (N, 6) toward the sun that hit something: the static scene through its grid
+        across the sun (:meth:`_shadow_grid`; open3d's any-hit query without one), the movers'
+        scene only for the rays flagged in ``mover_may`` that the static scene left free."""
+        grid = self._shadow_grid(rays[0, 3:6]) if len(rays) else None
+        if grid is None:
+            occ = self.static.scene.test_occlusions(tensor(rays), nthreads=0).numpy().astype(bool)
+        else:
+            occ = grid.occluded(rays, rays[0, 3:6])
         movers = self._mover_scene(t_ns)
         if movers is not None:
             sel = np.flatnonzero(mover_may & ~occ)
             if sel.size:
                 occ[sel] = movers[0].test_occlusions(tensor(rays[sel]), nthreads=0).numpy().astype(bool)
         return occ
+
+    def _shadow_grid(self, sun: F32) -> SunGrid | None:
+        """The static scene's grid across the sun (:mod:`.sun_grid`) answering for ``sun``, built
+        again when the sun has moved too far since the last one (``None`` for a sun at or below
+        the horizon: the grid leaves the ground out)."""
+        from .sun_grid import build_sun_grid
+
+        V, T = self.static.occluder_vertices, self.static.occluder_triangles
+        if not float(sun[2]) > 1e-3 or V is None or T is None:
+            return None
+        with self._lock:
+            g = self._sun_grid_cache
+            if g is None or not g.covers(sun):
+                mat = self.static.tables.material  # the ground quad first, the sentinel last
+                g = self._sun_grid_cache = build_sun_grid(V, T, sun, terrain=mat[-1 - len(T):-1] == MAT["ground"])
+            return g
 
     def _sun_grid(self, t_ns: int, sun: F32, want: bool) -> tuple[Any, ...]:
         """Where the movers may cast shadows: their bounding boxes (grown by a margin) seen along

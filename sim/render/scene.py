@@ -199,6 +199,10 @@ class StaticScene:
     ground: GroundMap
     targets: tuple[Any, ...]
     n_triangles: int
+    #: the scene's vertices (V, 3) and triangles (T, 3) without the ground quad (the first two
+    #: triangles of ``scene``): what can shade a point above the ground
+    occluder_vertices: F32 | None = None
+    occluder_triangles: npt.NDArray[np.uint32] | None = None
 
 
 def _part(verts: np.ndarray, tris: np.ndarray, uv: np.ndarray, material: np.ndarray | int,
@@ -310,7 +314,7 @@ def build_static_scene(world: World, *, extra_cars: Boxes | None = None) -> Stat
     V, T, tables = _assemble(parts)
     scene = open3d().t.geometry.RaycastingScene()
     scene.add_triangles(tensor(V), tensor(T))
-    return StaticScene(scene, tables, _ground_map(world), tuple(world.targets), len(T))
+    return StaticScene(scene, tables, _ground_map(world), tuple(world.targets), len(T), V, T[len(_QUAD_TRIS):])
 
 
 def mover_mesh(world: World, t_ns: int) -> tuple[F32, npt.NDArray[np.uint32], TriangleTables]:

@@ -1,6 +1,8 @@
-"""Target supersampling that skips the pixels whose footprint lies in one printed patch and the
-shadow rays of supersamples whose neighbourhood is one lit board side (#25): the image equals the
-one that casts every candidate's rays with their shadow rays, and both skips are really taken."""
+"""Target supersampling that skips the pixels whose footprint lies in one printed patch, the
+shadow rays of supersamples whose neighbourhood is one lit board side, the shading of coarse rays
+that see that side and the casts of pixels whose coarse rays all see one board side (also beside
+the board's outline) (#25): the image equals the one that casts every candidate's rays with their
+shadow rays, and the skips are really taken."""
 
 from __future__ import annotations
 
@@ -52,9 +54,19 @@ def test_skipped_footprints_equal_casting_every_candidate(calib: Any, monkeypatc
         flat_counts.append(int(out.sum()))
         return out
 
+    real_seen = Renderer._lit_side_seen
+    seen_by_codes: list[int] = []
+
+    def seen(self: Renderer, *a: Any) -> Any:
+        out = real_seen(self, *a)
+        seen_by_codes.append(int(out.sum()))
+        return out
+
     monkeypatch.setattr(kernels, "board_footprints_flat", counted)
+    monkeypatch.setattr(Renderer, "_lit_side_seen", seen)
     fast = r.render_pose(model, T, weather=DAY).radiance
     assert flat_counts and flat_counts[0] > 100  # the skip is taken
+    assert seen_by_codes[0] > 100  # pixels whose coarse rays were only cast, not shaded
 
     def never(*a: Any) -> Any:
         out = a[-1]
@@ -70,19 +82,34 @@ def test_skipped_footprints_equal_casting_every_candidate(calib: Any, monkeypatc
 
     real_plane = Renderer._plane_supersamples
     plane_pixels: list[int] = []
+    outline_pixels: list[int] = []
+    keep_clear = [True]
 
-    def no_plane(self: Renderer, sub: np.ndarray, s: int, *a: Any) -> Any:
-        plane_pixels.append(len(real_plane(self, sub, s, *a)[0]))
-        return np.zeros(0, np.intp), np.zeros((0, 3), np.float32)
+    def no_plane(self: Renderer, *a: Any) -> Any:  # every candidate casts all its rays
+        means, decided, clear, coarse, idx = real_plane(self, *a)
+        plane_pixels.append(int(decided.sum()))
+        outline_pixels.append(int((decided & ~a[3]).sum()))  # a neighbour off the board side
+        return means, np.zeros_like(decided), clear & keep_clear[0], coarse, idx
 
     monkeypatch.setattr(kernels, "board_footprints_flat", never)
     monkeypatch.setattr(Renderer, "_radiance", every_shadow_ray)
     monkeypatch.setattr(Renderer, "_plane_supersamples", no_plane)
-    ref = r.render_pose(model, T, weather=DAY).radiance
+    monkeypatch.setattr(Renderer, "_lit_side_seen", lambda self, rays, lit_c, *a: np.zeros(len(lit_c), bool))
+    ref_clear = r.render_pose(model, T, weather=DAY).radiance  # every skip but the coarse mean
+    keep_clear[0] = False
+    ref = r.render_pose(model, T, weather=DAY).radiance  # every candidate's s x s rays cast
     assert max(shadow_skips) > 1000  # lit supersamples without shadow rays in the fast image
     assert plane_pixels and plane_pixels[0] > 100  # pixels whose supersamples met the plane
-    diff = np.abs(fast - ref).max(axis=-1)
-    assert diff.max() < 0.05  # 0..255 scale: float rounding of the 36-ray mean only
+    assert outline_pixels[0] > 20  # ... also beside the board's outline
+    assert np.abs(fast - ref_clear).max() < 0.05  # 0..255 scale: float rounding of the 36-ray mean only
+    # pixels beside the outline whose 3 x 3 coarse rays see no board take their mean: the ground's
+    # texture there is antialiased with 9 rays instead of 36 (measured at these two poses: 3 % of
+    # the image differs by more than 0.05 of 255, 1.1-1.5 % by more than 0.5, 0.2-0.35 % by more
+    # than 2, at most by 9.8 and 20.5)
+    diff = np.abs(ref_clear - ref).max(axis=-1)
+    assert diff.max() < 30.0
+    assert 0 < np.count_nonzero(diff > 0.5) < 0.02 * diff.size
+    assert np.count_nonzero(diff > 2.0) < 0.005 * diff.size
 
 
 def test_texel_diff_table_counts_changes() -> None:
