@@ -7,8 +7,10 @@ Per frame (grey 8-bit images of the raw, unrectified cameras):
    frames (the infinite-depth homography ``K R_c2c1 K^-1``), kept when tracking back lands within
    ``fb_max_px`` of the start (forward-backward check, Kalal et al. 2010) and when they are inliers
    of a RANSAC fundamental matrix on rectified coordinates.
-2. **Detection** of new Shi-Tomasi corners (``goodFeaturesToTrack``) away from the tracked ones,
-   at most ``ceil(max_features / grid^2)`` per grid cell so that they cover the image.
+2. **Detection** of new Shi-Tomasi corners away from the tracked ones, at most
+   ``ceil(max_features / grid^2)`` per grid cell so that they cover the image: the minimum
+   eigenvalue (``cornerMinEigenVal``, the score of ``goodFeaturesToTrack``) only in the rows of
+   cells that lack corners, its local maxima over ``min_distance_px``, each cell's strongest.
 3. **Stereo matching** of every left corner in the right image with KLT (started at the previous
    disparity), checked backwards and by the epipolar constraint of the rectified pair
    (``|v_L - v_R| <= epipolar_max_px``, positive disparity).
@@ -151,7 +153,10 @@ class StereoFrontEnd:
         xy, score = self._candidates(img, pts, lack.reshape(g, g))
         if len(score) == 0:
             return np.zeros((0, 2), dtype=np.float32)
-        ok = score >= 0.01 * score.max()
+        # at least 0.01 of the strongest, and among the 2 need + grid^2 strongest: weak corners of
+        # low-texture cells (fog, sky) are left out as goodFeaturesToTrack's pool left them out
+        ok = np.flatnonzero(score >= 0.01 * score.max())
+        ok = ok[np.argsort(-score[ok], kind="stable")][:2 * need + g * g]
         xy, score = xy[ok], score[ok]
         cc = _cells(xy, g, w, h)
         order = np.lexsort((-score, cc))               # by cell, strongest first in a cell
