@@ -7,10 +7,8 @@ Per frame (grey 8-bit images of the raw, unrectified cameras):
    frames (the infinite-depth homography ``K R_c2c1 K^-1``), kept when tracking back lands within
    ``fb_max_px`` of the start (forward-backward check, Kalal et al. 2010) and when they are inliers
    of a RANSAC fundamental matrix on rectified coordinates.
-2. **Detection** of new Shi-Tomasi corners away from the tracked ones, at most
-   ``ceil(max_features / grid^2)`` per grid cell so that they cover the image: the minimum
-   eigenvalue (``cornerMinEigenVal``, the score of ``goodFeaturesToTrack``) only in the rows of
-   cells that lack corners, its local maxima over ``min_distance_px``, each cell's strongest.
+2. **Detection** of new Shi-Tomasi corners (``goodFeaturesToTrack``) away from the tracked ones,
+   at most ``ceil(max_features / grid^2)`` per grid cell so that they cover the image.
 3. **Stereo matching** of every left corner in the right image with KLT (started at the previous
    disparity), checked backwards and by the epipolar constraint of the rectified pair
    (``|v_L - v_R| <= epipolar_max_px``, positive disparity).
@@ -36,12 +34,6 @@ __all__ = ["StereoFrontEnd"]
 FloatArray = npt.NDArray[np.float64]
 
 
-def _cells(q: npt.NDArray[Any], g: int, w: int, h: int) -> npt.NDArray[np.int64]:
-    """Grid cell (row-major, ``g`` x ``g``) of each point (N, 2) of a ``w`` x ``h`` image."""
-    return np.asarray(np.minimum((q[:, 1] * g / h).astype(np.int64), g - 1) * g
-                      + np.minimum((q[:, 0] * g / w).astype(np.int64), g - 1))
-
-
 class StereoFrontEnd:
     """Stateful tracker over a stereo image stream (see the module docstring)."""
 
@@ -59,9 +51,11 @@ class StereoFrontEnd:
         self.epi_px = params.epipolar_max_px * max(s, 0.5)
         self.ransac_px = params.ransac_px * max(s, 0.5)
         self.min_dist = max(params.min_distance_px * s, 3.0)
-        # a multiple of 8 px: OpenCV's KLT takes each window row 8 pixels at a time (SIMD) and
-        # the rest one by one (512 px: 16 px 6.5 us per corner, 17 px 8.1, 21 px 15.7, 24 px 12.1)
-        win = max(8 * round(params.klt_window_px * math.sqrt(s) / 8), 8)
+        # a multiple of 8 px: OpenCV's KLT takes each window row 8 pixels at a time (SIMD) and the
+        # rest one by one (512 px, per corner: 16 px 6.5 us, 17 px 8.1, 21 px 15.7, 24 px 12.1;
+        # bench_vio.py's front end 11.0 -> 7.1 ms in clear weather); at least 12 px (8 px lost
+        # the track of the 128 px RGB-D test drive)
+        win = max(8 * round(params.klt_window_px * math.sqrt(s) / 8), 12)
         self.win = (win, win)
         self.levels = params.klt_levels
         self.crit = (3, params.klt_iters, params.klt_eps_px)   # TERM_CRITERIA_COUNT | EPS
@@ -136,73 +130,42 @@ class StereoFrontEnd:
 
     def _detect(self, img: npt.NDArray[np.uint8], pts: npt.NDArray[np.float32]
                 ) -> npt.NDArray[np.float32]:
-        """New Shi-Tomasi corners in the grid cells holding fewer than their share of corners:
-        the minimum eigenvalue (``cv2.cornerMinEigenVal``, as in ``goodFeaturesToTrack``),
-        local maxima over ``min_dist``, at least ``0.01`` of the strongest, the strongest per
-        cell."""
+        import cv2
+
         p = self.params
         need = p.max_features - len(pts)
         if need <= 0:
             return np.zeros((0, 2), dtype=np.float32)
         h, w = img.shape
+        mask = np.full((h, w), 255, dtype=np.uint8)
+        r = round(self.min_dist)
+        for x, y in np.round(pts).astype(int):  # a disc per tracked corner (few hundred)
+            cv2.circle(mask, (int(x), int(y)), r, 0, -1)
+        border = max(self.win[0] // 2, 4)
+        mask[:border], mask[-border:], mask[:, :border], mask[:, -border:] = 0, 0, 0, 0
+        corners = cv2.goodFeaturesToTrack(img, maxCorners=2 * need + p.grid * p.grid,
+                                          qualityLevel=0.01, minDistance=self.min_dist,
+                                          mask=mask, blockSize=5)
+        if corners is None:
+            return np.zeros((0, 2), dtype=np.float32)
+        c = corners.reshape(-1, 2)
         g = p.grid
         cap = math.ceil(p.max_features / (g * g))
-        have = (np.bincount(_cells(pts, g, w, h), minlength=g * g) if len(pts)
-                else np.zeros(g * g, dtype=np.int64))
-        lack = np.maximum(cap - have, 0)
-        xy, score = self._candidates(img, pts)
-        if len(score) == 0:
-            return np.zeros((0, 2), dtype=np.float32)
-        # at least 0.01 of the strongest, and among the 2 need + grid^2 strongest of the image (full
-        # cells too): weak corners of low-texture cells (fog, sky, road) are left out, as
-        # goodFeaturesToTrack's pool left them out (a 1024 px drive: RPE 0.08 m against 0.02 m)
-        ok = np.flatnonzero(score >= 0.01 * score.max())
-        ok = ok[np.argsort(-score[ok], kind="stable")][:2 * need + g * g]
-        xy, score = xy[ok], score[ok]
-        cc = _cells(xy, g, w, h)
-        order = np.lexsort((-score, cc))               # by cell, strongest first in a cell
+
+        def cell(q: np.ndarray) -> np.ndarray:
+            return (np.minimum((q[:, 1] * g / h).astype(int), g - 1) * g
+                    + np.minimum((q[:, 0] * g / w).astype(int), g - 1))
+
+        have = np.bincount(cell(pts), minlength=g * g) if len(pts) else np.zeros(g * g, int)
+        cc = cell(c)
+        order = np.argsort(cc, kind="stable")          # quality order kept inside a cell
         sc = cc[order]
         first = np.searchsorted(sc, sc, side="left")
-        rank = np.empty(len(cc), dtype=np.int64)
-        rank[order] = np.arange(len(cc)) - first
-        keep = np.flatnonzero(rank < lack[cc])
-        keep = keep[np.argsort(-score[keep], kind="stable")][:need]
-        return xy[keep].astype(np.float32)
-
-    def _candidates(self, img: npt.NDArray[np.uint8], pts: npt.NDArray[np.float32]
-                    ) -> tuple[FloatArray, FloatArray]:
-        """Local maxima (over ``min_dist``) of the minimum eigenvalue away from the tracked
-        ``pts`` and the border: positions (N, 2) and values.  Computed per row of grid cells
-        (a 512 px image at once costs 2.5 times as much in OpenCV)."""
-        import cv2
-
-        h, w = img.shape
-        g = self.params.grid
-        allowed = np.ones((h, w), dtype=np.uint8)
-        ye = -(-np.arange(g + 1) * h // g)              # first pixel row of each cell row
-        r = max(round(self.min_dist), 1)
-        for x, y in np.round(pts).astype(int):  # a disc per tracked corner (few hundred)
-            cv2.circle(allowed, (int(x), int(y)), r, 0, -1)
-        border = max(self.win[0] // 2, 4)
-        allowed[:border], allowed[-border:], allowed[:, :border], allowed[:, -border:] = 0, 0, 0, 0
-        kernel = np.ones((2 * r + 1, 2 * r + 1), dtype=np.uint8)   # a square: separable, fast
-        xs, ys, vs = [], [], []
-        for i in range(g):
-            y0, y1 = int(ye[i]), int(ye[i + 1])
-            a0, a1 = max(y0 - r, 0), min(y1 + r, h)     # the maxima's reach
-            b0, b1 = max(a0 - 3, 0), min(a1 + 3, h)     # the eigenvalue's (5 x 5 block, Sobel)
-            e = cv2.cornerMinEigenVal(img[b0:b1], 5)[a0 - b0:a1 - b0]
-            e *= allowed[a0:a1]
-            d = cv2.dilate(e, kernel)
-            sub = slice(y0 - a0, y1 - a0)
-            yy, xx = np.nonzero((e[sub] == d[sub]) & (e[sub] > 0))
-            xs.append(xx)
-            ys.append(yy + y0)
-            vs.append(e[sub][yy, xx])
-        if not xs:
-            return np.zeros((0, 2)), np.zeros(0)
-        xy = np.column_stack([np.concatenate(xs), np.concatenate(ys)]).astype(np.float64)
-        return xy, np.concatenate(vs).astype(np.float64)
+        rank = np.empty(len(c), dtype=int)
+        rank[order] = np.arange(len(c)) - first
+        keep = rank < (cap - have[cc])
+        out = c[keep][:need]
+        return out.astype(np.float32)
 
     def process(self, stamp_ns: int, left: npt.NDArray[np.uint8], right: npt.NDArray[np.uint8],
                 R_b0_b1: FloatArray | None = None) -> StereoObservations:

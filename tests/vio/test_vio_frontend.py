@@ -162,8 +162,7 @@ def test_redetect_ratio_skips_detection_until_the_tracks_thin_out(monkeypatch):
     left = _render(tex, rig.left, np.zeros(3))
     left[:, W // 2:] = 128                              # half without texture: never fills up
     calls = []
-    # min_distance_px 8: the cells of 40 px hold their 7 corners (12: 139 of the 224 corners)
-    fe = StereoFrontEnd(rig, VioParams(max_features=400, redetect_ratio=0.9, min_distance_px=8))
+    fe = StereoFrontEnd(rig, VioParams(max_features=400, redetect_ratio=0.9))
     real = fe._detect
     monkeypatch.setattr(fe, "_detect", lambda img, pts: calls.append(len(pts)) or real(img, pts))
     fe.track(0, left)
@@ -174,7 +173,7 @@ def test_redetect_ratio_skips_detection_until_the_tracks_thin_out(monkeypatch):
     fe.pts, fe.ids, fe.disp = fe.pts[: int(0.85 * n)], fe.ids[: int(0.85 * n)], fe.disp[: int(0.85 * n)]
     fe.track(100_000_000, left)                         # 85 % of those held: detect again
     assert len(calls) == 2 and fe.n_tracked > int(0.85 * n)
-    always = StereoFrontEnd(rig, VioParams(max_features=400, min_distance_px=8))
+    always = StereoFrontEnd(rig, VioParams(max_features=400))
     always.track(0, left)
     kept = always.n_tracked
     assert kept < 280
