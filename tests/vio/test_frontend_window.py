@@ -13,7 +13,7 @@ from ibiscape_eval.vio.params import VioParams
 from ibiscape_eval.vio.rig import StereoRig
 
 
-def _front_end(width: int, **kw: float) -> StereoFrontEnd:
+def _front_end(width: int, **kw: int) -> StereoFrontEnd:
     cam = CameraModel.from_fov(width, width, 90.0)
     T_b_r = np.eye(4)
     T_b_r[0, 3] = 0.3
