@@ -26,9 +26,10 @@ class VioParams:
 
     Front end
         ``max_features`` tracked per frame (on a ``grid`` x ``grid`` cell layout),
-        ``min_distance_px`` between them, KLT ``klt_window_px`` / ``klt_levels`` (pyramid
-        levels above the image) / ``klt_iters`` / ``klt_eps_px`` (iterations per level and
-        the step that ends them),
+        ``min_distance_px`` between them, KLT ``klt_window_px`` (scaled with the square
+        root of the width and rounded to a multiple of 8 px, which OpenCV's KLT takes 8 pixels at
+        a time; at least 12 px) / ``klt_levels`` (pyramid levels above the image) / ``klt_iters`` /
+        ``klt_eps_px`` (iterations per level and the step that ends them),
         forward-backward check ``fb_max_px``, stereo epipolar check ``epipolar_max_px``,
         RANSAC threshold ``ransac_px``; new corners are detected when fewer than 70 % of
         ``max_features`` are tracked and, for ``redetect_ratio`` < 1, fewer than that fraction
@@ -62,7 +63,7 @@ class VioParams:
     max_features: int = 200
     grid: int = 8
     min_distance_px: float = 12.0
-    klt_window_px: int = 21
+    klt_window_px: int = 16
     klt_levels: int = 3
     klt_iters: int = 30
     klt_eps_px: float = 0.01
