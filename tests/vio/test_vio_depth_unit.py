@@ -35,7 +35,7 @@ pytestmark = pytest.mark.filterwarnings("ignore:the rotation of the yaw alignmen
 @pytest.fixture(scope="module")
 def drive(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("depth_unit") / "RGBD_1_town"
-    generate(with_resolution(preset("rgbd", "slam", "clear", duration_s=5.0, seed=3), 128, 96), out,
+    generate(with_resolution(preset("rgbd", "slam", "clear", duration_s=5.0, seed=3), 160, 120), out,
              render=True)
     return out
 
