@@ -16,8 +16,11 @@ the IMU stands still (zero velocity, gravity from the accelerometer), and the es
 new segment, from the last position held.  A failing keyframe at which the IMU stands still (its
 variance test, the estimated speed below 0.5 m/s and the specific force gravity in the estimated
 attitude: a quiet IMU alone cannot tell a stop from a steady cruise) gets a zero-velocity update
-instead (*standstill* span): a vehicle waiting in the rain is held, not lost.  Every span is
-reported.
+instead (*standstill* span): a vehicle waiting in the rain is held, not lost.  The speed bound
+of the hold grows with the IMU-only time (the speed estimated without vision drifts), and a hold
+restarts the count towards ``max_imu_only_s`` (it measured the velocity).  A numerical failure of
+the smoother restarts it from the state propagated to the failed keyframe (*reset* span).  Every
+span is reported.
 """
 
 from __future__ import annotations
@@ -70,7 +73,7 @@ class FailureSpan:
     and was restarted from its last state), ``"diverged"`` (an implausible state: speed, biases;
     the estimate stops there and re-initialises like after a lost span), ``"standstill"`` (inside
     a tracking span: no vision, the IMU stood still and its zero-velocity update held the pose;
-    this time does not count towards ``max_imu_only_s``).
+    this time does not count towards ``max_imu_only_s``, which counts again from its end).
     """
 
     kind: str
