@@ -33,7 +33,7 @@ settings.load_profile("ibiscape")
 
 TESTS = Path(__file__).resolve().parent
 #: Files whose tests share nothing built once (each test its own data or subprocess).
-SPLIT = ("tests/examples/test_examples.py",)
+SPLIT = ("tests/examples/test_examples.py", "tests/test_readme.py")
 #: The longest groups of a full run (seconds on the quiet machine), for a clone without a cache.
 SLOW_FIRST = {
     "tests/test_readme.py": 85.0,
