@@ -33,7 +33,8 @@ settings.load_profile("ibiscape")
 
 TESTS = Path(__file__).resolve().parent
 #: Files whose tests share nothing built once (each test its own data or subprocess).
-SPLIT = ("tests/examples/test_examples.py", "tests/test_readme.py")
+SPLIT = ("tests/examples/test_examples.py", "tests/test_readme.py",
+         "tests/mutation/test_mutation_campaign.py", "tests/calib/test_calib_rendered.py")
 #: The longest groups of a full run (seconds on the quiet machine), for a clone without a cache.
 SLOW_FIRST = {
     "tests/test_readme.py": 85.0,
@@ -85,6 +86,18 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log):
     class GroupScheduling(LoadFileScheduling):
         def _split_scope(self, nodeid: str) -> str:
             return group_of(nodeid)
+
+        def _reschedule(self, node) -> None:
+            """The next group once the worker is on its last test (xdist's own waits for two:
+            a worker busy with a long one-test group would queue two more groups behind it
+            while the other worker runs dry)."""
+            if node.shutting_down:
+                return
+            if not self.workqueue:
+                node.shutdown()
+                return
+            if self._pending_of(self.assigned_work[node]) <= 1:
+                self._assign_work_unit(node)
 
     return GroupScheduling(config, log)
 
