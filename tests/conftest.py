@@ -37,13 +37,22 @@ SPLIT = ("tests/examples/test_examples.py", "tests/test_readme.py",
          "tests/mutation/test_mutation_campaign.py", "tests/calib/test_calib_rendered.py")
 #: The longest groups of a full run (seconds on the quiet machine), for a clone without a cache.
 SLOW_FIRST = {
-    "tests/test_readme.py": 85.0,
     "tests/benchmark/test_benchmark.py": 110.0,
     "tests/calib/test_calib_dvs_cli.py": 75.0,
+    "tests/calib/test_imu_camera_coverage.py": 60.0,
+    "tests/calib/test_calib_command.py": 50.0,
     "tests/calib/test_imu_camera_dvs.py": 50.0,
-    "tests/calib/test_calib_rendered.py": 45.0,
-    "tests/mutation/test_mutation_campaign.py": 50.0,
-    "tests/calib/test_imu_camera_coverage.py": 45.0,
+    "tests/calib/test_imu_camera_sequence.py": 50.0,
+    "tests/test_readme.py::test_readme_commands_run[calib]": 45.0,
+    "tests/test_readme.py::test_readme_commands_run[setups]": 40.0,
+    "tests/calib/test_calib_rendered.py::test_calib_on_simulator_renders_meets_the_issue_targets[aprilgrid]": 35.0,
+    "tests/examples/test_examples.py::test_example_runs[calibrate_imu_camera.py]": 32.0,
+    "tests/calib/test_imu_camera.py": 25.0,
+    "tests/calib/test_calib_rendered.py::test_calib_on_simulator_renders_meets_the_issue_targets[checkerboard]": 20.0,
+    "tests/test_readme.py::test_readme_commands_run[sim]": 20.0,
+    "tests/test_readme.py::test_readme_commands_run[vio]": 15.0,
+    "tests/test_readme.py::test_readme_commands_run[allan]": 15.0,
+    "tests/examples/test_examples.py::test_example_runs[calibrate_cameras.py]": 14.0,
 }
 CACHE_KEY = "ibiscape/xdist_group_seconds"
 _SESSION_FIXTURE = re.compile(r'@pytest\.fixture\(scope="session"[^)]*\)\s*\ndef (\w+)')

@@ -129,9 +129,10 @@ def _report_inputs(root: Path) -> None:
 
 def _calib_inputs(root: Path) -> None:
     out = root / "demo-output"
-    # the stereo calibration sequence of the demo's calib step (the simulator's renderer), fewer views
+    # the stereo calibration sequence of the demo's calib step (the simulator's renderer), fewer
+    # views at half size
     _example("calibrate_cameras").render_sequence(out / "stereo_checkerboard", "checkerboard",
-                                                  n_views=10, seed=0)
+                                                  n_views=10, seed=0, size=0.5)
     # the camera-IMU calibration drive of `calib --imu` (board frames, with imu.yaml and camchain.yaml)
     _example("calibrate_imu_camera").make_sequence(out / "SVI_calib_imu", duration_s=10.0, size=320)
 
