@@ -26,10 +26,11 @@ def test_plan_covers_every_family_and_mutator() -> None:
     assert set(BYTE_MUTATORS) <= used
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def campaign_root(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The campaign's folder: each family's seed is built once there (``campaign.prepare``) and
-    copied by every mutant and by the unmutated run below."""
+    copied by every mutant and by the unmutated run below (session-scoped: the families' tests
+    run between other files' tests on a worker, and a module fixture would be built again)."""
     return tmp_path_factory.mktemp("mutation")
 
 
