@@ -39,12 +39,18 @@ def rig() -> np.ndarray:
     return T
 
 
-def render_sequence(out: Path, kind: str = "checkerboard", n_views: int = 16, seed: int = 0) -> Path:
-    """Write a stereo calibration sequence of ``n_views`` rig poses; returns ``out``."""
+def render_sequence(out: Path, kind: str = "checkerboard", n_views: int = 16, seed: int = 0,
+                    size: float = 1.0) -> Path:
+    """Write a stereo calibration sequence of ``n_views`` rig poses; returns ``out``.
+
+    ``size`` < 1: smaller images (``size`` x 640 x 480, the same optics) seen from ``size`` times
+    the distance, so the board covers as many pixels (the tests render half size)."""
     # AprilTags want ~12 px per tag: at f = 420 px the AprilGrid views stay within 12 m
     dist = (3.0, 15.0) if kind == "checkerboard" else (3.0, 12.0)
-    return render_calibration_views(out, {"rgbL": LEFT, "rgbR": RIGHT}, {"rgbR": rig()},
-                                    target=kind, n_views=n_views, seed=seed, distance_m=dist,
+    cams = {n: c.scaled(round(c.width_px * size), round(c.height_px * size))
+            for n, c in (("rgbL", LEFT), ("rgbR", RIGHT))}
+    return render_calibration_views(out, cams, {"rgbR": rig()}, target=kind, n_views=n_views,
+                                    seed=seed, distance_m=(dist[0] * size, dist[1] * size),
                                     overwrite=True)
 
 
@@ -56,7 +62,9 @@ def main() -> None:
 
     # 1. a sequence with known truth
     scale = float(os.environ.get("IBISCAPE_EXAMPLE_SCALE", "1"))  # < 1: fewer views (tests: 0.1)
-    seq = render_sequence(a.out / f"stereo_{a.target}", a.target, n_views=max(6, round(16 * scale)))
+    size = 1.0 if scale >= 1 else 0.5  # and half-size images
+    seq = render_sequence(a.out / f"stereo_{a.target}", a.target, n_views=max(6, round(16 * scale)),
+                          size=size)
     print(f"rendered {seq}")
 
     # 2. the library, step by step
@@ -80,7 +88,7 @@ def main() -> None:
         frames = sorted((seq / cam / "frames").glob("*.png"))
         dets = [detect_corners(cv2.imread(str(f), cv2.IMREAD_GRAYSCALE), target) for f in frames]
         print(f"{cam}: target found in {sum(d is not None for d in dets)} of {len(frames)} frames")
-        obs.append(Observations(cam, (640, 480), dets))
+        obs.append(Observations(cam, (round(640 * size), round(480 * size)), dets))
     result = calibrate(target, obs, model="pinhole-radtan")
     truth = compare_with_truth(result, truth_from_sequence(doc))
     print("\n".join(format_report(result, truth)))

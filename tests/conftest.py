@@ -33,16 +33,26 @@ settings.load_profile("ibiscape")
 
 TESTS = Path(__file__).resolve().parent
 #: Files whose tests share nothing built once (each test its own data or subprocess).
-SPLIT = ("tests/examples/test_examples.py",)
+SPLIT = ("tests/examples/test_examples.py", "tests/test_readme.py",
+         "tests/mutation/test_mutation_campaign.py", "tests/calib/test_calib_rendered.py")
 #: The longest groups of a full run (seconds on the quiet machine), for a clone without a cache.
 SLOW_FIRST = {
-    "tests/test_readme.py": 85.0,
     "tests/benchmark/test_benchmark.py": 110.0,
     "tests/calib/test_calib_dvs_cli.py": 75.0,
+    "tests/calib/test_imu_camera_coverage.py": 60.0,
+    "tests/calib/test_calib_command.py": 50.0,
     "tests/calib/test_imu_camera_dvs.py": 50.0,
-    "tests/calib/test_calib_rendered.py": 45.0,
-    "tests/mutation/test_mutation_campaign.py": 50.0,
-    "tests/calib/test_imu_camera_coverage.py": 45.0,
+    "tests/calib/test_imu_camera_sequence.py": 50.0,
+    "tests/test_readme.py::test_readme_commands_run[calib]": 45.0,
+    "tests/test_readme.py::test_readme_commands_run[setups]": 40.0,
+    "tests/calib/test_calib_rendered.py::test_calib_on_simulator_renders_meets_the_issue_targets[aprilgrid]": 35.0,
+    "tests/examples/test_examples.py::test_example_runs[calibrate_imu_camera.py]": 32.0,
+    "tests/calib/test_imu_camera.py": 25.0,
+    "tests/calib/test_calib_rendered.py::test_calib_on_simulator_renders_meets_the_issue_targets[checkerboard]": 20.0,
+    "tests/test_readme.py::test_readme_commands_run[sim]": 20.0,
+    "tests/test_readme.py::test_readme_commands_run[vio]": 15.0,
+    "tests/test_readme.py::test_readme_commands_run[allan]": 15.0,
+    "tests/examples/test_examples.py::test_example_runs[calibrate_cameras.py]": 14.0,
 }
 CACHE_KEY = "ibiscape/xdist_group_seconds"
 _SESSION_FIXTURE = re.compile(r'@pytest\.fixture\(scope="session"[^)]*\)\s*\ndef (\w+)')
@@ -85,6 +95,18 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log):
     class GroupScheduling(LoadFileScheduling):
         def _split_scope(self, nodeid: str) -> str:
             return group_of(nodeid)
+
+        def _reschedule(self, node) -> None:
+            """The next group once the worker is on its last test (xdist's own waits for two:
+            a worker busy with a long one-test group would queue two more groups behind it
+            while the other worker runs dry)."""
+            if node.shutting_down:
+                return
+            if not self.workqueue:
+                node.shutdown()
+                return
+            if self._pending_of(self.assigned_work[node]) <= 1:
+                self._assign_work_unit(node)
 
     return GroupScheduling(config, log)
 

@@ -2,7 +2,7 @@
 sim.calib_views: shading, supersampled board edges, 0.7 px lens blur, sensor noise), judged against
 the truth the command reads from sequence.yaml.
 
-The sequences are rendered once per test session (tmp_path_factory).  The tolerances are
+Each sequence is rendered once per test session (tmp_path_factory).  The tolerances are
 (focal 0.3 px, principal point 0.5 px, baseline 1 mm, RMS 0.1 px) at 384 x 384 px (f = 192 px), a
 third of the paper's 1024 px: the corner noise in pixels does not grow at a lower resolution, so
 the pixel tolerances are kept unchanged.
@@ -10,6 +10,7 @@ the pixel tolerances are kept unchanged.
 
 from __future__ import annotations
 
+import functools
 import json
 
 import numpy as np
@@ -31,21 +32,30 @@ def _rig() -> np.ndarray:
     return T
 
 
+#: views and their distance range per target: AprilTags need ~12 px per tag at f = 192 px, so
+#: the AprilGrid views stay within 5 m
+VIEWS = {"checkerboard": (14, (3.0, 15.0)), "aprilgrid": (20, (2.5, 5.0))}
+
+
 @pytest.fixture(scope="session")
 def rendered(tmp_path_factory):
+    """``rendered(kind)``: the sequence of ``kind``, rendered once per session when first asked
+    for (the two kinds' tests may run on different xdist workers: tests/conftest.py SPLIT)."""
     root = tmp_path_factory.mktemp("sim_calib_views")
-    out = {}
-    # AprilTags need ~12 px per tag at f = 192 px: the AprilGrid views stay within 5 m
-    for kind, n, dist in (("checkerboard", 14, (3.0, 15.0)), ("aprilgrid", 20, (2.5, 5.0))):
-        out[kind] = render_calibration_views(root / kind, {"rgbL": LEFT, "rgbR": RIGHT},
-                                             {"rgbR": _rig()}, target=kind, n_views=n, seed=3,
-                                             distance_m=dist)
-    return out
+
+    @functools.cache
+    def render(kind: str):
+        n, dist = VIEWS[kind]
+        return render_calibration_views(root / kind, {"rgbL": LEFT, "rgbR": RIGHT},
+                                        {"rgbR": _rig()}, target=kind, n_views=n, seed=3,
+                                        distance_m=dist)
+
+    return render
 
 
 @pytest.mark.parametrize("kind", ["checkerboard", "aprilgrid"])
 def test_calib_on_simulator_renders_meets_the_issue_targets(rendered, kind):
-    r = CliRunner().invoke(cli, ["calib", str(rendered[kind]), "--json"], catch_exceptions=False)
+    r = CliRunner().invoke(cli, ["calib", str(rendered(kind)), "--json"], catch_exceptions=False)
     assert r.exit_code == 0, r.output
     doc = json.loads(r.stdout)
     gt = doc["ground_truth"]
