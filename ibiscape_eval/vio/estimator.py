@@ -40,6 +40,7 @@ from .initialise import (
     StandstillTest,
     initialise_moving,
     initialise_standstill,
+    mean_specific_force,
     standstill_at,
 )
 from .params import VioParams
@@ -309,10 +310,8 @@ class Estimator:
         if not standstill_at(*self.imu, t0, p).still:
             return False
         stamps, _, acc = self.imu
-        i0, i1 = np.searchsorted(stamps, t0, side="left"), np.searchsorted(stamps, t, side="right")
-        f = acc[i0:i1].mean(axis=0) - bias_acc_m_s2
-        if self.T_body_imu is not None:
-            f = self.T_body_imu[:3, :3] @ f
+        R_bi = None if self.T_body_imu is None else self.T_body_imu[:3, :3]
+        f = mean_specific_force(stamps, acc, t0, t, R_bi, bias_acc_m_s2)
         a_w = R_world_body @ f - np.array([0.0, 0.0, GRAVITY_M_S2])
         return bool(np.linalg.norm(a_w) < STILL_MAX_ACCEL_M_S2)
 

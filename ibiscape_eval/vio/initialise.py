@@ -32,7 +32,7 @@ from .params import VioParams
 from .rig import RectifiedStereo
 
 __all__ = ["InitialState", "StandstillTest", "detect_standstill", "gravity_alignment", "initialise_moving",
-           "initialise_standstill", "standstill_at"]
+           "initialise_standstill", "mean_specific_force", "standstill_at"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -222,6 +222,19 @@ def initialise_standstill(stamps_ns: npt.NDArray[np.int64], gyro_rad_s: FloatArr
     T[:3, :3] = gravity_alignment(f)
     bg = g.mean(axis=0) if R_body_imu is None else g.mean(axis=0) @ R_body_imu
     return InitialState(0, int(t0_ns), T, np.zeros(3), bg, "standstill", {})
+
+
+def mean_specific_force(stamps_ns: npt.NDArray[np.int64], accel_m_s2: FloatArray, t0_ns: int, t1_ns: int,
+                        R_body_imu: FloatArray | None = None,
+                        bias_acc_m_s2: FloatArray | None = None) -> FloatArray:
+    """Mean specific force of the IMU samples in ``[t0_ns, t1_ns]``, less ``bias_acc_m_s2``,
+    turned into the body frame by ``R_body_imu`` (at a standstill: minus gravity)."""
+    i0 = int(np.searchsorted(stamps_ns, t0_ns, side="left"))
+    i1 = int(np.searchsorted(stamps_ns, t1_ns, side="right"))
+    f = accel_m_s2[i0:i1].mean(axis=0)
+    if bias_acc_m_s2 is not None:
+        f = f - bias_acc_m_s2
+    return np.asarray(f if R_body_imu is None else R_body_imu @ f, np.float64)
 
 
 def standstill_at(stamps_ns: npt.NDArray[np.int64], gyro_rad_s: FloatArray, accel_m_s2: FloatArray,

@@ -168,8 +168,9 @@ def _odometry(frames: list[StereoObservations], rect: RectifiedStereo, min_point
         return None
     # in units of the first frame's median depth: PnP's iterations stop at absolute tolerances,
     # and depth wrong by a factor must give the same path times that factor
-    unit = float(np.median(rect.triangulate(ref.uL, ref.uR, ref.v)[:, 2]))
-    ref_pts = rect.triangulate(ref.uL, ref.uR, ref.v) / unit
+    ref_pts = rect.triangulate(ref.uL, ref.uR, ref.v)
+    unit = float(np.median(ref_pts[:, 2]))
+    ref_pts = ref_pts / unit
     out = [np.eye(4)]
     for fr in frames[1:]:
         common, i0, i1 = np.intersect1d(ref.ids, fr.ids, return_indices=True)
@@ -332,15 +333,13 @@ def _quiet_gravity(seq: Any, p: VioParams, t_ns: int) -> FloatArray | None:
     None.  Quiet is not still: a steady cruise is quiet too (and its mean specific force is
     gravity as well), and so is a smooth start (whose is not: the first window of a quiet run is
     the one to take)."""
-    from .initialise import standstill_at
+    from .initialise import mean_specific_force, standstill_at
 
     stamps, _, acc = seq.imu
     t0 = t_ns - int(p.still_window_s * 1e9)
     if not standstill_at(stamps, seq.gyro_rad_s, acc, t0, p).still:
         return None
-    sel = slice(int(np.searchsorted(stamps, t0)), int(np.searchsorted(stamps, t_ns, side="right")))
-    f = np.asarray(seq.T_body_imu, np.float64)[:3, :3] @ acc[sel].mean(axis=0)
-    return np.asarray(-f, np.float64)
+    return -mean_specific_force(stamps, acc, t0, t_ns, np.asarray(seq.T_body_imu, np.float64)[:3, :3])
 
 
 def _rows(have: npt.NDArray[np.int64], want: npt.NDArray[np.int64]) -> npt.NDArray[np.intp]:
