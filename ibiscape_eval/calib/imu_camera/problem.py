@@ -21,11 +21,11 @@ Residuals, each divided by its standard deviation:
 - accelerometer ``R(t_k)^T (p''(t_k) - g) + b_a(t_k) - accel_k``, sigma ``N_a sqrt(rate)``;
 - reprojection ``pi(R_ci R(t)^T (X - p(t)) + t_ci) - uv`` at ``t = t_frame + s_c``, sigma ``sigma_px``.
 
-Jacobians: analytic where the residual is linear (positions, biases, translations) or simple
-(time offset through the spline's velocity and angular rate, camera rotation), central differences
-for the rotation control points and the projection (any distortion model), all vectorised over
-samples; per-block ``J^T J`` is summed into a sparse matrix (blocks of IMU samples sharing a segment
-are reduced first).
+Jacobians: exact, vectorised over samples: positions, biases, translations, the time offset
+(through the spline's velocity and angular rate) and the camera rotation directly; the rotation
+control points through the cumulative spline's chain rule (:func:`.spline.rotation_jacobians`), the
+projection through the distortion model (:func:`ibiscape_eval.calib._lsq.project_jacobian`); per-block
+``J^T J`` is summed into a sparse matrix (blocks of IMU samples sharing a segment are reduced first).
 """
 
 from __future__ import annotations
@@ -41,12 +41,12 @@ import numpy.typing as npt
 from ibiscape_eval.core.camera import CameraModel
 from ibiscape_eval.core.so3 import exp_so3, hat
 
-from .spline import basis, position, rotation
+from .._lsq import project_jacobian
+from .spline import basis, position, rotation, rotation_jacobians
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 
-_H_ROT = 1e-6  # rad, central differences on rotation control points
 _ARANGE4 = np.arange(4)
 
 
@@ -206,21 +206,6 @@ class State:
 # residual blocks
 
 
-def _rot_perturbations() -> FloatArray:
-    """(12, 4, 3, 3): Exp(h e_a) placed at local control point j (identity elsewhere), for +h."""
-    out = np.tile(np.eye(3), (12, 4, 1, 1))
-    for j in range(4):
-        for a in range(3):
-            e = np.zeros(3)
-            e[a] = _H_ROT
-            out[3 * j + a, j] = exp_so3(e)
-    return out
-
-
-_PERT_PLUS = _rot_perturbations()
-_PERT_MINUS = np.swapaxes(_PERT_PLUS, -1, -2)
-
-
 def imu_block(prob: Problem, st: State, *, jac: bool
               ) -> tuple[FloatArray, FloatArray | None, IntArray | None, IntArray | None]:
     """IMU residuals (n, 6); with ``jac``: local Jacobians (n, 6, 38), their global column indices
@@ -230,8 +215,12 @@ def imu_block(prob: Problem, st: State, *, jac: bool
     idx = base[:, None] + _ARANGE4
     Rl = st.R_ctrl[idx]
     Pl = st.P_ctrl[idx]
-    R, w = rotation(Rl, u, prob.dt_s)
-    assert w is not None
+    if jac:
+        R, w, J_R, J_w = rotation_jacobians(Rl, u, prob.dt_s)
+    else:
+        R, w_ = rotation(Rl, u, prob.dt_s)
+        assert w_ is not None
+        w = w_
     _, _, acc = position(Pl, u, prob.dt_s)
     k, al = prob.bias_locate(t)
     b = (1.0 - al)[:, None] * st.bias[k] + al[:, None] * st.bias[k + 1]
@@ -245,12 +234,9 @@ def imu_block(prob: Problem, st: State, *, jac: bool
         return r, None, None, None
     n = t.size
     J = np.zeros((n, 6, 38))
-    for col in range(12):  # rotation control points: central differences
-        Rp, wp = rotation(Rl @ _PERT_PLUS[col], u, prob.dt_s)
-        Rm, wm = rotation(Rl @ _PERT_MINUS[col], u, prob.dt_s)
-        assert wp is not None and wm is not None
-        J[:, :3, col] = (wp - wm) / (2 * _H_ROT * sg)
-        J[:, 3:, col] = np.einsum("nji,nj->ni", Rp - Rm, acc - g) / (2 * _H_ROT * sa)
+    # rotation control points: w exactly; f = R^T (acc - g) moves by [f]x J_R delta
+    J[:, :3, :12] = J_w / sg
+    J[:, 3:, :12] = hat(f) @ J_R / sa
     _, _, ddb = basis(u)
     ddb = ddb / prob.dt_s**2
     for j in range(4):  # positions: f = R^T (sum_j ddb_j P_j - g)
@@ -284,8 +270,12 @@ def camera_block(prob: Problem, st: State, c: int, *, jac: bool
     idx = base[:, None] + _ARANGE4
     Rl = st.R_ctrl[idx]
     Pl = st.P_ctrl[idx]
-    R, w = rotation(Rl, u, prob.dt_s)
-    assert w is not None
+    if jac:
+        R, w, J_R, _ = rotation_jacobians(Rl, u, prob.dt_s)
+    else:
+        R, w_ = rotation(Rl, u, prob.dt_s)
+        assert w_ is not None
+        w = w_
     p, v, _ = position(Pl, u, prob.dt_s)
     Rci, tci = st.R_ci[c], st.t_ci[c]
     D = cb.X - p[:, None, :]  # (F, M, 3)
@@ -300,28 +290,19 @@ def camera_block(prob: Problem, st: State, c: int, *, jac: bool
     if not jac:
         return r, None, None, valid
     F, M = z.shape
-    # projection Jacobian (F, M, 2, 3) by central differences
-    Jp = np.empty((F, M, 2, 3))
-    h = 1e-6 * np.maximum(np.abs(z), 1.0)
+    # projection Jacobian (F, M, 2, 3), exact (pinhole with radtan or equidistant distortion)
     pcv = np.where(valid[..., None], pc, np.array([0.0, 0.0, 1.0]))
-    for a in range(3):
-        e = np.zeros(3)
-        e[a] = 1.0
-        up = camera.project(pcv + (h[..., None] * e))
-        um = camera.project(pcv - (h[..., None] * e))
-        Jp[..., a] = (up - um) / (2 * h[..., None])
-    Jp *= (valid[..., None, None] / s)
+    intr = np.array([camera.fx, camera.fy, camera.cx, camera.cy, *camera.coeffs])
+    _, _, Jp = project_jacobian(camera.distortion, intr, pcv.reshape(-1, 3))
+    Jp = Jp.reshape(F, M, 2, 3) * (valid[..., None, None] / s)
     dpc = np.empty((F, M, 3, 31))
-    for col in range(12):
-        Rp, _ = rotation(Rl @ _PERT_PLUS[col], u, prob.dt_s, angular_velocity=False)
-        Rm, _ = rotation(Rl @ _PERT_MINUS[col], u, prob.dt_s, angular_velocity=False)
-        dq = D @ (Rp - Rm) / (2 * _H_ROT)  # rows: (X - p)^T (Rp - Rm) = ((Rp - Rm)^T (X - p))^T
-        dpc[..., col] = dq @ Rci.T
+    Rq = Rci @ hat(q)  # R_ci [q]x: q = R^T (X - p) moves by [q]x J_R delta, R_ci by -[q]x d
+    dpc[..., :12] = Rq @ J_R[:, None]
     b, _, _ = basis(u)
     A = -np.einsum("ij,nkj->nik", Rci, R)  # -R_ci R^T  (F, 3, 3)
     for j in range(4):
         dpc[..., 12 + 3 * j : 15 + 3 * j] = (b[:, j, None, None] * A)[:, None]
-    dpc[..., 24:27] = -np.einsum("ij,nmjk->nmik", Rci, hat(q))
+    dpc[..., 24:27] = -Rq
     dpc[..., 27:30] = np.eye(3)
     # d q / d t = -[w]x q - R^T v
     dq_dt = -np.cross(w[:, None, :], q) - np.einsum("nji,nj->ni", R, v)[:, None, :]
