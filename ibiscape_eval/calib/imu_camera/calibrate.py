@@ -49,6 +49,8 @@ from .problem import (
     estimate_covariance,
     imu_block,
     normal_equations,
+    rows_dot,
+    tdot,
 )
 from .result import CameraImuCalibration, Excitation, ImuCameraResult, ResidualSeries
 from .spline import basis, position, rotation
@@ -657,7 +659,7 @@ class _BandedSchur:
         self.cf = la.cholesky_banded(ab, lower=True, check_finite=False)
         self.B = Hc[ctrl][:, glob].toarray()
         self.AiB = la.cho_solve_banded((self.cf, True), self.B, check_finite=False)
-        S = Hc[glob][:, glob].toarray() - self.B.T @ self.AiB
+        S = Hc[glob][:, glob].toarray() - tdot(self.B, self.AiB)
         self.S = la.cho_factor(S, check_finite=False)
         self.ctrl, self.glob, self.n = ctrl, glob, prob.n_params
 
@@ -667,8 +669,8 @@ class _BandedSchur:
         r = rhs.reshape(self.n, -1)
         ra, rg = r[self.ctrl], r[self.glob]
         Ai_ra = la.cho_solve_banded((self.cf, True), ra, check_finite=False)
-        xg = la.cho_solve(self.S, rg - self.B.T @ Ai_ra, check_finite=False)
-        xa = Ai_ra - self.AiB @ xg
+        xg = la.cho_solve(self.S, rg - tdot(self.B, Ai_ra), check_finite=False)
+        xa = Ai_ra - rows_dot(self.AiB, xg)
         x = np.empty_like(r)
         x[self.ctrl], x[self.glob] = xa, xg
         return x.reshape(rhs.shape)

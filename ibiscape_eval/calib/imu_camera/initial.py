@@ -120,25 +120,35 @@ def integrate_gyro(gyro_rad_s: FloatArray, t_s: FloatArray) -> FloatArray:
 
 
 def _solve_axyb(A: FloatArray, B: FloatArray, wts: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Least-squares ``A_k X = Y B_k`` over rotations (linear, Kronecker form, then SO(3))."""
+    """Least-squares ``A_k X = Y B_k`` over rotations (linear, Kronecker form, then SO(3)) for a
+    batch of candidate ``B`` (G, n, 3, 3) sharing ``A`` (n, 3, 3): ``X, Y`` (G, 3, 3).
+
+    With column-major vec, ``vec(A X) = (I kron A) vec(X)`` and ``vec(Y B) = (B^T kron I) vec(Y)``;
+    the normal matrix of ``[I kron A | -(B^T kron I)]`` is assembled from its Kronecker blocks
+    (``I kron sum w A^T A``, ``-sum w B^T kron A^T``, ``sum w B B^T kron I``), without the
+    (n, 9, 18) rows."""
+    G = B.shape[0]
     I3 = np.eye(3)
-    # column-major vec: vec(A X) = (I kron A) vec(X), vec(Y B) = (B^T kron I) vec(Y)
-    M1 = np.einsum("ij,nkl->nikjl", I3, A).reshape(-1, 9, 9)
-    M2 = np.einsum("nij,kl->njkil", B, I3).reshape(-1, 9, 9)
-    M = np.concatenate((M1, -M2), axis=2)  # (n, 9, 18)
-    N = np.einsum("n,nij,nik->jk", wts, M, M)
+    N = np.empty((G, 18, 18))
+    N[:, :9, :9] = np.kron(I3, np.einsum("n,nki,nkj->ij", wts, A, A))
+    # (B^T kron A^T)[(a, b), (c, d)] = B[c, a] A[d, b]
+    C = np.einsum("n,gnca,ndb->gabcd", wts, B, A).reshape(G, 9, 9)
+    N[:, :9, 9:] = -C
+    N[:, 9:, :9] = -np.swapaxes(C, 1, 2)
+    BBt = np.einsum("n,gnij,gnkj->gik", wts, B, B)
+    N[:, 9:, 9:] = (BBt[:, :, None, :, None] * I3[None, None, :, None, :]).reshape(G, 9, 9)
     _, vecs = np.linalg.eigh(N)
-    v = vecs[:, 0]
-    X = v[:9].reshape(3, 3, order="F")
-    Y = v[9:].reshape(3, 3, order="F")
-    if np.linalg.det(X) < 0:
-        X, Y = -X, -Y
+    v = vecs[:, :, 0]
+    X = np.swapaxes(v[:, :9].reshape(G, 3, 3), 1, 2)  # column-major
+    Y = np.swapaxes(v[:, 9:].reshape(G, 3, 3), 1, 2)
+    sgn = np.where(np.linalg.det(X) < 0, -1.0, 1.0)[:, None, None]
 
     def proj(R: FloatArray) -> FloatArray:
         U, _, Vt = np.linalg.svd(R)
-        return U @ np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))]) @ Vt
+        U[..., :, 2] *= np.sign(np.linalg.det(U @ Vt))[..., None]
+        return U @ Vt
 
-    return proj(X), proj(Y)
+    return proj(sgn * X), proj(sgn * Y)
 
 
 @dataclass(frozen=True)
@@ -171,18 +181,27 @@ def align_rotations(t_frames_s: FloatArray, poses: FramePoses, imu_t_s: FloatArr
     inl = np.ones(len(t_frames_s), bool)
     wts = poses.spread_px**2 / np.mean(poses.spread_px**2)  # rotation precision ~ spread
 
+    def residuals_grid(ss: FloatArray, ch: npt.NDArray[np.int64], use: npt.NDArray[np.bool_]
+                       ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Angle residuals (G, n) and ``X, Y`` (G, 3, 3) for the offsets ``ss`` (G,)."""
+        A = poses.R_target_cam[np.arange(len(ch)), ch]
+        n = len(t_frames_s)
+        B = slerp(np.clip(t_frames_s[None] + ss[:, None], lo, hi).ravel()).as_matrix().reshape(-1, n, 3, 3)
+        X, Y = _solve_axyb(A[use], B[:, use], wts[use])
+        E = np.einsum("gnji,gnjk->gnik", A[None] @ X[:, None], Y[:, None] @ B)
+        return np.linalg.norm(log_so3(E), axis=-1), X, Y
+
     def residuals(s: float, ch: npt.NDArray[np.int64], use: npt.NDArray[np.bool_]
                   ) -> tuple[FloatArray, FloatArray, FloatArray]:
-        A = poses.R_target_cam[np.arange(len(ch)), ch]
-        B = slerp(np.clip(t_frames_s + s, lo, hi)).as_matrix()
-        X, Y = _solve_axyb(A[use], B[use], wts[use])
-        E = np.einsum("nji,njk->nik", A @ X, Y @ B)
-        return np.linalg.norm(log_so3(E), axis=1), X, Y
+        r, X, Y = residuals_grid(np.array([s]), ch, use)
+        return r[0], X[0], Y[0]
 
     def search(centre: float, half: float, step: float) -> float:
         grid = np.arange(centre - half, centre + half + 0.5 * step, step)
-        costs = np.array([np.average(residuals(s, choice, inl)[0][inl] ** 2, weights=wts[inl])
-                          for s in grid])
+        chunk = max(1, 20_000 // max(1, len(t_frames_s)))  # offsets per batch (bounded memory)
+        costs = np.concatenate([
+            np.average(residuals_grid(grid[a : a + chunk], choice, inl)[0][:, inl] ** 2, weights=wts[inl], axis=1)
+            for a in range(0, len(grid), chunk)])
         k = int(np.argmin(costs))
         s = float(grid[k])
         if 0 < k < len(grid) - 1:
