@@ -41,6 +41,7 @@ from .inputs import CameraObservations, ImuData
 from .options import ImuCameraOptions
 from .problem import (
     CameraBlock,
+    Normal,
     Piece,
     Problem,
     State,
@@ -541,7 +542,7 @@ class _Solution:
     st: State
     iterations: int
     converged: bool
-    H: Any
+    H: Normal
 
 
 def _coarse_to_fine(prob: Problem, st: State, opts: ImuCameraOptions, step: _Progress) -> _Solution:
@@ -635,56 +636,42 @@ def _refine(prob: Problem, st: State, dt: float) -> tuple[Problem, State]:
 
 
 class _BandedSchur:
-    """Factorisation of the SPD normal matrix ``H``: the control points (interleaved rotation and
-    position of each knot) form a banded block, the rest (biases, gravity, cameras) a small dense
-    border; banded Cholesky plus the Schur complement of the border (a few ms where a general
-    sparse LU takes seconds).  Raises ``numpy.linalg.LinAlgError`` when ``H`` is not positive
-    definite."""
+    """Factorisation of the SPD normal matrix ``H`` (:class:`.problem.Normal`): banded Cholesky of
+    the control points (interleaved rotation and position of each knot) plus the Schur complement
+    of the small dense border (biases, gravity, cameras): a few ms where a general sparse LU takes
+    seconds.  Raises ``numpy.linalg.LinAlgError`` when ``H`` is not positive definite."""
 
-    def __init__(self, prob: Problem, H: Any):
+    def __init__(self, H: Normal):
         import scipy.linalg as la
-        import scipy.sparse as sp
 
-        nc = prob.n_ctrl
-        k = np.arange(nc)
-        ctrl = np.stack([3 * k, 3 * k + 1, 3 * k + 2, 3 * nc + 3 * k, 3 * nc + 3 * k + 1,
-                         3 * nc + 3 * k + 2], -1).ravel()
-        glob = np.arange(6 * nc, prob.n_params)
-        Hc = sp.csr_matrix(H)
-        A = Hc[ctrl][:, ctrl].tocoo()
-        lower = A.row >= A.col
-        bw = int((A.row[lower] - A.col[lower]).max(initial=0))
-        ab = np.zeros((bw + 1, ctrl.size))
-        ab[(A.row - A.col)[lower], A.col[lower]] = A.data[lower]
-        self.cf = la.cholesky_banded(ab, lower=True, check_finite=False)
-        self.B = Hc[ctrl][:, glob].toarray()
+        self.cf = la.cholesky_banded(H.band, lower=True, check_finite=False)
+        self.B = H.border
         self.AiB = la.cho_solve_banded((self.cf, True), self.B, check_finite=False)
-        S = Hc[glob][:, glob].toarray() - tdot(self.B, self.AiB)
-        self.S = la.cho_factor(S, check_finite=False)
-        self.ctrl, self.glob, self.n = ctrl, glob, prob.n_params
+        self.S = la.cho_factor(H.dense - tdot(self.B, self.AiB), check_finite=False)
+        self.ctrl, self.n = H.ctrl, H.n
 
     def solve(self, rhs: FloatArray) -> FloatArray:
         import scipy.linalg as la
 
         r = rhs.reshape(self.n, -1)
-        ra, rg = r[self.ctrl], r[self.glob]
+        nc6 = self.ctrl.size
+        ra, rg = r[self.ctrl], r[nc6:]
         Ai_ra = la.cho_solve_banded((self.cf, True), ra, check_finite=False)
         xg = la.cho_solve(self.S, rg - tdot(self.B, Ai_ra), check_finite=False)
         xa = Ai_ra - rows_dot(self.AiB, xg)
         x = np.empty_like(r)
-        x[self.ctrl], x[self.glob] = xa, xg
+        x[self.ctrl], x[nc6:] = xa, xg
         return x.reshape(rhs.shape)
 
 
-def _factor(prob: Problem, A: Any) -> Any:
-    """A solver of the damped normal equations: banded Schur, else a sparse LU."""
+def _factor(H: Normal) -> Any:
+    """A solver of the (damped) normal equations: banded Schur, else a sparse LU."""
     try:
-        return _BandedSchur(prob, A)
+        return _BandedSchur(H)
     except (np.linalg.LinAlgError, ValueError):
-        import scipy.sparse as sp
         from scipy.sparse.linalg import splu
 
-        return splu(sp.csc_matrix(A), permc_spec="COLAMD")
+        return splu(H.sparse(), permc_spec="COLAMD")
 
 
 def _solve(prob: Problem, st: State, max_iterations: int, step: Callable[[float, str], None],
@@ -692,8 +679,6 @@ def _solve(prob: Problem, st: State, max_iterations: int, step: Callable[[float,
     """Levenberg-Marquardt; stops when a step lowers chi^2 / 2 by less than 0.05 (moves no
     parameter by a noticeable fraction of its standard deviation) or by less than ``rel_tol``
     relative."""
-    import scipy.sparse as sp
-
     lam = 1e-4
     H, g, c0 = normal_equations(prob, st)
     converged = False
@@ -702,10 +687,8 @@ def _solve(prob: Problem, st: State, max_iterations: int, step: Callable[[float,
         step(span[0] + (span[1] - span[0]) * it / max_iterations, f"iteration {it}, cost {c0:.8g}")
         improved = False
         for _ in range(12):
-            d_h = np.asarray(H.diagonal())
-            A = H + sp.diags(lam * d_h + 1e-9, format="csc")
             try:
-                delta = _factor(prob, A).solve(-g)
+                delta = _factor(H.plus_diagonal(lam * H.diagonal() + 1e-9)).solve(-g)
             except RuntimeError:
                 lam *= 10
                 continue
@@ -794,13 +777,10 @@ def _covariances(sol: _Solution, gl: IntArray, intrinsics_cov: dict[int, FloatAr
                  ) -> tuple[FloatArray, FloatArray, dict[str, Any]]:
     """The sandwich covariance of the parameters ``gl`` (:func:`.problem.estimate_covariance`),
     the plain ``(J^T J)^-1`` block and the covariance's scales."""
-    import scipy.sparse as sp
-
     prob = sol.prob
-    Hs = sp.csc_matrix(sol.H) + sp.identity(prob.n_params, format="csc") * 1e-12
     E = np.zeros((prob.n_params, gl.size))
     E[gl, np.arange(gl.size)] = 1.0
-    fac = _factor(prob, Hs)
+    fac = _factor(sol.H.plus_diagonal(np.full(prob.n_params, 1e-12)))
     plain = fac.solve(E)[gl]
     cov, scales = estimate_covariance(prob, sol.st, fac.solve, gl, intrinsics_cov=intrinsics_cov or None)
     return cov, plain, scales

@@ -390,49 +390,140 @@ def cost(prob: Problem, st: State) -> float:
     return 0.5 * float(sum(np.sum(r * r) for r in residuals(prob, st).values()))
 
 
-def normal_equations(prob: Problem, st: State) -> tuple[Any, FloatArray, float]:
-    """Sparse ``H = J^T J`` (csc), gradient ``J^T r`` and the cost at ``st``."""
-    import scipy.sparse as sp
+#: local columns of the IMU and camera Jacobians that are control points (rotation, position)
+_N_CTRL_LOCAL = 24
 
-    n = prob.n_params
-    data, ri, ci = [], [], []
-    grad = np.zeros(n)
-    total = 0.0
+
+@dataclass(frozen=True, eq=False)
+class Normal:
+    """``H = J^T J`` in the solver's blocks: the control points, reordered so that the rotation and
+    position of each knot are neighbours (``ctrl``: parameter index of each position), form a band
+    of half-width 23 (``band``, LAPACK's lower storage, (24, 6 Nc)); ``border`` (6 Nc, m) couples
+    them with the ``m`` other parameters (biases, gravity, cameras), whose block is ``dense``."""
+
+    band: FloatArray
+    border: FloatArray
+    dense: FloatArray
+    ctrl: IntArray
+
+    @property
+    def n(self) -> int:
+        return self.ctrl.size + self.dense.shape[0]
+
+    def diagonal(self) -> FloatArray:
+        """The diagonal in the parameter layout."""
+        d = np.empty(self.n)
+        d[self.ctrl] = self.band[0]
+        d[self.ctrl.size :] = np.diagonal(self.dense)
+        return d
+
+    def plus_diagonal(self, add: FloatArray) -> Normal:
+        """``H + diag(add)`` (``add`` in the parameter layout)."""
+        band, dense = self.band.copy(), self.dense.copy()
+        band[0] += add[self.ctrl]
+        dense[np.diag_indices_from(dense)] += add[self.ctrl.size :]
+        return Normal(band, self.border, dense, self.ctrl)
+
+    def sparse(self) -> Any:
+        """The whole matrix as a scipy CSC matrix in the parameter layout."""
+        import scipy.sparse as sp
+
+        nc6 = self.ctrl.size
+        rows, cols, vals = [], [], []
+        for k in range(self.band.shape[0]):
+            j = np.arange(nc6 - k)
+            rows += [self.ctrl[j + k], self.ctrl[j]] if k else [self.ctrl[j]]
+            cols += [self.ctrl[j], self.ctrl[j + k]] if k else [self.ctrl[j]]
+            vals += [self.band[k, : nc6 - k]] * (2 if k else 1)
+        bi, bj = np.nonzero(self.border)
+        di, dj = np.nonzero(self.dense)
+        rows += [self.ctrl[bi], nc6 + bj, nc6 + di]
+        cols += [nc6 + bj, self.ctrl[bi], nc6 + dj]
+        vals += [self.border[bi, bj]] * 2 + [self.dense[di, dj]]
+        return sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                             shape=(self.n, self.n))
+
+
+def _sum_at(index: IntArray, values: FloatArray, n: int) -> FloatArray:
+    """``out[index] += values`` with repeated indices summed, (n,)."""
+    return np.asarray(np.bincount(index.ravel(), values.ravel(), n), np.float64)
+
+
+class _Assembly:
+    """Square blocks of ``J^T J`` (local Jacobian columns: ``_N_CTRL_LOCAL`` control-point columns,
+    then other parameters) summed into a :class:`Normal` by ``np.bincount`` (no sparse matrix,
+    no sort of duplicates)."""
+
+    def __init__(self, prob: Problem):
+        nc = prob.n_ctrl
+        k = np.arange(nc)
+        self.ctrl = np.stack([3 * k, 3 * k + 1, 3 * k + 2, 3 * nc + 3 * k, 3 * nc + 3 * k + 1,
+                              3 * nc + 3 * k + 2], -1).ravel()
+        self.nc6, self.m = 6 * nc, prob.n_params - 6 * nc
+        self.where = np.empty(prob.n_params, np.int64)  # band position / border column
+        self.where[self.ctrl] = np.arange(self.nc6)
+        self.where[self.nc6 :] = np.arange(self.m)
+        self.bw = min(_N_CTRL_LOCAL, self.nc6)
+        self.band = np.zeros(self.bw * self.nc6)
+        self.border = np.zeros(self.nc6 * self.m)
+        self.dense = np.zeros(self.m * self.m)
+
+    def add(self, H: FloatArray, cols: IntArray, n_ctrl: int = _N_CTRL_LOCAL) -> None:
+        """Blocks ``H`` (K, w, w) on the parameters ``cols`` (K, w), the first ``n_ctrl`` of them
+        control points."""
+        w = self.where[cols]
+        if n_ctrl:
+            pr, pc = w[:, :n_ctrl, None], w[:, None, :n_ctrl]
+            lower = np.broadcast_to(pr >= pc, (H.shape[0], n_ctrl, n_ctrl))
+            idx = (pr - pc) * self.nc6 + pc
+            self.band += _sum_at(idx[lower], H[:, :n_ctrl, :n_ctrl][lower], self.band.size)
+            idx = w[:, :n_ctrl, None] * self.m + w[:, None, n_ctrl:]
+            self.border += _sum_at(idx, H[:, :n_ctrl, n_ctrl:], self.border.size)
+        idx = w[:, n_ctrl:, None] * self.m + w[:, None, n_ctrl:]
+        self.dense += _sum_at(idx, H[:, n_ctrl:, n_ctrl:], self.dense.size)
+
+    def normal(self) -> Normal:
+        return Normal(self.band.reshape(self.bw, self.nc6), self.border.reshape(self.nc6, self.m),
+                      self.dense.reshape(self.m, self.m), self.ctrl)
+
+
+def _imu_normal(prob: Problem, st: State, asm: _Assembly) -> tuple[FloatArray, float]:
+    """The IMU rows' ``J^T J`` added to ``asm`` (the samples that share all columns, one spline
+    segment and bias interval, stacked into one product each); returns ``J^T r`` and ``r^T r``."""
     r, J, cols, key = imu_block(prob, st, jac=True)
     assert J is not None and cols is not None and key is not None
-    total += float(np.sum(r * r))
-    Jt = np.swapaxes(J, 1, 2)
-    Hl = Jt @ J  # batched products (BLAS per sample) beat einsum's loop several times
-    gl = (Jt @ r[:, :, None])[..., 0]
+    n = key.size
     starts = np.flatnonzero(np.r_[True, np.diff(key) != 0])
-    Hg = np.add.reduceat(Hl, starts, axis=0)
-    cg = cols[starts]
-    np.add.at(grad, cols.ravel(), gl.ravel())
-    data.append(Hg.ravel())
-    ri.append(np.broadcast_to(cg[:, :, None], Hg.shape).ravel())
-    ci.append(np.broadcast_to(cg[:, None, :], Hg.shape).ravel())
+    group = np.cumsum(np.r_[True, np.diff(key) != 0]) - 1
+    slot = np.arange(n) - starts[group]
+    m = int(slot.max(initial=0)) + 1
+    pad = np.zeros((starts.size, m, 6, J.shape[2]))
+    pad[group, slot] = J
+    Jg = pad.reshape(starts.size, 6 * m, J.shape[2])
+    asm.add(np.swapaxes(Jg, 1, 2) @ Jg, cols[starts])
+    gl = np.einsum("nij,ni->nj", J, r)
+    return _sum_at(cols, gl, prob.n_params), float(np.sum(r * r))
+
+
+def normal_equations(prob: Problem, st: State) -> tuple[Normal, FloatArray, float]:
+    """``H = J^T J`` (:class:`Normal`), gradient ``J^T r`` and the cost at ``st``."""
+    n = prob.n_params
+    asm = _Assembly(prob)
+    grad, total = _imu_normal(prob, st, asm)
     for c in range(len(prob.cams)):
         rc, Jc, colc, _ = camera_block(prob, st, c, jac=True)
         assert Jc is not None and colc is not None
         total += float(np.sum(rc * rc))
         Jf = Jc.reshape(Jc.shape[0], -1, Jc.shape[-1])  # (F, 2M, 31)
         Jft = np.swapaxes(Jf, 1, 2)
-        Hc = Jft @ Jf
+        asm.add(Jft @ Jf, colc)
         gc = (Jft @ rc.reshape(rc.shape[0], -1, 1))[..., 0]
-        np.add.at(grad, colc.ravel(), gc.ravel())
-        data.append(Hc.ravel())
-        ri.append(np.broadcast_to(colc[:, :, None], Hc.shape).ravel())
-        ci.append(np.broadcast_to(colc[:, None, :], Hc.shape).ravel())
+        grad += _sum_at(colc, gc, n)
     rp, Jp, colp = prior_block(prob, st)
     total += float(np.sum(rp * rp))
-    Hp = np.einsum("np,nq->npq", Jp, Jp)
-    np.add.at(grad, colp.ravel(), (Jp * rp[:, None]).ravel())
-    data.append(Hp.ravel())
-    ri.append(np.broadcast_to(colp[:, :, None], Hp.shape).ravel())
-    ci.append(np.broadcast_to(colp[:, None, :], Hp.shape).ravel())
-    H = sp.coo_matrix((np.concatenate(data), (np.concatenate(ri), np.concatenate(ci))),
-                      shape=(n, n)).tocsc()
-    return H, grad, 0.5 * total
+    asm.add(np.einsum("np,nq->npq", Jp, Jp), colp, 0)
+    grad += _sum_at(colp, Jp * rp[:, None], n)
+    return asm.normal(), grad, 0.5 * total
 
 
 # ------------------------------------------------------------------------------------------------
