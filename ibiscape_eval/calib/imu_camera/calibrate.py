@@ -142,31 +142,43 @@ def _spline_init(t_s: FloatArray, p: FloatArray, imu_t: FloatArray, R_imu: Float
 @dataclass
 class _LinearRows:
     """A sparse linear least-squares system assembled block by block (COO triplets, the
-    right-hand side by rows); local to :func:`_linear_translation_init`."""
+    right-hand side by rows); local to :func:`_linear_translation_init`.  With ``matrix=False``
+    only the right-hand side is kept (the same system with other measurements)."""
 
     rows: list[IntArray] = field(default_factory=list)
     cols: list[IntArray] = field(default_factory=list)
     vals: list[FloatArray] = field(default_factory=list)
     rhs: list[tuple[IntArray, FloatArray]] = field(default_factory=list)
     n_rows: int = 0
+    matrix: bool = True
 
     def add(self, ri: IntArray, ci: IntArray, v: FloatArray) -> None:
-        self.rows.append(ri)
-        self.cols.append(ci)
-        self.vals.append(v)
+        if self.matrix:
+            self.rows.append(ri)
+            self.cols.append(ci)
+            self.vals.append(v)
 
-    def solve(self, n: int) -> tuple[FloatArray, float]:
-        """The least-squares solution (slightly damped normal equations) and its residual SSR."""
+    def vector(self) -> FloatArray:
+        y = np.zeros(self.n_rows)
+        for ri, v in self.rhs:
+            y[ri] = v
+        return y
+
+    def factor(self, n: int) -> tuple[Any, Any]:
+        """The matrix (CSR) and a solver of its slightly damped normal equations."""
         import scipy.sparse as sp
         from scipy.sparse.linalg import splu
 
         A = sp.csr_matrix((np.concatenate(self.vals), (np.concatenate(self.rows), np.concatenate(self.cols))),
                           shape=(self.n_rows, n))
-        y = np.zeros(self.n_rows)
-        for ri, v in self.rhs:
-            y[ri] = v
         AtA = (A.T @ A).tocsc() + sp.identity(n, format="csc") * 1e-9
-        x = splu(AtA, permc_spec="COLAMD").solve(A.T @ y)
+        return A, splu(AtA, permc_spec="COLAMD")
+
+    def solve(self, n: int) -> tuple[FloatArray, float]:
+        """The least-squares solution (slightly damped normal equations) and its residual SSR."""
+        A, lu = self.factor(n)
+        y = self.vector()
+        x = lu.solve(A.T @ y)
         return x, float(np.sum((A @ x - y) ** 2))
 
 
@@ -194,11 +206,13 @@ def _pnp_rows(sys: _LinearRows, prob: Problem, st: State, p_cam: list[FloatArray
         sys.n_rows += 3 * F
 
 
-def _accel_rows(sys: _LinearRows, prob: Problem, st: State, ig: int, ib: int) -> FloatArray:
+def _accel_rows(sys: _LinearRows, prob: Problem, st: State, ig: int, ib: int,
+                R: FloatArray | None = None) -> FloatArray:
     """The accelerometer ``R^T (p'' - g) + b_a`` (gravity at column ``ig``, the bias at ``ib``);
-    returns the IMU rotations ``R`` at the samples."""
+    returns the IMU rotations ``R`` at the samples (given: not evaluated again)."""
     base, u, _ = prob.locate(prob.imu_t_s)
-    R, _ = rotation(st.R_ctrl[base[:, None] + np.arange(4)], u, prob.dt_s, angular_velocity=False)
+    if R is None:
+        R, _ = rotation(st.R_ctrl[base[:, None] + np.arange(4)], u, prob.dt_s, angular_velocity=False)
     _, _, ddb = basis(u)
     ddb = ddb / prob.dt_s**2
     N = len(u)
@@ -261,18 +275,39 @@ def _resolve_single_axis(prob: Problem, st: State, p_cam: list[FloatArray]) -> S
     whose linear translation fit (:func:`_linear_translation_init`) has the smallest residual."""
     w = prob.gyro
     k = np.linalg.eigh(w.T @ w)[1][:, -1]  # the excited axis (IMU frame)
-
-    def trial(a: float) -> tuple[State, float]:
-        Rk = exp_so3(k * a)
-        # R_target_imu -> R_target_imu Rk about the excited axis
-        return _linear_translation_init(prob, replace(st, R_ci=st.R_ci @ Rk, R_ctrl=st.R_ctrl @ Rk), p_cam)
-
     grid = np.radians(np.arange(-180.0, 180.0, 10.0))
-    costs = [trial(a)[1] for a in grid]
-    a0 = float(grid[int(np.argmin(costs))])
+    a0 = float(grid[int(np.argmin(_turned_fit_ssr(prob, st, p_cam, k, grid)))])
     fine = a0 + np.radians(np.arange(-10.0, 10.5, 1.0))
-    costs = [trial(a)[1] for a in fine]
-    return trial(float(fine[int(np.argmin(costs))]))[0]
+    a = float(fine[int(np.argmin(_turned_fit_ssr(prob, st, p_cam, k, fine)))])
+    Rk = exp_so3(k * a)  # R_target_imu -> R_target_imu Rk about the excited axis
+    return _linear_translation_init(prob, replace(st, R_ci=st.R_ci @ Rk, R_ctrl=st.R_ctrl @ Rk), p_cam)[0]
+
+
+def _turned_fit_ssr(prob: Problem, st: State, p_cam: list[FloatArray], k: FloatArray,
+                    angles: FloatArray) -> FloatArray:
+    """The residual of :func:`_linear_translation_init` with ``R_ctrl`` and ``R_ci`` turned by
+    ``Rk(a)`` about the IMU axis ``k``, for every angle.  The turn leaves the PnP rows as they are
+    (``R Rk (R_ci Rk)^T = R R_ci^T``) and turns each sample's accelerometer rows by ``Rk^T``:
+    the same residual as the unturned system with the accelerometer samples (and the bias) turned
+    by ``Rk``, so one factorisation serves every angle and only the right-hand side changes."""
+    nc, C = prob.n_ctrl, len(prob.cams)
+    ig, ib, n = 3 * nc + 3 * C, 3 * nc + 3 * C + 3, 3 * nc + 3 * C + 6
+    full = _LinearRows()
+    _pnp_rows(full, prob, st, p_cam)
+    R = _accel_rows(full, prob, st, ig, ib)
+    _prior_rows(full, prob, R, ig)
+    A, lu = full.factor(n)
+    out = np.empty(len(angles))
+    for i, a in enumerate(angles):
+        turned = replace(prob, accel=prob.accel @ exp_so3(k * a).T)
+        rows = _LinearRows(matrix=False)
+        _pnp_rows(rows, turned, st, p_cam)
+        _accel_rows(rows, turned, st, ig, ib, R)
+        _prior_rows(rows, turned, R, ig)
+        y = rows.vector()
+        x = lu.solve(A.T @ y)
+        out[i] = float(np.sum((A @ x - y) ** 2))
+    return out
 
 
 def _align(a: FloatArray, b: FloatArray) -> FloatArray:
