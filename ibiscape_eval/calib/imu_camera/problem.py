@@ -319,26 +319,30 @@ def camera_block(prob: Problem, st: State, c: int, *, jac: bool
     intr = np.array([camera.fx, camera.fy, camera.cx, camera.cy, *camera.coeffs])
     _, _, Jp = project_jacobian(camera.distortion, intr, pcv.reshape(-1, 3))
     Jp = Jp.reshape(F, M, 2, 3) * (valid[..., None, None] / s)
-    dpc = np.empty((F, M, 3, 31))
-    Rq = Rci @ hat(q)  # R_ci [q]x: q = R^T (X - p) moves by [q]x J_R delta, R_ci by -[q]x d
-    dpc[..., :12] = Rq @ J_R[:, None]
+    # J = Jp dpc/dx with pc = R_ci R^T (X - p) + t_ci, in products of one frame's rows (F items,
+    # not F M): q = R^T (X - p) moves by [q]x J_R delta (rotation control points), R_ci by -[q]x d
+    J = np.empty((F, M, 2, 31 + prob.n_intr))
+    JpR = (Jp.reshape(-1, 3) @ Rci).reshape(F, M, 2, 3)
+    JRq = np.cross(JpR, q[:, :, None, :])  # Jp R_ci [q]x, row-wise: x^T [q]x = x cross q
+    J[..., :12] = (JRq.reshape(F, 2 * M, 3) @ J_R).reshape(F, M, 2, 12)
     b, _, _ = basis(u)
     A = -np.einsum("ij,nkj->nik", Rci, R)  # -R_ci R^T  (F, 3, 3)
+    JA = (Jp.reshape(F, 2 * M, 3) @ A).reshape(F, M, 2, 3)
     for j in range(4):
-        dpc[..., 12 + 3 * j : 15 + 3 * j] = (b[:, j, None, None] * A)[:, None]
-    dpc[..., 24:27] = -Rq
-    dpc[..., 27:30] = np.eye(3)
+        J[..., 12 + 3 * j : 15 + 3 * j] = b[:, j, None, None, None] * JA
+    J[..., 24:27] = -JRq
+    J[..., 27:30] = Jp
     # d q / d t = -[w]x q - R^T v
     dq_dt = -np.cross(w[:, None, :], q) - np.einsum("nji,nj->ni", R, v)[:, None, :]
-    dpc[..., 30] = dq_dt @ Rci.T
-    J = Jp @ dpc
+    J[..., 30] = np.einsum("fmij,fmj->fmi", Jp, dq_dt @ Rci.T)
     if prob.n_intr:  # u = fx xd + cx, v = fy yd + cy (pinhole with radtan or equidistant)
-        Ji = np.zeros((F, M, 2, 4))
+        Ji = J[..., 31:]
+        Ji[...] = 0.0
         Ji[..., 0, 0] = (uv[..., 0] - camera.cx) / camera.fx
         Ji[..., 1, 1] = (uv[..., 1] - camera.cy) / camera.fy
         Ji[..., 0, 2] = 1.0
         Ji[..., 1, 3] = 1.0
-        J = np.concatenate((J, Ji * (valid[..., None, None] / s)), axis=-1)
+        Ji *= valid[..., None, None] / s
     cols = np.empty((F, 31 + prob.n_intr), np.int64)
     cols[:, :12] = (3 * idx[:, :, None] + np.arange(3)).reshape(F, 12)
     cols[:, 12:24] = 3 * prob.n_ctrl + cols[:, :12]
