@@ -83,8 +83,16 @@ def one(size: int, bumps: bool, duration_s: float, seed: int, four: bool = False
           f"{'bumps' if bumps else 'FLAT road (forced)'}, {duration_s:.0f} s, "
           f"seed {seed}: target frames {frames}, {res.excitation.duration_s:.1f} s of spline, "
           f"{res.iterations} iterations, wall {wall:.1f} s, cpu {cpu:.1f} s, "
-          f"RATIO {120.0 / wall:.2f} (2 min budget / wall)")
+          f"RATIO {120.0 / wall:.2f} (2 min budget / wall), CPU RATIO {120.0 / cpu:.2f}, "
+          f"peak RSS {_peak_rss_mb():.0f} MB (the process so far)")
     table(res, sc.T_cam_imu, sc.timeshift_cam_imu_s, err)
+
+
+def _peak_rss_mb() -> float:
+    """The process's peak resident memory [MB] (Linux reports kB)."""
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
 def table(res, T_truth, shift_truth, err) -> None:  # type: ignore[no-untyped-def]
