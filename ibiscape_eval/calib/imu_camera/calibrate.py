@@ -4,8 +4,9 @@ Method (Furgale, Rehder & Siegwart, IROS 2013, as in Kalibr's ``kalibr_calibrate
 IMU pose ``T_target_imu(t)`` is a continuous-time cumulative cubic B-spline on SO(3) x R^3
 (:mod:`.spline`); gyroscope, accelerometer and reprojection residuals are minimised jointly over the
 spline, gravity in the target frame, slowly varying biases, and each camera's ``T_cam_imu`` and time
-offset (:mod:`.problem`).  The sparse normal equations are solved by a Levenberg-Marquardt loop with
-a sparse LU factorisation.  The standard deviations come from a sandwich covariance around
+offset (:mod:`.problem`).  The normal equations are solved by a Levenberg-Marquardt loop with a
+banded Cholesky factorisation of the control points and the Schur complement of the other
+parameters (a sparse LU where that fails).  The standard deviations come from a sandwich covariance around
 ``(J^T J)^-1`` with the residuals' measured noise, the bias random walk between knots, a batch-means
 check and the propagated intrinsics' covariance (:func:`.problem.estimate_covariance`), the rotation's
 then inflated by :data:`ROTATION_STD_INFLATION` (coverage: ``benchmarks/bench_coverage.py --imu``).

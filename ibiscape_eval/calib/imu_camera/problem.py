@@ -24,8 +24,10 @@ Residuals, each divided by its standard deviation:
 Jacobians: exact, vectorised over samples: positions, biases, translations, the time offset
 (through the spline's velocity and angular rate) and the camera rotation directly; the rotation
 control points through the cumulative spline's chain rule (:func:`.spline.rotation_jacobians`), the
-projection through the distortion model (:func:`ibiscape_eval.calib._lsq.project_jacobian`); per-block
-``J^T J`` is summed into a sparse matrix (blocks of IMU samples sharing a segment are reduced first).
+projection through the distortion model (:func:`ibiscape_eval.calib._lsq.project_jacobian`).  Per-block
+``J^T J`` (IMU samples sharing a segment stacked into one product) is summed by ``np.bincount``
+straight into the blocks the solver factorises (:class:`Normal`: a band of the control points, its
+border with the other parameters, their dense block).
 """
 
 from __future__ import annotations
