@@ -105,23 +105,6 @@ def count_xyp(x, y, p, width, height, stride, counts):
 
 
 @njit(cache=True, nogil=True)
-def keep_mask(x, y, width, keep_bits, out):
-    """``out[i] = 1`` (uint8) if the pixel of event i is to be kept, else 0, from the bit table
-    ``keep_bits`` (uint32 words, bit ``j % 32`` of word ``j // 32`` for pixel ``j = y * width +
-    x``; 128 KiB for a megapixel sensor, which stays in the L2 cache where a byte per pixel
-    does not: 1.15x faster, measured), for coordinates already checked to lie inside the sensor
-    (see :func:`first_outside`): 32-bit pixel indices (``width * height <= 2**32``) and no
-    bounds test in the loop, 1.2-1.4x faster than testing every event.  (Counting the kept
-    events in this loop stops LLVM from vectorising it: 20 % slower than the separate
-    :func:`count_kept` pass, measured.  An AVX-512 gather of the bits, 16 events at a time, is
-    1.6x slower than this scalar loop on AMD Zen 4, measured.)"""
-    w = np.uint32(width)
-    for i in range(x.shape[0]):
-        j = np.uint32(y[i]) * w + np.uint32(x[i])
-        out[i] = np.uint8((keep_bits[j >> np.uint32(5)] >> (j & np.uint32(31))) & np.uint32(1))
-
-
-@njit(cache=True, nogil=True)
 def first_outside(x, y, width, height):
     """Index of the first event outside the sensor, or -1.  The coordinates are compared as
     unsigned 64-bit numbers: a negative one wraps to a huge value, so one comparison per axis
@@ -134,59 +117,10 @@ def first_outside(x, y, width, height):
     return -1
 
 
-@njit(cache=True, nogil=True)
-def count_kept(keep):
-    """Number of ones in a uint8 keep-mask (a vectorised sum)."""
-    k = 0
-    for i in range(keep.shape[0]):
-        k += keep[i]
-    return k
-
-
-@njit(cache=True, nogil=True)
-def compact_into(t, x, y, p, keep, to, xo, yo, po, k, limit):
-    """Copy the events with ``keep[i] == 1`` into ``to[k:limit]`` (and the others), in order,
-    ``limit - k`` being the number of kept events.  Branch-free: every event is written, the
-    write position advances only for kept ones (a place a discarded event took is written again
-    by a later kept one; once ``limit`` is reached only discarded events remain).  Returns the
-    end.
-
-    The mask comes from :func:`keep_mask` in a separate pass: fusing the LUT lookup into this
-    loop puts its load latency on the loop-carried write position and runs 2-3x slower (also
-    block by block through a small buffer, measured; with the AVX-512 compaction of
-    :func:`compact_simd` too, 2.3x slower in session 8)."""
-    n = t.shape[0]
-    i = 0
-    while i < n and k < limit:
-        to[k] = t[i]
-        xo[k] = x[i]
-        yo[k] = y[i]
-        po[k] = p[i]
-        k += keep[i]
-        i += 1
-    return k
-
-
 def _data_ptr(context, builder, arrty, arr, elem):
     """Pointer to the first element of a numba array, as ``elem*``."""
     data = cgutils.create_struct_proxy(arrty)(context, builder, value=arr).data
     return builder.bitcast(data, elem.as_pointer())
-
-
-@intrinsic
-def _mask64(typingctx, keep, i):
-    """The 64 bytes ``keep[i:i + 64]`` as the bits of a uint64 (bit j set if ``keep[i + j]``)."""
-    sig = types.uint64(keep, types.int64)
-
-    def codegen(context, builder, signature, args):
-        i8 = ir.IntType(8)
-        vty = ir.VectorType(i8, 64)
-        ptr = builder.gep(_data_ptr(context, builder, signature.args[0], args[0], i8), [args[1]])
-        v = builder.load(builder.bitcast(ptr, vty.as_pointer()), align=1)
-        m = builder.icmp_unsigned("!=", v, ir.Constant(vty, None))
-        return builder.bitcast(m, ir.IntType(64))
-
-    return sig, codegen
 
 
 @intrinsic
@@ -226,27 +160,220 @@ def _compress64(typingctx, src, i, dst, k, bits):
     return sig, codegen
 
 
-@njit(cache=True, nogil=True)
-def compact_simd(t, x, y, p, keep, to, xo, yo, po, k, limit):
-    """:func:`compact_into` with AVX-512 compress stores, 64 events at a time while a whole
-    vector still fits before ``limit`` (the rest by :func:`compact_into`).  Only for CPUs with
-    AVX512F/BW/VBMI2 and element sizes of 1, 2, 4 or 8 bytes (see :func:`simd_ok`).
+@intrinsic
+def _popcount(typingctx, v):
+    """Set bits of a uint64 (``llvm.ctpop``: one ``popcnt``)."""
+    sig = types.int64(types.uint64)
 
-    The keep-mask stays a pass of its own: the keep bits of 64 events gathered with AVX-512
-    inside this loop (no mask array) ran no faster than the two passes (78 against 83 ms for
-    5e7 events, session 9), and the kept count it then needs first took 49 ms on its own.
-    In place (outputs = inputs) is safe: every store lands at or before the block just
-    loaded."""
+    def codegen(context, builder, signature, args):
+        i64 = ir.IntType(64)
+        f = cgutils.get_or_insert_function(builder.module, ir.FunctionType(i64, [i64]), "llvm.ctpop.i64")
+        return builder.call(f, [args[0]])
+
+    return sig, codegen
+
+
+@intrinsic
+def _lowest_bit(typingctx, v):
+    """Index of the lowest set bit of a non-zero uint64 (``llvm.cttz``: one ``tzcnt``)."""
+    sig = types.uint64(types.uint64)
+
+    def codegen(context, builder, signature, args):
+        i64 = ir.IntType(64)
+        f = cgutils.get_or_insert_function(builder.module, ir.FunctionType(i64, [i64, ir.IntType(1)]),
+                                           "llvm.cttz.i64")
+        return builder.call(f, [args[0], ir.Constant(ir.IntType(1), 1)])
+
+    return sig, codegen
+
+
+@njit(cache=True, nogil=True)
+def keep_words(x, y, width, keep_bits, words):
+    """The keep bits of the events (see :func:`_keep_bit`), 64 to a uint64 word: bit ``e`` of
+    ``words[b]`` for event ``64 b + e`` (a byte per event costs 8x the memory traffic and a
+    pass of its own to count them), for coordinates already checked to lie inside the sensor.
+    Returns the number of events kept."""
+    w = np.uint32(width)
+    n = x.shape[0]
+    k = 0
+    for b in range((n + 63) // 64):
+        i0 = b * 64
+        m = np.uint64(0)
+        for e in range(min(64, n - i0)):
+            j = np.uint32(y[i0 + e]) * w + np.uint32(x[i0 + e])
+            m |= np.uint64((keep_bits[j >> np.uint32(5)] >> (j & np.uint32(31))) & np.uint32(1)) << np.uint64(e)
+        words[b] = m
+        k += _popcount(m)
+    return k
+
+
+#: The two multiplicative hashes of a pixel index into the 2048-bit tables of the Bloom filter
+#: of :func:`bloom_table` (odd 32-bit constants; the top 11 bits of the product).
+BLOOM_MULTIPLIERS = (0x9E3779B1, 0x85EBCA77)
+
+
+def bloom_table(hot_flat: np.ndarray) -> np.ndarray:
+    """The Bloom filter of the pixel indices ``hot_flat`` (``y * width + x``) for
+    :func:`keep_words_bloom`: two 2048-bit tables, one per hash of :data:`BLOOM_MULTIPLIERS`,
+    as 128 uint32 words (two 64-word halves: 8 AVX-512 registers)."""
+    j = np.asarray(hot_flat, np.uint64) & np.uint64(0xFFFFFFFF)
+    tab = np.zeros(128, np.uint32)
+    for q, mult in enumerate(BLOOM_MULTIPLIERS):
+        h = ((j * np.uint64(mult)) & np.uint64(0xFFFFFFFF)) >> np.uint64(21)
+        np.bitwise_or.at(tab, q * 64 + (h >> np.uint64(5)).astype(np.int64),
+                         np.left_shift(np.uint32(1), (h & np.uint64(31)).astype(np.uint32)))
+    return tab
+
+
+def _splat(builder, vty, v):
+    u = builder.insert_element(ir.Constant(vty, ir.Undefined), v, ir.Constant(ir.IntType(32), 0))
+    return builder.shuffle_vector(u, ir.Constant(vty, ir.Undefined), ir.Constant(vty, None))
+
+
+def _bloom_hit(builder, perm, j, mult, tab4):
+    """Lanes whose hash ``(j * mult) >> 21`` hits its bit of the 2048-bit table in the four
+    registers ``tab4`` (two ``vpermi2d`` table look-ups and a select, no memory access)."""
+    v32 = j.type
+
+    def c(k):
+        return ir.Constant(v32, [ir.Constant(ir.IntType(32), k)] * 16)
+
+    h = builder.lshr(builder.mul(j, c(mult)), c(21))
+    idx = builder.lshr(h, c(5))
+    lo = builder.call(perm, [tab4[0], idx, tab4[1]])
+    hi = builder.call(perm, [tab4[2], idx, tab4[3]])
+    word = builder.select(builder.icmp_unsigned("!=", builder.and_(idx, c(32)), c(0)), hi, lo)
+    bit = builder.and_(builder.lshr(word, builder.and_(h, c(31))), c(1))
+    return builder.icmp_unsigned("!=", bit, c(0))
+
+
+@intrinsic
+def _bloom64(typingctx, x, y, i, width, height, tab):
+    """AVX-512 test of the uint16 events ``i:i + 64``: bit ``e`` of the uint64 set if event
+    ``i + e`` lies outside the sensor or its pixel passes the Bloom filter ``tab`` (see
+    :func:`bloom_table`): the events that may be hot, to be checked one by one."""
+    sig = types.uint64(x, y, types.int64, types.int64, types.int64, tab)
+
+    def codegen(context, builder, signature, args):
+        xa, ya, iv, wv, hv, ta = args
+        i16, i32, i64 = ir.IntType(16), ir.IntType(32), ir.IntType(64)
+        v16, v32 = ir.VectorType(i16, 16), ir.VectorType(i32, 16)
+        xp = _data_ptr(context, builder, signature.args[0], xa, i16)
+        yp = _data_ptr(context, builder, signature.args[1], ya, i16)
+        tp = _data_ptr(context, builder, signature.args[5], ta, i32)
+        perm = cgutils.get_or_insert_function(builder.module, ir.FunctionType(v32, [v32, v32, v32]),
+                                              "llvm.x86.avx512.vpermi2var.d.512")
+        wvec, hvec = (_splat(builder, v32, builder.trunc(v, i32)) for v in (wv, hv))
+        tabs = [builder.load(builder.bitcast(builder.gep(tp, [ir.Constant(i64, 16 * q)]), v32.as_pointer()),
+                             align=4) for q in range(8)]
+        out = ir.Constant(i64, 0)
+        for g in range(4):
+            off = builder.add(iv, ir.Constant(i64, 16 * g))
+            xv, yv = (builder.zext(builder.load(builder.bitcast(builder.gep(pt, [off]), v16.as_pointer()),
+                                                align=2), v32) for pt in (xp, yp))
+            j = builder.add(builder.mul(yv, wvec), xv)
+            bad = builder.or_(builder.icmp_unsigned(">=", xv, wvec), builder.icmp_unsigned(">=", yv, hvec))
+            hit = builder.and_(_bloom_hit(builder, perm, j, BLOOM_MULTIPLIERS[0], tabs[:4]),
+                               _bloom_hit(builder, perm, j, BLOOM_MULTIPLIERS[1], tabs[4:]))
+            m16 = builder.zext(builder.bitcast(builder.or_(bad, hit), i16), i64)
+            out = builder.or_(out, builder.shl(m16, ir.Constant(i64, 16 * g)))
+        return out
+
+    return sig, codegen
+
+
+@njit(cache=True, nogil=True)
+def _checked_bits(x, y, i, cand, width, height, keep_bits):
+    """The keep bits of the events ``i + e`` for the bits ``e`` set in ``cand`` (one table
+    look-up each) and -1, or (0, the index of the first of them outside the sensor)."""
+    w = np.uint64(width)
+    h = np.uint64(height)
+    keep = np.uint64(0)
+    while cand:
+        e = _lowest_bit(cand)
+        xi = np.uint64(x[i + e])
+        yi = np.uint64(y[i + e])
+        if xi >= w or yi >= h:
+            return np.uint64(0), i + np.int64(e)
+        j = yi * w + xi
+        keep |= ((np.uint64(keep_bits[j >> np.uint64(5)]) >> (j & np.uint64(31))) & np.uint64(1)) << e
+        cand &= cand - np.uint64(1)
+    return keep, -1
+
+
+@njit(cache=True, nogil=True)
+def keep_words_bloom(x, y, width, height, bloom, keep_bits, words):
+    """:func:`keep_words` for uint16 coordinates, not yet checked: 64 events at a time through
+    the AVX-512 Bloom filter of the hot pixels (:func:`_bloom64`, no memory access), only its
+    candidates (the hot events and ~1 % of the others with 200 hot pixels) looked up in
+    ``keep_bits``; 1.4x faster than the look-up of every event plus numpy's bounds check,
+    measured.  Returns the number of events kept, or ``-1 - i`` for the first event ``i``
+    outside the sensor.  Needs AVX-512 (see :func:`simd_ok`)."""
+    n = x.shape[0]
+    k = 0
+    nb = n // 64
+    for b in range(nb + (nb * 64 < n)):
+        i = b * 64
+        if b < nb:
+            cand = _bloom64(x, y, i, width, height, bloom)  # type: ignore[call-arg, var-annotated]
+            rest = ~cand
+        else:  # the last, partial block: every event looked up
+            cand = (np.uint64(1) << np.uint64(n - i)) - np.uint64(1)
+            rest = np.uint64(0)
+        keep, bad = _checked_bits(x, y, i, cand, width, height, keep_bits)
+        if bad >= 0:
+            return -1 - bad
+        keep |= rest
+        words[b] = keep
+        k += _popcount(keep)
+    return k
+
+
+@njit(cache=True, nogil=True)
+def words_to_bytes(words, out):
+    """``out[i] = 1`` (uint8) if bit ``i % 64`` of ``words[i // 64]`` is set, else 0."""
+    for i in range(out.shape[0]):
+        out[i] = np.uint8((words[i >> 6] >> np.uint64(i & 63)) & np.uint64(1))
+
+
+@njit(cache=True, nogil=True)
+def compact_into(t, x, y, p, words, to, xo, yo, po, k, limit):
+    """Copy the events whose keep bit is set (bit ``i % 64`` of ``words[i // 64]``, see
+    :func:`keep_words`) into ``to[k:limit]`` (and the others), in order, ``limit - k`` being
+    the number of kept events.  Branch-free: every event is written, the write position
+    advances only for kept ones (a place a discarded event took is written again by a later
+    kept one; once ``limit`` is reached only discarded events remain).  Returns the end."""
+    n = t.shape[0]
+    i = 0
+    while i < n and k < limit:
+        to[k] = t[i]
+        xo[k] = x[i]
+        yo[k] = y[i]
+        po[k] = p[i]
+        k += np.int64((words[i >> 6] >> np.uint64(i & 63)) & np.uint64(1))
+        i += 1
+    return k
+
+
+@njit(cache=True, nogil=True)
+def compact_simd(t, x, y, p, words, to, xo, yo, po, k, limit):
+    """:func:`compact_into` with AVX-512 compress stores, 64 events (one keep word) at a time
+    while a whole vector still fits before ``limit`` (the rest by :func:`compact_into`).  Only
+    for CPUs with AVX512F/BW/VBMI2 and element sizes of 1, 2, 4 or 8 bytes (see
+    :func:`simd_ok`).  In place (outputs = inputs) is safe: every store lands at or before the
+    block just loaded.  (The keep bits stay a pass of their own: the offsets of the slices on
+    several threads need the kept counts first, and their look-ups in this loop put their
+    latency on the write position.)"""
     n = t.shape[0]
     i = 0
     while i + 64 <= n and k + 64 <= limit:
-        m = _mask64(keep, i)  # type: ignore[call-arg, var-annotated]
+        m = words[i >> 6]
         _compress64(t, i, to, k, m)
         _compress64(x, i, xo, k, m)
         _compress64(y, i, yo, k, m)
         k = _compress64(p, i, po, k, m)
         i += 64
-    return compact_into(t[i:], x[i:], y[i:], p[i:], keep[i:], to, xo, yo, po, k, limit)
+    return compact_into(t[i:], x[i:], y[i:], p[i:], words[i >> 6:], to, xo, yo, po, k, limit)
 
 
 @functools.cache

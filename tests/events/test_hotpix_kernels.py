@@ -29,11 +29,14 @@ def threads(request, monkeypatch):
 
 @pytest.fixture(params=["simd", "scalar"])
 def simd(request, monkeypatch):
-    """The AVX-512 compaction where the CPU has it, and the scalar one everywhere."""
+    """The AVX-512 compaction and Bloom filter (whatever the number of hot pixels) where the
+    CPU has them, and the scalar ones everywhere."""
     if request.param == "simd" and not _kernels.simd_ok(np.int64, np.uint16, np.bool_):
         pytest.skip("no AVX-512 VBMI2 here")
     if request.param == "scalar":
         monkeypatch.setattr(_kernels, "simd_ok", lambda *d: False)
+    else:
+        monkeypatch.setattr(hotpix, "BLOOM_MAX_HOT", 10**9)
     return request.param
 
 
@@ -280,3 +283,39 @@ def test_threads_argument_gives_the_one_thread_answers(n_threads, simd):
     for got, want in zip(filter_arrays(t, x, y, p, pixels, sensor_size=(w, h), threads=n_threads),
                          reference(t, x, y, p, pixels, w), strict=True):
         np.testing.assert_array_equal(got, want)
+
+
+@pytest.mark.parametrize("where", [0, 63, 64, 1000, 4095, 4096 + 70, 8191])
+@pytest.mark.parametrize("n_threads", [1, 2, 3])
+def test_uint16_events_outside_the_sensor_are_refused_naming_the_first(where, n_threads, simd):
+    """uint16 coordinates (checked by the Bloom pass itself, 64 at a time, the last partial
+    block one by one): the first event outside is named wherever it falls (a block's first or
+    last event, the tail, a later slice), with a second one after it; nothing written in place."""
+    w, h = 37, 23
+    t, x, y, p = stream(8192 - 5, w, h, seed=where)
+    where = min(where, len(x) - 1)
+    x[where], y[min(where + 5, len(x) - 1)] = w, h
+    pixels = all_pixels(w, h)[::5]
+    cols = [a.copy() for a in (t, x, y, p)]
+    for call in (lambda: filter_arrays(t, x, y, p, pixels, sensor_size=(w, h), threads=n_threads),
+                 lambda: hot_pixel_mask(x, y, pixels, sensor_size=(w, h), threads=n_threads),
+                 lambda: filter_arrays(*cols, pixels, sensor_size=(w, h), threads=n_threads, inplace=True)):
+        with pytest.raises(IbiscapeError, match=rf"event {where} at pixel \(x={w}, .* outside the 37x23 sensor"):
+            call()
+    for a, b in zip(cols, (t, x, y, p), strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_bloom_filter_passes_every_hot_pixel():
+    """The Bloom table of a hot-pixel list: every listed pixel passes both hashes (a miss would
+    keep a hot pixel's events); with 200 of a megapixel, few of the others pass."""
+    rng = np.random.default_rng(0)
+    hot = rng.choice(1024 * 1024, 200, replace=False)
+    tab = _kernels.bloom_table(hot)
+    j = np.arange(1024 * 1024, dtype=np.uint64)
+    hit = np.ones(j.size, bool)
+    for q, mult in enumerate(_kernels.BLOOM_MULTIPLIERS):
+        hh = ((j * np.uint64(mult)) & np.uint64(0xFFFFFFFF)) >> np.uint64(21)
+        hit &= ((tab[q * 64 + (hh >> np.uint64(5)).astype(np.int64)] >> (hh & np.uint64(31)).astype(np.uint32)) & 1) == 1
+    assert hit[hot].all()
+    assert hit.sum() - 200 < 0.02 * j.size
