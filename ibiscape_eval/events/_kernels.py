@@ -203,7 +203,7 @@ def keep_words(x, y, width, keep_bits, words):
             j = np.uint32(y[i0 + e]) * w + np.uint32(x[i0 + e])
             m |= np.uint64((keep_bits[j >> np.uint32(5)] >> (j & np.uint32(31))) & np.uint32(1)) << np.uint64(e)
         words[b] = m
-        k += _popcount(m)
+        k += _popcount(m)  # type: ignore[call-arg]
     return k
 
 
@@ -290,7 +290,7 @@ def _checked_bits(x, y, i, cand, width, height, keep_bits):
     h = np.uint64(height)
     keep = np.uint64(0)
     while cand:
-        e = _lowest_bit(cand)
+        e = _lowest_bit(cand)  # type: ignore[call-arg, var-annotated]
         xi = np.uint64(x[i + e])
         yi = np.uint64(y[i + e])
         if xi >= w or yi >= h:
@@ -318,22 +318,47 @@ def keep_words_bloom(x, y, width, height, bloom, keep_bits, words):
             cand = _bloom64(x, y, i, width, height, bloom)  # type: ignore[call-arg, var-annotated]
             rest = ~cand
         else:  # the last, partial block: every event looked up
-            cand = (np.uint64(1) << np.uint64(n - i)) - np.uint64(1)
+            cand = (np.uint64(1) << np.uint64(n - i)) - np.uint64(1)  # type: ignore[assignment]
             rest = np.uint64(0)
         keep, bad = _checked_bits(x, y, i, cand, width, height, keep_bits)
         if bad >= 0:
             return -1 - bad
         keep |= rest
         words[b] = keep
-        k += _popcount(keep)
+        k += _popcount(keep)  # type: ignore[call-arg]
     return k
 
 
+@intrinsic
+def _store_bytes64(typingctx, out, i, bits):
+    """``out[i + e] = 1`` (uint8) where bit ``e`` of ``bits`` is set, else 0, for e < 64 (one
+    mask-to-bytes AVX-512 instruction and a 64-byte store)."""
+    sig = types.void(out, types.int64, types.uint64)
+
+    def codegen(context, builder, signature, args):
+        i8 = ir.IntType(8)
+        vty = ir.VectorType(i8, 64)
+        ptr = builder.gep(_data_ptr(context, builder, signature.args[0], args[0], i8), [args[1]])
+        v = builder.zext(builder.bitcast(args[2], ir.VectorType(ir.IntType(1), 64)), vty)
+        builder.store(v, builder.bitcast(ptr, vty.as_pointer()), align=1)
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
 @njit(cache=True, nogil=True)
-def words_to_bytes(words, out):
-    """``out[i] = 1`` (uint8) if bit ``i % 64`` of ``words[i // 64]`` is set, else 0."""
-    for i in range(out.shape[0]):
+def words_to_bytes(words, out, simd):
+    """``out[i] = 1`` (uint8) if bit ``i % 64`` of ``words[i // 64]`` is set, else 0 (64 at a
+    time with AVX-512 if ``simd``, see :func:`simd_ok`)."""
+    n = out.shape[0]
+    i = 0
+    if simd:
+        while i + 64 <= n:
+            _store_bytes64(out, i, words[i >> 6])  # type: ignore[call-arg]
+            i += 64
+    while i < n:
         out[i] = np.uint8((words[i >> 6] >> np.uint64(i & 63)) & np.uint64(1))
+        i += 1
 
 
 @njit(cache=True, nogil=True)
@@ -368,7 +393,7 @@ def compact_simd(t, x, y, p, words, to, xo, yo, po, k, limit):
     i = 0
     while i + 64 <= n and k + 64 <= limit:
         m = words[i >> 6]
-        _compress64(t, i, to, k, m)
+        _compress64(t, i, to, k, m)  # type: ignore[call-arg]
         _compress64(x, i, xo, k, m)
         _compress64(y, i, yo, k, m)
         k = _compress64(p, i, po, k, m)

@@ -609,7 +609,8 @@ def hot_pixel_mask(
     words, _, bd = _keep_words(xa, ya, pixels, w, h, parts)
     out = np.empty(n, np.bool_)
     u8 = out.view(np.uint8)
-    _in_parts(lambda c, _: _kernels.words_to_bytes(words[bd[c] // 64:], u8[bd[c]:bd[c + 1]]),
+    simd = _kernels.simd_ok()
+    _in_parts(lambda c, _: _kernels.words_to_bytes(words[bd[c] // 64:], u8[bd[c]:bd[c + 1]], simd),
               parts, parts)
     return out
 
