@@ -148,7 +148,6 @@ def count_events(
             raise IbiscapeError(f"p has shape {pa.shape}, x and y have {xa.shape}")
     parts = _threads(xa.shape[0], threads)  # checked with p too
     if pa is None:
-        _check_inside(xa, ya, w, h, parts)
         total = np.zeros((h, w), np.int64)
         _count8(xa, ya, w, h, total, parts)
         return total
@@ -209,22 +208,34 @@ _PAD8 = 64  # the same for uint8 counters
 
 
 def _count8(x: np.ndarray, y: np.ndarray, w: int, h: int, out: np.ndarray, parts: int) -> None:
-    """Add the events per pixel (inside the sensor, checked) to the int64 (H, W) ``out`` through
-    uint8 counters, one set per thread (see ``_kernels.count_xy8``), then fold them (rows
-    split over the threads too)."""
+    """Add the events per pixel to the int64 (H, W) ``out`` through uint8 counters, one set per
+    thread (see ``_kernels.count_xy8``), then fold them (rows split over the threads too).  The
+    events are checked to lie inside the sensor (the first outside is refused by name): uint16
+    ones by the AVX-512 counting kernel itself, others by :func:`_check_inside` first."""
     from . import _kernels
 
     stride = w + _PAD8
     n = x.shape[0]
+    simd = (x.dtype == np.uint16 and y.dtype == np.uint16 and h * stride < 2**32
+            and _kernels.simd_ok())
+    if not simd:
+        _check_inside(x, y, w, h, parts)
     counts = np.zeros((parts, h * stride), np.uint8)
     wrapped = np.empty((parts, (n // parts + 1) // 256 + 1), np.int64)  # touched only where used
     bd = _bounds(n, parts)
 
-    def count(a: int, b: int) -> int:
+    def count(a: int, b: int) -> tuple[int, int]:
         c = bd.index(a)
-        return int(_kernels.count_xy8(x[a:b], y[a:b], stride, counts[c], wrapped[c]))
+        if simd:
+            bad, nw = _kernels.count_xy8_simd(x[a:b], y[a:b], w, h, stride, counts[c], wrapped[c])
+            return (a + int(bad) if bad >= 0 else -1), int(nw)
+        return -1, int(_kernels.count_xy8(x[a:b], y[a:b], stride, counts[c], wrapped[c]))
 
-    n_wraps = np.array(_in_parts(count, n, parts), np.int64)
+    res = _in_parts(count, n, parts)
+    bad = [i for i, _ in res if i >= 0]
+    if bad:
+        raise _outside(x, y, bad[0], w, h)
+    n_wraps = np.array([nw for _, nw in res], np.int64)
     _in_parts(lambda r0, r1: _kernels.fold_rows(counts, w, stride, r0, r1, out), h, parts)
     _kernels.fold_wraps(wrapped, n_wraps, stride, 256, out)
 

@@ -116,7 +116,7 @@ def test_any_dtypes_are_kept_exactly(threads, simd):
             np.testing.assert_array_equal(got, ref)
 
 
-def test_counters_wrap_around_exactly(threads):
+def test_counters_wrap_around_exactly(threads, simd):
     """More than 65535 events on a pixel (the uint8 counters wrap hundreds of times) and a pixel
     with exactly 65536, pixels with 255, 256, 257 and 512 events: the counts stay exact."""
     w, h = 8, 4
@@ -288,9 +288,10 @@ def test_threads_argument_gives_the_one_thread_answers(n_threads, simd):
 @pytest.mark.parametrize("where", [0, 63, 64, 1000, 4095, 4096 + 70, 8191])
 @pytest.mark.parametrize("n_threads", [1, 2, 3])
 def test_uint16_events_outside_the_sensor_are_refused_naming_the_first(where, n_threads, simd):
-    """uint16 coordinates (checked by the Bloom pass itself, 64 at a time, the last partial
-    block one by one): the first event outside is named wherever it falls (a block's first or
-    last event, the tail, a later slice), with a second one after it; nothing written in place."""
+    """uint16 coordinates (checked by the Bloom pass and the counting kernel themselves, 64 at
+    a time, the last partial block one by one): the first event outside is named wherever it
+    falls (a block's first or last event, the tail, a later slice), with a second one after it;
+    nothing written in place."""
     w, h = 37, 23
     t, x, y, p = stream(8192 - 5, w, h, seed=where)
     where = min(where, len(x) - 1)
@@ -299,7 +300,8 @@ def test_uint16_events_outside_the_sensor_are_refused_naming_the_first(where, n_
     cols = [a.copy() for a in (t, x, y, p)]
     for call in (lambda: filter_arrays(t, x, y, p, pixels, sensor_size=(w, h), threads=n_threads),
                  lambda: hot_pixel_mask(x, y, pixels, sensor_size=(w, h), threads=n_threads),
-                 lambda: filter_arrays(*cols, pixels, sensor_size=(w, h), threads=n_threads, inplace=True)):
+                 lambda: filter_arrays(*cols, pixels, sensor_size=(w, h), threads=n_threads, inplace=True),
+                 lambda: count_events(x, y, sensor_size=(w, h), threads=n_threads)):
         with pytest.raises(IbiscapeError, match=rf"event {where} at pixel \(x={w}, .* outside the 37x23 sensor"):
             call()
     for a, b in zip(cols, (t, x, y, p), strict=True):
