@@ -11,8 +11,10 @@ Two criteria from the IBISCape paper (section "Event-based evaluation", figure
 Plus libcaer's rate criterion (hot if a pixel fires at least K events within a time window).
 
 Counting and filtering run in numba kernels over the raw ``uint16`` coordinates: one pass, a flat
-``uint8`` count array per thread (with a list of wrap-arounds), a bit table of the pixels to
-keep, and single-pass compaction; ``threads=`` splits the events into contiguous slices.
+``uint8`` count array per thread (with a list of wrap-arounds); then the keep bits of the events,
+64 to a word (an AVX-512 Bloom filter of the hot pixels in registers, its candidates looked up in
+a bit table of the pixels to keep), and single-pass compaction; the sensor bounds are checked
+inside both passes; ``threads=`` splits the events into contiguous slices.
 """
 
 from __future__ import annotations
