@@ -548,8 +548,8 @@ def _keep_bits(hot: np.ndarray, w: int, h: int) -> np.ndarray:
     return packed.view("<u4").astype(np.uint32, copy=False)
 
 
-#: The AVX-512 Bloom filter of the hot pixels (``_kernels.keep_words_bloom``) is used up to
-#: this many hot pixels (then ~15 % of the other events pass it and are looked up one by one);
+#: The AVX-512 Bloom filter of the hot pixels (``_kernels.keep_words_simd``) is used up to this
+#: many hot pixels (then ~15 % of the other events pass it and are looked up one by one);
 #: beyond, every event is looked up in the bit table.
 BLOOM_MAX_HOT = 1024
 
@@ -567,17 +567,16 @@ def _keep_words(x: np.ndarray, y: np.ndarray, pixels: npt.ArrayLike, w: int, h: 
     n = x.shape[0]
     bd = _bounds(n, parts, 64)
     words = np.empty((n + 63) // 64, np.uint64)
-    bloom = (x.dtype == np.uint16 and y.dtype == np.uint16 and hot.size <= BLOOM_MAX_HOT
-             and _kernels.simd_ok())
-    if bloom:
-        tab = _kernels.bloom_table(hot)
-    else:
+    simd = (x.dtype == np.uint16 and y.dtype == np.uint16 and w * h <= 2**32 and _kernels.simd_ok())
+    tab = _kernels.bloom_table(hot)
+    if not simd:
         _check_inside(x, y, w, h, parts)
 
     def run(c: int, _: int) -> int:
         a, b = bd[c], bd[c + 1]
-        if bloom:
-            k = int(_kernels.keep_words_bloom(x[a:b], y[a:b], w, h, tab, bits, words[a // 64:]))
+        if simd:
+            k = int(_kernels.keep_words_simd(x[a:b], y[a:b], w, h, tab, bits, words[a // 64:],
+                                             hot.size <= BLOOM_MAX_HOT))
             return k if k >= 0 else k - a  # -1 - (the event's index in the whole stream)
         return int(_kernels.keep_words(x[a:b], y[a:b], w, bits, words[a // 64:]))
 

@@ -27,16 +27,17 @@ def threads(request, monkeypatch):
     numba.set_num_threads(before)
 
 
-@pytest.fixture(params=["simd", "scalar"])
+@pytest.fixture(params=["simd", "simd, no Bloom filter", "scalar"])
 def simd(request, monkeypatch):
-    """The AVX-512 compaction and Bloom filter (whatever the number of hot pixels) where the
-    CPU has them, and the scalar ones everywhere."""
-    if request.param == "simd" and not _kernels.simd_ok(np.int64, np.uint16, np.bool_):
+    """The AVX-512 kernels where the CPU has them: with the Bloom filter of the hot pixels
+    whatever their number (it gives way to looking up every event once more than 1/8 of the
+    events are its candidates), or without it; and the scalar kernels everywhere."""
+    if request.param != "scalar" and not _kernels.simd_ok(np.int64, np.uint16, np.bool_):
         pytest.skip("no AVX-512 VBMI2 here")
     if request.param == "scalar":
         monkeypatch.setattr(_kernels, "simd_ok", lambda *d: False)
     else:
-        monkeypatch.setattr(hotpix, "BLOOM_MAX_HOT", 10**9)
+        monkeypatch.setattr(hotpix, "BLOOM_MAX_HOT", 10**9 if request.param == "simd" else -1)
     return request.param
 
 
@@ -321,3 +322,25 @@ def test_bloom_filter_passes_every_hot_pixel():
         hit &= ((tab[q * 64 + (hh >> np.uint64(5)).astype(np.int64)] >> (hh & np.uint64(31)).astype(np.uint32)) & 1) == 1
     assert hit[hot].all()
     assert hit.sum() - 200 < 0.02 * j.size
+
+
+def test_keep_words_with_and_without_the_bloom_filter_agree():
+    """The AVX-512 keep bits (the Bloom filter kept throughout, dropped part-way when the hot
+    events become many, or not used) are those of the scalar look-up of every event."""
+    if not _kernels.simd_ok():
+        pytest.skip("no AVX-512 here")
+    w, h = 640, 480
+    rng = np.random.default_rng(8)
+    n = 300_000 + 37
+    hot = rng.choice(w * h, 300, replace=False)
+    j = rng.integers(0, w * h, n)
+    j[200_000:] = np.where(rng.random(n - 200_000) < 0.6, rng.choice(hot, n - 200_000), j[200_000:])
+    x, y = (j % w).astype(np.uint16), (j // w).astype(np.uint16)
+    bits = hotpix._keep_bits(hot, w, h)
+    want = np.zeros((n + 63) // 64, np.uint64)
+    k_want = _kernels.keep_words(x, y, w, bits, want)
+    assert k_want == np.count_nonzero(~np.isin(j, hot))
+    for use_bloom in (True, False):
+        got = np.zeros_like(want)
+        assert _kernels.keep_words_simd(x, y, w, h, _kernels.bloom_table(hot), bits, got, use_bloom) == k_want
+        np.testing.assert_array_equal(got, want)
