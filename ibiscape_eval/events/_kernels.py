@@ -107,7 +107,7 @@ def count_xy8_simd(x, y, width, height, stride, counts, wrapped):
     what was counted before an event outside is left in ``counts``.  Needs AVX-512."""
     n = x.shape[0]
     n_wraps = 0
-    buf = np.empty(64, np.uint32)
+    buf = np.empty(1024, np.uint32)[512:576]  # 1 KiB either side: no cache line shared with another thread
     nb = n // 64
     for b in range(nb):
         bad = _index64(x, y, b * 64, width, height, stride, buf)  # type: ignore[call-arg, var-annotated]
@@ -384,7 +384,7 @@ def keep_words_simd(x, y, width, height, bloom, keep_bits, words, use_bloom):
     n = x.shape[0]
     k = n_cand = 0
     nb = n // 64
-    buf = np.empty(64, np.uint32)
+    buf = np.empty(1024, np.uint32)[512:576]  # 1 KiB either side: no cache line shared with another thread
     for b in range(nb + (nb * 64 < n)):
         i = b * 64
         if b == nb:  # the last, partial block: every event looked up
