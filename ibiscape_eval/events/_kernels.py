@@ -439,6 +439,42 @@ def words_to_bytes(words, out, simd):
         i += 1
 
 
+#: Events per chunk of :func:`keep_bytes_simd` / :func:`keep_bytes` (their keep words: 128 KiB).
+MASK_CHUNK = 1 << 20
+
+
+@njit(cache=True, nogil=True)
+def keep_bytes_simd(x, y, width, height, bloom, keep_bits, out, use_bloom):
+    """``out[i] = 1`` (uint8) if event ``i`` is kept, else 0: :func:`keep_words_simd` chunk by
+    chunk of :data:`MASK_CHUNK` events into a small buffer, expanded by
+    :func:`words_to_bytes` (no keep words for the whole stream).  Returns the number kept or
+    ``-1 - i`` for the first event ``i`` outside the sensor.  Needs AVX-512."""
+    n = x.shape[0]
+    buf = np.empty(MASK_CHUNK // 64, np.uint64)
+    k = 0
+    for a in range(0, n, MASK_CHUNK):
+        b = min(a + MASK_CHUNK, n)
+        kk = keep_words_simd(x[a:b], y[a:b], width, height, bloom, keep_bits, buf, use_bloom)
+        if kk < 0:
+            return kk - a
+        words_to_bytes(buf, out[a:b], True)
+        k += kk
+    return k
+
+
+@njit(cache=True, nogil=True)
+def keep_bytes(x, y, width, keep_bits, out):
+    """:func:`keep_bytes_simd` with :func:`keep_words` (coordinates already checked)."""
+    n = x.shape[0]
+    buf = np.empty(MASK_CHUNK // 64, np.uint64)
+    k = 0
+    for a in range(0, n, MASK_CHUNK):
+        b = min(a + MASK_CHUNK, n)
+        k += keep_words(x[a:b], y[a:b], width, keep_bits, buf)
+        words_to_bytes(buf, out[a:b], False)
+    return k
+
+
 @njit(cache=True, nogil=True)
 def compact_into(t, x, y, p, words, to, xo, yo, po, k, limit):
     """Copy the events whose keep bit is set (bit ``i % 64`` of ``words[i // 64]``, see

@@ -554,31 +554,37 @@ def _keep_bits(hot: np.ndarray, w: int, h: int) -> np.ndarray:
 BLOOM_MAX_HOT = 1024
 
 
-def _keep_words(x: np.ndarray, y: np.ndarray, pixels: npt.ArrayLike, w: int, h: int,
-                parts: int) -> tuple[np.ndarray, list[int], list[int]]:
+def _keep_words(x: np.ndarray, y: np.ndarray, pixels: npt.ArrayLike, w: int, h: int, parts: int,
+                mask: np.ndarray | None = None) -> tuple[np.ndarray, list[int], list[int]]:
     """The keep bits of every event, 64 to a uint64 word (see ``_kernels.keep_words``), the
     kept events before each of ``parts`` slices (and in all), and the slices' bounds (multiples
     of 64, so that a slice starts on a word); the events are checked to lie inside the sensor
-    (the first outside is refused by name).  Each slice on a thread of its own."""
+    (the first outside is refused by name).  Each slice on a thread of its own.  With ``mask``
+    (uint8, one per event), the keep bits go there as bytes instead, chunk by chunk (the words
+    returned are then empty)."""
     from . import _kernels
 
     hot = _hot_flat(pixels, w, h)
     bits = _keep_bits(hot, w, h)
     n = x.shape[0]
     bd = _bounds(n, parts, 64)
-    words = np.empty((n + 63) // 64, np.uint64)
+    words = np.empty(0 if mask is not None else (n + 63) // 64, np.uint64)
     simd = (x.dtype == np.uint16 and y.dtype == np.uint16 and w * h <= 2**32 and _kernels.simd_ok())
-    tab = _kernels.bloom_table(hot)
+    tab, use_bloom = _kernels.bloom_table(hot), hot.size <= BLOOM_MAX_HOT
     if not simd:
         _check_inside(x, y, w, h, parts)
 
     def run(c: int, _: int) -> int:
         a, b = bd[c], bd[c + 1]
-        if simd:
-            k = int(_kernels.keep_words_simd(x[a:b], y[a:b], w, h, tab, bits, words[a // 64:],
-                                             hot.size <= BLOOM_MAX_HOT))
-            return k if k >= 0 else k - a  # -1 - (the event's index in the whole stream)
-        return int(_kernels.keep_words(x[a:b], y[a:b], w, bits, words[a // 64:]))
+        if mask is not None and simd:
+            k = int(_kernels.keep_bytes_simd(x[a:b], y[a:b], w, h, tab, bits, mask[a:b], use_bloom))
+        elif mask is not None:
+            k = int(_kernels.keep_bytes(x[a:b], y[a:b], w, bits, mask[a:b]))
+        elif simd:
+            k = int(_kernels.keep_words_simd(x[a:b], y[a:b], w, h, tab, bits, words[a // 64:], use_bloom))
+        else:
+            k = int(_kernels.keep_words(x[a:b], y[a:b], w, bits, words[a // 64:]))
+        return k if k >= 0 else k - a  # -1 - (the event's index in the whole stream)
 
     kept = _in_parts(run, parts, parts)
     bad = [-1 - k for k in kept if k < 0]
@@ -612,18 +618,12 @@ def hot_pixel_mask(
     -------
     ndarray, shape (N,), bool
     """
-    from . import _kernels
-
     w, h = _check_sensor_size(sensor_size)
     xa, ya = _coords(x, y)
     n = xa.shape[0]
     parts = _threads(n, threads)
-    words, _, bd = _keep_words(xa, ya, pixels, w, h, parts)
     out = np.empty(n, np.bool_)
-    u8 = out.view(np.uint8)
-    simd = _kernels.simd_ok()
-    _in_parts(lambda c, _: _kernels.words_to_bytes(words[bd[c] // 64:], u8[bd[c]:bd[c + 1]], simd),
-              parts, parts)
+    _keep_words(xa, ya, pixels, w, h, parts, mask=out.view(np.uint8))
     return out
 
 

@@ -344,3 +344,20 @@ def test_keep_words_with_and_without_the_bloom_filter_agree():
         got = np.zeros_like(want)
         assert _kernels.keep_words_simd(x, y, w, h, _kernels.bloom_table(hot), bits, got, use_bloom) == k_want
         np.testing.assert_array_equal(got, want)
+
+
+@pytest.mark.parametrize("n_threads", [1, 2])
+def test_keep_mask_over_several_chunks(n_threads, simd):
+    """hot_pixel_mask works through chunks of ``MASK_CHUNK`` events: over three of them (a
+    partial last one) the mask is numpy's, and an event outside the sensor in a later chunk is
+    named by its index in the whole stream."""
+    w, h = 37, 23
+    n = 2 * _kernels.MASK_CHUNK + 1000 + 7
+    t, x, y, p = stream(n, w, h, seed=12)
+    pixels = all_pixels(w, h)[::9]
+    want = ~np.isin(y.astype(np.int64) * w + x, pixels[:, 1] * w + pixels[:, 0])
+    np.testing.assert_array_equal(hot_pixel_mask(x, y, pixels, sensor_size=(w, h), threads=n_threads), want)
+    bad = _kernels.MASK_CHUNK + 12_345
+    y[bad] = h
+    with pytest.raises(IbiscapeError, match=rf"event {bad} at pixel"):
+        hot_pixel_mask(x, y, pixels, sensor_size=(w, h), threads=n_threads)
