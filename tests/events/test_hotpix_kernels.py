@@ -353,7 +353,7 @@ def test_keep_mask_over_several_chunks(n_threads, simd):
     named by its index in the whole stream."""
     w, h = 37, 23
     n = 2 * _kernels.MASK_CHUNK + 1000 + 7
-    t, x, y, p = stream(n, w, h, seed=12)
+    _, x, y, _ = stream(n, w, h, seed=12)
     pixels = all_pixels(w, h)[::9]
     want = ~np.isin(y.astype(np.int64) * w + x, pixels[:, 1] * w + pixels[:, 0])
     np.testing.assert_array_equal(hot_pixel_mask(x, y, pixels, sensor_size=(w, h), threads=n_threads), want)
