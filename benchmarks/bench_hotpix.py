@@ -13,6 +13,9 @@ Run::
     .venv/bin/python benchmarks/bench_hotpix.py --n-events 1e8 --stream-events 1e9 --tmp /tmp
     .venv/bin/python benchmarks/bench_hotpix.py --against /tmp/main --repeat 7   # before / after
 
+(``git worktree add --detach /tmp/main main`` makes that checkout; its ``hotpix.py`` and
+``_kernels.py`` run beside ours, every run interleaved.)
+
 The streamed folder is generated with the synthetic builder under ``--tmp`` (~13 bytes per
 event on disk, twice: input and filtered output) and deleted afterwards.
 """
@@ -37,19 +40,12 @@ from _runner import run
 from ibiscape_eval.core.events import Events
 from ibiscape_eval.events import (
     count_events,
-    filter_arrays,
     filter_events,
-    hot_pixel_mask,
     hot_pixels_from_counts,
     synthetic_windows,
 )
 
 SENSOR = (1024, 1024)  # IBISCape's DVS resolution
-
-
-def best_of(fn: Callable[[], object], repeat: int) -> float:
-    """Best CPU time (process_time: this process only, robust on a shared machine)."""
-    return best_times(fn, repeat)[0]
 
 
 def best_times(fn: Callable[..., object], repeat: int,
@@ -117,8 +113,9 @@ def make_stream(n_events: int, seed: int = 0) -> tuple[Events, np.ndarray]:
     return Events.concatenate(parts), hot
 
 
-def _steps(ev: Events, hot: np.ndarray) -> list[tuple[str, Callable[..., object], Callable[..., object], bool]]:
-    """(name, numpy, ours(threads, [copies]), in place) of every measured step."""
+def _steps(ev: Events, hot: np.ndarray, m: Any) -> list[tuple[str, Callable[..., object], Callable[..., object], bool]]:
+    """(name, numpy, ours(threads, [copies]), in place) of every measured step; ``m`` is the
+    hot-pixel module measured (this checkout's, or another's: see ``--against``)."""
     w, h = SENSOR
     x, y, t, p = ev.x, ev.y, ev.t_ns, ev.p
     hot_bool = np.zeros(w * h, bool)
@@ -131,30 +128,30 @@ def _steps(ev: Events, hot: np.ndarray) -> list[tuple[str, Callable[..., object]
         return ~hot_bool[y.astype(np.int64) * w + x]
 
     def np_filter(*_: object) -> tuple[np.ndarray, ...]:
-        m = np_mask()
-        return t[m], x[m], y[m], p[m]
+        keep = np_mask()
+        return t[keep], x[keep], y[keep], p[keep]
 
     def np_both(*_: object) -> object:
         np_count()
         return np_filter()
 
     def ib_both(th: int) -> object:
-        count_events(x, y, sensor_size=SENSOR, threads=th)
-        return filter_events(ev, hot, sensor_size=SENSOR, threads=th)
+        m.count_events(x, y, sensor_size=SENSOR, threads=th)
+        return m.filter_events(ev, hot, sensor_size=SENSOR, threads=th)
 
     def ib_inplace(th: int, cols: list[np.ndarray]) -> object:
         tc, xc, yc, pc = cols
-        return filter_arrays(tc, xc, yc, pc, hot, sensor_size=SENSOR, threads=th, inplace=True)
+        return m.filter_arrays(tc, xc, yc, pc, hot, sensor_size=SENSOR, threads=th, inplace=True)
 
     def ib_both_inplace(th: int, cols: list[np.ndarray]) -> object:
-        count_events(cols[1], cols[2], sensor_size=SENSOR, threads=th)
+        m.count_events(cols[1], cols[2], sensor_size=SENSOR, threads=th)
         return ib_inplace(th, cols)
 
     return [
         ("count (per-pixel histogram)", np_count,
-         lambda th: count_events(x, y, sensor_size=SENSOR, threads=th), False),
-        ("keep-mask", np_mask, lambda th: hot_pixel_mask(x, y, hot, sensor_size=SENSOR, threads=th), False),
-        ("filter, new arrays", np_filter, lambda th: filter_events(ev, hot, sensor_size=SENSOR, threads=th),
+         lambda th: m.count_events(x, y, sensor_size=SENSOR, threads=th), False),
+        ("keep-mask", np_mask, lambda th: m.hot_pixel_mask(x, y, hot, sensor_size=SENSOR, threads=th), False),
+        ("filter, new arrays", np_filter, lambda th: m.filter_events(ev, hot, sensor_size=SENSOR, threads=th),
          False),
         ("filter in place (inplace=True)", np_filter, ib_inplace, True),
         ("count + filter, new arrays", np_both, ib_both, False),
@@ -177,8 +174,29 @@ def _check_same(ev: Events, hot: np.ndarray, steps: list[Any]) -> None:
             assert np.array_equal(a, c) and np.array_equal(b, c)
 
 
-def in_memory(n_events: int, repeat: int) -> None:
+def interleaved(fns: list[Callable[..., object]], repeat: int,
+                setup: Callable[[], Any] | None = None) -> list[tuple[float, float, float]]:
+    """:func:`best_times` of every function of ``fns``, run in turn round by round (a busy
+    machine slows them alike)."""
+    times: list[list[tuple[float, float]]] = [[] for _ in fns]
+    for r in range(repeat + 1):  # round 0 warms up
+        for f, out in zip(fns, times, strict=True):
+            arg = () if setup is None else (setup(),)
+            t0, w0 = time.process_time(), time.perf_counter()
+            f(*arg)
+            if r:
+                out.append((time.process_time() - t0, time.perf_counter() - w0))
+    res = []
+    for out in times:
+        cpu, wall = zip(*out, strict=True)
+        res.append((min(cpu), min(wall), float(np.median(wall))))
+    return res
+
+
+def in_memory(n_events: int, repeat: int, before: Any = None) -> None:
     from functools import partial
+
+    from ibiscape_eval.events import hotpix
 
     t0 = time.process_time()
     ev, planted = make_stream(n_events)
@@ -188,48 +206,55 @@ def in_memory(n_events: int, repeat: int) -> None:
     cols = (ev.t_ns, ev.x, ev.y, ev.p)
     ev_mb = sum(a.nbytes for a in cols) / 1e6
     hot = hot_pixels_from_counts(count_events(ev.x, ev.y, sensor_size=SENSOR), top_n=200).pixels
-    steps = _steps(ev, hot)
-    _check_same(ev, hot, steps)
+    mods = [("ours", hotpix)] + ([("before", before)] if before is not None else [])
+    all_steps = {who: _steps(ev, hot, m) for who, m in mods}
+    for steps in all_steps.values():
+        _check_same(ev, hot, steps)
     kept = len(filter_events(ev, hot, sensor_size=SENSOR))
     print(f"  planted hot pixels found by top-200: {len({tuple(r) for r in planted} & {tuple(r) for r in hot})}/200; "
-          f"discarded {100 * (1 - kept / n):.2f} %; the same counts, mask and kept events as numpy")
+          f"discarded {100 * (1 - kept / n):.2f} %; the same counts, mask and kept events as numpy"
+          + (" (before too)" if before is not None else ""))
     threads = 2
-    print(f"  Mev/s: numpy and ours on one thread by best CPU time; ours on threads={threads} by wall "
-          f"time, best / median (load average {os.getloadavg()[0]:.1f}: on a shared machine only CPU "
-          f"times are stable), and by CPU time over the threads (events / CPU s x {threads}: the wall "
-          f"time of a quiet machine at perfect scaling); RATIO = numpy's time / ours; peak MB added "
-          f"over the {ev_mb:.0f} MB of events (in place: over their copies)")
-    print(f"  {'step':31s} {'numpy':>6s} {'ours 1T':>8s} {'RATIO':>6s} {'numpy wall':>10s} "
-          f"{f'ours {threads}T wall best/med':>21s} {'RATIO':>6s} {f'{threads}T CPU':>7s} "
-          f"{'peak MB numpy/1T/' + str(threads) + 'T':>22s}")
+    print(f"  Mev/s: numpy and ours on one thread by best CPU time; on threads={threads} by wall time, best / "
+          f"median (load average {os.getloadavg()[0]:.1f}: on a shared machine only CPU times are stable), and "
+          f"by CPU time over the threads (events / CPU s x {threads}: the wall time of a quiet machine at perfect "
+          f"scaling); RATIO = numpy's time / ours (CPU, one thread); peak MB added over the {ev_mb:.0f} MB of "
+          "events (in place: over their copies)" + ("; 'before' = --against, every run interleaved with ours"
+                                                    if before is not None else ""))
+    print(f"  {'step':31s} {'who':6s} {'numpy':>6s} {'1T':>6s} {'RATIO':>6s} {f'{threads}T wall best/med':>17s} "
+          f"{f'{threads}T CPU':>7s} {'peak MB numpy/1T/' + str(threads) + 'T':>22s}")
 
     def copies() -> list[np.ndarray]:
         return [a.copy() for a in cols]
 
-    for name, a, b, inplace in steps:
+    for k, (name, a, _, inplace) in enumerate(all_steps["ours"]):
         setup = copies if inplace else None
-        ta, wa, _ = best_times(a, repeat, setup)
-        tb = best_times(partial(b, 1), repeat, setup)[0]
-        cb, wb, mb = best_times(partial(b, threads), repeat, setup)
-        pa, pb, pc = (peak_added_mb(f, setup) for f in (a, partial(b, 1), partial(b, threads)))
-        print(f"  {name:31s} {n / ta / 1e6:6.0f} {n / tb / 1e6:8.0f} {ta / tb:5.1f}x "
-              f"{n / wa / 1e6:10.0f} {n / wb / 1e6:14.0f} / {n / mb / 1e6:4.0f} {wa / wb:5.1f}x "
-              f"{threads * n / cb / 1e6:7.0f} {pa:10.0f}/{pb:.0f}/{pc:.0f}")
+        fns = [a] + [partial(all_steps[who][k][2], th) for th in (1, threads) for who, _ in mods]
+        res = interleaved(fns, repeat, setup)
+        ta = res[0][0]
+        pa = peak_added_mb(a, setup)
+        for q, (who, _) in enumerate(mods):
+            tb = res[1 + q][0]
+            cb, wb, mb = res[1 + len(mods) + q]
+            pb, pc = (peak_added_mb(partial(all_steps[who][k][2], th), setup) for th in (1, threads))
+            print(f"  {name if not q else '':31s} {who:6s} {n / ta / 1e6:6.0f} {n / tb / 1e6:6.0f} {ta / tb:5.1f}x "
+                  f"{n / wb / 1e6:8.0f} / {n / mb / 1e6:4.0f} {threads * n / cb / 1e6:7.0f} {pa:10.0f}/{pb:.0f}/{pc:.0f}")
     print(f"  (load average at the end {os.getloadavg()[0]:.1f})")
     roofline(n, cols, repeat, threads)
 
 
 def roofline(n: int, cols: tuple[np.ndarray, ...], repeat: int, threads: int) -> None:
     """The machine's memory speed on the same bytes: numpy copying every column (what a filter
-    that keeps everything must do), on one thread (CPU time) and split over ``threads`` Python
-    threads (wall time; numpy releases the GIL while copying)."""
+    that keeps everything must do), into existing and into new arrays, on one thread (CPU time)
+    and split over ``threads`` Python threads (wall time, and CPU time over the threads; numpy
+    releases the GIL while copying; into new arrays each thread first-touches its part)."""
     from concurrent.futures import ThreadPoolExecutor
 
     into = [np.empty_like(a) for a in cols]
     nbytes = sum(a.itemsize for a in cols)
 
-    def copy_into(parts: int = 1, k: int = 0) -> None:
-        for o, a in zip(into, cols, strict=True):
+    def copy_into(parts: int = 1, k: int = 0, dst: list[np.ndarray] = into) -> None:
+        for o, a in zip(dst, cols, strict=True):
             m = a.shape[0]
             np.copyto(o[m * k // parts : m * (k + 1) // parts], a[m * k // parts : m * (k + 1) // parts])
 
@@ -241,13 +266,18 @@ def roofline(n: int, cols: tuple[np.ndarray, ...], repeat: int, threads: int) ->
     def copy_into_threads() -> None:
         list(pool.map(lambda k: copy_into(threads, k), range(threads)))
 
-    c1, c2 = best_of(copy_into, repeat), best_of(copy_new, repeat)
-    w2 = best_times(copy_into_threads, repeat)[1]
+    def copy_new_threads() -> list[np.ndarray]:
+        dst = [np.empty_like(a) for a in cols]
+        list(pool.map(lambda k: copy_into(threads, k, dst), range(threads)))
+        return dst
+
+    (c1, _, _), (c2, _, _), (ci, wi, _), (cn, wn, _) = interleaved(
+        [copy_into, copy_new, copy_into_threads, copy_new_threads], repeat)
     pool.shutdown()
-    print(f"  roofline: numpy copying t, x, y, p ({nbytes} B/event): into existing arrays "
-          f"{n / c1 / 1e6:.0f} Mev/s ({n * nbytes / c1 / 1e9:.1f} GB/s) on one thread, "
-          f"{n / w2 / 1e6:.0f} Mev/s on {threads} threads (wall); into new arrays "
-          f"{n / c2 / 1e6:.0f} Mev/s (one thread)")
+    print(f"  roofline: numpy copying t, x, y, p ({nbytes} B/event), Mev/s: into existing arrays "
+          f"{n / c1 / 1e6:.0f} ({n * nbytes / c1 / 1e9:.1f} GB/s) on one thread, {n / wi / 1e6:.0f} wall / "
+          f"{threads * n / ci / 1e6:.0f} CPU on {threads} threads; into new arrays {n / c2 / 1e6:.0f} on one "
+          f"thread, {n / wn / 1e6:.0f} wall / {threads * n / cn / 1e6:.0f} CPU on {threads} threads")
 
 
 def _load_against(root: Path) -> object:
@@ -262,45 +292,6 @@ def _load_against(root: Path) -> object:
     (pkg / "__init__.py").write_text("")
     sys.path.insert(0, str(pkg.parent))
     return importlib.import_module("hotpix_against.hotpix")
-
-
-def against(n_events: int, root: Path, rounds: int) -> None:
-    """This checkout's count and filter against another checkout's (e.g. ``git worktree add
-    /tmp/main main``), interleaved round by round in one process on the same events, so that a
-    busy machine slows both alike; best CPU time of ``rounds``, one thread."""
-    import numba
-
-    from ibiscape_eval.events import hotpix as ours
-
-    old: Any = _load_against(root)
-    ev, _ = make_stream(n_events)
-    n, x, y = len(ev), ev.x, ev.y
-    hot = hot_pixels_from_counts(count_events(x, y, sensor_size=SENSOR), top_n=200).pixels
-    new_f, old_f = ours.filter_events(ev, hot, sensor_size=SENSOR), old.filter_events(ev, hot, sensor_size=SENSOR)
-    assert all(np.array_equal(getattr(new_f, f), getattr(old_f, f)) for f in ("t_ns", "x", "y", "p"))
-
-    def steps(m: Any) -> dict[str, Callable[[], object]]:
-        def both() -> object:
-            m.count_events(x, y, sensor_size=SENSOR)
-            return m.filter_events(ev, hot, sensor_size=SENSOR)
-        return {"count": lambda: m.count_events(x, y, sensor_size=SENSOR),
-                "filter": lambda: m.filter_events(ev, hot, sensor_size=SENSOR), "count + filter": both}
-
-    numba.set_num_threads(1)
-    mine, theirs = steps(ours), steps(old)
-    best: dict[tuple[str, str], float] = {}
-    for r in range(rounds + 1):
-        for k in mine:
-            for who, fn in (("ours", mine[k]), ("against", theirs[k])):
-                c0 = time.process_time()
-                fn()
-                if r:  # round 0 warms up
-                    best[k, who] = min(best.get((k, who), 9e9), time.process_time() - c0)
-    print(f"against {root}: {n:,} events, one thread, best CPU time of {rounds} interleaved rounds "
-          f"(load average {os.getloadavg()[0]:.1f}); same kept events: yes")
-    for k in mine:
-        a, b = best[k, "ours"], best[k, "against"]
-        print(f"  {k:16s} ours {n / a / 1e6:6.0f} Mev/s, against {n / b / 1e6:6.0f} Mev/s: {b / a:.2f}x")
 
 
 def streamed(n_events: int, tmp_root: Path) -> None:
@@ -363,13 +354,11 @@ def main() -> None:
     ap.add_argument("--stream-events", type=float, default=1e7, help="streamed folder size (0: skip)")
     ap.add_argument("--tmp", type=Path, default=Path(tempfile.gettempdir()))
     ap.add_argument("--against", type=Path, default=None,
-                    help="another checkout: its count and filter interleaved with ours (only that)")
+                    help="another checkout: its rows ('before') beside ours in the in-memory table, every run "
+                         "interleaved with ours")
     a = ap.parse_args()
-    if a.against is not None:
-        against(int(a.n_events), a.against, a.repeat)
-        return
     if a.n_events > 0:
-        in_memory(int(a.n_events), a.repeat)
+        in_memory(int(a.n_events), a.repeat, None if a.against is None else _load_against(a.against))
     if a.stream_events > 0:
         streamed(int(a.stream_events), a.tmp)
 

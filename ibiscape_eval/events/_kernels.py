@@ -68,6 +68,64 @@ def count_xy8(x, y, stride, counts, wrapped):
     return n_wraps
 
 
+@intrinsic
+def _index64(typingctx, x, y, i, width, height, stride, buf):
+    """AVX-512: the counter places ``y * stride + x`` of the uint16 events ``i:i + 64`` into the
+    uint32 ``buf[:64]``; returns the events outside the sensor as the bits of a uint64."""
+    sig = types.uint64(x, y, types.int64, types.int64, types.int64, types.int64, buf)
+
+    def codegen(context, builder, signature, args):
+        xa, ya, iv, wv, hv, sv, ba = args
+        i16, i32, i64 = ir.IntType(16), ir.IntType(32), ir.IntType(64)
+        v16, v32 = ir.VectorType(i16, 16), ir.VectorType(i32, 16)
+        xp = _data_ptr(context, builder, signature.args[0], xa, i16)
+        yp = _data_ptr(context, builder, signature.args[1], ya, i16)
+        bp = _data_ptr(context, builder, signature.args[6], ba, i32)
+        wvec, hvec, svec = (_splat(builder, v32, builder.trunc(v, i32)) for v in (wv, hv, sv))
+        out = ir.Constant(i64, 0)
+        for g in range(4):
+            off = builder.add(iv, ir.Constant(i64, 16 * g))
+            xv, yv = (builder.zext(builder.load(builder.bitcast(builder.gep(pt, [off]), v16.as_pointer()),
+                                                align=2), v32) for pt in (xp, yp))
+            j = builder.add(builder.mul(yv, svec), xv)
+            builder.store(j, builder.bitcast(builder.gep(bp, [ir.Constant(i64, 16 * g)]), v32.as_pointer()),
+                          align=4)
+            bad = builder.or_(builder.icmp_unsigned(">=", xv, wvec), builder.icmp_unsigned(">=", yv, hvec))
+            out = builder.or_(out, builder.shl(builder.zext(builder.bitcast(bad, i16), i64),
+                                               ir.Constant(i64, 16 * g)))
+        return out
+
+    return sig, codegen
+
+
+@njit(cache=True, nogil=True)
+def count_xy8_simd(x, y, width, height, stride, counts, wrapped):
+    """:func:`count_xy8` for uint16 coordinates not yet checked: the places and the bounds
+    test of 64 events at a time with AVX-512 (:func:`_index64`), then the scalar increments
+    (1.3x faster than numpy's bounds check plus :func:`count_xy8`, measured).  Returns the
+    index of the first event outside the sensor (or -1) and the number of wrap-arounds listed;
+    what was counted before an event outside is left in ``counts``.  Needs AVX-512."""
+    n = x.shape[0]
+    n_wraps = 0
+    buf = np.empty(1024, np.uint32)[512:576]  # 1 KiB either side: no cache line shared with another thread
+    nb = n // 64
+    for b in range(nb):
+        bad = _index64(x, y, b * 64, width, height, stride, buf)  # type: ignore[call-arg, var-annotated]
+        if bad:
+            return b * 64 + np.int64(_lowest_bit(bad)), n_wraps
+        for e in range(64):
+            j = buf[e]
+            c = np.uint8(counts[j] + 1)
+            counts[j] = c
+            if c == 0:
+                wrapped[n_wraps] = j
+                n_wraps += 1
+    first = first_outside(x[nb * 64:], y[nb * 64:], width, height)
+    if first >= 0:
+        return nb * 64 + first, n_wraps
+    return -1, n_wraps + count_xy8(x[nb * 64:], y[nb * 64:], stride, counts, wrapped[n_wraps:])
+
+
 @njit(cache=True, nogil=True)
 def fold_rows(counts, width, stride, r0, r1, out):
     """Add the padded counts of every row of ``counts`` (one row of counters per counting
@@ -105,23 +163,6 @@ def count_xyp(x, y, p, width, height, stride, counts):
 
 
 @njit(cache=True, nogil=True)
-def keep_mask(x, y, width, keep_bits, out):
-    """``out[i] = 1`` (uint8) if the pixel of event i is to be kept, else 0, from the bit table
-    ``keep_bits`` (uint32 words, bit ``j % 32`` of word ``j // 32`` for pixel ``j = y * width +
-    x``; 128 KiB for a megapixel sensor, which stays in the L2 cache where a byte per pixel
-    does not: 1.15x faster, measured), for coordinates already checked to lie inside the sensor
-    (see :func:`first_outside`): 32-bit pixel indices (``width * height <= 2**32``) and no
-    bounds test in the loop, 1.2-1.4x faster than testing every event.  (Counting the kept
-    events in this loop stops LLVM from vectorising it: 20 % slower than the separate
-    :func:`count_kept` pass, measured.  An AVX-512 gather of the bits, 16 events at a time, is
-    1.6x slower than this scalar loop on AMD Zen 4, measured.)"""
-    w = np.uint32(width)
-    for i in range(x.shape[0]):
-        j = np.uint32(y[i]) * w + np.uint32(x[i])
-        out[i] = np.uint8((keep_bits[j >> np.uint32(5)] >> (j & np.uint32(31))) & np.uint32(1))
-
-
-@njit(cache=True, nogil=True)
 def first_outside(x, y, width, height):
     """Index of the first event outside the sensor, or -1.  The coordinates are compared as
     unsigned 64-bit numbers: a negative one wraps to a huge value, so one comparison per axis
@@ -134,59 +175,10 @@ def first_outside(x, y, width, height):
     return -1
 
 
-@njit(cache=True, nogil=True)
-def count_kept(keep):
-    """Number of ones in a uint8 keep-mask (a vectorised sum)."""
-    k = 0
-    for i in range(keep.shape[0]):
-        k += keep[i]
-    return k
-
-
-@njit(cache=True, nogil=True)
-def compact_into(t, x, y, p, keep, to, xo, yo, po, k, limit):
-    """Copy the events with ``keep[i] == 1`` into ``to[k:limit]`` (and the others), in order,
-    ``limit - k`` being the number of kept events.  Branch-free: every event is written, the
-    write position advances only for kept ones (a place a discarded event took is written again
-    by a later kept one; once ``limit`` is reached only discarded events remain).  Returns the
-    end.
-
-    The mask comes from :func:`keep_mask` in a separate pass: fusing the LUT lookup into this
-    loop puts its load latency on the loop-carried write position and runs 2-3x slower (also
-    block by block through a small buffer, measured; with the AVX-512 compaction of
-    :func:`compact_simd` too, 2.3x slower in session 8)."""
-    n = t.shape[0]
-    i = 0
-    while i < n and k < limit:
-        to[k] = t[i]
-        xo[k] = x[i]
-        yo[k] = y[i]
-        po[k] = p[i]
-        k += keep[i]
-        i += 1
-    return k
-
-
 def _data_ptr(context, builder, arrty, arr, elem):
     """Pointer to the first element of a numba array, as ``elem*``."""
     data = cgutils.create_struct_proxy(arrty)(context, builder, value=arr).data
     return builder.bitcast(data, elem.as_pointer())
-
-
-@intrinsic
-def _mask64(typingctx, keep, i):
-    """The 64 bytes ``keep[i:i + 64]`` as the bits of a uint64 (bit j set if ``keep[i + j]``)."""
-    sig = types.uint64(keep, types.int64)
-
-    def codegen(context, builder, signature, args):
-        i8 = ir.IntType(8)
-        vty = ir.VectorType(i8, 64)
-        ptr = builder.gep(_data_ptr(context, builder, signature.args[0], args[0], i8), [args[1]])
-        v = builder.load(builder.bitcast(ptr, vty.as_pointer()), align=1)
-        m = builder.icmp_unsigned("!=", v, ir.Constant(vty, None))
-        return builder.bitcast(m, ir.IntType(64))
-
-    return sig, codegen
 
 
 @intrinsic
@@ -226,27 +218,301 @@ def _compress64(typingctx, src, i, dst, k, bits):
     return sig, codegen
 
 
-@njit(cache=True, nogil=True)
-def compact_simd(t, x, y, p, keep, to, xo, yo, po, k, limit):
-    """:func:`compact_into` with AVX-512 compress stores, 64 events at a time while a whole
-    vector still fits before ``limit`` (the rest by :func:`compact_into`).  Only for CPUs with
-    AVX512F/BW/VBMI2 and element sizes of 1, 2, 4 or 8 bytes (see :func:`simd_ok`).
+@intrinsic
+def _popcount(typingctx, v):
+    """Set bits of a uint64 (``llvm.ctpop``: one ``popcnt``)."""
+    sig = types.int64(types.uint64)
 
-    The keep-mask stays a pass of its own: the keep bits of 64 events gathered with AVX-512
-    inside this loop (no mask array) ran no faster than the two passes (78 against 83 ms for
-    5e7 events, session 9), and the kept count it then needs first took 49 ms on its own.
-    In place (outputs = inputs) is safe: every store lands at or before the block just
-    loaded."""
+    def codegen(context, builder, signature, args):
+        i64 = ir.IntType(64)
+        f = cgutils.get_or_insert_function(builder.module, ir.FunctionType(i64, [i64]), "llvm.ctpop.i64")
+        return builder.call(f, [args[0]])
+
+    return sig, codegen
+
+
+@intrinsic
+def _lowest_bit(typingctx, v):
+    """Index of the lowest set bit of a non-zero uint64 (``llvm.cttz``: one ``tzcnt``)."""
+    sig = types.uint64(types.uint64)
+
+    def codegen(context, builder, signature, args):
+        i64 = ir.IntType(64)
+        f = cgutils.get_or_insert_function(builder.module, ir.FunctionType(i64, [i64, ir.IntType(1)]),
+                                           "llvm.cttz.i64")
+        return builder.call(f, [args[0], ir.Constant(ir.IntType(1), 1)])
+
+    return sig, codegen
+
+
+@njit(cache=True, nogil=True)
+def keep_words(x, y, width, keep_bits, words):
+    """The keep bits of the events (see :func:`_keep_bit`), 64 to a uint64 word: bit ``e`` of
+    ``words[b]`` for event ``64 b + e`` (a byte per event costs 8x the memory traffic and a
+    pass of its own to count them), for coordinates already checked to lie inside the sensor.
+    Returns the number of events kept."""
+    w = np.uint32(width)
+    n = x.shape[0]
+    k = 0
+    for b in range((n + 63) // 64):
+        i0 = b * 64
+        m = np.uint64(0)
+        for e in range(min(64, n - i0)):
+            j = np.uint32(y[i0 + e]) * w + np.uint32(x[i0 + e])
+            m |= np.uint64((keep_bits[j >> np.uint32(5)] >> (j & np.uint32(31))) & np.uint32(1)) << np.uint64(e)
+        words[b] = m
+        k += _popcount(m)  # type: ignore[call-arg]
+    return k
+
+
+#: The two multiplicative hashes of a pixel index into the 2048-bit tables of the Bloom filter
+#: of :func:`bloom_table` (odd 32-bit constants; the top 11 bits of the product).
+BLOOM_MULTIPLIERS = (0x9E3779B1, 0x85EBCA77)
+
+
+def bloom_table(hot_flat: np.ndarray) -> np.ndarray:
+    """The Bloom filter of the pixel indices ``hot_flat`` (``y * width + x``) for
+    :func:`keep_words_simd`: two 2048-bit tables, one per hash of :data:`BLOOM_MULTIPLIERS`,
+    as 128 uint32 words (two 64-word halves: 8 AVX-512 registers)."""
+    j = np.asarray(hot_flat, np.uint64) & np.uint64(0xFFFFFFFF)
+    tab = np.zeros(128, np.uint32)
+    for q, mult in enumerate(BLOOM_MULTIPLIERS):
+        h = ((j * np.uint64(mult)) & np.uint64(0xFFFFFFFF)) >> np.uint64(21)
+        np.bitwise_or.at(tab, q * 64 + (h >> np.uint64(5)).astype(np.int64),
+                         np.left_shift(np.uint32(1), (h & np.uint64(31)).astype(np.uint32)))
+    return tab
+
+
+def _splat(builder, vty, v):
+    u = builder.insert_element(ir.Constant(vty, ir.Undefined), v, ir.Constant(ir.IntType(32), 0))
+    return builder.shuffle_vector(u, ir.Constant(vty, ir.Undefined), ir.Constant(vty, None))
+
+
+def _bloom_hit(builder, perm, j, mult, tab4):
+    """Lanes whose hash ``(j * mult) >> 21`` hits its bit of the 2048-bit table in the four
+    registers ``tab4`` (two ``vpermi2d`` table look-ups and a select, no memory access)."""
+    v32 = j.type
+
+    def c(k):
+        return ir.Constant(v32, [ir.Constant(ir.IntType(32), k)] * 16)
+
+    h = builder.lshr(builder.mul(j, c(mult)), c(21))
+    idx = builder.lshr(h, c(5))
+    lo = builder.call(perm, [tab4[0], idx, tab4[1]])
+    hi = builder.call(perm, [tab4[2], idx, tab4[3]])
+    word = builder.select(builder.icmp_unsigned("!=", builder.and_(idx, c(32)), c(0)), hi, lo)
+    bit = builder.and_(builder.lshr(word, builder.and_(h, c(31))), c(1))
+    return builder.icmp_unsigned("!=", bit, c(0))
+
+
+@intrinsic
+def _bloom64(typingctx, x, y, i, width, height, tab):
+    """AVX-512 test of the uint16 events ``i:i + 64``: bit ``e`` of the uint64 set if event
+    ``i + e`` lies outside the sensor or its pixel passes the Bloom filter ``tab`` (see
+    :func:`bloom_table`): the events that may be hot, to be checked one by one."""
+    sig = types.uint64(x, y, types.int64, types.int64, types.int64, tab)
+
+    def codegen(context, builder, signature, args):
+        xa, ya, iv, wv, hv, ta = args
+        i16, i32, i64 = ir.IntType(16), ir.IntType(32), ir.IntType(64)
+        v16, v32 = ir.VectorType(i16, 16), ir.VectorType(i32, 16)
+        xp = _data_ptr(context, builder, signature.args[0], xa, i16)
+        yp = _data_ptr(context, builder, signature.args[1], ya, i16)
+        tp = _data_ptr(context, builder, signature.args[5], ta, i32)
+        perm = cgutils.get_or_insert_function(builder.module, ir.FunctionType(v32, [v32, v32, v32]),
+                                              "llvm.x86.avx512.vpermi2var.d.512")
+        wvec, hvec = (_splat(builder, v32, builder.trunc(v, i32)) for v in (wv, hv))
+        tabs = [builder.load(builder.bitcast(builder.gep(tp, [ir.Constant(i64, 16 * q)]), v32.as_pointer()),
+                             align=4) for q in range(8)]
+        out = ir.Constant(i64, 0)
+        for g in range(4):
+            off = builder.add(iv, ir.Constant(i64, 16 * g))
+            xv, yv = (builder.zext(builder.load(builder.bitcast(builder.gep(pt, [off]), v16.as_pointer()),
+                                                align=2), v32) for pt in (xp, yp))
+            j = builder.add(builder.mul(yv, wvec), xv)
+            bad = builder.or_(builder.icmp_unsigned(">=", xv, wvec), builder.icmp_unsigned(">=", yv, hvec))
+            hit = builder.and_(_bloom_hit(builder, perm, j, BLOOM_MULTIPLIERS[0], tabs[:4]),
+                               _bloom_hit(builder, perm, j, BLOOM_MULTIPLIERS[1], tabs[4:]))
+            m16 = builder.zext(builder.bitcast(builder.or_(bad, hit), i16), i64)
+            out = builder.or_(out, builder.shl(m16, ir.Constant(i64, 16 * g)))
+        return out
+
+    return sig, codegen
+
+
+@njit(cache=True, nogil=True)
+def _checked_bits(x, y, i, cand, width, height, keep_bits):
+    """The keep bits of the events ``i + e`` for the bits ``e`` set in ``cand`` (one table
+    look-up each) and -1, or (0, the index of the first of them outside the sensor)."""
+    w = np.uint64(width)
+    h = np.uint64(height)
+    keep = np.uint64(0)
+    while cand:
+        e = _lowest_bit(cand)  # type: ignore[call-arg, var-annotated]
+        xi = np.uint64(x[i + e])
+        yi = np.uint64(y[i + e])
+        if xi >= w or yi >= h:
+            return np.uint64(0), i + np.int64(e)
+        j = yi * w + xi
+        keep |= ((np.uint64(keep_bits[j >> np.uint64(5)]) >> (j & np.uint64(31))) & np.uint64(1)) << e
+        cand &= cand - np.uint64(1)
+    return keep, -1
+
+
+@njit(cache=True, nogil=True)
+def _looked_up(buf, keep_bits):
+    """The keep bits of the 64 pixel indices ``buf`` (see :func:`_index64`) as a uint64."""
+    m = np.uint64(0)
+    for e in range(64):
+        j = buf[e]
+        m |= np.uint64((keep_bits[j >> np.uint32(5)] >> (j & np.uint32(31))) & np.uint32(1)) << np.uint64(e)
+    return m
+
+
+@njit(cache=True, nogil=True)
+def keep_words_simd(x, y, width, height, bloom, keep_bits, words, use_bloom):
+    """:func:`keep_words` for uint16 coordinates, not yet checked (``width * height <=
+    2**32``), 64 events at a time.  With ``use_bloom``, through the AVX-512 Bloom filter of
+    the hot pixels (:func:`_bloom64`, no memory access): only its candidates (the hot events
+    and ~1 % of the others with 200 hot pixels) are looked up in ``keep_bits``.  Otherwise, or
+    once more than 1/8 of the events so far were candidates (many hot events: their look-ups
+    one by one then cost more; checked every 1024 blocks), the places and bounds of the events
+    in AVX-512 (:func:`_index64`) and every event looked up.  Both: 1.2x faster than the
+    look-up of every event plus numpy's bounds check, measured (the Bloom filter 5 % faster
+    still with 8 % hot events).  Returns the number of events kept, or ``-1 - i`` for the
+    first event ``i`` outside the sensor.  Needs AVX-512 (see :func:`simd_ok`)."""
+    n = x.shape[0]
+    k = n_cand = 0
+    nb = n // 64
+    buf = np.empty(1024, np.uint32)[512:576]  # 1 KiB either side: no cache line shared with another thread
+    for b in range(nb + (nb * 64 < n)):
+        i = b * 64
+        if b == nb:  # the last, partial block: every event looked up
+            cand = (np.uint64(1) << np.uint64(n - i)) - np.uint64(1)
+            keep, bad = _checked_bits(x, y, i, cand, width, height, keep_bits)
+        elif use_bloom:
+            cand = _bloom64(x, y, i, width, height, bloom)  # type: ignore[call-arg]
+            keep, bad = _checked_bits(x, y, i, cand, width, height, keep_bits)
+            keep |= ~cand
+            n_cand += _popcount(cand)
+            use_bloom = (b & 1023) != 1023 or n_cand * 8 <= i + 64
+        else:
+            outside = _index64(x, y, i, width, height, width, buf)  # type: ignore[call-arg, var-annotated]
+            bad = i + np.int64(_lowest_bit(outside)) if outside else -1
+            keep = _looked_up(buf, keep_bits)
+        if bad >= 0:
+            return -1 - bad
+        words[b] = keep
+        k += _popcount(keep)  # type: ignore[call-arg]
+    return k
+
+
+@intrinsic
+def _store_bytes64(typingctx, out, i, bits):
+    """``out[i + e] = 1`` (uint8) where bit ``e`` of ``bits`` is set, else 0, for e < 64 (one
+    mask-to-bytes AVX-512 instruction and a 64-byte store)."""
+    sig = types.void(out, types.int64, types.uint64)
+
+    def codegen(context, builder, signature, args):
+        i8 = ir.IntType(8)
+        vty = ir.VectorType(i8, 64)
+        ptr = builder.gep(_data_ptr(context, builder, signature.args[0], args[0], i8), [args[1]])
+        v = builder.zext(builder.bitcast(args[2], ir.VectorType(ir.IntType(1), 64)), vty)
+        builder.store(v, builder.bitcast(ptr, vty.as_pointer()), align=1)
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+@njit(cache=True, nogil=True)
+def words_to_bytes(words, out, simd):
+    """``out[i] = 1`` (uint8) if bit ``i % 64`` of ``words[i // 64]`` is set, else 0 (64 at a
+    time with AVX-512 if ``simd``, see :func:`simd_ok`)."""
+    n = out.shape[0]
+    i = 0
+    if simd:
+        while i + 64 <= n:
+            _store_bytes64(out, i, words[i >> 6])  # type: ignore[call-arg]
+            i += 64
+    while i < n:
+        out[i] = np.uint8((words[i >> 6] >> np.uint64(i & 63)) & np.uint64(1))
+        i += 1
+
+
+#: Events per chunk of :func:`keep_bytes_simd` / :func:`keep_bytes` (their keep words: 128 KiB).
+MASK_CHUNK = 1 << 20
+
+
+@njit(cache=True, nogil=True)
+def keep_bytes_simd(x, y, width, height, bloom, keep_bits, out, use_bloom):
+    """``out[i] = 1`` (uint8) if event ``i`` is kept, else 0: :func:`keep_words_simd` chunk by
+    chunk of :data:`MASK_CHUNK` events into a small buffer, expanded by
+    :func:`words_to_bytes` (no keep words for the whole stream).  Returns the number kept or
+    ``-1 - i`` for the first event ``i`` outside the sensor.  Needs AVX-512."""
+    n = x.shape[0]
+    buf = np.empty(MASK_CHUNK // 64, np.uint64)
+    k = 0
+    for a in range(0, n, MASK_CHUNK):
+        b = min(a + MASK_CHUNK, n)
+        kk = keep_words_simd(x[a:b], y[a:b], width, height, bloom, keep_bits, buf, use_bloom)
+        if kk < 0:
+            return kk - a
+        words_to_bytes(buf, out[a:b], True)
+        k += kk
+    return k
+
+
+@njit(cache=True, nogil=True)
+def keep_bytes(x, y, width, keep_bits, out):
+    """:func:`keep_bytes_simd` with :func:`keep_words` (coordinates already checked)."""
+    n = x.shape[0]
+    buf = np.empty(MASK_CHUNK // 64, np.uint64)
+    k = 0
+    for a in range(0, n, MASK_CHUNK):
+        b = min(a + MASK_CHUNK, n)
+        k += keep_words(x[a:b], y[a:b], width, keep_bits, buf)
+        words_to_bytes(buf, out[a:b], False)
+    return k
+
+
+@njit(cache=True, nogil=True)
+def compact_into(t, x, y, p, words, to, xo, yo, po, k, limit):
+    """Copy the events whose keep bit is set (bit ``i % 64`` of ``words[i // 64]``, see
+    :func:`keep_words`) into ``to[k:limit]`` (and the others), in order, ``limit - k`` being
+    the number of kept events.  Branch-free: every event is written, the write position
+    advances only for kept ones (a place a discarded event took is written again by a later
+    kept one; once ``limit`` is reached only discarded events remain).  Returns the end."""
+    n = t.shape[0]
+    i = 0
+    while i < n and k < limit:
+        to[k] = t[i]
+        xo[k] = x[i]
+        yo[k] = y[i]
+        po[k] = p[i]
+        k += np.int64((words[i >> 6] >> np.uint64(i & 63)) & np.uint64(1))
+        i += 1
+    return k
+
+
+@njit(cache=True, nogil=True)
+def compact_simd(t, x, y, p, words, to, xo, yo, po, k, limit):
+    """:func:`compact_into` with AVX-512 compress stores, 64 events (one keep word) at a time
+    while a whole vector still fits before ``limit`` (the rest by :func:`compact_into`).  Only
+    for CPUs with AVX512F/BW/VBMI2 and element sizes of 1, 2, 4 or 8 bytes (see
+    :func:`simd_ok`).  In place (outputs = inputs) is safe: every store lands at or before the
+    block just loaded.  (The keep bits stay a pass of their own: the offsets of the slices on
+    several threads need the kept counts first, and their look-ups in this loop put their
+    latency on the write position.)"""
     n = t.shape[0]
     i = 0
     while i + 64 <= n and k + 64 <= limit:
-        m = _mask64(keep, i)  # type: ignore[call-arg, var-annotated]
-        _compress64(t, i, to, k, m)
+        m = words[i >> 6]
+        _compress64(t, i, to, k, m)  # type: ignore[call-arg]
         _compress64(x, i, xo, k, m)
         _compress64(y, i, yo, k, m)
         k = _compress64(p, i, po, k, m)
         i += 64
-    return compact_into(t[i:], x[i:], y[i:], p[i:], keep[i:], to, xo, yo, po, k, limit)
+    return compact_into(t[i:], x[i:], y[i:], p[i:], words[i >> 6:], to, xo, yo, po, k, limit)
 
 
 @functools.cache

@@ -27,13 +27,17 @@ def threads(request, monkeypatch):
     numba.set_num_threads(before)
 
 
-@pytest.fixture(params=["simd", "scalar"])
+@pytest.fixture(params=["simd", "simd, no Bloom filter", "scalar"])
 def simd(request, monkeypatch):
-    """The AVX-512 compaction where the CPU has it, and the scalar one everywhere."""
-    if request.param == "simd" and not _kernels.simd_ok(np.int64, np.uint16, np.bool_):
+    """The AVX-512 kernels where the CPU has them: with the Bloom filter of the hot pixels
+    whatever their number (it gives way to looking up every event once more than 1/8 of the
+    events are its candidates), or without it; and the scalar kernels everywhere."""
+    if request.param != "scalar" and not _kernels.simd_ok(np.int64, np.uint16, np.bool_):
         pytest.skip("no AVX-512 VBMI2 here")
     if request.param == "scalar":
         monkeypatch.setattr(_kernels, "simd_ok", lambda *d: False)
+    else:
+        monkeypatch.setattr(hotpix, "BLOOM_MAX_HOT", 10**9 if request.param == "simd" else -1)
     return request.param
 
 
@@ -113,7 +117,7 @@ def test_any_dtypes_are_kept_exactly(threads, simd):
             np.testing.assert_array_equal(got, ref)
 
 
-def test_counters_wrap_around_exactly(threads):
+def test_counters_wrap_around_exactly(threads, simd):
     """More than 65535 events on a pixel (the uint8 counters wrap hundreds of times) and a pixel
     with exactly 65536, pixels with 255, 256, 257 and 512 events: the counts stay exact."""
     w, h = 8, 4
@@ -280,3 +284,80 @@ def test_threads_argument_gives_the_one_thread_answers(n_threads, simd):
     for got, want in zip(filter_arrays(t, x, y, p, pixels, sensor_size=(w, h), threads=n_threads),
                          reference(t, x, y, p, pixels, w), strict=True):
         np.testing.assert_array_equal(got, want)
+
+
+@pytest.mark.parametrize("where", [0, 63, 64, 1000, 4095, 4096 + 70, 8191])
+@pytest.mark.parametrize("n_threads", [1, 2, 3])
+def test_uint16_events_outside_the_sensor_are_refused_naming_the_first(where, n_threads, simd):
+    """uint16 coordinates (checked by the Bloom pass and the counting kernel themselves, 64 at
+    a time, the last partial block one by one): the first event outside is named wherever it
+    falls (a block's first or last event, the tail, a later slice), with a second one after it;
+    nothing written in place."""
+    w, h = 37, 23
+    t, x, y, p = stream(8192 - 5, w, h, seed=where)
+    where = min(where, len(x) - 1)
+    x[where], y[min(where + 5, len(x) - 1)] = w, h
+    pixels = all_pixels(w, h)[::5]
+    cols = [a.copy() for a in (t, x, y, p)]
+    for call in (lambda: filter_arrays(t, x, y, p, pixels, sensor_size=(w, h), threads=n_threads),
+                 lambda: hot_pixel_mask(x, y, pixels, sensor_size=(w, h), threads=n_threads),
+                 lambda: filter_arrays(*cols, pixels, sensor_size=(w, h), threads=n_threads, inplace=True),
+                 lambda: count_events(x, y, sensor_size=(w, h), threads=n_threads)):
+        with pytest.raises(IbiscapeError, match=rf"event {where} at pixel \(x={w}, .* outside the 37x23 sensor"):
+            call()
+    for a, b in zip(cols, (t, x, y, p), strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_bloom_filter_passes_every_hot_pixel():
+    """The Bloom table of a hot-pixel list: every listed pixel passes both hashes (a miss would
+    keep a hot pixel's events); with 200 of a megapixel, few of the others pass."""
+    rng = np.random.default_rng(0)
+    hot = rng.choice(1024 * 1024, 200, replace=False)
+    tab = _kernels.bloom_table(hot)
+    j = np.arange(1024 * 1024, dtype=np.uint64)
+    hit = np.ones(j.size, bool)
+    for q, mult in enumerate(_kernels.BLOOM_MULTIPLIERS):
+        hh = ((j * np.uint64(mult)) & np.uint64(0xFFFFFFFF)) >> np.uint64(21)
+        hit &= ((tab[q * 64 + (hh >> np.uint64(5)).astype(np.int64)] >> (hh & np.uint64(31)).astype(np.uint32)) & 1) == 1
+    assert hit[hot].all()
+    assert hit.sum() - 200 < 0.02 * j.size
+
+
+def test_keep_words_with_and_without_the_bloom_filter_agree():
+    """The AVX-512 keep bits (the Bloom filter kept throughout, dropped part-way when the hot
+    events become many, or not used) are those of the scalar look-up of every event."""
+    if not _kernels.simd_ok():
+        pytest.skip("no AVX-512 here")
+    w, h = 640, 480
+    rng = np.random.default_rng(8)
+    n = 300_000 + 37
+    hot = rng.choice(w * h, 300, replace=False)
+    j = rng.integers(0, w * h, n)
+    j[200_000:] = np.where(rng.random(n - 200_000) < 0.6, rng.choice(hot, n - 200_000), j[200_000:])
+    x, y = (j % w).astype(np.uint16), (j // w).astype(np.uint16)
+    bits = hotpix._keep_bits(hot, w, h)
+    want = np.zeros((n + 63) // 64, np.uint64)
+    k_want = _kernels.keep_words(x, y, w, bits, want)
+    assert k_want == np.count_nonzero(~np.isin(j, hot))
+    for use_bloom in (True, False):
+        got = np.zeros_like(want)
+        assert _kernels.keep_words_simd(x, y, w, h, _kernels.bloom_table(hot), bits, got, use_bloom) == k_want
+        np.testing.assert_array_equal(got, want)
+
+
+@pytest.mark.parametrize("n_threads", [1, 2])
+def test_keep_mask_over_several_chunks(n_threads, simd):
+    """hot_pixel_mask works through chunks of ``MASK_CHUNK`` events: over three of them (a
+    partial last one) the mask is numpy's, and an event outside the sensor in a later chunk is
+    named by its index in the whole stream."""
+    w, h = 37, 23
+    n = 2 * _kernels.MASK_CHUNK + 1000 + 7
+    _, x, y, _ = stream(n, w, h, seed=12)
+    pixels = all_pixels(w, h)[::9]
+    want = ~np.isin(y.astype(np.int64) * w + x, pixels[:, 1] * w + pixels[:, 0])
+    np.testing.assert_array_equal(hot_pixel_mask(x, y, pixels, sensor_size=(w, h), threads=n_threads), want)
+    bad = _kernels.MASK_CHUNK + 12_345
+    y[bad] = h
+    with pytest.raises(IbiscapeError, match=rf"event {bad} at pixel"):
+        hot_pixel_mask(x, y, pixels, sensor_size=(w, h), threads=n_threads)
