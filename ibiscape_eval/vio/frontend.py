@@ -6,9 +6,7 @@ Per frame (grey 8-bit images of the raw, unrectified cameras):
    (``calcOpticalFlowPyrLK``), started at the position predicted by the gyro rotation between the
    frames (the infinite-depth homography ``K R_c2c1 K^-1``), kept when tracking back lands within
    ``fb_max_px`` of the start (forward-backward check, Kalal et al. 2010) and when they are inliers
-   of a RANSAC fundamental matrix on rectified coordinates: between the last stereo frame and
-   the next one (:meth:`StereoFrontEnd.match`; only stereo frames carry measurements to the back
-   end), or frame to frame for a front end without on-demand stereo (RGB-D).
+   of a RANSAC fundamental matrix on rectified coordinates.
 2. **Detection** of new Shi-Tomasi corners (``goodFeaturesToTrack``) away from the tracked ones,
    at most ``ceil(max_features / grid^2)`` per grid cell so that they cover the image.
 3. **Stereo matching** of every left corner in the right image with KLT (started at the previous
@@ -133,7 +131,6 @@ class StereoFrontEnd:
         self._next_id = 0
         self._tracks: StereoObservations | None = None   # the last track() result
         self._filled = 0                                  # corners held after the last detection
-        self._checked: tuple[npt.NDArray[np.int64], FloatArray] | None = None  # ids, rectified
 
     def _pyramid(self, img: npt.NDArray[np.uint8]) -> Any:
         # OpenCV 5's Python binding no longer accepts the list of buildOpticalFlowPyramid as an
@@ -248,16 +245,14 @@ class StereoFrontEnd:
         if self._prev_pyr is not None and len(self.pts) and self._tracks is not None:
             p1, ok = self._lk(self._prev_pyr, pyr_l, self.pts, self._predict(R_b0_b1))
             idx = np.flatnonzero(ok)
+            # each point is rectified on its own: the previous frame's rectified corners and
+            # these are reused below instead of rectifying again (the same numbers)
+            prev = self._tracks
+            r0 = (np.column_stack([prev.uL[idx], prev.v[idx]]) if len(prev.uL) == len(self.pts)
+                  else self.rig.rectify_points(self.pts[idx], "left"))
             rl = self.rig.rectify_points(p1[idx], "left")
-            if not self.stereo_on_demand:  # else at the next stereo frame (match)
-                # each point is rectified on its own: the previous frame's rectified corners
-                # are reused instead of rectifying again (the same numbers)
-                prev = self._tracks
-                r0 = (np.column_stack([prev.uL[idx], prev.v[idx]])
-                      if len(prev.uL) == len(self.pts)
-                      else self.rig.rectify_points(self.pts[idx], "left"))
-                inl = self._ransac(r0, rl)
-                idx, rl = idx[inl], rl[inl]
+            inl = self._ransac(r0, rl)
+            idx, rl = idx[inl], rl[inl]
             pts, ids, disp = p1[idx], self.ids[idx], self.disp[idx]
         else:
             pts = np.zeros((0, 2), dtype=np.float32)
@@ -294,7 +289,6 @@ class StereoFrontEnd:
         tr = self._tracks
         if tr is None:
             raise RuntimeError("StereoFrontEnd.match before track")
-        tr = self._epipolar_check(tr)
         pts, disp = self.pts, self.disp
         if len(pts) == 0:
             return tr
@@ -308,26 +302,6 @@ class StereoFrontEnd:
         self.disp = np.where(ok, pts[:, 0] - pr[:, 0], disp).astype(np.float32)
         return StereoObservations(tr.stamp_ns, tr.ids, tr.uL, np.where(ok, rr[:, 0], np.nan),
                                   tr.v)
-
-    def _epipolar_check(self, tr: StereoObservations) -> StereoObservations:
-        """Drop the tracks that are outliers of a RANSAC fundamental matrix between the last
-        stereo frame and this one (:meth:`_ransac`), and remember this frame's corners for the
-        next check.  Only stereo frames carry measurements to the back end, and the longer
-        baseline separates the outliers better than frame to frame (1-3 ms of RANSAC per frame in
-        rain, now on about a third of the frames)."""
-        if self._checked is not None and len(tr):
-            ids0, xy0 = self._checked
-            _, i0, i1 = np.intersect1d(ids0, tr.ids, assume_unique=True, return_indices=True)
-            inl = self._ransac(xy0[i0], np.column_stack([tr.uL[i1], tr.v[i1]]))
-            if not inl.all():
-                keep = np.ones(len(tr), dtype=bool)
-                keep[i1[~inl]] = False
-                self.pts, self.ids, self.disp = self.pts[keep], self.ids[keep], self.disp[keep]
-                tr = StereoObservations(tr.stamp_ns, tr.ids[keep], tr.uL[keep], tr.uR[keep],
-                                        tr.v[keep])
-                self._tracks = tr
-        self._checked = (tr.ids.copy(), np.column_stack([tr.uL, tr.v]))
-        return tr
 
     @property
     def n_tracked(self) -> int:
