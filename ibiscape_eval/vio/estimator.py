@@ -243,7 +243,7 @@ class Estimator:
         common, i0, i1 = np.intersect1d(ref.ids, obs.ids, return_indices=True)
         if len(common) < p.kf_track_ratio * len(ref):
             return True
-        if len(common) == 0:
+        if len(common) == 0 or dt_s < p.kf_parallax_min_dt_s - 1e-4:
             return False
         par = np.hypot(obs.uL[i1] - ref.uL[i0], obs.v[i1] - ref.v[i0])
         return bool(np.median(par) >= p.kf_parallax_px * p.scale_px(self.rect.width_px))

@@ -16,7 +16,7 @@ __all__ = ["VioParams"]
 
 
 #: options for which 0 is meaningful (no minimum time between keyframes)
-_MAY_BE_ZERO = frozenset({"kf_min_dt_s"})
+_MAY_BE_ZERO = frozenset({"kf_min_dt_s", "kf_parallax_min_dt_s"})
 
 
 @dataclass(frozen=True)
@@ -39,7 +39,8 @@ class VioParams:
         a new keyframe when the median parallax since the last one exceeds ``kf_parallax_px``,
         when fewer than ``kf_track_ratio`` of its tracks survive, or after ``kf_max_dt_s``;
         never sooner than ``kf_min_dt_s`` after the last one (0: no minimum, the ESVI default of
-        :meth:`for_setup`).
+        :meth:`for_setup`), by parallax never sooner than ``kf_parallax_min_dt_s`` (the SVI
+        default of :meth:`for_setup`: 0.3 s).
     Back end
         ``lag_s`` of the fixed-lag smoother (iSAM2 checks relinearisation every
         ``relinearize_skip`` updates, of variables that moved more than ``relinearize_threshold``),
@@ -75,6 +76,7 @@ class VioParams:
     kf_track_ratio: float = 0.6
     kf_max_dt_s: float = 0.3
     kf_min_dt_s: float = 0.15
+    kf_parallax_min_dt_s: float = 0.0
     lag_s: float = 3.0
     relinearize_skip: int = 1
     relinearize_threshold: float = 0.01
