@@ -121,7 +121,7 @@ def _inprocess(seq: Path, max_frames: int | None, params: Any = None) -> dict[st
     from ibiscape_eval.vio import Estimator, StereoFrontEnd, VioParams, load_sequence
 
     s = load_sequence(seq)
-    p = params or VioParams()
+    p = params or VioParams.for_setup("svi")
     n = s.n_frames if max_frames is None else min(max_frames, s.n_frames)
     fe = StereoFrontEnd(s.rig, p)
     est = Estimator(s.rig.rectified(), s.imu, s.noise, p, s.T_body_imu)
@@ -188,7 +188,7 @@ def _params(items: list[str]) -> Any:
         if name not in types:
             raise SystemExit(f"--set {item}: no VioParams option {name!r}")
         kw[name] = types[name](value)
-    return VioParams(**kw)
+    return VioParams.for_setup("svi", **kw)
 
 
 def _synthetic(seq: Path) -> dict[str, float]:
