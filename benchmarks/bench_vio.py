@@ -10,7 +10,8 @@ estimator), timing each stage by the CPU time of the whole process (all threads:
 GTSAM's worker threads count), which other load on this shared machine inflates far less than
 wall time.  Like ``run_vio``, the right image is decoded and matched only for the frames that
 need stereo (keyframes, initialisation, lost spans; column ``stereo``); its decoding counts as
-reading.  ``--set NAME=VALUE ...`` changes ``VioParams`` options of the in-process runs.  One
+reading.  The runs take ``VioParams.for_setup("svi")`` (what ``run_vio`` takes for these
+sequences); ``--set NAME=VALUE ...`` changes its options.  One
 table per setup and weather: ATE after SE(3) alignment and RPE over 1 s (mean +- std) from the
 project's own metrics, the CPU milliseconds per frame of the front end (``StereoFrontEnd``) and
 of the back end (``Estimator``: keyframes, smoother), and the speed-up over real time by CPU time
