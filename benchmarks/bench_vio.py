@@ -10,7 +10,8 @@ estimator), timing each stage by the CPU time of the whole process (all threads:
 GTSAM's worker threads count), which other load on this shared machine inflates far less than
 wall time.  Like ``run_vio``, the right image is decoded and matched only for the frames that
 need stereo (keyframes, initialisation, lost spans; column ``stereo``); its decoding counts as
-reading.  ``--set NAME=VALUE ...`` changes ``VioParams`` options of the in-process runs.  One
+reading.  The runs take ``VioParams.for_setup("svi")`` (what ``run_vio`` takes for these
+sequences); ``--set NAME=VALUE ...`` changes its options.  One
 table per setup and weather: ATE after SE(3) alignment and RPE over 1 s (mean +- std) from the
 project's own metrics, the CPU milliseconds per frame of the front end (``StereoFrontEnd``) and
 of the back end (``Estimator``: keyframes, smoother), and the speed-up over real time by CPU time
@@ -121,7 +122,7 @@ def _inprocess(seq: Path, max_frames: int | None, params: Any = None) -> dict[st
     from ibiscape_eval.vio import Estimator, StereoFrontEnd, VioParams, load_sequence
 
     s = load_sequence(seq)
-    p = params or VioParams()
+    p = params or VioParams.for_setup("svi")
     n = s.n_frames if max_frames is None else min(max_frames, s.n_frames)
     fe = StereoFrontEnd(s.rig, p)
     est = Estimator(s.rig.rectified(), s.imu, s.noise, p, s.T_body_imu)
@@ -188,7 +189,7 @@ def _params(items: list[str]) -> Any:
         if name not in types:
             raise SystemExit(f"--set {item}: no VioParams option {name!r}")
         kw[name] = types[name](value)
-    return VioParams(**kw)
+    return VioParams.for_setup("svi", **kw)
 
 
 def _synthetic(seq: Path) -> dict[str, float]:

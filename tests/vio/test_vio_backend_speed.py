@@ -81,6 +81,24 @@ def test_keyframes_are_at_least_kf_min_dt_apart(svi_seq, small_rig):
         assert res.translation_m.rmse < 0.02 * res.ref.path_length_m()[-1]
 
 
+@pytest.mark.filterwarnings("ignore:the rotation of the yaw alignment")  # translation only
+def test_parallax_keyframes_wait_for_kf_parallax_min_dt(svi_seq, small_rig):
+    """A keyframe by parallax comes no sooner than ``kf_parallax_min_dt_s`` (SVI: 0.3 s), one by
+    track loss still after ``kf_min_dt_s`` (0.15 s: rain)."""
+    par = 2.0  # px: the parallax rule fires at the first frame it may (frames 0.1 s apart)
+    before, gt = _run(svi_seq, small_rig, VioParams(kf_parallax_px=par))
+    late, _ = _run(svi_seq, small_rig, VioParams(kf_parallax_px=par, kf_parallax_min_dt_s=0.3))
+    churn, _ = _run(svi_seq, small_rig, VioParams(kf_parallax_px=20.0, kf_parallax_min_dt_s=0.3),
+                    churn=True)
+    gaps = {k: np.diff(_keyframe_stamps(e)) * 1e-9 for k, e in
+            (("before", before), ("late", late), ("churn", churn))}
+    assert gaps["before"].min() < 0.25 and gaps["churn"].min() < 0.25
+    assert len(gaps["late"]) > 8 and gaps["late"].min() >= 0.3 - 1e-3, gaps["late"]
+    assert late.n_keyframes < before.n_keyframes
+    res = ate(late.trajectory(), gt, align="yaw")
+    assert res.translation_m.rmse < 0.02 * res.ref.path_length_m()[-1]
+
+
 def test_event_frames_allow_a_keyframe_at_once():
     """ESVI's defaults have no minimum time between keyframes (its tracks live a few frames);
     the frame setups keep 0.15 s; 0 is accepted only for that option."""
@@ -89,6 +107,8 @@ def test_event_frames_allow_a_keyframe_at_once():
 
     assert VioParams.for_setup("esvi").kf_min_dt_s == 0.0
     assert VioParams.for_setup("svi").kf_min_dt_s == VioParams().kf_min_dt_s == 0.15
+    assert VioParams.for_setup("svi").kf_parallax_min_dt_s == 0.3
+    assert VioParams().kf_parallax_min_dt_s == VioParams.for_setup("esvi").kf_parallax_min_dt_s == 0.0
     assert VioParams.for_setup("esvi", lag_s=2.0).lag_s == 2.0
     with pytest.raises(IbiscapeError, match="kf_min_dt_s"):
         VioParams(kf_min_dt_s=-0.1)

@@ -1,0 +1,52 @@
+"""numba kernel of :func:`ibiscape_eval.vio.frontend.good_features`: the greedy minimum-distance
+selection of OpenCV's ``goodFeaturesToTrack`` (imported lazily: numba is heavy).
+
+The candidates come sorted by decreasing response; each one is kept when no kept corner lies
+closer than ``min_dist`` in its grid cell or the 8 around it (cells of ``round(min_dist)``
+pixels), until ``max_corners`` are kept: OpenCV's rule, cell for cell.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True, nogil=True)
+def select_spaced(xs, ys, min_dist, width, height, max_corners, keep):  # pragma: no cover - numba
+    """Indices (into ``xs``/``ys``, already in order of preference) of the kept corners, written
+    to ``keep``; returns how many."""
+    cell = max(int(np.round(min_dist)), 1)
+    gw = (width + cell - 1) // cell
+    gh = (height + cell - 1) // cell
+    head = np.full(gw * gh, -1, np.int64)      # first kept corner of each cell
+    nxt = np.full(len(xs), -1, np.int64)       # next kept corner in the same cell
+    d2 = min_dist * min_dist
+    n = 0
+    for i in range(len(xs)):
+        x, y = xs[i], ys[i]
+        cx, cy = x // cell, y // cell
+        good = True
+        for yy in range(max(cy - 1, 0), min(cy + 1, gh - 1) + 1):
+            for xx in range(max(cx - 1, 0), min(cx + 1, gw - 1) + 1):
+                j = head[yy * gw + xx]
+                while j >= 0:
+                    dx = np.float32(x - xs[j])
+                    dy = np.float32(y - ys[j])
+                    if dx * dx + dy * dy < d2:
+                        good = False
+                        break
+                    j = nxt[j]
+                if not good:
+                    break
+            if not good:
+                break
+        if good:
+            c = cy * gw + cx
+            nxt[i] = head[c]
+            head[c] = i
+            keep[n] = i
+            n += 1
+            if n == max_corners:
+                break
+    return n
