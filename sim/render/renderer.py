@@ -43,6 +43,7 @@ from .shading import (
 from .textures import board_albedo, board_footprint_tables, board_tables, kernel_tables
 
 if TYPE_CHECKING:
+    from .raster import RasterMesh
     from .sun_grid import SunGrid
 
 __all__ = ["RenderCamera", "RenderOptions", "RenderedView", "Renderer"]
@@ -94,6 +95,12 @@ class RenderOptions:
         Lens blur: a Gaussian point-spread function of this standard deviation [px] (0 = none).
         Without it every edge is a perfect box-filtered step whose staircase biases corner
         detectors by up to ~0.07 px; 0.7 px is a sharp real lens.
+    primary : str
+        How a view's one ray per pixel finds its surface in the static scene: ``"raster"`` (a
+        z-buffer testing each pixel's own ray against the triangles that may cover it,
+        :mod:`.raster`; open3d's hits but for exact ties between coplanar triangles) or
+        ``"open3d"`` (Embree's ``cast_rays``, the oracle).  Movers, supersamples and shadow
+        rays are ray cast either way.
     """
 
     shadows: bool = True
@@ -101,8 +108,11 @@ class RenderOptions:
     noise: bool = True
     weather_optics: bool = True
     psf_sigma_px: float = 0.7
+    primary: str = "raster"
 
     def __post_init__(self) -> None:
+        if self.primary not in ("raster", "open3d"):
+            raise IbiscapeError(f"render: primary must be 'raster' or 'open3d', got {self.primary!r}")
         if not isinstance(self.target_supersample, int) or not 1 <= self.target_supersample <= 8:
             raise IbiscapeError(f"render: target_supersample must be an integer in 1..8, got "
                                 f"{self.target_supersample!r}")
@@ -188,6 +198,7 @@ class Renderer:
         self._lock = threading.Lock()  # views of one instant may render on parallel threads
         self._local = threading.local()  # per thread: the kernels' reusable buffers
         self._sun_grid_cache: SunGrid | None = None  # numba loads with the first render, not here
+        self._raster: RasterMesh | None = None
 
     # ----------------------------------------------------------------------------- construction
     @classmethod
@@ -284,9 +295,14 @@ class Renderer:
         scale = 255.0 * light.gain
         ss = self.options.target_supersample > 1 and bool(self.static.targets)
         blur = self.options.psf_sigma_px > 0  # the blur's output leaves, the radiance buffer stays
+        hits = None
+        if self.options.primary == "raster":
+            from .raster import cast_camera
+
+            hits = cast_camera(self._raster_mesh(), camera_rays(model), T)
         rad, depth, mat, labels, code = self._radiance(
             rays, t_ns, w, light, self._mover_pixels(model, T, t_ns), scale=scale, board_code=ss,
-            rad_buffer=self._buffer("radiance", (H * W, 3)) if blur else None)
+            rad_buffer=self._buffer("radiance", (H * W, 3)) if blur else None, hits=hits)
         if ss:
             self._supersample_targets(model, T, t_ns, w, light, scale, rad, mat, code)
         img = rad.reshape(H, W, 3)
@@ -433,6 +449,16 @@ class Renderer:
         ok[sel] = (codes.reshape(-1, nc) == lit_c[sel, None]).all(axis=1)
         return ok
 
+    def _raster_mesh(self) -> RasterMesh:
+        """The static scene prepared for :func:`.raster.cast_camera` (built on first use)."""
+        from .raster import raster_mesh
+
+        with self._lock:
+            if self._raster is None:
+                st = self.static
+                self._raster = raster_mesh(st.occluder_vertices, st.triangles)
+            return self._raster
+
     def _mover_scene(self, t_ns: int) -> tuple[Any, TriangleTables] | None:
         if len(self.world.agents) == 0:
             return None
@@ -447,7 +473,7 @@ class Renderer:
     def _radiance(self, rays: F32, t_ns: int, w: WeatherState, light: Lighting,
                   mover_rays: npt.NDArray[np.bool_] | None = None, *, scale: float = 1.0,
                   board_code: bool = False, lit_code: npt.NDArray[np.uint16] | None = None,
-                  rad_buffer: F32 | None = None
+                  rad_buffer: F32 | None = None, hits: tuple[np.ndarray, ...] | None = None
                   ) -> tuple[F32, F32, npt.NDArray[np.uint8], npt.NDArray[np.uint8], npt.NDArray[np.uint16]]:
         """Radiance (N, 3) times ``scale`` of rays (N, 6) with shadows, fog and wet road; the
         z-depth (``inf``: sky), material and label of every ray and, when ``board_code``, which
@@ -458,11 +484,16 @@ class Renderer:
         passes the pixels inside the movers' projected outlines); ``None`` casts all.  A ray that
         sees the board side ``lit_code`` (N,) names (a lit code as above; 0: none) is taken as lit
         without a shadow ray (the supersamples of a pixel whose neighbours all see that side lit).
-        The radiance goes into ``rad_buffer`` (N, 3) when given.
+        The radiance goes into ``rad_buffer`` (N, 3) when given.  ``hits``: the static scene's
+        ``(t_hit, primitive_ids, primitive_uvs, primitive_normals)`` of the rays when known (the
+        rasterised view, :mod:`.raster`); they are cast otherwise.
         """
         from ._kernels import surfaces
 
-        r = self.static.scene.cast_rays(tensor(rays), nthreads=0)
+        if hits is None:
+            r = self.static.scene.cast_rays(tensor(rays), nthreads=0)
+            hits = (r["t_hit"].numpy(), r["primitive_ids"].numpy(), r["primitive_uvs"].numpy(),
+                    r["primitive_normals"].numpy())
         n = len(rays)
         st = self.static.tables
         movers = self._mover_scene(t_ns)
@@ -486,10 +517,8 @@ class Renderer:
         grid = self._sun_grid(t_ns, sun, movers is not None and shadows)
         targets = self.static.targets
         flip = np.array([not t.z_toward_observer for t in targets] or [False], bool)
-        r_hits = (r["t_hit"].numpy(), r["primitive_ids"].numpy(), r["primitive_uvs"].numpy(),
-                  r["primitive_normals"].numpy())
         depth, mat, var, labels, uv, front, alb, paved, ndl, amb, srays, spix, smov, count = surfaces(
-            rays, r_hits, (map2, t2, p2, b2, n2), (st.material, st.variant, st.label, st.uv_m,
+            rays, hits, (map2, t2, p2, b2, n2), (st.material, st.variant, st.label, st.uv_m,
                                                    self.static.n_triangles),
             (mt.material, mt.variant, mt.label, mt.uv_m), flip, kernel_tables(self.static.ground),
             (sun, shadows, np.float32(_SHADOW_EPS_M)), grid, self._workspace(n))
