@@ -90,7 +90,7 @@ def _time(fn: Callable[[], Any], repeat: int) -> tuple[float, float]:
 def _stages(r: Any, step: Callable[[], None], repeat: int) -> list[tuple[str, float]]:
     """CPU time per stage of ``step`` [s per step], by wrapping the renderer's internals (the views
     must run one after the other: process CPU time is charged to the stage running)."""
-    from ibiscape_eval.sim.render import _kernels, renderer, sun_grid
+    from ibiscape_eval.sim.render import _kernels, raster, renderer, sun_grid
 
     acc: dict[str, float] = collections.defaultdict(float)
 
@@ -113,6 +113,7 @@ def _stages(r: Any, step: Callable[[], None], repeat: int) -> list[tuple[str, fl
     patches = [(renderer, "world_rays", "world rays"), (renderer, "subpixel_rays", "target supersample rays"),
                (renderer, "rain_streaks", "rain streaks"), (renderer, "board_albedo", "board textures"),
                (renderer, "sensor_output", "sensor noise + 8 bit (quantize)"),
+               (raster, "cast_camera", "raster: primary visibility, static scene"),
                (_kernels, "surfaces", "numba: hits, albedo, shadow rays (surfaces)"),
                (_kernels, "finish_into", "numba: shading, wet road, fog (finish)"),
                (renderer.Renderer, "_occluded", "shadow rays (static + movers)"),

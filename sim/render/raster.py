@@ -30,11 +30,12 @@ import numba as nb
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["NEAR_M", "RasterMesh", "cast_camera", "raster_mesh"]
+__all__ = ["NEAR_M", "RasterMesh", "cast_camera", "raster_mesh", "ray_bounds", "workspace"]
 
 F32 = npt.NDArray[np.float32]
 NEAR_M = 1e-3  #: surfaces closer than this to the camera centre are not seen
 _CHUNK = 64  # consecutive triangles culled together by their bounding box
+_EPS = 1e-9  # relative margin on the outline in normalised coordinates (far below a pixel)
 _TIE = 1.0 - 1e-9  # a later triangle must be nearer by this factor: coplanar ties go to the lower id
 
 
@@ -72,7 +73,8 @@ _BOUNDS: dict[int, tuple[np.ndarray, tuple[np.ndarray, ...]]] = {}
 
 def ray_bounds(dirs: F32) -> tuple[np.ndarray, ...]:
     """``colmin, colmax, rowmin, rowmax``: per column (row) the monotone envelope of the rays'
-    normalised ``x`` (``y``) over the image (cached per ray table: the renderer's are cached)."""
+    normalised ``x`` (``y``) over the image, and ``rowlo, rowhi``: the range of ``y`` in each row
+    (cached per ray table: the renderer's are cached)."""
     hit = _BOUNDS.get(id(dirs))
     if hit is not None and hit[0] is dirs:
         return hit[1]
@@ -82,34 +84,48 @@ def ray_bounds(dirs: F32) -> tuple[np.ndarray, ...]:
     colmax = np.maximum.accumulate(x.max(axis=0))
     rowmin = np.minimum.accumulate(y.min(axis=1)[::-1])[::-1].copy()
     rowmax = np.maximum.accumulate(y.max(axis=1))
+    out = (colmin, colmax, rowmin, rowmax, y.min(axis=1), y.max(axis=1))
     if len(_BOUNDS) >= 32:
         _BOUNDS.clear()
-    _BOUNDS[id(dirs)] = (dirs, (colmin, colmax, rowmin, rowmax))
-    return colmin, colmax, rowmin, rowmax
+    _BOUNDS[id(dirs)] = (dirs, out)
+    return out
 
 
-def cast_camera(mesh: RasterMesh, dirs: F32, T_world_cam: npt.ArrayLike
-                ) -> tuple[F32, npt.NDArray[np.uint32], F32, F32]:
+def cast_camera(mesh: RasterMesh, dirs: F32, T_world_cam: npt.ArrayLike,
+                work: tuple[np.ndarray, ...] | None = None) -> tuple[F32, npt.NDArray[np.uint32], F32, F32]:
     """What ``cast_rays`` of the world rays ``[c, R d]`` (``T_world_cam = [R | c]``) returns for the
     camera-frame directions ``dirs`` (H, W, 3) ``(x, y, 1)``: ``t_hit`` (H W,) float32 (``inf``:
     none), ``primitive_ids`` (H W,) uint32 (``0xFFFFFFFF``: none), ``primitive_uvs`` (H W, 2) and
-    ``primitive_normals`` (H W, 3) float32 (world frame; zeros where nothing is hit)."""
+    ``primitive_normals`` (H W, 3) float32 (world frame; zeros where nothing is hit).
+
+    ``work``: :func:`workspace` buffers to fill (the result's arrays are views of them; fresh
+    arrays of a large image cost about a third of the pass in page faults)."""
     T = np.asarray(T_world_cam, dtype=np.float64)
     h, w, _ = dirs.shape
     d = np.ascontiguousarray(dirs, dtype=np.float32).reshape(-1, 3)
     R, c = T[:3, :3], T[:3, 3]
     Vc = (mesh.vertices - c) @ R  # camera frame, float64
-    visible = _visible_chunks(mesh.lo, mesh.hi, R, c, *ray_bounds(dirs))
+    bounds = ray_bounds(dirs)
+    visible = _visible_chunks(mesh.lo, mesh.hi, R, c, *bounds[:4])
     n = h * w
-    zbuf = np.empty(n, np.float64)
-    ids = np.empty(n, np.int32)
-    _zbuffer(Vc, mesh.triangles, visible, _CHUNK, d, w, *ray_bounds(dirs), NEAR_M, zbuf, ids)
-    t = np.empty(n, np.float32)
-    prim = np.empty(n, np.uint32)
-    uv = np.empty((n, 2), np.float32)
-    nrm = np.empty((n, 3), np.float32)
-    _resolve(Vc, mesh.triangles, mesh.normals, d, zbuf, ids, t, prim, uv, nrm)
-    return t, prim, uv, nrm
+    zbuf, ids, uv, nrm = _workspace(n, work)
+    _zbuffer(Vc, mesh.triangles, visible, _CHUNK, d, w, bounds, NEAR_M, zbuf, ids, uv)
+    t = zbuf.view(np.float32)[:n]  # the float32 depths overwrite the float64 ones already read
+    _resolve(mesh.normals, zbuf, ids, t, uv, nrm)
+    return t, ids.view(np.uint32), uv, nrm  # -1 (no hit) reads as open3d's 0xFFFFFFFF
+
+
+def workspace(n: int) -> tuple[np.ndarray, ...]:
+    """Buffers for :func:`cast_camera`'s ``work``, ``n`` rays long (32 bytes a ray)."""
+    return _workspace(n, None)
+
+
+def _workspace(n: int, work: tuple[np.ndarray, ...] | None) -> tuple[np.ndarray, ...]:
+    """Buffers for ``n`` rays: ``work``'s views when it is long enough, else new arrays."""
+    if work is None or len(work[0]) < n:
+        work = (np.empty(n, np.float64), np.empty(n, np.int32), np.empty((n, 2), np.float32),
+                np.empty((n, 3), np.float32))
+    return tuple(a[:n] for a in work)
 
 
 def _visible_chunks(lo: np.ndarray, hi: np.ndarray, R: np.ndarray, c: np.ndarray, colmin: np.ndarray,
@@ -130,95 +146,121 @@ def _visible_chunks(lo: np.ndarray, hi: np.ndarray, R: np.ndarray, c: np.ndarray
 
 
 @nb.njit(cache=True, inline="always")
-def _outline(Vc, ia, ib, ic, near):
-    # bounding box (x0, x1, y0, y1) in normalised coordinates of the triangle's part in front of
-    # z = near (its vertices there and its edges' crossings); x0 > x1 when nothing is in front
-    x0, x1, y0, y1 = np.inf, -np.inf, np.inf, -np.inf
+def _outline(Vc, ia, ib, ic, near, px, py):
+    # the triangle's part in front of z = near seen in normalised coordinates: a convex polygon
+    # (its vertices there and its edges' crossings, in order) into px, py; returns its vertex
+    # count and bounding box (x0, x1, y0, y1)
+    m = 0
     idx = (ia, ib, ic)
     for e in range(3):
         p, q = idx[e], idx[(e + 1) % 3]
         zp, zq = Vc[p, 2], Vc[q, 2]
         if zp > near:
-            x, y = Vc[p, 0] / zp, Vc[p, 1] / zp
-            x0, x1, y0, y1 = min(x0, x), max(x1, x), min(y0, y), max(y1, y)
+            px[m], py[m] = Vc[p, 0] / zp, Vc[p, 1] / zp
+            m += 1
         if (zp > near) != (zq > near):
             f = (near - zp) / (zq - zp)
-            x = (Vc[p, 0] + f * (Vc[q, 0] - Vc[p, 0])) / near
-            y = (Vc[p, 1] + f * (Vc[q, 1] - Vc[p, 1])) / near
-            x0, x1, y0, y1 = min(x0, x), max(x1, x), min(y0, y), max(y1, y)
-    return x0, x1, y0, y1
+            px[m] = (Vc[p, 0] + f * (Vc[q, 0] - Vc[p, 0])) / near
+            py[m] = (Vc[p, 1] + f * (Vc[q, 1] - Vc[p, 1])) / near
+            m += 1
+    x0, x1, y0, y1 = np.inf, -np.inf, np.inf, -np.inf
+    for i in range(m):
+        x0, x1, y0, y1 = min(x0, px[i]), max(x1, px[i]), min(y0, py[i]), max(y1, py[i])
+    return m, x0, x1, y0, y1
+
+
+@nb.njit(cache=True, inline="always")
+def _band(px, py, m, ylo, yhi):
+    # x-range of the convex polygon (px, py)[:m] inside the band ylo <= y <= yhi (x0 > x1: none)
+    x0, x1 = np.inf, -np.inf
+    for i in range(m):
+        j = (i + 1) % m
+        if ylo <= py[i] <= yhi:
+            x0, x1 = min(x0, px[i]), max(x1, px[i])
+        for yb in (ylo, yhi):
+            if (py[i] - yb) * (py[j] - yb) < 0.0:
+                x = px[i] + (yb - py[i]) / (py[j] - py[i]) * (px[j] - px[i])
+                x0, x1 = min(x0, x), max(x1, x)
+    return x0, x1
 
 
 @nb.njit(cache=True, nogil=True)
-def _zbuffer(Vc, tris, visible, chunk, d, w, colmin, colmax, rowmin, rowmax, near, zbuf, ids):
-    """The nearest hit ``zbuf`` (t) and its triangle ``ids`` (-1: none) of every ray ``d`` (N, 3)."""
+def _zbuffer(Vc, tris, visible, chunk, d, w, bounds, near, zbuf, ids, uv):
+    """The nearest hit ``zbuf`` (t), its triangle ``ids`` (-1: none) and barycentric coordinates
+    ``uv`` (float32) of vertices 1 and 2 of every ray ``d`` (N, 3) (``bounds``: :func:`ray_bounds`)."""
     zbuf[:] = np.inf
     ids[:] = -1
+    colmin, colmax, rowmin, rowmax, rowlo, rowhi = bounds
+    px, py = np.empty(4), np.empty(4)
     nt = tris.shape[0]
     for ch in range(visible.shape[0]):
         if not visible[ch]:
             continue
         for k in range(ch * chunk, min((ch + 1) * chunk, nt)):
             ia, ib, ic = tris[k, 0], tris[k, 1], tris[k, 2]
-            x0, x1, y0, y1 = _outline(Vc, ia, ib, ic, near)
-            if not x0 <= x1:
+            m, x0, x1, y0, y1 = _outline(Vc, ia, ib, ic, near, px, py)
+            if m == 0:
                 continue
-            c0 = np.searchsorted(colmax, x0)
-            c1 = np.searchsorted(colmin, x1, side="right") - 1
-            r0 = np.searchsorted(rowmax, y0)
-            r1 = np.searchsorted(rowmin, y1, side="right") - 1
+            c0 = np.searchsorted(colmax, x0 - _EPS * (1.0 + abs(x0)))
+            c1 = np.searchsorted(colmin, x1 + _EPS * (1.0 + abs(x1)), side="right") - 1
+            r0 = np.searchsorted(rowmax, y0 - _EPS * (1.0 + abs(y0)))
+            r1 = np.searchsorted(rowmin, y1 + _EPS * (1.0 + abs(y1)), side="right") - 1
             if c0 > c1 or r0 > r1:
                 continue
-            ax, ay, az = Vc[ia, 0], Vc[ia, 1], Vc[ia, 2]
-            bx, by, bz = Vc[ib, 0], Vc[ib, 1], Vc[ib, 2]
-            cx, cy, cz = Vc[ic, 0], Vc[ic, 1], Vc[ic, 2]
-            e0x, e0y, e0z = by * cz - bz * cy, bz * cx - bx * cz, bx * cy - by * cx
-            e1x, e1y, e1z = cy * az - cz * ay, cz * ax - cx * az, cx * ay - cy * ax
-            e2x, e2y, e2z = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
-            det = ax * e0x + ay * e0y + az * e0z
-            if det == 0.0:
-                continue
-            for r in range(r0, r1 + 1):
-                for col in range(c0, c1 + 1):
-                    p = r * w + col
-                    dx, dy, dz = np.float64(d[p, 0]), np.float64(d[p, 1]), np.float64(d[p, 2])
-                    w0 = dx * e0x + dy * e0y + dz * e0z
-                    w1 = dx * e1x + dy * e1y + dz * e1z
-                    w2 = dx * e2x + dy * e2y + dz * e2z
-                    if (w0 >= 0.0 and w1 >= 0.0 and w2 >= 0.0) or (w0 <= 0.0 and w1 <= 0.0 and w2 <= 0.0):
-                        s = w0 + w1 + w2
-                        if s != 0.0:
-                            t = det / s
-                            if t > 0.0 and t < zbuf[p] * _TIE:
-                                zbuf[p] = t
-                                ids[p] = k
+            _scan(Vc, ia, ib, ic, k, d, w, px, py, m, c0, c1, r0, r1, colmin, colmax, rowlo, rowhi, zbuf, ids, uv)
     return zbuf
 
 
+@nb.njit(cache=True, inline="always")
+def _scan(Vc, ia, ib, ic, k, d, w, px, py, m, c0, c1, r0, r1, colmin, colmax, rowlo, rowhi, zbuf, ids, uv):
+    # test the rays of rows r0..r1, columns c0..c1 (per row only those the outline's band may
+    # cover, when the box is wide) against triangle k; keep the nearest hit
+    ax, ay, az = Vc[ia, 0], Vc[ia, 1], Vc[ia, 2]
+    bx, by, bz = Vc[ib, 0], Vc[ib, 1], Vc[ib, 2]
+    cx, cy, cz = Vc[ic, 0], Vc[ic, 1], Vc[ic, 2]
+    e0x, e0y, e0z = by * cz - bz * cy, bz * cx - bx * cz, bx * cy - by * cx
+    e1x, e1y, e1z = cy * az - cz * ay, cz * ax - cx * az, cx * ay - cy * ax
+    e2x, e2y, e2z = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    det = ax * e0x + ay * e0y + az * e0z
+    if det == 0.0:
+        return
+    wide = c1 - c0 > 3
+    for r in range(r0, r1 + 1):
+        cs, ce = c0, c1
+        if wide:
+            xl, xh = _band(px, py, m, rowlo[r] - _EPS * (1.0 + abs(rowlo[r])), rowhi[r] + _EPS * (1.0 + abs(rowhi[r])))
+            if not xl <= xh:
+                continue
+            cs = max(c0, np.searchsorted(colmax, xl - _EPS * (1.0 + abs(xl))))
+            ce = min(c1, np.searchsorted(colmin, xh + _EPS * (1.0 + abs(xh)), side="right") - 1)
+        for col in range(cs, ce + 1):
+            p = r * w + col
+            dx, dy, dz = np.float64(d[p, 0]), np.float64(d[p, 1]), np.float64(d[p, 2])
+            w0 = dx * e0x + dy * e0y + dz * e0z
+            w1 = dx * e1x + dy * e1y + dz * e1z
+            w2 = dx * e2x + dy * e2y + dz * e2z
+            if (w0 >= 0.0 and w1 >= 0.0 and w2 >= 0.0) or (w0 <= 0.0 and w1 <= 0.0 and w2 <= 0.0):
+                s = w0 + w1 + w2
+                if s != 0.0:
+                    t = det / s
+                    if t > 0.0 and t < zbuf[p] * _TIE:
+                        zbuf[p] = t
+                        ids[p] = k
+                        uv[p, 0] = w1 / s
+                        uv[p, 1] = w2 / s
+
+
 @nb.njit(cache=True, nogil=True)
-def _resolve(Vc, tris, normals, d, zbuf, ids, t, prim, uv, nrm):
-    """open3d's outputs of the z-buffer: t (float32), ids (uint32), barycentric (u, v) of vertices
-    1 and 2, the triangle's unit normal."""
+def _resolve(normals, zbuf, ids, t, uv, nrm):
+    """open3d's outputs of the z-buffer: t (float32; ``t`` may be ``zbuf``'s memory, written behind
+    the reads), the triangle's unit normal; no hit: ``inf`` and zero coordinates and normal."""
     for p in range(ids.shape[0]):
         k = ids[p]
         if k < 0:
             t[p] = np.inf
-            prim[p] = 0xFFFFFFFF
             uv[p, 0] = uv[p, 1] = 0.0
             nrm[p, 0] = nrm[p, 1] = nrm[p, 2] = 0.0
             continue
-        ia, ib, ic = tris[k, 0], tris[k, 1], tris[k, 2]
-        ax, ay, az = Vc[ia, 0], Vc[ia, 1], Vc[ia, 2]
-        bx, by, bz = Vc[ib, 0], Vc[ib, 1], Vc[ib, 2]
-        cx, cy, cz = Vc[ic, 0], Vc[ic, 1], Vc[ic, 2]
-        dx, dy, dz = np.float64(d[p, 0]), np.float64(d[p, 1]), np.float64(d[p, 2])
-        w0 = dx * (by * cz - bz * cy) + dy * (bz * cx - bx * cz) + dz * (bx * cy - by * cx)
-        w1 = dx * (cy * az - cz * ay) + dy * (cz * ax - cx * az) + dz * (cx * ay - cy * ax)
-        w2 = dx * (ay * bz - az * by) + dy * (az * bx - ax * bz) + dz * (ax * by - ay * bx)
-        s = w0 + w1 + w2
         t[p] = zbuf[p]
-        prim[p] = k
-        uv[p, 0] = w1 / s
-        uv[p, 1] = w2 / s
         nrm[p, 0], nrm[p, 1], nrm[p, 2] = normals[k, 0], normals[k, 1], normals[k, 2]
     return t

@@ -297,9 +297,12 @@ class Renderer:
         blur = self.options.psf_sigma_px > 0  # the blur's output leaves, the radiance buffer stays
         hits = None
         if self.options.primary == "raster":
-            from .raster import cast_camera
+            from .raster import cast_camera, workspace
 
-            hits = cast_camera(self._raster_mesh(), camera_rays(model), T)
+            work = getattr(self._local, "raster", None)
+            if work is None or len(work[0]) < H * W:
+                work = self._local.raster = workspace(H * W)
+            hits = cast_camera(self._raster_mesh(), camera_rays(model), T, work)
         rad, depth, mat, labels, code = self._radiance(
             rays, t_ns, w, light, self._mover_pixels(model, T, t_ns), scale=scale, board_code=ss,
             rad_buffer=self._buffer("radiance", (H * W, 3)) if blur else None, hits=hits)
