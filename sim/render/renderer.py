@@ -1,7 +1,7 @@
 """The renderer: rays -> hits (static scene + movers) -> textures -> light -> weather -> sensor.
 
 One :class:`Renderer` per sequence holds the static scene (built once), the cameras and the
-weather log.  Per view it casts one ray per pixel (``cast_rays(nthreads=0)``), takes the nearer of
+weather log.  Per view it casts one ray per pixel (``cast_rays``), takes the nearer of
 the static and the movers' hit, interpolates the hit triangle's texture coordinates with the
 barycentric coordinates open3d returns, shades (one shadow ray toward the sun per lit pixel
 facing it: against the static scene through its grid across the sun, :mod:`.sun_grid`, exact
@@ -51,6 +51,7 @@ __all__ = ["RenderCamera", "RenderOptions", "RenderedView", "Renderer"]
 F32 = npt.NDArray[np.float32]
 GRAY_WEIGHTS = np.array([0.2989, 0.587, 0.114], np.float32)
 _SHADOW_EPS_M = 0.02
+_CAST_THREADS = 1  # open3d casts on the calling thread (see _radiance)
 
 
 # the board code of a ray (``Renderer._radiance(board_code=True)``): 0 no board, else
@@ -443,7 +444,7 @@ class Renderer:
         if len(self.world.agents) or not len(sel):
             return ok
         rr = np.ascontiguousarray(rays.reshape(-1, nc, 6)[sel].reshape(-1, 6))
-        hit = self.static.scene.cast_rays(tensor(rr), nthreads=0)
+        hit = self.static.scene.cast_rays(tensor(rr), nthreads=_CAST_THREADS)
         st = self.static.tables
         flip = np.array([not t.z_toward_observer for t in self.static.targets] or [False], bool)
         codes = hit_board_codes(rr, hit["t_hit"].numpy(), hit["primitive_ids"].numpy(),
@@ -494,7 +495,7 @@ class Renderer:
         from ._kernels import surfaces
 
         if hits is None:
-            r = self.static.scene.cast_rays(tensor(rays), nthreads=0)
+            r = self.static.scene.cast_rays(tensor(rays), nthreads=_CAST_THREADS)
             hits = (r["t_hit"].numpy(), r["primitive_ids"].numpy(), r["primitive_uvs"].numpy(),
                     r["primitive_normals"].numpy())
         n = len(rays)
@@ -509,7 +510,7 @@ class Renderer:
         if movers is not None and (mover_rays is None or mover_rays.any()):
             sc, mt = movers
             sel = np.arange(n) if mover_rays is None else np.flatnonzero(mover_rays)
-            m = sc.cast_rays(tensor(rays[sel]), nthreads=0)
+            m = sc.cast_rays(tensor(rays[sel]), nthreads=_CAST_THREADS)
             map2 = np.full(max(n, 2), -1, np.int32)
             map2[sel] = np.arange(len(sel), dtype=np.int32)
             t2 = m["t_hit"].numpy()
@@ -588,14 +589,14 @@ class Renderer:
         scene only for the rays flagged in ``mover_may`` that the static scene left free."""
         grid = self._shadow_grid(rays[0, 3:6]) if len(rays) else None
         if grid is None:
-            occ = self.static.scene.test_occlusions(tensor(rays), nthreads=0).numpy().astype(bool)
+            occ = self.static.scene.test_occlusions(tensor(rays), nthreads=_CAST_THREADS).numpy().astype(bool)
         else:
             occ = grid.occluded(rays, rays[0, 3:6])
         movers = self._mover_scene(t_ns)
         if movers is not None:
             sel = np.flatnonzero(mover_may & ~occ)
             if sel.size:
-                occ[sel] = movers[0].test_occlusions(tensor(rays[sel]), nthreads=0).numpy().astype(bool)
+                occ[sel] = movers[0].test_occlusions(tensor(rays[sel]), nthreads=_CAST_THREADS).numpy().astype(bool)
         return occ
 
     def _shadow_grid(self, sun: F32) -> SunGrid | None:
