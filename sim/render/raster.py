@@ -170,6 +170,31 @@ def _outline(Vc, ia, ib, ic, near, px, py):
 
 
 @nb.njit(cache=True, inline="always")
+def _first(a, x, right):
+    # np.searchsorted(a, x, side): the first index whose a[i] >= x (> x when ``right``) of a
+    # non-decreasing array, from a linear guess (the rays' x or y grow about evenly with the
+    # pixel index) and a short walk
+    n = a.shape[0]
+    if x < a[0] or (not right and x == a[0]):
+        return 0
+    if x > a[n - 1] or (right and x == a[n - 1]):
+        return n
+    # here a[0] <= x <= a[n - 1] and a[0] < a[n - 1]
+    g = min(max(int((x - a[0]) / (a[n - 1] - a[0]) * (n - 1)), 0), n - 1)
+    if right:
+        while g > 0 and a[g - 1] > x:
+            g -= 1
+        while g < n and a[g] <= x:
+            g += 1
+    else:
+        while g > 0 and a[g - 1] >= x:
+            g -= 1
+        while g < n and a[g] < x:
+            g += 1
+    return g
+
+
+@nb.njit(cache=True, inline="always")
 def _band(px, py, m, ylo, yhi):
     # x-range of the convex polygon (px, py)[:m] inside the band ylo <= y <= yhi (x0 > x1: none)
     x0, x1 = np.inf, -np.inf
@@ -201,10 +226,12 @@ def _zbuffer(Vc, tris, visible, chunk, d, w, bounds, near, zbuf, ids, uv):
             m, x0, x1, y0, y1 = _outline(Vc, ia, ib, ic, near, px, py)
             if m == 0:
                 continue
-            c0 = np.searchsorted(colmax, x0 - _EPS * (1.0 + abs(x0)))
-            c1 = np.searchsorted(colmin, x1 + _EPS * (1.0 + abs(x1)), side="right") - 1
-            r0 = np.searchsorted(rowmax, y0 - _EPS * (1.0 + abs(y0)))
-            r1 = np.searchsorted(rowmin, y1 + _EPS * (1.0 + abs(y1)), side="right") - 1
+            x0, x1 = x0 - _EPS * (1.0 + abs(x0)), x1 + _EPS * (1.0 + abs(x1))
+            y0, y1 = y0 - _EPS * (1.0 + abs(y0)), y1 + _EPS * (1.0 + abs(y1))
+            if x1 < colmin[0] or x0 > colmax[-1] or y1 < rowmin[0] or y0 > rowmax[-1]:
+                continue  # beside the image
+            c0, c1 = _first(colmax, x0, False), _first(colmin, x1, True) - 1
+            r0, r1 = _first(rowmax, y0, False), _first(rowmin, y1, True) - 1
             if c0 > c1 or r0 > r1:
                 continue
             _scan(Vc, ia, ib, ic, k, d, w, px, py, m, c0, c1, r0, r1, colmin, colmax, rowlo, rowhi, zbuf, ids, uv)
@@ -231,8 +258,8 @@ def _scan(Vc, ia, ib, ic, k, d, w, px, py, m, c0, c1, r0, r1, colmin, colmax, ro
             xl, xh = _band(px, py, m, rowlo[r] - _EPS * (1.0 + abs(rowlo[r])), rowhi[r] + _EPS * (1.0 + abs(rowhi[r])))
             if not xl <= xh:
                 continue
-            cs = max(c0, np.searchsorted(colmax, xl - _EPS * (1.0 + abs(xl))))
-            ce = min(c1, np.searchsorted(colmin, xh + _EPS * (1.0 + abs(xh)), side="right") - 1)
+            cs = max(c0, _first(colmax, xl - _EPS * (1.0 + abs(xl)), False))
+            ce = min(c1, _first(colmin, xh + _EPS * (1.0 + abs(xh)), True) - 1)
         for col in range(cs, ce + 1):
             p = r * w + col
             dx, dy, dz = np.float64(d[p, 0]), np.float64(d[p, 1]), np.float64(d[p, 2])

@@ -459,8 +459,10 @@ class Renderer:
 
         with self._lock:
             if self._raster is None:
-                st = self.static
-                self._raster = raster_mesh(st.occluder_vertices, st.triangles)
+                V, T = self.static.occluder_vertices, self.static.triangles
+                if V is None or T is None:
+                    raise IbiscapeError("render: the static scene keeps no triangles to rasterise")
+                self._raster = raster_mesh(V, T)
             return self._raster
 
     def _mover_scene(self, t_ns: int) -> tuple[Any, TriangleTables] | None:

@@ -14,8 +14,8 @@ import pytest
 from ibiscape_eval.core.camera import CameraModel
 from ibiscape_eval.core.errors import IbiscapeError
 from ibiscape_eval.sim.render import Renderer, RenderOptions
-from ibiscape_eval.sim.render.rays import camera_rays, world_rays
 from ibiscape_eval.sim.render.raster import cast_camera, raster_mesh
+from ibiscape_eval.sim.render.rays import camera_rays, world_rays
 from ibiscape_eval.sim.render.scene import box_mesh, open3d, tensor
 from ibiscape_eval.sim.world import build_world
 
@@ -51,9 +51,8 @@ def _agree(V: np.ndarray, Tr: np.ndarray, model: CameraModel, T: np.ndarray) -> 
     np.testing.assert_allclose(t1[hit], t0[hit], rtol=2e-5)
     same = p0 == p1
     tie = ~same & hit
-    # a pixel may name another triangle only where both lie at the same depth (coplanar) and
-    # the ray meets it inside (barycentric coordinates in [0, 1])
-    assert tie.sum() <= 1e-4 * tie.size + 0.02 * hit.sum()
+    # a pixel may name another triangle only where both lie at the same depth (the depth check
+    # above: on a shared edge or coplanar) and the ray meets it inside (barycentric in [0, 1])
     b = b1[tie]
     assert (b >= -1e-6).all() and (b.sum(axis=1) <= 1 + 1e-6).all()
     np.testing.assert_allclose(b1[same & hit], b0[same & hit], atol=2e-4)
@@ -90,6 +89,7 @@ def test_raster_matches_open3d_on_boxes_and_a_mover(model: CameraModel) -> None:
                      ((0.5, 1.2, 1.0), 180.0)):  # the last inside the car: everything behind its walls
         hit, ties = _agree(V, Tr, model, _pose(pos, yaw))
         assert hit > 0.5 * model.width_px * model.height_px
+        assert ties <= 0.01 * hit  # no coplanar faces here: only rays on a shared edge
 
 
 def test_raster_keeps_every_triangle_of_a_closed_mesh() -> None:
@@ -136,7 +136,8 @@ def test_raster_matches_open3d_on_the_calibration_scene(calib_world: object) -> 
     for model in CAMERAS[:2]:
         for pos, yaw in (((70.0, 0.2, 2.8), 180.0), ((60.0, -5.0, 1.5), 150.0)):
             hit, ties = _agree(st.occluder_vertices, st.triangles, model, _pose(pos, yaw))
-            assert hit == model.width_px * model.height_px or hit > 0.4 * model.width_px * model.height_px
+            assert hit > 0.4 * model.width_px * model.height_px
+            assert ties <= 0.01 * hit  # the bumps' flat rim on the ground quad, shared edges
 
 
 def test_render_raster_against_open3d_primary(calib_world: object) -> None:
@@ -152,3 +153,20 @@ def test_render_raster_against_open3d_primary(calib_world: object) -> None:
     assert (d > 0.5).mean() < 1e-3 and np.median(d) < 1e-3
     with pytest.raises(IbiscapeError, match="primary"):
         replace(RenderOptions(), primary="gpu")
+
+
+def test_first_index_search_is_numpy_searchsorted() -> None:
+    """The z-buffer's pixel-range search from a linear guess equals ``np.searchsorted`` on
+    non-decreasing arrays with repeats, outside values and exact hits."""
+    import numba as nb
+
+    from ibiscape_eval.sim.render.raster import _first
+
+    first = nb.njit(lambda a, x, right: _first(a, x, right))
+    rng = np.random.default_rng(0)
+    for trial in range(200):
+        n = int(rng.integers(1, 40))
+        a = np.sort(rng.choice(np.linspace(-2, 2, 9), n)) if trial % 2 else np.sort(rng.normal(size=n))
+        for x in [*rng.normal(size=10) * 2, *a, -np.inf, np.inf]:
+            for right in (False, True):
+                assert first(a, x, right) == np.searchsorted(a, x, side="right" if right else "left")
