@@ -1,8 +1,10 @@
 """The renderer: rays -> hits (static scene + movers) -> textures -> light -> weather -> sensor.
 
 One :class:`Renderer` per sequence holds the static scene (built once), the cameras and the
-weather log.  Per view it casts one ray per pixel (``cast_rays``), takes the nearer of
-the static and the movers' hit, interpolates the hit triangle's texture coordinates with the
+weather log.  Per view it finds the static scene's surface of every pixel's ray in a z-buffer
+(:mod:`.raster`, open3d's ``cast_rays`` answer but at exact ties; ``RenderOptions(primary=
+"open3d")`` casts instead), casts the rays that may see a mover into the movers' scene, takes the
+nearer of the static and the movers' hit, interpolates the hit triangle's texture coordinates with the
 barycentric coordinates open3d returns, shades (one shadow ray toward the sun per lit pixel
 facing it: against the static scene through its grid across the sun, :mod:`.sun_grid`, exact
 triangle tests; against the movers, an open3d ``test_occlusions`` any-hit query, only where a
