@@ -42,7 +42,8 @@ _TIE = 1.0 - 1e-9  # a later triangle must be nearer by this factor: coplanar ti
 @dataclass(frozen=True, eq=False)
 class RasterMesh:
     """A triangle mesh prepared for :func:`cast_camera`: vertices (V, 3) float64, triangles (T, 3)
-    int32, unit normals (T, 3) float32 (as open3d's ``primitive_normals``), chunk bounds
+    int32, unit normals (T + 1, 3) float32 (as open3d's ``primitive_normals``; the last row zero, for
+    rays that hit nothing), chunk bounds
     ``lo``, ``hi`` (C, 3) float64 of the triangles ``[64 c, 64 c + 64)``."""
 
     vertices: npt.NDArray[np.float64]
@@ -60,6 +61,7 @@ def raster_mesh(vertices: npt.ArrayLike, triangles: npt.ArrayLike) -> RasterMesh
     n = np.cross(b - a, c - a)
     norm = np.linalg.norm(n, axis=1, keepdims=True)
     n = np.divide(n, norm, out=np.zeros_like(n), where=norm > 0).astype(np.float32)
+    n = np.concatenate([n, np.zeros((1, 3), np.float32)])
     nc = -(-len(T) // _CHUNK)
     pts = np.full((nc * _CHUNK, 3, 3), np.nan)
     pts[:len(T)] = np.stack([a, b, c], 1)
@@ -92,14 +94,17 @@ def ray_bounds(dirs: F32) -> tuple[np.ndarray, ...]:
 
 
 def cast_camera(mesh: RasterMesh, dirs: F32, T_world_cam: npt.ArrayLike,
-                work: tuple[np.ndarray, ...] | None = None) -> tuple[F32, npt.NDArray[np.uint32], F32, F32]:
+                work: tuple[np.ndarray, ...] | None = None, *, pixel_normals: bool = True
+                ) -> tuple[F32, npt.NDArray[np.uint32], F32, F32]:
     """What ``cast_rays`` of the world rays ``[c, R d]`` (``T_world_cam = [R | c]``) returns for the
     camera-frame directions ``dirs`` (H, W, 3) ``(x, y, 1)``: ``t_hit`` (H W,) float32 (``inf``:
     none), ``primitive_ids`` (H W,) uint32 (``0xFFFFFFFF``: none), ``primitive_uvs`` (H W, 2) and
     ``primitive_normals`` (H W, 3) float32 (world frame; zeros where nothing is hit).
 
     ``work``: :func:`workspace` buffers to fill (the result's arrays are views of them; fresh
-    arrays of a large image cost about a third of the pass in page faults)."""
+    arrays of a large image cost about a third of the pass in page faults).  Without
+    ``pixel_normals`` the last result is ``mesh.normals`` (T + 1, 3), the normal of each triangle
+    and a zero row for no hit (the renderer looks them up by triangle: 12 bytes a pixel less)."""
     T = np.asarray(T_world_cam, dtype=np.float64)
     h, w, _ = dirs.shape
     d = np.ascontiguousarray(dirs, dtype=np.float32).reshape(-1, 3)
@@ -108,24 +113,27 @@ def cast_camera(mesh: RasterMesh, dirs: F32, T_world_cam: npt.ArrayLike,
     bounds = ray_bounds(dirs)
     visible = _visible_chunks(mesh.lo, mesh.hi, R, c, *bounds[:4])
     n = h * w
-    zbuf, ids, uv, nrm = _workspace(n, work)
+    zbuf, ids, uv, nrm = _workspace(n, work, pixel_normals)
     _zbuffer(Vc, mesh.triangles, visible, _CHUNK, d, w, bounds, NEAR_M, zbuf, ids, uv)
     t = zbuf.view(np.float32)[:n]  # the float32 depths overwrite the float64 ones already read
     _resolve(mesh.normals, zbuf, ids, t, uv, nrm)
-    return t, ids.view(np.uint32), uv, nrm  # -1 (no hit) reads as open3d's 0xFFFFFFFF
+    # -1 (no hit) reads as open3d's 0xFFFFFFFF
+    return t, ids.view(np.uint32), uv, nrm if pixel_normals else mesh.normals
 
 
-def workspace(n: int) -> tuple[np.ndarray, ...]:
-    """Buffers for :func:`cast_camera`'s ``work``, ``n`` rays long (32 bytes a ray)."""
-    return _workspace(n, None)
+def workspace(n: int, pixel_normals: bool = True) -> tuple[np.ndarray, ...]:
+    """Buffers for :func:`cast_camera`'s ``work``, ``n`` rays long (32 bytes a ray; 20 without
+    ``pixel_normals``)."""
+    return _workspace(n, None, pixel_normals)
 
 
-def _workspace(n: int, work: tuple[np.ndarray, ...] | None) -> tuple[np.ndarray, ...]:
+def _workspace(n: int, work: tuple[np.ndarray, ...] | None, pixel_normals: bool) -> tuple[np.ndarray, ...]:
     """Buffers for ``n`` rays: ``work``'s views when it is long enough, else new arrays."""
-    if work is None or len(work[0]) < n:
+    if work is None or len(work[0]) < n or (pixel_normals and len(work[3]) < n):
         work = (np.empty(n, np.float64), np.empty(n, np.int32), np.empty((n, 2), np.float32),
-                np.empty((n, 3), np.float32))
-    return tuple(a[:n] for a in work)
+                np.empty((n if pixel_normals else 0, 3), np.float32))
+    zbuf, ids, uv, nrm = work
+    return zbuf[:n], ids[:n], uv[:n], nrm[:n]
 
 
 def _visible_chunks(lo: np.ndarray, hi: np.ndarray, R: np.ndarray, c: np.ndarray, colmin: np.ndarray,
@@ -280,14 +288,18 @@ def _scan(Vc, ia, ib, ic, k, d, w, px, py, m, c0, c1, r0, r1, colmin, colmax, ro
 @nb.njit(cache=True, nogil=True)
 def _resolve(normals, zbuf, ids, t, uv, nrm):
     """open3d's outputs of the z-buffer: t (float32; ``t`` may be ``zbuf``'s memory, written behind
-    the reads), the triangle's unit normal; no hit: ``inf`` and zero coordinates and normal."""
+    the reads), the triangle's unit normal (when ``nrm`` is not empty); no hit: ``inf`` and zero
+    coordinates and normal."""
+    with_normals = nrm.shape[0] > 0
     for p in range(ids.shape[0]):
         k = ids[p]
         if k < 0:
             t[p] = np.inf
             uv[p, 0] = uv[p, 1] = 0.0
-            nrm[p, 0] = nrm[p, 1] = nrm[p, 2] = 0.0
+            if with_normals:
+                nrm[p, 0] = nrm[p, 1] = nrm[p, 2] = 0.0
             continue
         t[p] = zbuf[p]
-        nrm[p, 0], nrm[p, 1], nrm[p, 2] = normals[k, 0], normals[k, 1], normals[k, 2]
+        if with_normals:
+            nrm[p, 0], nrm[p, 1], nrm[p, 2] = normals[k, 0], normals[k, 1], normals[k, 2]
     return t

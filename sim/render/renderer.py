@@ -298,14 +298,14 @@ class Renderer:
         scale = 255.0 * light.gain
         ss = self.options.target_supersample > 1 and bool(self.static.targets)
         blur = self.options.psf_sigma_px > 0  # the blur's output leaves, the radiance buffer stays
-        hits = None
+        hits: tuple[Any, ...] | None = None
         if self.options.primary == "raster":
             from .raster import cast_camera, workspace
 
             work = getattr(self._local, "raster", None)
             if work is None or len(work[0]) < H * W:
-                work = self._local.raster = workspace(H * W)
-            hits = cast_camera(self._raster_mesh(), camera_rays(model), T, work)
+                work = self._local.raster = workspace(H * W, pixel_normals=False)
+            hits = (*cast_camera(self._raster_mesh(), camera_rays(model), T, work, pixel_normals=False), True)
         rad, depth, mat, labels, code = self._radiance(
             rays, t_ns, w, light, self._mover_pixels(model, T, t_ns), scale=scale, board_code=ss,
             rad_buffer=self._buffer("radiance", (H * W, 3)) if blur else None, hits=hits)
@@ -481,7 +481,7 @@ class Renderer:
     def _radiance(self, rays: F32, t_ns: int, w: WeatherState, light: Lighting,
                   mover_rays: npt.NDArray[np.bool_] | None = None, *, scale: float = 1.0,
                   board_code: bool = False, lit_code: npt.NDArray[np.uint16] | None = None,
-                  rad_buffer: F32 | None = None, hits: tuple[np.ndarray, ...] | None = None
+                  rad_buffer: F32 | None = None, hits: tuple[Any, ...] | None = None
                   ) -> tuple[F32, F32, npt.NDArray[np.uint8], npt.NDArray[np.uint8], npt.NDArray[np.uint16]]:
         """Radiance (N, 3) times ``scale`` of rays (N, 6) with shadows, fog and wet road; the
         z-depth (``inf``: sky), material and label of every ray and, when ``board_code``, which
@@ -493,15 +493,15 @@ class Renderer:
         sees the board side ``lit_code`` (N,) names (a lit code as above; 0: none) is taken as lit
         without a shadow ray (the supersamples of a pixel whose neighbours all see that side lit).
         The radiance goes into ``rad_buffer`` (N, 3) when given.  ``hits``: the static scene's
-        ``(t_hit, primitive_ids, primitive_uvs, primitive_normals)`` of the rays when known (the
-        rasterised view, :mod:`.raster`); they are cast otherwise.
+        ``(t_hit, primitive_ids, primitive_uvs, normals, by_triangle)`` of the rays when known (the
+        rasterised view, :mod:`.raster`, with its normals per triangle); they are cast otherwise.
         """
         from ._kernels import surfaces
 
         if hits is None:
             r = self.static.scene.cast_rays(tensor(rays), nthreads=_CAST_THREADS)
             hits = (r["t_hit"].numpy(), r["primitive_ids"].numpy(), r["primitive_uvs"].numpy(),
-                    r["primitive_normals"].numpy())
+                    r["primitive_normals"].numpy(), False)
         n = len(rays)
         st = self.static.tables
         movers = self._mover_scene(t_ns)
