@@ -202,6 +202,7 @@ class Renderer:
         self._local = threading.local()  # per thread: the kernels' reusable buffers
         self._sun_grid_cache: SunGrid | None = None  # numba loads with the first render, not here
         self._raster: RasterMesh | None = None
+        self._raster_free: list[tuple[np.ndarray, ...]] = []  # the z-buffers of views done
 
     # ----------------------------------------------------------------------------- construction
     @classmethod
@@ -298,17 +299,20 @@ class Renderer:
         scale = 255.0 * light.gain
         ss = self.options.target_supersample > 1 and bool(self.static.targets)
         blur = self.options.psf_sigma_px > 0  # the blur's output leaves, the radiance buffer stays
-        hits: tuple[Any, ...] | None = None
-        if self.options.primary == "raster":
-            from .raster import cast_camera, workspace
+        work = self._raster_work(H * W) if self.options.primary == "raster" else None
+        try:
+            hits: tuple[Any, ...] | None = None
+            if work is not None:
+                from .raster import cast_camera
 
-            work = getattr(self._local, "raster", None)
-            if work is None or len(work[0]) < H * W:
-                work = self._local.raster = workspace(H * W, pixel_normals=False)
-            hits = (*cast_camera(self._raster_mesh(), camera_rays(model), T, work, pixel_normals=False), True)
-        rad, depth, mat, labels, code = self._radiance(
-            rays, t_ns, w, light, self._mover_pixels(model, T, t_ns), scale=scale, board_code=ss,
-            rad_buffer=self._buffer("radiance", (H * W, 3)) if blur else None, hits=hits)
+                hits = (*cast_camera(self._raster_mesh(), camera_rays(model), T, work, pixel_normals=False), True)
+            rad, depth, mat, labels, code = self._radiance(
+                rays, t_ns, w, light, self._mover_pixels(model, T, t_ns), scale=scale, board_code=ss,
+                rad_buffer=self._buffer("radiance", (H * W, 3)) if blur else None, hits=hits)
+        finally:
+            if work is not None:
+                with self._lock:
+                    self._raster_free.append(work)
         if ss:
             self._supersample_targets(model, T, t_ns, w, light, scale, rad, mat, code)
         img = rad.reshape(H, W, 3)
@@ -454,6 +458,19 @@ class Renderer:
                                 np.asarray(light.sun_dir, np.float32), np.empty(len(rr), np.uint16))
         ok[sel] = (codes.reshape(-1, nc) == lit_c[sel, None]).all(axis=1)
         return ok
+
+    def _raster_work(self, n: int) -> tuple[np.ndarray, ...]:
+        """A free :func:`.raster.workspace` of at least ``n`` rays (the caller gives it back to
+        ``_raster_free``): as many exist as views ever rendered at once, whichever threads."""
+        from .raster import workspace
+
+        with self._lock:
+            free = self._raster_free
+            while free:
+                work = free.pop()
+                if len(work[0]) >= n:
+                    return work
+        return workspace(n, pixel_normals=False)
 
     def _raster_mesh(self) -> RasterMesh:
         """The static scene prepared for :func:`.raster.cast_camera` (built on first use)."""
