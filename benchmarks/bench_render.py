@@ -16,8 +16,9 @@ the CPU time of that run (all threads; what an idle machine would need when othe
 one: on two idle cores the two-thread step takes about half its CPU time).  The peer is open3d's
 raycaster alone: ``cast_rays(nthreads=0)`` of the same rays against the same static scene, twice
 (one per view).  RATIO = render time / raw cast time (1 would be a renderer that adds nothing to
-the ray cast).  ``--stages`` adds the CPU time per stage of the sequential 1024 step (the casts, the
-fused numba passes, the shadow rays' grid across the sun, blur, noise, target supersampling and its
+the ray cast; the renderer finds the pixels' surfaces with its own z-buffer, ``sim.render.raster``,
+and casts only the supersamples and the movers).  ``--stages`` adds the CPU time per stage of the
+sequential 1024 step (the raster, the casts, the fused numba passes, the shadow rays' grid across the sun, blur, noise, target supersampling and its
 board-plane path; inclusive times, benchmark-only instrumentation of internals) and, outside the
 step's total, the PNG encoding of its two RGB views as ``sim`` writes them (``write_png(photo=True)``)
 and with the default settings, and the build of the shadow rays' grid (``sim.render.sun_grid``: the
@@ -90,7 +91,7 @@ def _time(fn: Callable[[], Any], repeat: int) -> tuple[float, float]:
 def _stages(r: Any, step: Callable[[], None], repeat: int) -> list[tuple[str, float]]:
     """CPU time per stage of ``step`` [s per step], by wrapping the renderer's internals (the views
     must run one after the other: process CPU time is charged to the stage running)."""
-    from ibiscape_eval.sim.render import _kernels, renderer, sun_grid
+    from ibiscape_eval.sim.render import _kernels, raster, renderer, sun_grid
 
     acc: dict[str, float] = collections.defaultdict(float)
 
@@ -113,6 +114,7 @@ def _stages(r: Any, step: Callable[[], None], repeat: int) -> list[tuple[str, fl
     patches = [(renderer, "world_rays", "world rays"), (renderer, "subpixel_rays", "target supersample rays"),
                (renderer, "rain_streaks", "rain streaks"), (renderer, "board_albedo", "board textures"),
                (renderer, "sensor_output", "sensor noise + 8 bit (quantize)"),
+               (raster, "cast_camera", "raster: primary visibility, static scene"),
                (_kernels, "surfaces", "numba: hits, albedo, shadow rays (surfaces)"),
                (_kernels, "finish_into", "numba: shading, wet road, fog (finish)"),
                (renderer.Renderer, "_occluded", "shadow rays (static + movers)"),

@@ -359,7 +359,9 @@ def _shadow_ray(i, count, ox, oy, oz, sun, grid, srays, spix, smov):
 def surfaces(rays, hits, hits2, tables, tables2, board_flip, tex, light, grid, work):
     """Everything of the hits the shading needs, in one pass over the rays (N, 6).
 
-    ``hits`` are the static scene's ``(t_hit, primitive_ids, primitive_uvs, primitive_normals)``,
+    ``hits`` are the static scene's ``(t_hit, primitive_ids, primitive_uvs, primitive_normals,
+    by_triangle)`` (``by_triangle``: the normals are a table per triangle, the sentinel row zero,
+    not per ray),
     ``tables`` its triangle tables ``(material, variant, label, uv_m, sentinel row)``.  The
     second scene (movers) was cast for a subset of the rays: ``hits2 = (map2, t, ids, uvs,
     normals)`` with ray ``i`` its row ``map2[i]`` (-1: not cast), ``tables2`` its tables.
@@ -380,7 +382,7 @@ def surfaces(rays, hits, hits2, tables, tables2, board_flip, tex, light, grid, w
     ``count`` are used (the lit pixels facing the sun, when ``shadows``), their pixels (N,),
     whether a mover may shade them (N,), and ``count``.
     """
-    t, prim, bary, normal = hits
+    t, prim, bary, normal, by_triangle = hits
     map2, t2, prim2, bary2, normal2 = hits2
     material, variant, label, uv_m, sentinel = tables
     material2, variant2, label2, uv_m2 = tables2
@@ -404,7 +406,8 @@ def surfaces(rays, hits, hits2, tables, tables2, board_flip, tex, light, grid, w
             ti = t[i]
             p = prim[i] if np.isfinite(ti) else sentinel
             b1, b2 = bary[i, 0], bary[i, 1]
-            nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
+            q = p if by_triangle else i
+            nx, ny, nz = normal[q, 0], normal[q, 1], normal[q, 2]
             m, vi, lb = material[p], variant[p], label[p]
             u0, v0, u1, v1 = uv_m[p, 0, 0], uv_m[p, 0, 1], uv_m[p, 1, 0], uv_m[p, 1, 1]
             u2, v2 = uv_m[p, 2, 0], uv_m[p, 2, 1]

@@ -1,8 +1,10 @@
 """The renderer: rays -> hits (static scene + movers) -> textures -> light -> weather -> sensor.
 
 One :class:`Renderer` per sequence holds the static scene (built once), the cameras and the
-weather log.  Per view it casts one ray per pixel (``cast_rays(nthreads=0)``), takes the nearer of
-the static and the movers' hit, interpolates the hit triangle's texture coordinates with the
+weather log.  Per view it finds the static scene's surface of every pixel's ray in a z-buffer
+(:mod:`.raster`, open3d's ``cast_rays`` answer but at exact ties; ``RenderOptions(primary=
+"open3d")`` casts instead), casts the rays that may see a mover into the movers' scene, takes the
+nearer of the static and the movers' hit, interpolates the hit triangle's texture coordinates with the
 barycentric coordinates open3d returns, shades (one shadow ray toward the sun per lit pixel
 facing it: against the static scene through its grid across the sun, :mod:`.sun_grid`, exact
 triangle tests; against the movers, an open3d ``test_occlusions`` any-hit query, only where a
@@ -43,6 +45,7 @@ from .shading import (
 from .textures import board_albedo, board_footprint_tables, board_tables, kernel_tables
 
 if TYPE_CHECKING:
+    from .raster import RasterMesh
     from .sun_grid import SunGrid
 
 __all__ = ["RenderCamera", "RenderOptions", "RenderedView", "Renderer"]
@@ -50,6 +53,7 @@ __all__ = ["RenderCamera", "RenderOptions", "RenderedView", "Renderer"]
 F32 = npt.NDArray[np.float32]
 GRAY_WEIGHTS = np.array([0.2989, 0.587, 0.114], np.float32)
 _SHADOW_EPS_M = 0.02
+_CAST_THREADS = 1  # open3d casts on the calling thread (see _radiance)
 
 
 # the board code of a ray (``Renderer._radiance(board_code=True)``): 0 no board, else
@@ -94,6 +98,12 @@ class RenderOptions:
         Lens blur: a Gaussian point-spread function of this standard deviation [px] (0 = none).
         Without it every edge is a perfect box-filtered step whose staircase biases corner
         detectors by up to ~0.07 px; 0.7 px is a sharp real lens.
+    primary : str
+        How a view's one ray per pixel finds its surface in the static scene: ``"raster"`` (a
+        z-buffer testing each pixel's own ray against the triangles that may cover it,
+        :mod:`.raster`; open3d's hits but for exact ties between coplanar triangles) or
+        ``"open3d"`` (Embree's ``cast_rays``, the oracle).  Movers, supersamples and shadow
+        rays are ray cast either way.
     """
 
     shadows: bool = True
@@ -101,8 +111,11 @@ class RenderOptions:
     noise: bool = True
     weather_optics: bool = True
     psf_sigma_px: float = 0.7
+    primary: str = "raster"
 
     def __post_init__(self) -> None:
+        if self.primary not in ("raster", "open3d"):
+            raise IbiscapeError(f"render: primary must be 'raster' or 'open3d', got {self.primary!r}")
         if not isinstance(self.target_supersample, int) or not 1 <= self.target_supersample <= 8:
             raise IbiscapeError(f"render: target_supersample must be an integer in 1..8, got "
                                 f"{self.target_supersample!r}")
@@ -188,6 +201,8 @@ class Renderer:
         self._lock = threading.Lock()  # views of one instant may render on parallel threads
         self._local = threading.local()  # per thread: the kernels' reusable buffers
         self._sun_grid_cache: SunGrid | None = None  # numba loads with the first render, not here
+        self._raster: RasterMesh | None = None
+        self._raster_free: list[tuple[np.ndarray, ...]] = []  # the z-buffers of views done
 
     # ----------------------------------------------------------------------------- construction
     @classmethod
@@ -284,9 +299,20 @@ class Renderer:
         scale = 255.0 * light.gain
         ss = self.options.target_supersample > 1 and bool(self.static.targets)
         blur = self.options.psf_sigma_px > 0  # the blur's output leaves, the radiance buffer stays
-        rad, depth, mat, labels, code = self._radiance(
-            rays, t_ns, w, light, self._mover_pixels(model, T, t_ns), scale=scale, board_code=ss,
-            rad_buffer=self._buffer("radiance", (H * W, 3)) if blur else None)
+        work = self._raster_work(H * W) if self.options.primary == "raster" else None
+        try:
+            hits: tuple[Any, ...] | None = None
+            if work is not None:
+                from .raster import cast_camera
+
+                hits = (*cast_camera(self._raster_mesh(), camera_rays(model), T, work, pixel_normals=False), True)
+            rad, depth, mat, labels, code = self._radiance(
+                rays, t_ns, w, light, self._mover_pixels(model, T, t_ns), scale=scale, board_code=ss,
+                rad_buffer=self._buffer("radiance", (H * W, 3)) if blur else None, hits=hits)
+        finally:
+            if work is not None:
+                with self._lock:
+                    self._raster_free.append(work)
         if ss:
             self._supersample_targets(model, T, t_ns, w, light, scale, rad, mat, code)
         img = rad.reshape(H, W, 3)
@@ -424,7 +450,7 @@ class Renderer:
         if len(self.world.agents) or not len(sel):
             return ok
         rr = np.ascontiguousarray(rays.reshape(-1, nc, 6)[sel].reshape(-1, 6))
-        hit = self.static.scene.cast_rays(tensor(rr), nthreads=0)
+        hit = self.static.scene.cast_rays(tensor(rr), nthreads=_CAST_THREADS)
         st = self.static.tables
         flip = np.array([not t.z_toward_observer for t in self.static.targets] or [False], bool)
         codes = hit_board_codes(rr, hit["t_hit"].numpy(), hit["primitive_ids"].numpy(),
@@ -432,6 +458,31 @@ class Renderer:
                                 np.asarray(light.sun_dir, np.float32), np.empty(len(rr), np.uint16))
         ok[sel] = (codes.reshape(-1, nc) == lit_c[sel, None]).all(axis=1)
         return ok
+
+    def _raster_work(self, n: int) -> tuple[np.ndarray, ...]:
+        """A free :func:`.raster.workspace` of at least ``n`` rays (the caller gives it back to
+        ``_raster_free``): as many exist as views ever rendered at once, whichever threads."""
+        from .raster import workspace
+
+        with self._lock:
+            free = self._raster_free
+            while free:
+                work = free.pop()
+                if len(work[0]) >= n:
+                    return work
+        return workspace(n, pixel_normals=False)
+
+    def _raster_mesh(self) -> RasterMesh:
+        """The static scene prepared for :func:`.raster.cast_camera` (built on first use)."""
+        from .raster import raster_mesh
+
+        with self._lock:
+            if self._raster is None:
+                V, T = self.static.occluder_vertices, self.static.triangles
+                if V is None or T is None:
+                    raise IbiscapeError("render: the static scene keeps no triangles to rasterise")
+                self._raster = raster_mesh(V, T)
+            return self._raster
 
     def _mover_scene(self, t_ns: int) -> tuple[Any, TriangleTables] | None:
         if len(self.world.agents) == 0:
@@ -447,7 +498,7 @@ class Renderer:
     def _radiance(self, rays: F32, t_ns: int, w: WeatherState, light: Lighting,
                   mover_rays: npt.NDArray[np.bool_] | None = None, *, scale: float = 1.0,
                   board_code: bool = False, lit_code: npt.NDArray[np.uint16] | None = None,
-                  rad_buffer: F32 | None = None
+                  rad_buffer: F32 | None = None, hits: tuple[Any, ...] | None = None
                   ) -> tuple[F32, F32, npt.NDArray[np.uint8], npt.NDArray[np.uint8], npt.NDArray[np.uint16]]:
         """Radiance (N, 3) times ``scale`` of rays (N, 6) with shadows, fog and wet road; the
         z-depth (``inf``: sky), material and label of every ray and, when ``board_code``, which
@@ -458,11 +509,16 @@ class Renderer:
         passes the pixels inside the movers' projected outlines); ``None`` casts all.  A ray that
         sees the board side ``lit_code`` (N,) names (a lit code as above; 0: none) is taken as lit
         without a shadow ray (the supersamples of a pixel whose neighbours all see that side lit).
-        The radiance goes into ``rad_buffer`` (N, 3) when given.
+        The radiance goes into ``rad_buffer`` (N, 3) when given.  ``hits``: the static scene's
+        ``(t_hit, primitive_ids, primitive_uvs, normals, by_triangle)`` of the rays when known (the
+        rasterised view, :mod:`.raster`, with its normals per triangle); they are cast otherwise.
         """
         from ._kernels import surfaces
 
-        r = self.static.scene.cast_rays(tensor(rays), nthreads=0)
+        if hits is None:
+            r = self.static.scene.cast_rays(tensor(rays), nthreads=_CAST_THREADS)
+            hits = (r["t_hit"].numpy(), r["primitive_ids"].numpy(), r["primitive_uvs"].numpy(),
+                    r["primitive_normals"].numpy(), False)
         n = len(rays)
         st = self.static.tables
         movers = self._mover_scene(t_ns)
@@ -475,7 +531,7 @@ class Renderer:
         if movers is not None and (mover_rays is None or mover_rays.any()):
             sc, mt = movers
             sel = np.arange(n) if mover_rays is None else np.flatnonzero(mover_rays)
-            m = sc.cast_rays(tensor(rays[sel]), nthreads=0)
+            m = sc.cast_rays(tensor(rays[sel]), nthreads=_CAST_THREADS)
             map2 = np.full(max(n, 2), -1, np.int32)
             map2[sel] = np.arange(len(sel), dtype=np.int32)
             t2 = m["t_hit"].numpy()
@@ -486,10 +542,8 @@ class Renderer:
         grid = self._sun_grid(t_ns, sun, movers is not None and shadows)
         targets = self.static.targets
         flip = np.array([not t.z_toward_observer for t in targets] or [False], bool)
-        r_hits = (r["t_hit"].numpy(), r["primitive_ids"].numpy(), r["primitive_uvs"].numpy(),
-                  r["primitive_normals"].numpy())
         depth, mat, var, labels, uv, front, alb, paved, ndl, amb, srays, spix, smov, count = surfaces(
-            rays, r_hits, (map2, t2, p2, b2, n2), (st.material, st.variant, st.label, st.uv_m,
+            rays, hits, (map2, t2, p2, b2, n2), (st.material, st.variant, st.label, st.uv_m,
                                                    self.static.n_triangles),
             (mt.material, mt.variant, mt.label, mt.uv_m), flip, kernel_tables(self.static.ground),
             (sun, shadows, np.float32(_SHADOW_EPS_M)), grid, self._workspace(n))
@@ -556,14 +610,14 @@ class Renderer:
         scene only for the rays flagged in ``mover_may`` that the static scene left free."""
         grid = self._shadow_grid(rays[0, 3:6]) if len(rays) else None
         if grid is None:
-            occ = self.static.scene.test_occlusions(tensor(rays), nthreads=0).numpy().astype(bool)
+            occ = self.static.scene.test_occlusions(tensor(rays), nthreads=_CAST_THREADS).numpy().astype(bool)
         else:
             occ = grid.occluded(rays, rays[0, 3:6])
         movers = self._mover_scene(t_ns)
         if movers is not None:
             sel = np.flatnonzero(mover_may & ~occ)
             if sel.size:
-                occ[sel] = movers[0].test_occlusions(tensor(rays[sel]), nthreads=0).numpy().astype(bool)
+                occ[sel] = movers[0].test_occlusions(tensor(rays[sel]), nthreads=_CAST_THREADS).numpy().astype(bool)
         return occ
 
     def _shadow_grid(self, sun: F32) -> SunGrid | None:

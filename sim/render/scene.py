@@ -203,6 +203,8 @@ class StaticScene:
     #: triangles of ``scene``): what can shade a point above the ground
     occluder_vertices: F32 | None = None
     occluder_triangles: npt.NDArray[np.uint32] | None = None
+    #: every triangle (T, 3) of ``scene`` (rows = primitive ids; vertices ``occluder_vertices``)
+    triangles: npt.NDArray[np.uint32] | None = None
 
 
 def _part(verts: np.ndarray, tris: np.ndarray, uv: np.ndarray, material: np.ndarray | int,
@@ -314,7 +316,7 @@ def build_static_scene(world: World, *, extra_cars: Boxes | None = None) -> Stat
     V, T, tables = _assemble(parts)
     scene = open3d().t.geometry.RaycastingScene()
     scene.add_triangles(tensor(V), tensor(T))
-    return StaticScene(scene, tables, _ground_map(world), tuple(world.targets), len(T), V, T[len(_QUAD_TRIS):])
+    return StaticScene(scene, tables, _ground_map(world), tuple(world.targets), len(T), V, T[len(_QUAD_TRIS):], T)
 
 
 def mover_mesh(world: World, t_ns: int) -> tuple[F32, npt.NDArray[np.uint32], TriangleTables]:
