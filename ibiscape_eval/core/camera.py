@@ -37,16 +37,17 @@ import numpy.typing as npt
 
 from .errors import IbiscapeError
 
-__all__ = ["DISTORTION_MODELS", "CameraModel"]
+__all__ = ["DISTORTION_MODELS", "INVERSE_TOLERANCE_PX", "NEWTON_ITERATIONS", "CameraModel"]
 
 FloatArray = npt.NDArray[np.float64]
 
 #: Kalibr's names of the supported distortion models ("none" is radtan with zero coefficients).
 DISTORTION_MODELS = ("none", "radtan", "equidistant")
 
-_NEWTON_ITERATIONS = 20
+#: Newton iterations of the inverse distortion (the iterate repeats exactly well before)
+NEWTON_ITERATIONS = 20
 #: a ray is accepted when distorting it again lands within this distance of its pixel [px]
-_INVERSE_TOLERANCE_PX = 1e-6
+INVERSE_TOLERANCE_PX = 1e-6
 
 
 @dataclass(frozen=True)
@@ -206,7 +207,7 @@ class CameraModel:
         xd, yd = xy_d[..., 0], xy_d[..., 1]
         x, y = xd.copy(), yd.copy()
         with np.errstate(all="ignore"):
-            for _ in range(_NEWTON_ITERATIONS):
+            for _ in range(NEWTON_ITERATIONS):
                 r2 = x * x + y * y
                 s = 1.0 + r2 * (k1 + k2 * r2)
                 ds = k1 + 2.0 * k2 * r2  # d s / d r2
@@ -234,7 +235,7 @@ class CameraModel:
         rd = np.hypot(xy_d[..., 0], xy_d[..., 1])
         th = np.clip(rd, 0.0, math.pi / 2 - 1e-9)
         with np.errstate(all="ignore"):
-            for _ in range(_NEWTON_ITERATIONS):
+            for _ in range(NEWTON_ITERATIONS):
                 th2 = th * th
                 f = th * (1.0 + th2 * (k1 + th2 * (k2 + th2 * (k3 + th2 * k4)))) - rd
                 df = 1.0 + th2 * (3.0 * k1 + th2 * (5.0 * k2 + th2 * (7.0 * k3 + 9.0 * th2 * k4)))
@@ -251,7 +252,7 @@ class CameraModel:
         with np.errstate(all="ignore"):
             err = self.distort(xy) - xy_d
             err_px = np.hypot(err[..., 0] * self.fx, err[..., 1] * self.fy)
-        return np.isfinite(err_px) & (err_px < _INVERSE_TOLERANCE_PX)
+        return np.isfinite(err_px) & (err_px < INVERSE_TOLERANCE_PX)
 
     # ------------------------------------------------------------------------------- projection
     def project(self, points_cam: npt.ArrayLike) -> FloatArray:
