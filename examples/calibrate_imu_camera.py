@@ -59,10 +59,13 @@ def make_sequence(out: str | Path, *, duration_s: float = 12.0, size: int = 384,
 if __name__ == "__main__":
     root = Path("imucam_example")
     seq = root / "SVI_calib_imu"
-    # < 1: shorter drives (the tests run 0.1; 12 s is about the shortest that calibrates)
-    duration_s = max(12.0, 24.0 * float(os.environ.get("IBISCAPE_EXAMPLE_SCALE", "1")))
+    # < 1: shorter drives (the tests run 0.1; 12 s is about the shortest that calibrates), 5
+    # frames a second at 320 px
+    scale = float(os.environ.get("IBISCAPE_EXAMPLE_SCALE", "1"))
+    size: dict = {} if scale >= 1 else {"size": 320, "rate_hz": 5.0}
+    duration_s = max(12.0, 24.0 * scale)
     if not seq.exists():
-        make_sequence(seq, duration_s=duration_s)
+        make_sequence(seq, duration_s=duration_s, **size)
 
     # %% calibrate both cameras in one problem
     res = calibrate_sequence(seq, seq / "imu.yaml", SequenceOptions(camchain=seq / "camchain.yaml"))
@@ -89,7 +92,7 @@ if __name__ == "__main__":
     # %% the same drive on a flat road: refused with the measured numbers, then forced and marked
     flat = root / "SVI_calib_flat"
     if not flat.exists():
-        make_sequence(flat, duration_s=duration_s, bumps=False)
+        make_sequence(flat, duration_s=duration_s, bumps=False, **size)
     try:
         calibrate_sequence(flat, flat / "imu.yaml", SequenceOptions(camchain=flat / "camchain.yaml"))
     except CalibrationError as e:

@@ -33,8 +33,10 @@ def _rig() -> np.ndarray:
 
 
 #: views and their distance range per target: AprilTags need ~12 px per tag at f = 192 px, so
-#: the AprilGrid views stay within 5 m
-VIEWS = {"checkerboard": (14, (3.0, 15.0)), "aprilgrid": (20, (2.5, 5.0))}
+#: the AprilGrid views stay within 5 m.  12 AprilGrid views (rendering them is the test's cost:
+#: 20 s of CPU, 35 s for 20) leave the errors far inside the tolerances (focal 0.05 px, principal
+#: point 0.02 px, baseline < 0.1 mm, RMS 0.053 px; with 20 views 0.04, 0.01, 0.2, 0.052).
+VIEWS = {"checkerboard": (14, (3.0, 15.0)), "aprilgrid": (12, (2.5, 5.0))}
 
 
 @pytest.fixture(scope="session")
