@@ -83,7 +83,7 @@ MEMORY_TAU = 5.0
 #: (float32 images; 8..128 windows per sweep)
 BACKWARD_BLOCK_BYTES = 64 << 20
 #: decoded event windows kept per event camera by :func:`event_set_frames` (read again otherwise)
-WINDOW_CACHE_BYTES = 128 << 20
+WINDOW_CACHE_BYTES = 64 << 20
 #: decay of the time-surface reconstruction [ns]
 TIME_SURFACE_TAU_NS = 10_000_000
 #: nominal contrast threshold (CARLA's and the paper's 0.3) when only the ratio is known
