@@ -82,6 +82,8 @@ MEMORY_TAU = 5.0
 #: memory for the backward (future) states one sweep of the bidirectional reconstruction keeps
 #: (float32 images; 8..128 windows per sweep)
 BACKWARD_BLOCK_BYTES = 64 << 20
+#: decoded event windows kept per event camera by :func:`event_set_frames` (read again otherwise)
+WINDOW_CACHE_BYTES = 64 << 20
 #: decay of the time-surface reconstruction [ns]
 TIME_SURFACE_TAU_NS = 10_000_000
 #: nominal contrast threshold (CARLA's and the paper's 0.3) when only the ratio is known
@@ -539,6 +541,39 @@ def choose_reconstruction(read_window: ReadWindow, windows_ns: npt.ArrayLike, se
     return best, {"probed_windows": len(probe), "corners_found": counts}
 
 
+class _WindowCache:
+    """The event windows read last, up to ``max_bytes`` (least recently used dropped first).
+
+    The reconstruction choice, the forward and backward log-intensity sweeps and the corner
+    refinement read the same windows again (each window ~2x on the 160 px ESVI drive:
+    ``tests/calib/test_imu_camera_dvs.py``); :class:`Events` are immutable, so a window read once
+    is shared.  Unreadable windows are not kept (read again, and warned about, every time)."""
+
+    def __init__(self, max_bytes: int) -> None:
+        self.max_bytes = int(max_bytes)
+        self.bytes = 0
+        self._lock = threading.Lock()
+        self._items: OrderedDict[int, tuple[Events, int]] = OrderedDict()
+
+    def get(self, i: int) -> Events | None:
+        with self._lock:
+            got = self._items.get(i)
+            if got is None:
+                return None
+            self._items.move_to_end(i)
+            return got[0]
+
+    def put(self, i: int, ev: Events) -> None:
+        size = 13 * len(ev) + 64  # t int64, x and y uint16, p bool
+        with self._lock:
+            if size > self.max_bytes or i in self._items:
+                return
+            self._items[i] = (ev, size)
+            self.bytes += size
+            while self.bytes > self.max_bytes:
+                self.bytes -= self._items.popitem(last=False)[1][1]
+
+
 def event_set_frames(paths: Sequence[str | Path], windows_ns: npt.ArrayLike,
                      sensor_size: tuple[int, int], target: CalibrationTarget, *,
                      reconstruction: str = "auto",
@@ -563,13 +598,19 @@ def event_set_frames(paths: Sequence[str | Path], windows_ns: npt.ArrayLike,
     from ibiscape_eval.core.errors import IbiscapeWarning
 
     files = tuple(Path(p) for p in paths)
+    cache = _WindowCache(WINDOW_CACHE_BYTES)
 
     def read_window(i: int) -> Events | None:
+        ev = cache.get(i)
+        if ev is not None:
+            return ev
         try:
-            return read_event_window(files[i])
+            ev = read_event_window(files[i])
         except IbiscapeError as e:  # a corrupt window is skipped like a corrupt image
             warnings.warn(f"{e}; skipped", IbiscapeWarning, stacklevel=2)
             return None
+        cache.put(i, ev)
+        return ev
 
     contrast = contrast_from_sequence(camera_doc)
     given = contrast is not None
