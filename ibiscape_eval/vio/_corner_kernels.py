@@ -50,3 +50,45 @@ def select_spaced(xs, ys, min_dist, width, height, max_corners, keep):  # pragma
             if n == max_corners:
                 break
     return n
+
+
+@njit(cache=True, nogil=True)
+def peak_keys(eig, bits, mask, thr):  # pragma: no cover - numba
+    """Sort keys of OpenCV's corner candidates: the interior pixels under ``mask`` whose
+    thresholded response ``t(v) = v if v > thr else 0`` is non-zero and the largest of its 3x3
+    neighbourhood (``threshold(THRESH_TOZERO)``, ``dilate`` and the compare of
+    ``goodFeaturesToTrack``), in row-major order (``findNonZero``'s).  Each key is the value's
+    bits (``bits``: ``eig`` viewed as int32; positive floats order like their bits) above the
+    flat pixel index ``y * w + x``."""
+    h, w = eig.shape
+    out = np.empty(max((h - 2) * (w - 2), 0), np.int64)
+    n = 0
+    for y in range(1, h - 1):
+        for x in range(1, w - 1):
+            v = eig[y, x]
+            if not (v > thr and v > 0) or mask[y, x] == 0:
+                continue
+            peak = True
+            for yy in range(y - 1, y + 2):
+                for xx in range(x - 1, x + 2):
+                    u = eig[yy, xx]
+                    if u > thr and u > v:
+                        peak = False
+            if peak:
+                out[n] = (np.int64(bits[y, x]) << 32) | (y * w + x)
+                n += 1
+    return out[:n]
+
+
+@njit(cache=True, nogil=True)
+def clear_discs(mask, xs, ys, dxs, dys):  # pragma: no cover - numba
+    """Set ``mask`` to 0 at the pixels ``(x + dx, y + dy)`` inside the image, for every centre
+    ``(xs[i], ys[i])`` and offset ``(dxs[j], dys[j])`` (a disc's pixels, see
+    ``frontend.disc_offsets``)."""
+    h, w = mask.shape
+    for i in range(len(xs)):
+        for j in range(len(dxs)):
+            x = xs[i] + dxs[j]
+            y = ys[i] + dys[j]
+            if 0 <= x < w and 0 <= y < h:
+                mask[y, x] = 0
