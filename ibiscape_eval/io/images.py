@@ -157,7 +157,7 @@ def _libdeflate() -> Any:
     return deflate
 
 
-def _png_idat(data: bytes | memoryview) -> tuple[int, int, bool, bytes] | None:
+def _png_idat(data: bytes | memoryview | mmap.mmap) -> tuple[int, int, bool, bytes] | None:
     """Width, height, RGB?, the zlib stream of an 8-bit grey or RGB non-interlaced PNG with only
     inert chunks and correct CRCs, else None.  ``data`` may be a memoryview (of a mapped file):
     the chunks are checked in place and only the IDAT bodies are copied, once."""
@@ -190,7 +190,7 @@ def _png_idat(data: bytes | memoryview) -> tuple[int, int, bool, bytes] | None:
     return None
 
 
-def decode_png_grey(data: bytes | memoryview) -> npt.NDArray[np.uint8] | None:
+def decode_png_grey(data: bytes | memoryview | mmap.mmap) -> npt.NDArray[np.uint8] | None:
     """8-bit grey image of the PNG bytes ``data``, bit-identical to ``cv2.imdecode(data,
     cv2.IMREAD_GRAYSCALE)`` (libpng's grey weights, see :mod:`._png_kernels`), or None for a PNG
     variant not handled here (palette, 16 bit, alpha, interlaced, colour-managed, corrupt), which
