@@ -83,3 +83,17 @@ def peak_keys(eig, bits, mask, thr):  # pragma: no cover - numba
                 out[n] = (np.int64(b[x]) << 32) | (y * w + x)
                 n += 1
     return out[:n]
+
+
+@njit(cache=True, nogil=True)
+def clear_discs(mask, xs, ys, dxs, dys):  # pragma: no cover - numba
+    """Set ``mask`` to 0 at the pixels ``(x + dx, y + dy)`` inside the image, for every centre
+    ``(xs[i], ys[i])`` and offset ``(dxs[j], dys[j])`` (a disc's pixels, see
+    ``frontend.disc_offsets``)."""
+    h, w = mask.shape
+    for i in range(len(xs)):
+        for j in range(len(dxs)):
+            x = xs[i] + dxs[j]
+            y = ys[i] + dys[j]
+            if 0 <= x < w and 0 <= y < h:
+                mask[y, x] = 0
