@@ -141,6 +141,7 @@ class StereoFrontEnd:
         self._tracks: StereoObservations | None = None   # the last track() result
         self._filled = 0                                  # corners held after the last detection
         self._disc = disc_offsets(round(self.min_dist))
+        self._resid_px = math.inf   # largest |track - gyro prediction| of the last frame (px)
 
     def _pyramid(self, img: npt.NDArray[np.uint8]) -> Any:
         # OpenCV 5's Python binding no longer accepts the list of buildOpticalFlowPyramid as an
@@ -148,14 +149,17 @@ class StereoFrontEnd:
         return np.ascontiguousarray(img)
 
     def _lk(self, pyr0: Any, pyr1: Any, p0: npt.NDArray[np.float32],
-            guess: npt.NDArray[np.float32]) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.bool_]]:
-        """KLT from ``p0`` in image 0 to image 1 with a start guess, plus the backward check."""
+            guess: npt.NDArray[np.float32], levels: int | None = None
+            ) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.bool_]]:
+        """KLT from ``p0`` in image 0 to image 1 with a start guess, plus the backward check
+        (``levels`` pyramid levels, ``klt_levels`` by default)."""
         import cv2
 
         crit = self.crit
+        levels = self.levels if levels is None else levels
         p1, st, _ = cv2.calcOpticalFlowPyrLK(pyr0, pyr1, p0.reshape(-1, 1, 2),
                                              guess.reshape(-1, 1, 2).copy(), winSize=self.win,
-                                             maxLevel=self.levels, criteria=crit,
+                                             maxLevel=levels, criteria=crit,
                                              flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
         p1 = p1.reshape(-1, 2)
         w, h = self.rig.size
@@ -168,11 +172,24 @@ class StereoFrontEnd:
             q0 = p0.reshape(-1, 2)[fwd]
             pb, stb, _ = cv2.calcOpticalFlowPyrLK(pyr1, pyr0, p1[fwd].reshape(-1, 1, 2).copy(),
                                                   q0.reshape(-1, 1, 2).copy(), winSize=self.win,
-                                                  maxLevel=self.levels, criteria=crit,
+                                                  maxLevel=levels, criteria=crit,
                                                   flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
             fb = np.linalg.norm(pb.reshape(-1, 2) - q0, axis=1)
             ok[fwd] = (stb.ravel() == 1) & (fb < self.fb_px)
         return p1.astype(np.float32), ok
+
+    def _temporal_levels(self) -> int:
+        """Pyramid levels of the next temporal KLT: ``klt_levels``, or fewer (not below
+        ``klt_min_levels``) when the last frame's tracks all landed within a quarter of what
+        the fewer levels reach from the gyro's prediction (half a window per level, doubling
+        each level up): ``(win / 2) 2^L >= 4 r`` for the largest residual ``r`` of the last
+        frame.  Each level costs every corner the same (its window), the top ones included."""
+        lo = min(self.params.klt_min_levels, self.levels)
+        reach = self.win[0] / 2
+        for L in range(lo, self.levels):
+            if reach * 2 ** L >= 4.0 * self._resid_px:
+                return L
+        return self.levels
 
     def _predict(self, R_b0_b1: FloatArray | None) -> npt.NDArray[np.float32]:
         if R_b0_b1 is None or len(self.pts) == 0:
@@ -258,8 +275,12 @@ class StereoFrontEnd:
         pyr_l = self._pyramid(left)
         rl = np.zeros((0, 2))
         if self._prev_pyr is not None and len(self.pts) and self._tracks is not None:
-            p1, ok = self._lk(self._prev_pyr, pyr_l, self.pts, self._predict(R_b0_b1))
+            guess = self._predict(R_b0_b1)
+            p1, ok = self._lk(self._prev_pyr, pyr_l, self.pts, guess, self._temporal_levels())
             idx = np.flatnonzero(ok)
+            # how far the tracks moved from the gyro's prediction: the next frame's pyramid depth
+            self._resid_px = (float(np.abs(p1[idx] - guess[idx]).max()) if len(idx)
+                              else math.inf)
             # each point is rectified on its own: the previous frame's rectified corners and
             # these are reused below instead of rectifying again (the same numbers)
             prev = self._tracks
