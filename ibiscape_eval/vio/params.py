@@ -120,7 +120,7 @@ class VioParams:
         keyframes it had (the limit for both rules at 0.2 s or 0.3 s gave the dynamic drive
         0.40-0.45 % ATE against 0.20 %, at the edge of its run-to-run spread: not adopted).
         The temporal KLT drops to 2 pyramid levels (``klt_min_levels``) after a frame whose
-        tracks all landed within 8 px of the gyro's prediction: same run, rain front end
+        tracks all landed within 8 px of the gyro's prediction: consecutive runs, rain front end
         9.2 -> 8.2 ms per frame, ATE 0.38 -> 0.35 % (clear 0.16 -> 0.10 %, moderate 0.17 ->
         0.11 %: within the drives' run-to-run spread).
         """
