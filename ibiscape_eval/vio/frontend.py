@@ -29,7 +29,7 @@ from .backend import StereoObservations
 from .params import VioParams
 from .rig import StereoRig
 
-__all__ = ["StereoFrontEnd", "good_features"]
+__all__ = ["StereoFrontEnd", "disc_offsets", "good_features"]
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -64,24 +64,20 @@ def good_features(img: npt.NDArray[np.uint8], max_corners: int, quality: float,
     at most ``max_corners``.  The eigenvalues are computed in strips (:func:`_min_eigen`)."""
     import cv2
 
-    from ._corner_kernels import select_spaced
+    from ._corner_kernels import peak_keys, select_spaced
 
     h, w = img.shape
     eig = _min_eigen(img, block)
     top = float(cv2.minMaxLoc(eig, mask)[1])
-    cv2.threshold(eig, top * quality, 0, cv2.THRESH_TOZERO, dst=eig)
-    peak = cv2.dilate(eig, np.ones((3, 3), dtype=np.uint8))   # OpenCV's default 3x3 kernel
-    cand = cv2.bitwise_and(cv2.compare(eig, peak, cv2.CMP_EQ),
-                           cv2.compare(eig, np.zeros(1), cv2.CMP_GT))
-    cand[0], cand[-1], cand[:, 0], cand[:, -1] = 0, 0, 0, 0
-    cv2.bitwise_and(cand, mask, dst=cand)
-    found = cv2.findNonZero(cand)
-    if found is None or max_corners <= 0:
+    if max_corners <= 0:
         return np.zeros((0, 2), dtype=np.float32)
-    xy = found.reshape(-1, 2).astype(np.int64)
-    # one sort key: the value's bits (positive floats order like their bits) above the pixel
-    # index, so that equal values put the later pixel first, as OpenCV's sort does
-    key = (eig[xy[:, 1], xy[:, 0]].view(np.int32).astype(np.int64) << 32) | (xy[:, 1] * w + xy[:, 0])
+    # threshold, 3x3 dilation, compare, mask and findNonZero in one numba pass (5 fresh 256 KB
+    # images less per call); one sort key per candidate: the value's bits (positive floats
+    # order like their bits) above the pixel index, so that equal values put the later pixel
+    # first, as OpenCV's sort does
+    key = peak_keys(eig, eig.view(np.int32), mask, np.float32(top * quality))
+    if len(key) == 0:
+        return np.zeros((0, 2), dtype=np.float32)
     m = len(key)
     k = min(m, 8 * max_corners)  # the greedy selection rarely needs more of the strongest
     while True:
@@ -94,6 +90,19 @@ def good_features(img: npt.NDArray[np.uint8], max_corners: int, quality: float,
             break
         k = m
     return np.column_stack([xs[keep[:n]], ys[keep[:n]]]).astype(np.float32)
+
+
+def disc_offsets(r: int) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
+    """Offsets ``(dx, dy)`` of the pixels ``cv2.circle(img, centre, r, colour, -1)`` fills around
+    an integer centre (the same at every centre: its rasterisation is translation invariant,
+    only clipped at the image border)."""
+    import cv2
+
+    m = r + 2
+    canvas = np.zeros((2 * m + 1, 2 * m + 1), dtype=np.uint8)
+    cv2.circle(canvas, (m, m), r, 255, -1)
+    dy, dx = np.nonzero(canvas)
+    return dx.astype(np.int64) - m, dy.astype(np.int64) - m
 
 
 class StereoFrontEnd:
@@ -131,6 +140,8 @@ class StereoFrontEnd:
         self._next_id = 0
         self._tracks: StereoObservations | None = None   # the last track() result
         self._filled = 0                                  # corners held after the last detection
+        self._disc = disc_offsets(round(self.min_dist))
+        self._resid_px = math.inf   # largest |track - gyro prediction| of the last frame (px)
 
     def _pyramid(self, img: npt.NDArray[np.uint8]) -> Any:
         # OpenCV 5's Python binding no longer accepts the list of buildOpticalFlowPyramid as an
@@ -138,14 +149,17 @@ class StereoFrontEnd:
         return np.ascontiguousarray(img)
 
     def _lk(self, pyr0: Any, pyr1: Any, p0: npt.NDArray[np.float32],
-            guess: npt.NDArray[np.float32]) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.bool_]]:
-        """KLT from ``p0`` in image 0 to image 1 with a start guess, plus the backward check."""
+            guess: npt.NDArray[np.float32], levels: int | None = None
+            ) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.bool_]]:
+        """KLT from ``p0`` in image 0 to image 1 with a start guess, plus the backward check
+        (``levels`` pyramid levels, ``klt_levels`` by default)."""
         import cv2
 
         crit = self.crit
+        levels = self.levels if levels is None else levels
         p1, st, _ = cv2.calcOpticalFlowPyrLK(pyr0, pyr1, p0.reshape(-1, 1, 2),
                                              guess.reshape(-1, 1, 2).copy(), winSize=self.win,
-                                             maxLevel=self.levels, criteria=crit,
+                                             maxLevel=levels, criteria=crit,
                                              flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
         p1 = p1.reshape(-1, 2)
         w, h = self.rig.size
@@ -158,11 +172,24 @@ class StereoFrontEnd:
             q0 = p0.reshape(-1, 2)[fwd]
             pb, stb, _ = cv2.calcOpticalFlowPyrLK(pyr1, pyr0, p1[fwd].reshape(-1, 1, 2).copy(),
                                                   q0.reshape(-1, 1, 2).copy(), winSize=self.win,
-                                                  maxLevel=self.levels, criteria=crit,
+                                                  maxLevel=levels, criteria=crit,
                                                   flags=cv2.OPTFLOW_USE_INITIAL_FLOW)
             fb = np.linalg.norm(pb.reshape(-1, 2) - q0, axis=1)
             ok[fwd] = (stb.ravel() == 1) & (fb < self.fb_px)
         return p1.astype(np.float32), ok
+
+    def _temporal_levels(self) -> int:
+        """Pyramid levels of the next temporal KLT: ``klt_levels``, or fewer (not below
+        ``klt_min_levels``) when the last frame's tracks all landed within a quarter of what
+        the fewer levels reach from the gyro's prediction (half a window per level, doubling
+        each level up): ``(win / 2) 2^L >= 4 r`` for the largest residual ``r`` of the last
+        frame.  Each level costs every corner the same (its window), the top ones included."""
+        lo = min(self.params.klt_min_levels, self.levels)
+        reach = self.win[0] / 2
+        for L in range(lo, self.levels):
+            if reach * 2 ** L >= 4.0 * self._resid_px:
+                return L
+        return self.levels
 
     def _predict(self, R_b0_b1: FloatArray | None) -> npt.NDArray[np.float32]:
         if R_b0_b1 is None or len(self.pts) == 0:
@@ -196,7 +223,7 @@ class StereoFrontEnd:
 
     def _detect(self, img: npt.NDArray[np.uint8], pts: npt.NDArray[np.float32]
                 ) -> npt.NDArray[np.float32]:
-        import cv2
+        from ._corner_kernels import clear_discs
 
         p = self.params
         need = p.max_features - len(pts)
@@ -204,9 +231,10 @@ class StereoFrontEnd:
             return np.zeros((0, 2), dtype=np.float32)
         h, w = img.shape
         mask = np.full((h, w), 255, dtype=np.uint8)
-        r = round(self.min_dist)
-        for x, y in np.round(pts).astype(int):  # a disc per tracked corner (few hundred)
-            cv2.circle(mask, (int(x), int(y)), r, 0, -1)
+        # a disc per tracked corner, the pixels cv2.circle(mask, (x, y), r, 0, -1) fills (one
+        # numba call instead of a few hundred Python-level ones)
+        c0 = np.round(pts).astype(np.int64)
+        clear_discs(mask, c0[:, 0], c0[:, 1], *self._disc)
         border = max(self.win[0] // 2, 4)
         mask[:border], mask[-border:], mask[:, :border], mask[:, -border:] = 0, 0, 0, 0
         c = good_features(img, 2 * need + p.grid * p.grid, 0.01, self.min_dist, mask, 5)
@@ -247,8 +275,12 @@ class StereoFrontEnd:
         pyr_l = self._pyramid(left)
         rl = np.zeros((0, 2))
         if self._prev_pyr is not None and len(self.pts) and self._tracks is not None:
-            p1, ok = self._lk(self._prev_pyr, pyr_l, self.pts, self._predict(R_b0_b1))
+            guess = self._predict(R_b0_b1)
+            p1, ok = self._lk(self._prev_pyr, pyr_l, self.pts, guess, self._temporal_levels())
             idx = np.flatnonzero(ok)
+            # how far the tracks moved from the gyro's prediction: the next frame's pyramid depth
+            self._resid_px = (float(np.abs(p1[idx] - guess[idx]).max()) if len(idx)
+                              else math.inf)
             # each point is rectified on its own: the previous frame's rectified corners and
             # these are reused below instead of rectifying again (the same numbers)
             prev = self._tracks

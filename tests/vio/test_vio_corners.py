@@ -70,3 +70,21 @@ def test_rotvec_matrix_is_scipys(scale: float) -> None:
         rv = rng.normal(size=3) * scale
         np.testing.assert_allclose(rotvec_matrix(rv), Rotation.from_rotvec(rv).as_matrix(),
                                    rtol=0, atol=2e-15)
+
+
+@pytest.mark.parametrize("r", [3, 12, 13])
+def test_disc_stamps_are_cv2_circles_also_at_the_border(r: int) -> None:
+    """The detection mask's discs (one numba call) are the pixels ``cv2.circle(..., -1)`` fills,
+    clipped at the image border like it."""
+    from ibiscape_eval.vio._corner_kernels import clear_discs
+    from ibiscape_eval.vio.frontend import disc_offsets
+
+    rng = np.random.default_rng(r)
+    c = np.vstack([rng.integers(-5, 90, (40, 2)), [[0, 0], [79, 63], [-r, 10], [85, 70]]])
+    ref = np.full((64, 80), 255, dtype=np.uint8)
+    for x, y in c:
+        cv2.circle(ref, (int(x), int(y)), r, 0, -1)
+    got = np.full((64, 80), 255, dtype=np.uint8)
+    clear_discs(got, c[:, 0].astype(np.int64), c[:, 1].astype(np.int64), *disc_offsets(r))
+    assert (ref == 0).sum() > 0
+    np.testing.assert_array_equal(got, ref)

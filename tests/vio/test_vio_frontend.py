@@ -202,3 +202,26 @@ def test_forward_backward_check_rejects_tracks_into_another_scene():
     _, ok_fwd = loose._lk(img0, other, p0, p0)
     _, ok = fe._lk(img0, other, p0, p0)
     assert ok_fwd.mean() > 0.5 and ok.mean() < 0.1, (ok_fwd.mean(), ok.mean())
+
+
+def test_fewer_pyramid_levels_after_small_residuals_track_the_same():
+    """``klt_min_levels``: after frames whose tracks landed within a few pixels of the gyro's
+    prediction the temporal KLT runs on fewer levels; the tracks are the full pyramid's (within
+    0.01 px, the same ids).  A large residual brings the full pyramid back."""
+    rig = _rig()
+    tex = _texture(2)
+    fes = [StereoFrontEnd(rig, VioParams(max_features=150, klt_min_levels=m)) for m in (3, 2)]
+    used: list[int] = []
+    for k in range(5):
+        c = np.array([0.01 * k, 0.0, 0.1 * k])     # slow forward drive: residuals ~1 px
+        left = _render(tex, rig.left, c)
+        right = _render(tex, rig.left, c + np.array([0.4, 0.0, 0.0]))
+        used.append(fes[1]._temporal_levels())
+        for fe in fes:
+            fe.process(1_000_000_000 + k * 50_000_000, left, right)
+        np.testing.assert_array_equal(fes[0].ids, fes[1].ids)
+        np.testing.assert_allclose(fes[0].pts, fes[1].pts, atol=0.01)
+    assert used[0] == 3 and used[-1] == 2    # the first frames have no residual yet
+    assert fes[0]._temporal_levels() == 3
+    fes[1]._resid_px = 9.0                   # beyond a quarter of 2 levels' reach (32 px / 4)
+    assert fes[1]._temporal_levels() == 3

@@ -184,3 +184,21 @@ def test_not_a_png_and_missing(tmp_path: Path) -> None:
     bmp = tmp_path / "b.bmp"
     cv2.imwrite(str(bmp), _scene(8, 8))
     np.testing.assert_array_equal(read_gray_image(bmp), cv2.imread(str(bmp), cv2.IMREAD_GRAYSCALE))
+
+
+@pytest.mark.parametrize("cut", [0, 20, 60, -13])
+def test_truncated_or_empty_files_go_to_opencv(tmp_path: Path, cut: int) -> None:
+    """The mapped file's chunk walk never reads past its end: an empty file or one cut inside a
+    chunk is OpenCV's to refuse (or to decode, as it would)."""
+    f = tmp_path / "whole.png"
+    cv2.imwrite(str(f), _scene(40, 48))
+    data = f.read_bytes()
+    g = tmp_path / "cut.png"
+    g.write_bytes(data[:cut] if cut > 0 else data[:len(data) + cut] if cut else b"")
+    assert decode_png_grey(g.read_bytes()) is None
+    ref = cv2.imread(str(g), cv2.IMREAD_GRAYSCALE)
+    if ref is None:
+        with pytest.raises(FormatError, match=r"cut\.png"):
+            read_gray_image(g)
+    else:
+        np.testing.assert_array_equal(read_gray_image(g), ref)
