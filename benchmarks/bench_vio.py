@@ -15,7 +15,9 @@ sequences); ``--set NAME=VALUE ...`` changes its options.  One
 table per setup and weather: ATE after SE(3) alignment and RPE over 1 s (mean +- std) from the
 project's own metrics, the CPU milliseconds per frame of the front end (``StereoFrontEnd``) and
 of the back end (``Estimator``: keyframes, smoother), and the speed-up over real time by CPU time
-(sequence seconds per CPU second of reading + front end + back end) and by wall time.
+(sequence seconds per CPU second of reading + front end + back end) and by wall time.  OpenCV
+runs on ``--cv-threads`` threads (default 1, as ``ibiscape-eval vio`` runs it; 0: OpenCV's own
+default, which costs 15-25 % more CPU time per frame at 512 px for no shorter wall time).
 ``--cli`` runs ``ibiscape-eval vio SEQ -o est.txt --json`` in a fresh process instead (wall time,
 peak RSS, no split).  ``--speed-1024`` adds a 10 s 1024 x 1024 run for the speed factor there;
 ``--max-frames N`` stops each run after N frames (a quick profile).  ``--keep DIR --render-only``
@@ -103,9 +105,9 @@ def _score(est_path: Path, seq: Path) -> dict[str, float]:
             "rpe_deg": r.rotation_deg.mean, "rpe_deg_std": r.rotation_deg.std}
 
 
-def _vio(seq: Path, tmp: Path) -> dict[str, float]:
+def _vio(seq: Path, tmp: Path, cv_threads: int) -> dict[str, float]:
     est = tmp / f"{seq.name}_est.txt"
-    r = run([CLI, "vio", str(seq), "-o", str(est), "--json"])
+    r = run([CLI, "vio", str(seq), "-o", str(est), "--json", "--cv-threads", str(cv_threads)])
     if not r.ok:
         raise SystemExit(f"ibiscape-eval vio {seq} failed")
     doc = json.loads(r.stdout)
@@ -242,10 +244,16 @@ def _cpu_table(rows: list[tuple[str, str, dict[str, float]]]) -> None:
                   f"{r['cpu_speed']:>19.2f}x{r['nopng_cpu_speed']:>13.2f}x{r['speed']:>7.2f}x"
                   f"{r['peak_mb']:>8.0f} MB")
     print(f"(stereo: frames whose right image was decoded and matched; peak RSS of this "
-          f"process so far; load average {os.getloadavg()[0]:.1f})")
+          f"process so far; load average {os.getloadavg()[0]:.1f}; OpenCV threads {_cv_threads()})")
 
 
-def main() -> None:
+def _cv_threads() -> int:
+    import cv2
+
+    return int(cv2.getNumThreads())
+
+
+def _args() -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sequences", nargs="*", type=Path, help="rendered SVI sequence folders")
     ap.add_argument("--synthetic", action="store_true", help="synthetic measurements, no images")
@@ -261,13 +269,24 @@ def main() -> None:
     ap.add_argument("--max-frames", type=int, default=None, help="stop each run after N frames")
     ap.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE",
                     help="VioParams options of the in-process runs, e.g. --set klt_levels=3")
+    ap.add_argument("--cv-threads", type=int, default=1,
+                    help="OpenCV threads, as `ibiscape-eval vio --cv-threads` (its default 1; 0: OpenCV's)")
     a = ap.parse_args()
+    if a.cv_threads > 0 and not a.cli:  # what the CLI's cli.startup.opencv_threads does for its run
+        import cv2
+
+        cv2.setNumThreads(a.cv_threads)
+    return a
+
+
+def main() -> None:
+    a = _args()
     if a.render_only and a.keep is None:
         raise SystemExit("--render-only needs --keep DIR")
     params = _params(a.set)
 
     def vio(seq: Path) -> dict[str, float]:
-        return _vio(seq, tmp) if a.cli else _inprocess(seq, a.max_frames, params)
+        return _vio(seq, tmp, a.cv_threads) if a.cli else _inprocess(seq, a.max_frames, params)
 
     rows: list[tuple[str, str, dict[str, float]]] = []
     with tempfile.TemporaryDirectory(prefix="bench_vio_") as d:

@@ -12,6 +12,13 @@ commands read their inputs inside :func:`numba_startup`:
 
 Measured on ``ibiscape-eval ate`` over 1M TUM poses (2 shared cores, 12 alternating runs each):
 best 2.37 s with these tweaks, 2.79 s without (-15 %); medians 2.83 s and 3.98 s.
+
+``vio`` runs OpenCV on one thread (:func:`opencv_threads`, ``--cv-threads``): its per-frame
+calls are small (KLT of ~200 corners, corner detection on a 512 px image), and OpenCV's thread
+pool spent more CPU time handing them out than it saved.  Measured on the rendered 60 s drives at
+512 px (quiet machine, ``benchmarks/bench_vio.py``): front end 5.7 / 6.4 / 9.5 ms per frame with
+OpenCV's default threads, 4.2 / 5.4 / 7.4 ms with one; x real time by CPU time 3.93 / 3.29 / 2.83
+-> 4.51 / 3.61 / 3.43, the wall time no slower (the same estimates, bit for bit).
 """
 
 from __future__ import annotations
@@ -21,7 +28,7 @@ import gc
 import os
 from collections.abc import Iterator
 
-__all__ = ["numba_startup"]
+__all__ = ["numba_startup", "opencv_threads"]
 
 
 @contextlib.contextmanager
@@ -40,3 +47,20 @@ def numba_startup() -> Iterator[None]:
         gc.freeze()
         if collecting:
             gc.enable()
+
+
+@contextlib.contextmanager
+def opencv_threads(n: int) -> Iterator[None]:
+    """Run the block with ``cv2.setNumThreads(n)`` (``n <= 0``: leave OpenCV's setting), restored
+    afterwards (see the module doc)."""
+    if n <= 0:
+        yield
+        return
+    import cv2
+
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(n)
+    try:
+        yield
+    finally:
+        cv2.setNumThreads(before)

@@ -135,3 +135,28 @@ def test_vio_on_a_sequence_rendered_by_the_generator(tmp_path):
     length = gt.take(np.flatnonzero(gt.stamps_ns <= est.stamps_ns[-1])).path_length_m()[-1]
     assert length > 10.0
     assert r.translation_m.rmse < 0.02 * length, (r.translation_m.rmse, length)
+
+
+@pytest.mark.parametrize(("given", "during"), [((), 1), (("--cv-threads", "3"), 3), (("--cv-threads", "0"), None)])
+def test_opencv_threads_of_the_run_then_restored(street, tmp_path, monkeypatch, given, during):
+    """`vio` runs OpenCV on one thread by default (cheaper by CPU time, the same estimate),
+    `--cv-threads` changes it, 0 keeps OpenCV's own setting; the setting is restored after."""
+    import cv2
+
+    import ibiscape_eval.vio.pipeline as pipeline
+    from ibiscape_eval.core.errors import IbiscapeError
+
+    seen = []
+
+    def fake_run_vio(*a, **k):
+        seen.append(cv2.getNumThreads())
+        raise IbiscapeError("stopped by the test")
+
+    monkeypatch.setattr(pipeline, "run_vio", fake_run_vio)
+    before = cv2.getNumThreads()
+    seq, calib = street
+    res = run("vio", seq, "-o", tmp_path / "est.txt", "--calib", calib, *given)
+    _user_error(res, "stopped by the test")
+    assert seen == [before if during is None else during]
+    assert cv2.getNumThreads() == before
+    assert not (tmp_path / "est.txt").exists()
