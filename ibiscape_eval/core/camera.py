@@ -36,6 +36,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .errors import IbiscapeError
+from .jit import lazy_njit
 
 __all__ = ["DISTORTION_MODELS", "INVERSE_TOLERANCE_PX", "NEWTON_ITERATIONS", "CameraModel"]
 
@@ -203,32 +204,12 @@ class CameraModel:
         return self._undistort_radtan(xy_d)
 
     def _undistort_radtan(self, xy_d: FloatArray) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
-        k1, k2, p1, p2 = self.coeffs
-        xd, yd = xy_d[..., 0], xy_d[..., 1]
-        x, y = xd.copy(), yd.copy()
-        with np.errstate(all="ignore"):
-            for _ in range(NEWTON_ITERATIONS):
-                r2 = x * x + y * y
-                s = 1.0 + r2 * (k1 + k2 * r2)
-                ds = k1 + 2.0 * k2 * r2  # d s / d r2
-                fx = x * s + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x) - xd
-                fy = y * s + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y - yd
-                a = s + 2.0 * x * x * ds + 2.0 * p1 * y + 6.0 * p2 * x
-                b = 2.0 * x * y * ds + 2.0 * p1 * x + 2.0 * p2 * y
-                c = 2.0 * x * y * ds + 2.0 * p1 * x + 2.0 * p2 * y
-                d = s + 2.0 * y * y * ds + 6.0 * p1 * y + 2.0 * p2 * x
-                det = a * d - b * c
-                x = x - (d * fx - b * fy) / det
-                y = y - (a * fy - c * fx) / det
-            r2 = x * x + y * y
-            s = 1.0 + r2 * (k1 + k2 * r2)
-            ds = k1 + 2.0 * k2 * r2
-            a = s + 2.0 * x * x * ds + 2.0 * p1 * y + 6.0 * p2 * x
-            b = 2.0 * x * y * ds + 2.0 * p1 * x + 2.0 * p2 * y
-            d = s + 2.0 * y * y * ds + 6.0 * p1 * y + 2.0 * p2 * x
-            det = a * d - b * b
-        xy = np.stack([x, y], axis=-1)
-        return xy, self._check_inverse(xy, xy_d) & (det > 0)
+        flat = np.ascontiguousarray(xy_d.reshape(-1, 2))
+        xy = np.empty_like(flat)
+        ok = np.empty(len(flat), dtype=bool)
+        _radtan_undistort(flat, np.asarray(self.coeffs, dtype=np.float64), float(self.fx), float(self.fy),
+                          NEWTON_ITERATIONS, INVERSE_TOLERANCE_PX, xy, ok)
+        return xy.reshape(xy_d.shape), ok.reshape(xy_d.shape[:-1])
 
     def _undistort_equi(self, xy_d: FloatArray) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
         k1, k2, k3, k4 = self.coeffs
@@ -310,3 +291,44 @@ class CameraModel:
         dist = "" if self.distortion == "none" else f", {self.distortion} {list(self.coeffs)}"
         return (f"CameraModel({self.width_px}x{self.height_px}, f=({self.fx:.3f}, {self.fy:.3f}), "
                 f"c=({self.cx:.3f}, {self.cy:.3f}){dist})")
+
+
+@lazy_njit(error_model="numpy")
+def _radtan_undistort(xy_d, coeffs, fx, fy, iterations, tol_px, xy, ok):
+    """Newton inversion of the radial-tangential distortion of each row of ``xy_d`` (N, 2) into
+    ``xy``, stopped once an iterate repeats exactly (later iterations would reproduce it: the
+    result equals ``iterations`` full steps bit for bit); ``ok``: re-distorting lands within
+    ``tol_px`` of the input and the map does not fold over (positive Jacobian determinant).
+
+    A kernel because the numpy form made ~30 temporaries per iteration: 1.13 s CPU for the 1.1 M
+    supersamples of a 384 px calibration-board view, 0.2 s in this form (measured, #25)."""
+    k1, k2, p1, p2 = coeffs[0], coeffs[1], coeffs[2], coeffs[3]
+    for n in range(xy_d.shape[0]):
+        xd, yd = xy_d[n, 0], xy_d[n, 1]
+        x, y = xd, yd
+        for _ in range(iterations):
+            r2 = x * x + y * y
+            s = 1.0 + r2 * (k1 + k2 * r2)
+            ds = k1 + 2.0 * k2 * r2  # d s / d r2
+            fx_ = x * s + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x) - xd
+            fy_ = y * s + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y - yd
+            a = s + 2.0 * x * x * ds + 2.0 * p1 * y + 6.0 * p2 * x
+            b = 2.0 * x * y * ds + 2.0 * p1 * x + 2.0 * p2 * y
+            d = s + 2.0 * y * y * ds + 6.0 * p1 * y + 2.0 * p2 * x
+            det = a * d - b * b
+            xn = x - (d * fx_ - b * fy_) / det
+            yn = y - (a * fy_ - b * fx_) / det
+            if xn == x and yn == y:
+                break
+            x, y = xn, yn
+        r2 = x * x + y * y
+        s = 1.0 + r2 * (k1 + k2 * r2)
+        ds = k1 + 2.0 * k2 * r2
+        a = s + 2.0 * x * x * ds + 2.0 * p1 * y + 6.0 * p2 * x
+        b = 2.0 * x * y * ds + 2.0 * p1 * x + 2.0 * p2 * y
+        d = s + 2.0 * y * y * ds + 6.0 * p1 * y + 2.0 * p2 * x
+        ex = (x * s + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x)) - xd
+        ey = (y * s + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y) - yd
+        err = np.hypot(ex * fx, ey * fy)
+        xy[n, 0], xy[n, 1] = x, y
+        ok[n] = np.isfinite(err) and err < tol_px and a * d - b * b > 0

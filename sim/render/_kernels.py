@@ -55,69 +55,6 @@ def pinhole_subpixel_dirs(rows, cols, off, fx, fy, cx, cy, out):
     return out
 
 
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def radtan_subpixel_dirs(rows, cols, off, cam, coeffs, iterations, tol_px, out, ok):
-    """:func:`pinhole_subpixel_dirs` through radial-tangential distortion: per sample the Newton
-    inversion of ``CameraModel.undistort`` ("radtan"), with the same float64 arithmetic, stopped
-    early once an iterate repeats exactly (later iterations would reproduce it), so ``out`` equals
-    ``unproject`` bit for bit.  ``cam = (fx, fy, cx, cy)``, ``coeffs = (k1, k2, p1, p2)``;
-    ``ok[k, q]`` as ``unproject``'s flag (re-distortion within ``tol_px``, no fold-over).
-
-    Written as a kernel because the numpy form allocates ~30 temporaries per iteration: 1.13 s
-    CPU for 1.1 M sub-samples of a 384 px calibration view (measured), most of the drive's
-    board supersampling."""
-    fx, fy, cx, cy = cam[0], cam[1], cam[2], cam[3]
-    k1, k2, p1, p2 = coeffs[0], coeffs[1], coeffs[2], coeffs[3]
-    s = off.shape[0]
-    for k in range(rows.shape[0]):
-        for i in range(s):
-            yd = (rows[k] + off[i] - cy) / fy
-            for j in range(s):
-                xd = (cols[k] + off[j] - cx) / fx
-                x, y = _radtan_newton(xd, yd, k1, k2, p1, p2, iterations)
-                q = i * s + j
-                out[k, q, 0] = x
-                out[k, q, 1] = y
-                out[k, q, 2] = 1.0
-                ok[k, q] = _radtan_inverse_ok(x, y, xd, yd, k1, k2, p1, p2, fx, fy, tol_px)
-    return out
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _radtan_newton(xd, yd, k1, k2, p1, p2, iterations):
-    x, y = xd, yd
-    for _ in range(iterations):
-        r2 = x * x + y * y
-        s = 1.0 + r2 * (k1 + k2 * r2)
-        ds = k1 + 2.0 * k2 * r2
-        fx_ = x * s + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x) - xd
-        fy_ = y * s + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y - yd
-        a = s + 2.0 * x * x * ds + 2.0 * p1 * y + 6.0 * p2 * x
-        b = 2.0 * x * y * ds + 2.0 * p1 * x + 2.0 * p2 * y
-        d = s + 2.0 * y * y * ds + 6.0 * p1 * y + 2.0 * p2 * x
-        det = a * d - b * b
-        xn = x - (d * fx_ - b * fy_) / det
-        yn = y - (a * fy_ - b * fx_) / det
-        if xn == x and yn == y:
-            break
-        x, y = xn, yn
-    return x, y
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _radtan_inverse_ok(x, y, xd, yd, k1, k2, p1, p2, fx, fy, tol_px):
-    r2 = x * x + y * y
-    s = 1.0 + r2 * (k1 + k2 * r2)
-    ds = k1 + 2.0 * k2 * r2
-    a = s + 2.0 * x * x * ds + 2.0 * p1 * y + 6.0 * p2 * x
-    b = 2.0 * x * y * ds + 2.0 * p1 * x + 2.0 * p2 * y
-    d = s + 2.0 * y * y * ds + 6.0 * p1 * y + 2.0 * p2 * x
-    ex = (x * s + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x)) - xd
-    ey = (y * s + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y) - yd
-    err = np.hypot(ex * fx, ey * fy)
-    return np.isfinite(err) and err < tol_px and a * d - b * b > 0
-
-
 @nb.njit(cache=True, nogil=True)
 def rect_mask(dirs, rects, mask):
     """``mask[i] |= (x_i, y_i)`` inside any rectangle ``[x0, x1, y0, y1]`` of ``rects`` (K, 4),

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ibiscape_eval.core.camera import INVERSE_TOLERANCE_PX, NEWTON_ITERATIONS, CameraModel
+from ibiscape_eval.core.camera import CameraModel
 
 __all__ = ["camera_model", "camera_rays", "subpixel_rays", "world_rays"]
 
@@ -49,30 +49,13 @@ def subpixel_rays(model: CameraModel, rows: npt.ArrayLike, cols: npt.ArrayLike, 
         out = np.empty((len(r), s * s, 3), np.float32)
         return pinhole_subpixel_dirs(r[:, 0], c[:, 0], off, float(model.fx), float(model.fy),
                                      float(model.cx), float(model.cy), out)
-    if model.distortion == "radtan":
-        rays, ok = _radtan_subpixel(model, r[:, 0], c[:, 0], off)
-    else:
-        du, dv = np.meshgrid(off, off)
-        uv = np.stack([c + du.ravel()[None, :], r + dv.ravel()[None, :]], axis=-1)  # (K, s*s, 2)
-        rays, ok = model.unproject(uv)
+    du, dv = np.meshgrid(off, off)
+    uv = np.stack([c + du.ravel()[None, :], r + dv.ravel()[None, :]], axis=-1)  # (K, s*s, 2)
+    rays, ok = model.unproject(uv)
     if not ok.all():  # pixels whose centre inverts but a sub-sample does not: use the centre ray
         centre, _ = model.unproject(np.concatenate([c, r], axis=-1))
         rays = np.where(ok[..., None], rays, centre[:, None, :])
     return rays.astype(np.float32, copy=False)
-
-
-def _radtan_subpixel(model: CameraModel, rows: np.ndarray, cols: np.ndarray, off: np.ndarray
-                     ) -> tuple[np.ndarray, np.ndarray]:
-    """``model.unproject`` of the sub-samples, bit for bit, in one numba pass (see the kernel)."""
-    from ._kernels import radtan_subpixel_dirs
-
-    n = len(rows)
-    rays = np.empty((n, off.size * off.size, 3), np.float64)
-    ok = np.empty((n, off.size * off.size), np.bool_)
-    cam = np.array([model.fx, model.fy, model.cx, model.cy], np.float64)
-    radtan_subpixel_dirs(rows, cols, off, cam, np.asarray(model.coeffs, np.float64), NEWTON_ITERATIONS,
-                         INVERSE_TOLERANCE_PX, rays, ok)
-    return rays, ok
 
 
 def world_rays(dirs_cam: npt.ArrayLike, T_world_cam: npt.ArrayLike, out: F32 | None = None) -> F32:

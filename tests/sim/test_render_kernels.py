@@ -225,9 +225,9 @@ def test_pinhole_subpixel_rays_equal_unproject_bit_for_bit() -> None:
 
 @pytest.mark.parametrize("coeffs", [(-0.28, 0.07, 1e-4, -2e-4), (-0.09, 0.0, 0.002, -0.001)])
 def test_radtan_subpixel_rays_equal_unproject_bit_for_bit(coeffs) -> None:
-    """The numba Newton inversion of radial-tangential sub-samples is CameraModel.unproject's, bit
+    """The supersample directions of a radial-tangential camera are CameraModel.unproject's, bit
     for bit; sub-samples that do not invert (the strongly distorted corners of the second model)
-    take their pixel centre's ray (NaN where that fails too), as before (#25: 1.13 -> 0.2 s CPU per 384 px board view)."""
+    take their pixel centre's ray (NaN where that fails too)."""
     from ibiscape_eval.sim.render.rays import subpixel_rays
 
     model = CameraModel(97, 61, 40.5, 41.25, 48.3, 29.9, "radtan", coeffs)
