@@ -232,21 +232,27 @@ def rows_dot(A: FloatArray, B: FloatArray) -> FloatArray:
 # residual blocks
 
 
+def _spline_at(prob: Problem, st: State, base: IntArray, u: FloatArray, *, jac: bool
+               ) -> tuple[IntArray, FloatArray, FloatArray, FloatArray | None, FloatArray | None, FloatArray]:
+    """Control-point indices (n, 4) of the spline segments ``base`` at fractions ``u``, the
+    rotation, the angular rate, with ``jac`` their Jacobians on the rotation control points (else
+    None), and the segments' position control points."""
+    idx = base[:, None] + _ARANGE4
+    if jac:
+        R, w, J_R, J_w = rotation_jacobians(st.R_ctrl[idx], u, prob.dt_s)
+        return idx, R, w, J_R, J_w, st.P_ctrl[idx]
+    R, w_ = rotation(st.R_ctrl[idx], u, prob.dt_s)
+    assert w_ is not None
+    return idx, R, w_, None, None, st.P_ctrl[idx]
+
+
 def imu_block(prob: Problem, st: State, *, jac: bool
               ) -> tuple[FloatArray, FloatArray | None, IntArray | None, IntArray | None]:
     """IMU residuals (n, 6); with ``jac``: local Jacobians (n, 6, 38), their global column indices
     (n, 38) and a group key per sample (samples with equal keys share all columns)."""
     t = prob.imu_t_s
     base, u, _ = prob.locate(t)
-    idx = base[:, None] + _ARANGE4
-    Rl = st.R_ctrl[idx]
-    Pl = st.P_ctrl[idx]
-    if jac:
-        R, w, J_R, J_w = rotation_jacobians(Rl, u, prob.dt_s)
-    else:
-        R, w_ = rotation(Rl, u, prob.dt_s)
-        assert w_ is not None
-        w = w_
+    idx, R, w, J_R, J_w, Pl = _spline_at(prob, st, base, u, jac=jac)
     _, _, acc = position(Pl, u, prob.dt_s)
     k, al = prob.bias_locate(t)
     b = (1.0 - al)[:, None] * st.bias[k] + al[:, None] * st.bias[k + 1]
@@ -258,6 +264,7 @@ def imu_block(prob: Problem, st: State, *, jac: bool
     r[:, 3:] = (f + b[:, 3:] - prob.accel) / sa
     if not jac:
         return r, None, None, None
+    assert J_R is not None and J_w is not None
     n = t.size
     J = np.zeros((n, 6, 38))
     # rotation control points: w exactly; f = R^T (acc - g) moves by [f]x J_R delta
@@ -293,15 +300,7 @@ def camera_block(prob: Problem, st: State, c: int, *, jac: bool
     cb = prob.cams[c]
     t = cb.t_s + st.shift_s[c]
     base, u, inside = prob.locate(t)
-    idx = base[:, None] + _ARANGE4
-    Rl = st.R_ctrl[idx]
-    Pl = st.P_ctrl[idx]
-    if jac:
-        R, w, J_R, _ = rotation_jacobians(Rl, u, prob.dt_s)
-    else:
-        R, w_ = rotation(Rl, u, prob.dt_s)
-        assert w_ is not None
-        w = w_
+    idx, R, w, J_R, _, Pl = _spline_at(prob, st, base, u, jac=jac)
     p, v, _ = position(Pl, u, prob.dt_s)
     Rci, tci = st.R_ci[c], st.t_ci[c]
     D = cb.X - p[:, None, :]  # (F, M, 3)
@@ -315,6 +314,7 @@ def camera_block(prob: Problem, st: State, c: int, *, jac: bool
     r = np.where(valid[..., None], (uv - cb.uv) / s, 0.0)
     if not jac:
         return r, None, None, valid
+    assert J_R is not None
     F, M = z.shape
     # projection Jacobian (F, M, 2, 3), exact (pinhole with radtan or equidistant distortion)
     pcv = np.where(valid[..., None], pc, np.array([0.0, 0.0, 1.0]))
