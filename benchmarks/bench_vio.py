@@ -272,7 +272,7 @@ def _args() -> argparse.Namespace:
     ap.add_argument("--cv-threads", type=int, default=1,
                     help="OpenCV threads, as `ibiscape-eval vio --cv-threads` (its default 1; 0: OpenCV's)")
     a = ap.parse_args()
-    if a.cv_threads > 0 and not a.cli:  # what the CLI's cli.startup.opencv_threads does for its run
+    if a.cv_threads > 0 and not a.cli:  # what the CLI's run does (core.cpus.opencv_threads)
         import cv2
 
         cv2.setNumThreads(a.cv_threads)

@@ -13,7 +13,7 @@ commands read their inputs inside :func:`numba_startup`:
 Measured on ``ibiscape-eval ate`` over 1M TUM poses (2 shared cores, 12 alternating runs each):
 best 2.37 s with these tweaks, 2.79 s without (-15 %); medians 2.83 s and 3.98 s.
 
-``vio`` runs OpenCV on one thread (:func:`opencv_threads`, ``--cv-threads``): its per-frame
+``vio`` runs OpenCV on one thread (``ibiscape_eval.core.cpus.opencv_threads``, ``--cv-threads``): its per-frame
 calls are small (KLT of ~200 corners, corner detection on a 512 px image), and OpenCV's thread
 pool spent more CPU time handing them out than it saved.  Measured on the rendered 60 s drives at
 512 px (quiet machine, ``benchmarks/bench_vio.py``): front end 5.7 / 6.4 / 9.5 ms per frame with
@@ -28,7 +28,7 @@ import gc
 import os
 from collections.abc import Iterator
 
-__all__ = ["numba_startup", "opencv_threads"]
+__all__ = ["numba_startup"]
 
 
 @contextlib.contextmanager
@@ -48,19 +48,3 @@ def numba_startup() -> Iterator[None]:
         if collecting:
             gc.enable()
 
-
-@contextlib.contextmanager
-def opencv_threads(n: int) -> Iterator[None]:
-    """Run the block with ``cv2.setNumThreads(n)`` (``n <= 0``: leave OpenCV's setting), restored
-    afterwards (see the module doc)."""
-    if n <= 0:
-        yield
-        return
-    import cv2
-
-    before = cv2.getNumThreads()
-    cv2.setNumThreads(n)
-    try:
-        yield
-    finally:
-        cv2.setNumThreads(before)

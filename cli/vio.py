@@ -119,7 +119,7 @@ def vio(sequence: Path, out: Path, calib: Path | None, imu_yaml: Path | None,
         bar.set_postfix_str(f"x{speed_up:.2f} real time", refresh=False)
         bar.update(done - bar.n)
 
-    from .startup import opencv_threads
+    from ibiscape_eval.core.cpus import opencv_threads
 
     try:
         with opencv_threads(cv_threads):

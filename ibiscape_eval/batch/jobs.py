@@ -174,16 +174,12 @@ def _single_threaded_kernels() -> Iterator[None]:
     two runs of the same camera calibration differed, with one OpenCV thread they are
     identical); the parallelism of a batch comes from running jobs side by side.
     """
-    import cv2
     from threadpoolctl import threadpool_limits
 
-    n_cv = cv2.getNumThreads()
-    cv2.setNumThreads(1)
-    try:
-        with threadpool_limits(limits=1, user_api="blas"):
-            yield
-    finally:
-        cv2.setNumThreads(n_cv)
+    from ibiscape_eval.core.cpus import opencv_threads
+
+    with opencv_threads(1), threadpool_limits(limits=1, user_api="blas"):
+        yield
 
 
 def run_job(job: Job) -> JobResult:

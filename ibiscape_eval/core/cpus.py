@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
+from collections.abc import Iterator
 
-__all__ = ["usable_cpus"]
+__all__ = ["opencv_threads", "usable_cpus"]
 
 
 def usable_cpus() -> int:
@@ -13,3 +15,21 @@ def usable_cpus() -> int:
         return max(1, len(os.sched_getaffinity(0)))
     except (AttributeError, OSError):  # pragma: no cover (not Linux)
         return os.cpu_count() or 1
+
+
+@contextlib.contextmanager
+def opencv_threads(n: int) -> Iterator[None]:
+    """Run the block with ``cv2.setNumThreads(n)`` (``n <= 0``: leave OpenCV's setting), restored
+    afterwards.  OpenCV's thread count is process-wide: the library calls this only where it owns
+    the process's work (a batch job); the CLI's ``vio`` runs under it (``--cv-threads``)."""
+    if n <= 0:
+        yield
+        return
+    import cv2
+
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(n)
+    try:
+        yield
+    finally:
+        cv2.setNumThreads(before)
