@@ -500,6 +500,22 @@ def finish_into(alb, ndl, amb, depth, rays, paved, uv, tab, sky, optics, scale, 
 
 
 @nb.njit(cache=True, nogil=True)
+def streaks_into(img, cov, glow):
+    """Rain streaks over the radiance ``img`` (N, 3) in place: ``I (1 - a) + a glow`` with
+    ``a = 0.45 cov`` (``cov`` (N,) the streak coverage), in float32 as numpy computes it, only
+    where ``cov`` is not 0 (elsewhere the blend returns ``I``; streaks cover a few % of an image)."""
+    g = np.float32(glow)
+    one = np.float32(1.0)
+    for i in range(cov.shape[0]):
+        c = cov[i]
+        if c != 0.0:
+            a = np.float32(0.45) * c
+            for k in range(3):
+                img[i, k] = img[i, k] * (one - a) + a * g
+    return img
+
+
+@nb.njit(cache=True, nogil=True)
 def board_footprints_flat(rays, per_pixel, cand, var, poses, boards, diffs, out):
     """``out[k]``: whether the ``per_pixel = s * s`` rays of pixel ``k`` (rows ``k per_pixel ...``
     of ``rays`` (K per_pixel, 6), an s x s grid) all meet the plane of board ``var[k]`` (pose

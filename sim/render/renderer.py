@@ -320,9 +320,10 @@ class Renderer:
         if rain and self.options.weather_optics and w.precipitation > 0:
             glow = float(np.clip(255.0 * light.gain * horizon_radiance(w, light).mean() * 1.3, 0, 255))
             cov = rain_streaks(model, T, depth, t_ns, w, seed=self.seed, brightness=1.0)
-            if cov is not None:
-                a = (0.45 * cov)[..., None]
-                img = img * (1.0 - a) + a * np.float32(glow)
+            if cov is not None:  # in place: ``rad`` is this view's own buffer
+                from ._kernels import streaks_into
+
+                streaks_into(rad, cov.reshape(-1), np.float32(glow))
         if blur:
             import cv2
 
