@@ -175,11 +175,15 @@ def _occluded(origins, s, s0, e1, e2, origin, cell, na, nb, start, items, tri, t
     sd = s[0] * s0[0] + s[1] * s0[1] + s[2] * s0[2]
     sa = s[0] * e1[0] + s[1] * e1[1] + s[2] * e1[2]
     sb = s[0] * e2[0] + s[1] * e2[1] + s[2] * e2[2]
+    last = -1  # the triangle that shaded the last shaded ray: neighbouring pixels share shadows
     for r in range(origins.shape[0]):
         px, py, pz = np.float64(origins[r, 0]), np.float64(origins[r, 1]), np.float64(origins[r, 2])
         h = px * s0[0] + py * s0[1] + pz * s0[2]
         out[r] = False
         if h >= h_max:
+            continue
+        if last >= 0 and top[last] > h and _hits(px, py, pz, s, tri[last]):
+            out[r] = True  # a hit is a hit: the walk below would find this triangle or another
             continue
         pa = px * e1[0] + py * e1[1] + pz * e1[2] - origin[0]
         pb = px * e2[0] + py * e2[1] + pz * e2[2] - origin[1]
@@ -199,6 +203,7 @@ def _occluded(origins, s, s0, e1, e2, origin, cell, na, nb, start, items, tri, t
                         break
                     if _hits(px, py, pz, s, tri[k]):
                         hit = True
+                        last = k
                         break
                 if hit:
                     break
