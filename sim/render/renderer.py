@@ -698,12 +698,13 @@ class Renderer:
         front = (pc[..., 2] > _NEAR_PLANE_M).all(axis=1)
         behind = (pc[..., 2] <= _NEAR_PLANE_M).all(axis=1)
         margin = 2 + 0.02 * max(H, W)
-        for k in np.flatnonzero(front):
-            uv = model.project(pc[k])
-            if not np.isfinite(uv).all():
-                return None
-            u0, v0 = np.floor(uv.min(axis=0) - margin).astype(int)
-            u1, v1 = np.ceil(uv.max(axis=0) + margin).astype(int)
+        ahead = np.flatnonzero(front)
+        uv = model.project(pc[ahead].reshape(-1, 3)).reshape(-1, 8, 2)  # every mover ahead at once
+        if not np.isfinite(uv).all():
+            return None
+        lo = np.floor(uv.min(axis=1) - margin).astype(int)
+        hi = np.ceil(uv.max(axis=1) + margin).astype(int)
+        for (u0, v0), (u1, v1) in zip(lo.tolist(), hi.tolist(), strict=True):
             if u1 < 0 or v1 < 0 or u0 >= W or v0 >= H:
                 continue
             mask[max(v0, 0):min(v1 + 1, H), max(u0, 0):min(u1 + 1, W)] = True
