@@ -352,7 +352,9 @@ def _shadow_ray(i, count, ox, oy, oz, sun, grid, srays, spix, smov):
     spix[count] = i
     ga = int(np.floor((ox * e1[0] + oy * e1[1] + oz * e1[2] - sa0) / scell))
     gb = int(np.floor((ox * e2[0] + oy * e2[1] + oz * e2[2] - sb0) / scell))
-    smov[count] = 0 <= ga < sgrid.shape[1] and 0 <= gb < sgrid.shape[0] and sgrid[gb, ga]
+    h, w = sgrid.shape
+    inside = (ga >= 0) & (ga < w) & (gb >= 0) & (gb < h)  # without branches: mostly inside, mostly 0
+    smov[count] = inside & sgrid[gb if inside else 0, ga if inside else 0]
 
 
 @nb.njit(cache=True, nogil=True)
