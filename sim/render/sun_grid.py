@@ -175,7 +175,7 @@ def _occluded(origins, s, s0, e1, e2, origin, cell, na, nb, start, items, tri, t
     sd = s[0] * s0[0] + s[1] * s0[1] + s[2] * s0[2]
     sa = s[0] * e1[0] + s[1] * e1[1] + s[2] * e1[2]
     sb = s[0] * e2[0] + s[1] * e2[1] + s[2] * e2[2]
-    last = -1  # the triangle that shaded the last shaded ray: neighbouring pixels share shadows
+    last = -1  # the triangle that shaded the last ray, if it was shaded: neighbouring pixels share shadows
     for r in range(origins.shape[0]):
         px, py, pz = np.float64(origins[r, 0]), np.float64(origins[r, 1]), np.float64(origins[r, 2])
         h = px * s0[0] + py * s0[1] + pz * s0[2]
@@ -210,6 +210,8 @@ def _occluded(origins, s, s0, e1, e2, origin, cell, na, nb, start, items, tri, t
             if hit:
                 break
         out[r] = hit
+        if not hit:  # lit: the next ray likely is too (skip the last shading triangle's test)
+            last = -1
     return out
 
 
