@@ -37,6 +37,7 @@ NEAR_M = 1e-3  #: surfaces closer than this to the camera centre are not seen
 _CHUNK = 64  # consecutive triangles culled together by their bounding box
 _EPS = 1e-9  # relative margin on the outline in normalised coordinates (far below a pixel)
 _TIE = 1.0 - 1e-9  # a later triangle must be nearer by this factor: coplanar ties go to the lower id
+_ZCUT = 1e-3  # relative margin below a triangle's nearest vertex of the z-buffer values it skips
 
 
 @dataclass(frozen=True, eq=False)
@@ -75,8 +76,9 @@ _BOUNDS: dict[int, tuple[np.ndarray, tuple[np.ndarray, ...]]] = {}
 
 def ray_bounds(dirs: F32) -> tuple[np.ndarray, ...]:
     """``colmin, colmax, rowmin, rowmax``: per column (row) the monotone envelope of the rays'
-    normalised ``x`` (``y``) over the image, and ``rowlo, rowhi``: the range of ``y`` in each row
-    (cached per ray table: the renderer's are cached)."""
+    normalised ``x`` (``y``) over the image, ``rowlo, rowhi``: the range of ``y`` in each row, and
+    ``unit_z`` (1,): whether every ray has ``z = 1`` (its hits' ``t`` are their z-depths) (cached
+    per ray table: the renderer's are cached)."""
     hit = _BOUNDS.get(id(dirs))
     if hit is not None and hit[0] is dirs:
         return hit[1]
@@ -86,7 +88,8 @@ def ray_bounds(dirs: F32) -> tuple[np.ndarray, ...]:
     colmax = np.maximum.accumulate(x.max(axis=0))
     rowmin = np.minimum.accumulate(y.min(axis=1)[::-1])[::-1].copy()
     rowmax = np.maximum.accumulate(y.max(axis=1))
-    out = (colmin, colmax, rowmin, rowmax, y.min(axis=1), y.max(axis=1))
+    unit_z = np.array([bool((dirs[..., 2] == 1.0).all())])
+    out = (colmin, colmax, rowmin, rowmax, y.min(axis=1), y.max(axis=1), unit_z)
     if len(_BOUNDS) >= 32:
         _BOUNDS.clear()
     _BOUNDS[id(dirs)] = (dirs, out)
@@ -223,7 +226,7 @@ def _zbuffer(Vc, tris, visible, chunk, d, w, bounds, near, zbuf, ids, uv):
     ``uv`` (float32) of vertices 1 and 2 of every ray ``d`` (N, 3) (``bounds``: :func:`ray_bounds`)."""
     zbuf[:] = np.inf
     ids[:] = -1
-    colmin, colmax, rowmin, rowmax, rowlo, rowhi = bounds
+    colmin, colmax, rowmin, rowmax, rowlo, rowhi, unit_z = bounds
     px, py = np.empty(4), np.empty(4)
     nt = tris.shape[0]
     for ch in range(visible.shape[0]):
@@ -242,14 +245,20 @@ def _zbuffer(Vc, tris, visible, chunk, d, w, bounds, near, zbuf, ids, uv):
             r0, r1 = _first(rowmax, y0, False), _first(rowmin, y1, True) - 1
             if c0 > c1 or r0 > r1:
                 continue
-            _scan(Vc, ia, ib, ic, k, d, w, px, py, m, c0, c1, r0, r1, colmin, colmax, rowlo, rowhi, zbuf, ids, uv)
+            # a ray whose nearest hit so far is nearer than every vertex cannot take this triangle
+            # (with a margin far above the rounding of t; off unless t is the z-depth)
+            zcut = min(Vc[ia, 2], Vc[ib, 2], Vc[ic, 2]) * (1.0 - _ZCUT) if unit_z[0] else -np.inf
+            _scan(Vc, ia, ib, ic, k, d, w, px, py, m, c0, c1, r0, r1, colmin, colmax, rowlo, rowhi, zcut, zbuf,
+                  ids, uv)
     return zbuf
 
 
 @nb.njit(cache=True, inline="always")
-def _scan(Vc, ia, ib, ic, k, d, w, px, py, m, c0, c1, r0, r1, colmin, colmax, rowlo, rowhi, zbuf, ids, uv):
+def _scan(Vc, ia, ib, ic, k, d, w, px, py, m, c0, c1, r0, r1, colmin, colmax, rowlo, rowhi, zcut, zbuf, ids,
+          uv):
     # test the rays of rows r0..r1, columns c0..c1 (per row only those the outline's band may
-    # cover, when the box is wide) against triangle k; keep the nearest hit
+    # cover, when the box is wide) against triangle k, but those whose z-buffer is at or below
+    # zcut; keep the nearest hit
     ax, ay, az = Vc[ia, 0], Vc[ia, 1], Vc[ia, 2]
     bx, by, bz = Vc[ib, 0], Vc[ib, 1], Vc[ib, 2]
     cx, cy, cz = Vc[ic, 0], Vc[ic, 1], Vc[ic, 2]
@@ -270,6 +279,8 @@ def _scan(Vc, ia, ib, ic, k, d, w, px, py, m, c0, c1, r0, r1, colmin, colmax, ro
             ce = min(c1, _first(colmin, xh + _EPS * (1.0 + abs(xh)), True) - 1)
         for col in range(cs, ce + 1):
             p = r * w + col
+            if zbuf[p] <= zcut:
+                continue
             dx, dy, dz = np.float64(d[p, 0]), np.float64(d[p, 1]), np.float64(d[p, 2])
             w0 = dx * e0x + dy * e0y + dz * e0z
             w1 = dx * e1x + dy * e1y + dz * e1z
