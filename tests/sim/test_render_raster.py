@@ -170,3 +170,25 @@ def test_first_index_search_is_numpy_searchsorted() -> None:
         for x in [*rng.normal(size=10) * 2, *a, -np.inf, np.inf]:
             for right in (False, True):
                 assert first(a, x, right) == np.searchsorted(a, x, side="right" if right else "left")
+
+
+def test_depth_cut_leaves_every_hit_as_without_it(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The z-buffer skips the rays whose nearest hit so far is nearer than a triangle's nearest
+    vertex: on a town street (buildings behind buildings) the hits are bit for bit those of the
+    z-buffer testing every ray (a cut without its margin fails here)."""
+    from ibiscape_eval.sim.render import raster
+
+    world = build_world(kind="slam", seed=3, scene="clear", town_blocks=2)
+    st = Renderer(world).static
+    mesh = raster_mesh(st.occluder_vertices, st.triangles)
+    model = CameraModel.from_fov(160, 120, 90.0)
+    dirs = camera_rays(model)
+    T = _pose((30.0, 78.45, 2.8), 0.0)
+    cut = [np.array(a, copy=True) for a in cast_camera(mesh, dirs, T)]
+    bounds = raster.ray_bounds(dirs)
+    assert bounds[6][0]  # the camera's rays have z = 1: the cut is on
+    monkeypatch.setattr(raster, "ray_bounds", lambda d: (*bounds[:6], np.array([False])))
+    full = cast_camera(mesh, dirs, T)
+    for a, b in zip(cut, full, strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert np.isfinite(cut[0]).mean() > 0.5

@@ -99,3 +99,21 @@ def test_renderer_rebuilds_for_a_moved_sun_and_renders_as_with_open3d(town_dynam
     moved = WeatherState(sun_altitude_angle=35.0, sun_azimuth_angle=202.0)
     r.render_pose(model, _street_pose(), 1_000_000_000_000, weather=moved)
     assert r._sun_grid_cache is not first and r._sun_grid_cache.covers(lighting(moved).sun_dir)
+
+
+def test_grid_answers_do_not_depend_on_the_rays_order(town_dynamic: Renderer) -> None:
+    """A ray first tests the triangle that shaded the ray before it (neighbouring pixels share
+    shadows): a shortcut only, so shuffled rays (no neighbour shares anything) get the same answers
+    bit for bit, and most rays of the view's own order are shaded by that triangle."""
+    sun = np.asarray(lighting(SUN).sun_dir, np.float64)
+    st = town_dynamic.static
+    grid = build_sun_grid(st.occluder_vertices, st.occluder_triangles, sun)
+    rays = _shadow_rays(town_dynamic, sun.astype(np.float32), n=128)
+    ordered = grid.occluded(rays, sun)
+    order = np.random.default_rng(5).permutation(len(rays))
+    shuffled = np.empty_like(ordered)
+    shuffled[order] = grid.occluded(np.ascontiguousarray(rays[order]), sun)
+    np.testing.assert_array_equal(shuffled, ordered)
+    assert 0.2 < ordered.mean() < 0.9
+    # neighbours mostly share the answer: the shortcut has work in the view's order
+    assert np.mean(ordered[1:] == ordered[:-1]) > 0.9
