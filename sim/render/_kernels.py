@@ -502,6 +502,15 @@ def finish_into(alb, ndl, amb, depth, rays, paved, uv, tab, sky, optics, scale, 
 
 
 @nb.njit(cache=True, nogil=True)
+def zero_at(values, index, mask):
+    """``values[index[mask]] = 0`` without the index array in between."""
+    for i in range(index.shape[0]):
+        if mask[i]:
+            values[index[i]] = 0.0
+    return values
+
+
+@nb.njit(cache=True, nogil=True)
 def streaks_into(img, cov, glow):
     """Rain streaks over the radiance ``img`` (N, 3) in place: ``I (1 - a) + a glow`` with
     ``a = 0.45 cov`` (``cov`` (N,) the streak coverage), in float32 as numpy computes it, only

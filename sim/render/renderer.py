@@ -514,7 +514,7 @@ class Renderer:
         ``(t_hit, primitive_ids, primitive_uvs, normals, by_triangle)`` of the rays when known (the
         rasterised view, :mod:`.raster`, with its normals per triangle); they are cast otherwise.
         """
-        from ._kernels import surfaces
+        from ._kernels import surfaces, zero_at
 
         if hits is None:
             r = self.static.scene.cast_rays(tensor(rays), nthreads=_CAST_THREADS)
@@ -554,8 +554,7 @@ class Renderer:
             spix, keep = spix[:count], slice(None)
             if lit_code is not None:  # the rays whose board side lit_code says is lit skip their shadow ray
                 keep = (mat[spix] != MAT["target"]) | (_board_code(var[spix], front[spix], 1) != lit_code[spix])
-            occ = self._occluded(srays[:count][keep], smov[:count][keep], t_ns)
-            ndl[spix[keep][occ]] = 0.0
+            zero_at(ndl, spix[keep], self._occluded(srays[:count][keep], smov[:count][keep], t_ns))
         rad = self._finish(alb, ndl, amb, depth, rays, paved, uv, w, light, scale, rad_buffer)
         code = np.zeros(0, np.uint16)
         if board_code:
