@@ -17,7 +17,9 @@
   between coplanar triangles (``t`` equal within 1e-9, float64 arithmetic) the lower triangle id,
   where Embree's float32 arithmetic picks one by rounding (the town's overlapping facades).
 
-Chunks of consecutive triangles outside the view are skipped by their bounding boxes.  Rays
+Chunks of consecutive triangles outside the view are skipped by their bounding boxes, and a
+ray whose nearest hit so far lies nearer than all of a triangle's vertices is not tested against
+it (the hits are those of testing every ray: ``tests/sim/test_render_raster.py``).  Rays
 within :data:`NEAR_M` of the camera centre do not see surfaces there (open3d's cast would).  The
 kernels run on one thread (the stereo views render on two threads; see ``_kernels``).
 """
