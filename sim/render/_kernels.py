@@ -131,18 +131,25 @@ def quantize(image, gain, key, normal, noise, out):
     read2 = np.float32((0.6 * gain) ** 2)
     shot = np.float32(0.04 * gain)
     k = np.uint64(key)
-    h = np.uint64(0)
-    for i in range(n):
-        v = flat[i]
-        if noise:
-            q = i & 3
-            if q == 0:
-                h = _mix64(k + np.uint64(i >> 2) * np.uint64(0x9E3779B97F4A7C15))
-            z = normal[(h >> np.uint64(16 * q)) & np.uint64(0xFFFF)]
-            v = v + np.sqrt(read2 + shot * max(v, np.float32(0.0))) * z
-        v = min(max(v, np.float32(0.0)), np.float32(255.0))
-        dst[i] = np.uint8(np.rint(v))
+    full = n >> 2
+    for g in range(full):  # four values per hash, without a branch per value
+        h = _mix64(k + np.uint64(g) * np.uint64(0x9E3779B97F4A7C15)) if noise else np.uint64(0)
+        for q in range(4):
+            dst[4 * g + q] = _quantized(flat[4 * g + q], noise, h, q, normal, read2, shot)
+    h = _mix64(k + np.uint64(full) * np.uint64(0x9E3779B97F4A7C15)) if noise else np.uint64(0)
+    for i in range(4 * full, n):
+        dst[i] = _quantized(flat[i], noise, h, i & 3, normal, read2, shot)
     return out
+
+
+@nb.njit(cache=True, inline="always")
+def _quantized(v, noise, h, q, normal, read2, shot):
+    # value v with the deviate of field q of hash h when ``noise``, clipped and rounded to 8 bits
+    if noise:
+        z = normal[(h >> np.uint64(16 * q)) & np.uint64(0xFFFF)]
+        v = v + np.sqrt(read2 + shot * max(v, np.float32(0.0))) * z
+    v = min(max(v, np.float32(0.0)), np.float32(255.0))
+    return np.uint8(np.rint(v))
 
 
 @nb.njit(cache=True, nogil=True)
