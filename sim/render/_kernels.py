@@ -56,18 +56,21 @@ def pinhole_subpixel_dirs(rows, cols, off, fx, fy, cx, cy, out):
 
 
 @nb.njit(cache=True, nogil=True)
-def rect_mask(dirs, rects, mask):
-    """``mask[i] |= (x_i, y_i)`` inside any rectangle ``[x0, x1, y0, y1]`` of ``rects`` (K, 4),
-    for camera-frame directions ``(x, y, 1)`` (N, 3) (normalised image coordinates)."""
+def rect_mask(dirs, rects, mask, window):
+    """``mask[r, c] |= (x, y)`` inside any rectangle ``[x0, x1, y0, y1]`` of ``rects`` (K, 4),
+    for camera-frame directions ``(x, y, 1)`` (H, W, 3) (normalised image coordinates), in the
+    rows ``window[0]:window[1]`` and columns ``window[2]:window[3]`` only (the caller's bound on
+    where such directions lie)."""
     k = rects.shape[0]
-    for i in range(dirs.shape[0]):
-        if mask[i]:
-            continue
-        x, y = dirs[i, 0], dirs[i, 1]
-        for j in range(k):
-            if rects[j, 0] <= x <= rects[j, 1] and rects[j, 2] <= y <= rects[j, 3]:
-                mask[i] = True
-                break
+    for r in range(window[0], window[1]):
+        for c in range(window[2], window[3]):
+            if mask[r, c]:
+                continue
+            x, y = dirs[r, c, 0], dirs[r, c, 1]
+            for j in range(k):
+                if rects[j, 0] <= x <= rects[j, 1] and rects[j, 2] <= y <= rects[j, 3]:
+                    mask[r, c] = True
+                    break
     return mask
 
 

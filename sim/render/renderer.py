@@ -711,9 +711,23 @@ class Renderer:
         if straddle.size:
             rects = np.array([_clipped_outline(pc[k], _NEAR_PLANE_M) for k in straddle])
             m = margin / min(model.fx, model.fy)
-            rects += np.array([-m, m, -m, m])
-            rect_mask(camera_rays(model).reshape(-1, 3), rects.astype(np.float32), mask.reshape(-1))
+            rects = (rects + np.array([-m, m, -m, m])).astype(np.float32)
+            dirs = camera_rays(model)
+            rect_mask(dirs, rects, mask, _rect_window(dirs, rects))
         return mask.ravel()
+
+
+def _rect_window(dirs: F32, rects: F32) -> npt.NDArray[np.int64]:
+    """``[r0, r1, c0, c1]``: the rows ``r0:r1`` and columns ``c0:c1`` outside of which no direction
+    of ``dirs`` (H, W, 3) lies inside a rectangle ``[x0, x1, y0, y1]`` of ``rects`` (K, 4) (by the
+    rays' monotone envelopes per column and row, :func:`.raster.ray_bounds`)."""
+    from .raster import ray_bounds
+
+    colmin, colmax, rowmin, rowmax = ray_bounds(dirs)[:4]
+    r = rects.astype(np.float64)
+    return np.array([np.searchsorted(rowmax, r[:, 2].min(), "left"), np.searchsorted(rowmin, r[:, 3].max(), "right"),
+                     np.searchsorted(colmax, r[:, 0].min(), "left"), np.searchsorted(colmin, r[:, 1].max(), "right")],
+                    np.int64)
 
 
 def _clipped_outline(corners: np.ndarray, near: float) -> tuple[float, float, float, float]:
