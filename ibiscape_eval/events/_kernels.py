@@ -515,6 +515,176 @@ def compact_simd(t, x, y, p, words, to, xo, yo, po, k, limit):
     return compact_into(t[i:], x[i:], y[i:], p[i:], words[i >> 6:], to, xo, yo, po, k, limit)
 
 
+@intrinsic
+def _compress64_down(typingctx, src, i, dst, k, bits):
+    """:func:`_compress64` packing downwards: the elements of ``src[i:i + 64]`` whose bit is set
+    in ``bits`` are stored in order to ``dst[k - popcount(bits):k]``, exactly (the vectors from
+    the last down, each compressed in a register and written with a masked store: nothing at or
+    past ``k`` is touched, nor below the kept elements).  In place (``dst`` = ``src``, ``k >=
+    i + 64``) is safe: every store lands at or after the vector just loaded.  Returns ``k -
+    popcount(bits)``."""
+    sig = types.int64(src, types.int64, dst, types.int64, types.uint64)
+
+    def codegen(context, builder, signature, args):
+        srcty, _, dstty, _, _ = signature.args
+        s_arr, i_v, d_arr, k, m_v = args
+        bits = 8 * context.get_abi_sizeof(context.get_data_type(srcty.dtype))
+        lanes = 512 // bits
+        ety, i64 = ir.IntType(bits), ir.IntType(64)
+        vty, mty = ir.VectorType(ety, lanes), ir.VectorType(ir.IntType(1), lanes)
+        sp = _data_ptr(context, builder, srcty, s_arr, ety)
+        dp = _data_ptr(context, builder, dstty, d_arr, ety)
+        comp = cgutils.get_or_insert_function(builder.module, ir.FunctionType(vty, [vty, vty, mty]),
+                                              f"llvm.x86.avx512.mask.compress.v{lanes}i{bits}")
+        store = cgutils.get_or_insert_function(
+            builder.module, ir.FunctionType(ir.VoidType(), [vty, dp.type, ir.IntType(32), mty]),
+            f"llvm.masked.store.v{lanes}i{bits}.p0")
+        ctpop = cgutils.get_or_insert_function(builder.module, ir.FunctionType(i64, [i64]),
+                                               "llvm.ctpop.i64")
+        ones = ir.Constant(i64, -1)
+        for sub in reversed(range(64 // lanes)):
+            ptr = builder.gep(sp, [builder.add(i_v, ir.Constant(i64, sub * lanes))])
+            v = builder.load(builder.bitcast(ptr, vty.as_pointer()), align=1)
+            sm = m_v
+            if lanes < 64:
+                sm = builder.lshr(m_v, ir.Constant(i64, sub * lanes))
+                sm = builder.and_(sm, ir.Constant(i64, (1 << lanes) - 1))
+            mvec = builder.bitcast(builder.trunc(sm, ir.IntType(lanes)) if lanes < 64 else sm, mty)
+            c = builder.call(comp, [v, ir.Constant(vty, None), mvec])
+            pop = builder.call(ctpop, [sm])
+            k = builder.sub(k, pop)
+            # the low ``pop`` lanes: ~0 >> (64 - pop), none when pop = 0 (a shift by 64 is undefined)
+            low = builder.select(builder.icmp_unsigned("==", pop, ir.Constant(i64, 0)), ir.Constant(i64, 0),
+                                 builder.lshr(ones, builder.sub(ir.Constant(i64, 64), pop)))
+            low = builder.bitcast(builder.trunc(low, ir.IntType(lanes)) if lanes < 64 else low, mty)
+            builder.call(store, [c, builder.gep(dp, [k]), ir.Constant(ir.IntType(32), 1), low])
+        return k
+
+    return sig, codegen
+
+
+@njit(cache=True, nogil=True)
+def _block_keep(x, y, i, width, height, bloom, keep_bits, buf, use_bloom):
+    """The keep bits of the uint16 events ``i:i + 64`` (see :func:`keep_words_simd`), the index
+    of one of them outside the sensor or -1, and the Bloom filter's candidates among them (0
+    without it)."""
+    if use_bloom:
+        cand = _bloom64(x, y, i, width, height, bloom)  # type: ignore[call-arg]
+        keep, bad = _checked_bits(x, y, i, cand, width, height, keep_bits)
+        return keep | ~cand, bad, cand
+    outside = _index64(x, y, i, width, height, width, buf)  # type: ignore[call-arg, var-annotated]
+    bad = i + np.int64(_lowest_bit(outside)) if outside else -1
+    return _looked_up(buf, keep_bits), bad, np.uint64(0)
+
+
+#: Events per chunk of :func:`filter_up` / :func:`filter_down`: the keep bits of a chunk, then
+#: its compaction, while its coordinates are still in the L1 cache.
+FILTER_CHUNK = 65536
+
+
+@njit(cache=True, nogil=True)
+def _chunk_keep(x, y, a, nb, width, height, bloom, keep_bits, buf, words, state):
+    """The keep words of the ``nb`` blocks of 64 uint16 events from ``a`` on into ``words``
+    (as :func:`keep_words_simd`); ``state`` = [use the Bloom filter, its candidates so far,
+    events so far] carried from chunk to chunk (the filter is given up once more than 1/8 of
+    the events were candidates, checked every 1024 blocks).  Returns the index of an event
+    outside the sensor in the first block holding one, or -1."""
+    use_bloom, n_cand, seen = state[0] != 0, state[1], state[2]
+    for b in range(nb):
+        i = a + 64 * b
+        if use_bloom:
+            cand = _bloom64(x, y, i, width, height, bloom)  # type: ignore[call-arg]
+            keep, bad = _checked_bits(x, y, i, cand, width, height, keep_bits)
+            keep |= ~cand
+            n_cand += _popcount(cand)  # type: ignore[call-arg]
+            seen += 64
+            use_bloom = (seen & 65535) != 0 or n_cand * 8 <= seen
+        else:
+            outside = _index64(x, y, i, width, height, width, buf)  # type: ignore[call-arg, var-annotated]
+            bad = i + np.int64(_lowest_bit(outside)) if outside else -1
+            keep = _looked_up(buf, keep_bits)
+        if bad >= 0:
+            return bad
+        words[b] = keep
+    state[0], state[1], state[2] = use_bloom, n_cand, seen
+    return -1
+
+
+@njit(cache=True, nogil=True)
+def filter_up(t, x, y, p, width, height, bloom, keep_bits, use_bloom):
+    """Filter the events in place in one pass, packed from index 0 on, chunk by chunk of
+    :data:`FILTER_CHUNK` events: the keep bits of its blocks of 64 (:func:`_chunk_keep`), then
+    their AVX-512 compress stores (:func:`_compress64`: each lands at or before the block just
+    read) while the chunk is in the cache; the last partial block one by one.  Returns the
+    number kept and -1, or, at the first chunk with an event outside the sensor (nothing of it
+    written; the events from that chunk on untouched), the events kept before it and the
+    index of that event.  uint16 coordinates, dtypes of :func:`simd_ok`; needs AVX-512."""
+    n = t.shape[0]
+    k = 0
+    nb = n // 64
+    buf = np.empty(1024, np.uint32)[512:576]  # 1 KiB either side: no cache line shared with another thread
+    words = np.empty(FILTER_CHUNK // 64, np.uint64)
+    state = np.array([1 if use_bloom else 0, 0, 0], np.int64)
+    for c in range(0, nb, FILTER_CHUNK // 64):
+        m = min(FILTER_CHUNK // 64, nb - c)
+        bad = _chunk_keep(x, y, 64 * c, m, width, height, bloom, keep_bits, buf, words, state)
+        if bad >= 0:
+            return k, bad
+        for b in range(m):
+            i, keep = 64 * (c + b), words[b]
+            _compress64(t, i, t, k, keep)  # type: ignore[call-arg]
+            _compress64(x, i, x, k, keep)
+            _compress64(y, i, y, k, keep)
+            k = _compress64(p, i, p, k, keep)
+    i = nb * 64
+    keep, bad = _checked_bits(x, y, i, (np.uint64(1) << np.uint64(n - i)) - np.uint64(1), width, height,
+                              keep_bits)
+    if bad >= 0:
+        return k, bad
+    for e in range(n - i):
+        if (keep >> np.uint64(e)) & np.uint64(1):
+            t[k], x[k], y[k], p[k] = t[i + e], x[i + e], y[i + e], p[i + e]
+            k += 1
+    return k, -1
+
+
+@njit(cache=True, nogil=True)
+def filter_down(t, x, y, p, width, height, bloom, keep_bits, use_bloom):
+    """:func:`filter_up` backwards: the kept events packed against the end, in order, chunk by
+    chunk from the last block of 64 down (:func:`_compress64_down`; the first ``n % 64``
+    events one by one).  Returns the index where the kept events start (``n - kept``) and -1,
+    or, at the first chunk down with an event outside the sensor (nothing of it written; the
+    events before its end untouched), the start so far and the index of an event outside in
+    that chunk (not necessarily the first in the stream)."""
+    n = t.shape[0]
+    k = n
+    nb = n // 64
+    r = n - 64 * nb
+    buf = np.empty(1024, np.uint32)[512:576]
+    words = np.empty(FILTER_CHUNK // 64, np.uint64)
+    state = np.array([1 if use_bloom else 0, 0, 0], np.int64)
+    for c in range(nb, 0, -(FILTER_CHUNK // 64)):
+        m = min(FILTER_CHUNK // 64, c)
+        a = r + 64 * (c - m)
+        bad = _chunk_keep(x, y, a, m, width, height, bloom, keep_bits, buf, words, state)
+        if bad >= 0:
+            return k, bad
+        for b in range(m - 1, -1, -1):
+            i, keep = a + 64 * b, words[b]
+            _compress64_down(t, i, t, k, keep)  # type: ignore[call-arg]
+            _compress64_down(x, i, x, k, keep)
+            _compress64_down(y, i, y, k, keep)
+            k = _compress64_down(p, i, p, k, keep)
+    keep, bad = _checked_bits(x, y, 0, (np.uint64(1) << np.uint64(r)) - np.uint64(1), width, height,
+                              keep_bits)
+    if bad >= 0:
+        return k, bad
+    for e in range(r - 1, -1, -1):
+        if (keep >> np.uint64(e)) & np.uint64(1):
+            k -= 1
+            t[k], x[k], y[k], p[k] = t[e], x[e], y[e], p[e]
+    return k, -1
+
 @functools.cache
 def _cpu_simd() -> bool:
     import numba

@@ -703,8 +703,10 @@ def filter_arrays(
         raise IbiscapeError(f"t, x, y, p lengths differ: {ta.shape}, {xa.shape}, {ya.shape}, {pa.shape}")
     n = xa.shape[0]
     parts = _threads(n, threads)
-    words, off, bd = _keep_words(xa, ya, pixels, w, h, parts)
     cols = (ta, xa, ya, pa)
+    if inplace and parts <= 2 and _fused_ok(cols, w, h):
+        return _filter_converging(cols, pixels, w, h, parts)
+    words, off, bd = _keep_words(xa, ya, pixels, w, h, parts)
     compact: Any = (_kernels.compact_simd if _kernels.simd_ok(*(a.dtype for a in cols))
                     else _kernels.compact_into)
     if inplace:
@@ -722,6 +724,46 @@ def filter_arrays(
 
     _in_parts(run, parts, parts)
     to, xo, yo, po = outs
+    return to, xo, yo, po
+
+
+def _fused_ok(cols: tuple[np.ndarray, ...], w: int, h: int) -> bool:
+    """Whether the one-pass in-place kernels (``_kernels.filter_up`` / ``filter_down``) take
+    these columns: uint16 coordinates and AVX-512 dtypes (see ``_kernels.simd_ok``)."""
+    from . import _kernels
+
+    return (cols[1].dtype == np.uint16 and cols[2].dtype == np.uint16 and w * h <= 2**32
+            and _kernels.simd_ok(*(a.dtype for a in cols)))
+
+
+def _filter_converging(cols: tuple[np.ndarray, ...], pixels: npt.ArrayLike, w: int, h: int,
+                       parts: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Filter ``cols`` in place in one pass (no keep bits of the whole stream, no copies): on
+    one thread packed from index 0 on (``_kernels.filter_up``); on two, the slices converge on
+    their boundary ``b`` (a multiple of 64): the first is compacted backwards, its kept events
+    packed against ``b`` (``_kernels.filter_down``), the second forwards from ``b`` on, so the
+    kept events lie contiguous in ``[b - k0, b + k1)``, in order.  Each kernel tests the hot
+    pixels and the sensor bounds as it goes, 64 events at a time, and stops before writing the
+    chunk of an event outside the sensor: the first in the stream is then found in the
+    untouched part and refused by name (the arrays are left part compacted)."""
+    from . import _kernels
+
+    hot = _hot_flat(pixels, w, h)
+    bits, tab, use_bloom = _keep_bits(hot, w, h), _kernels.bloom_table(hot), hot.size <= BLOOM_MAX_HOT
+    n = cols[0].shape[0]
+    b = _bounds(n, 2, 64)[1] if parts == 2 else 0
+
+    def run(c: int, _: int) -> tuple[int, int]:
+        if c == 0:
+            return _kernels.filter_down(*(a[:b] for a in cols), w, h, tab, bits, use_bloom)  # type: ignore[no-any-return]
+        return _kernels.filter_up(*(a[b:] for a in cols), w, h, tab, bits, use_bloom)  # type: ignore[no-any-return]
+
+    (start, bad0), (k1, bad1) = _in_parts(run, 2, 2) if b else [(0, -1), run(1, 2)]
+    if bad0 >= 0:  # events [0, bad0] untouched: the first outside is among them
+        raise _outside(cols[1], cols[2], _first_outside(cols[1][:bad0 + 1], cols[2][:bad0 + 1], w, h), w, h)
+    if bad1 >= 0:
+        raise _outside(cols[1], cols[2], b + int(bad1), w, h)
+    to, xo, yo, po = (a[int(start):b + int(k1)] for a in cols)
     return to, xo, yo, po
 
 
