@@ -372,3 +372,73 @@ def test_keep_mask_over_several_chunks(n_threads, simd):
     y[bad] = h
     with pytest.raises(IbiscapeError, match=rf"event {bad} at pixel"):
         hot_pixel_mask(x, y, pixels, sensor_size=(w, h), threads=n_threads)
+
+
+def converge(cols, b, w, h, hot, use_bloom):
+    """The two one-pass kernels on the slices ``[:b]`` (backwards) and ``[b:]`` (forwards) of
+    copies of ``cols``: the kept events ``[start, b + k1)`` and either kernel's outside event."""
+    cols = [a.copy() for a in cols]
+    bits, tab = hotpix._keep_bits(hot, w, h), _kernels.bloom_table(hot)
+    start, bad0 = _kernels.filter_down(*(a[:b] for a in cols), w, h, tab, bits, use_bloom)
+    k1, bad1 = _kernels.filter_up(*(a[b:] for a in cols), w, h, tab, bits, use_bloom)
+    return [a[start:b + k1] for a in cols], bad0, bad1
+
+
+@pytest.mark.parametrize("use_bloom", [True, False])
+@pytest.mark.parametrize("hot_fraction", [0.0, 0.08, 0.5, 1.0])
+@pytest.mark.parametrize("n", [1, 2, 63, 64, 65, 127, 129, 200, 4097])
+def test_converging_kernels_keep_what_numpy_keeps(n, hot_fraction, use_bloom):
+    """filter_down on the first slice and filter_up on the second, split anywhere (slices of 0
+    and 1 element, boundaries off the multiples of 64, lengths not multiples of 64): the kept
+    events of numpy, in order, contiguous around the boundary."""
+    if not _kernels.simd_ok(np.int64, np.uint16, np.bool_):
+        pytest.skip("no AVX-512 VBMI2 here")
+    w, h = 37, 23
+    t, x, y, p = stream(n, w, h, seed=n + 3)
+    hot = np.flatnonzero(np.random.default_rng(n).random(w * h) < hot_fraction)
+    pixels = np.stack([hot % w, hot // w], 1)
+    want = reference(t, x, y, p, pixels, w)
+    for b in sorted({0, 1, n // 2, n // 2 // 64 * 64, n - 1, n}):
+        got, bad0, bad1 = converge((t, x, y, p), b, w, h, hot, use_bloom)
+        assert bad0 == bad1 == -1
+        for g, r in zip(got, want, strict=True):
+            assert g.dtype == r.dtype
+            np.testing.assert_array_equal(g, r)
+
+
+@pytest.mark.parametrize("n_threads", [2, 3])
+def test_in_place_over_several_chunks_and_dtypes(n_threads, simd):
+    """In place on streams of several FILTER_CHUNKs per slice (hot events growing from none to
+    most, so that the Bloom filter is given up part-way), with float32 times (still AVX-512)
+    and datetime64 times (the two-pass path): numpy's kept events, in order."""
+    w, h = 64, 32
+    n = 5 * _kernels.FILTER_CHUNK + 77
+    t, x, y, p = stream(n, w, h, seed=21)
+    x[n // 2:] = np.where(np.random.default_rng(4).random(n - n // 2) < 0.9, 3, x[n // 2:])
+    pixels = np.array([[3, r] for r in range(h)] + [[5, 5], [60, 31]])
+    for times in (t, t.astype(np.float32), t.astype("datetime64[ns]")):
+        want = reference(times, x, y, p, pixels, w)
+        cols = [a.copy() for a in (times, x, y, p)]
+        out = filter_arrays(*cols, pixels, sensor_size=(w, h), threads=n_threads, inplace=True)
+        for got, ref in zip(out, want, strict=True):
+            assert got.dtype == ref.dtype
+            np.testing.assert_array_equal(got, ref)
+        assert_views_inside(out, cols)
+
+
+@pytest.mark.parametrize("where", [[5], [5, 90_000], [70_000, 130_000], [129_999], [131_000, 200_000],
+                                   [199_999], [64, 65_600, 262_150]])
+@pytest.mark.parametrize("n_threads", [1, 2])
+def test_in_place_names_the_first_event_outside_in_stream_order(where, n_threads, simd):
+    """Events outside the sensor in the first slice (found by the backward pass from its end:
+    the first in the stream is then looked for in the untouched part), the second, both, in
+    several chunks or at their edges: the error names the first of them, with its pixel."""
+    w, h = 50, 40
+    n = 4 * _kernels.FILTER_CHUNK + 11
+    t, x, y, p = stream(n, w, h, seed=sum(where))
+    for i in where:
+        x[i] = w + i % 7
+    pixels = all_pixels(w, h)[::11]
+    cols = [a.copy() for a in (t, x, y, p)]
+    with pytest.raises(IbiscapeError, match=rf"event {where[0]} at pixel \(x={w + where[0] % 7}, "):
+        filter_arrays(*cols, pixels, sensor_size=(w, h), threads=n_threads, inplace=True)
