@@ -678,14 +678,20 @@ def filter_arrays(
     the output (AVX-512 compress stores where the CPU has them, else a scalar loop; the same
     events either way).
 
-    ``inplace=True`` compacts into the given arrays themselves and returns views of their
-    first K elements (the kept events, in order); their elements from K on are left
-    unspecified.  It needs writeable, C-contiguous numpy arrays that share no memory (so not
-    an :class:`Events`' read-only arrays), and spares the new output arrays: their allocation
-    and first-touch page faults cost as much as the compaction itself.  Extra memory: the
-    keep bits (N / 8 bytes) and, on several threads, a copy of the events that the later slices'
-    output overwrites before the earlier slices have read them (the events discarded before
-    each slice boundary; one thread is used when that would exceed the kept events).
+    ``inplace=True`` compacts into the given arrays themselves and returns views of K
+    contiguous elements of them (the kept events, in order; the same place in all four, not
+    necessarily from index 0), the other elements left unspecified.  It needs writeable,
+    C-contiguous numpy arrays that share no memory (so not an :class:`Events`' read-only
+    arrays), and spares the new output arrays: their allocation and first-touch page faults
+    cost as much as the compaction itself.  On one or two threads, with uint16 coordinates and
+    AVX-512 dtypes, it is one pass with no extra memory: the hot pixels and sensor bounds are
+    tested as the events are compacted, and two slices converge on their boundary (the first
+    compacted backwards, its kept events packed against the boundary, the second forwards from
+    it).  Otherwise the two passes above; extra memory: the keep bits (N / 8 bytes) and, on
+    several threads, a copy of the events that the later slices' output overwrites before the
+    earlier slices have read them (one thread is used when that copy would exceed the kept
+    events).  An event outside the sensor is refused by name (the first in the stream); in
+    place, the arrays may then be part compacted.
 
     Examples
     --------
@@ -748,15 +754,14 @@ def _filter_converging(cols: tuple[np.ndarray, ...], pixels: npt.ArrayLike, w: i
     untouched part and refused by name (the arrays are left part compacted)."""
     from . import _kernels
 
-    hot = _hot_flat(pixels, w, h)
-    bits, tab, use_bloom = _keep_bits(hot, w, h), _kernels.bloom_table(hot), hot.size <= BLOOM_MAX_HOT
+    bits = _keep_bits(_hot_flat(pixels, w, h), w, h)
     n = cols[0].shape[0]
     b = _bounds(n, 2, 64)[1] if parts == 2 else 0
 
     def run(c: int, _: int) -> tuple[int, int]:
         if c == 0:
-            return _kernels.filter_down(*(a[:b] for a in cols), w, h, tab, bits, use_bloom)  # type: ignore[no-any-return]
-        return _kernels.filter_up(*(a[b:] for a in cols), w, h, tab, bits, use_bloom)  # type: ignore[no-any-return]
+            return _kernels.filter_down(*(a[:b] for a in cols), w, h, bits)  # type: ignore[no-any-return]
+        return _kernels.filter_up(*(a[b:] for a in cols), w, h, bits)  # type: ignore[no-any-return]
 
     (start, bad0), (k1, bad1) = _in_parts(run, 2, 2) if b else [(0, -1), run(1, 2)]
     if bad0 >= 0:  # events [0, bad0] untouched: the first outside is among them

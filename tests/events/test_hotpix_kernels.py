@@ -374,20 +374,19 @@ def test_keep_mask_over_several_chunks(n_threads, simd):
         hot_pixel_mask(x, y, pixels, sensor_size=(w, h), threads=n_threads)
 
 
-def converge(cols, b, w, h, hot, use_bloom):
+def converge(cols, b, w, h, hot):
     """The two one-pass kernels on the slices ``[:b]`` (backwards) and ``[b:]`` (forwards) of
     copies of ``cols``: the kept events ``[start, b + k1)`` and either kernel's outside event."""
     cols = [a.copy() for a in cols]
-    bits, tab = hotpix._keep_bits(hot, w, h), _kernels.bloom_table(hot)
-    start, bad0 = _kernels.filter_down(*(a[:b] for a in cols), w, h, tab, bits, use_bloom)
-    k1, bad1 = _kernels.filter_up(*(a[b:] for a in cols), w, h, tab, bits, use_bloom)
+    bits = hotpix._keep_bits(hot, w, h)
+    start, bad0 = _kernels.filter_down(*(a[:b] for a in cols), w, h, bits)
+    k1, bad1 = _kernels.filter_up(*(a[b:] for a in cols), w, h, bits)
     return [a[start:b + k1] for a in cols], bad0, bad1
 
 
-@pytest.mark.parametrize("use_bloom", [True, False])
 @pytest.mark.parametrize("hot_fraction", [0.0, 0.08, 0.5, 1.0])
 @pytest.mark.parametrize("n", [1, 2, 63, 64, 65, 127, 129, 200, 4097])
-def test_converging_kernels_keep_what_numpy_keeps(n, hot_fraction, use_bloom):
+def test_converging_kernels_keep_what_numpy_keeps(n, hot_fraction):
     """filter_down on the first slice and filter_up on the second, split anywhere (slices of 0
     and 1 element, boundaries off the multiples of 64, lengths not multiples of 64): the kept
     events of numpy, in order, contiguous around the boundary."""
@@ -399,7 +398,7 @@ def test_converging_kernels_keep_what_numpy_keeps(n, hot_fraction, use_bloom):
     pixels = np.stack([hot % w, hot // w], 1)
     want = reference(t, x, y, p, pixels, w)
     for b in sorted({0, 1, n // 2, n // 2 // 64 * 64, n - 1, n}):
-        got, bad0, bad1 = converge((t, x, y, p), b, w, h, hot, use_bloom)
+        got, bad0, bad1 = converge((t, x, y, p), b, w, h, hot)
         assert bad0 == bad1 == -1
         for g, r in zip(got, want, strict=True):
             assert g.dtype == r.dtype
@@ -409,8 +408,8 @@ def test_converging_kernels_keep_what_numpy_keeps(n, hot_fraction, use_bloom):
 @pytest.mark.parametrize("n_threads", [2, 3])
 def test_in_place_over_several_chunks_and_dtypes(n_threads, simd):
     """In place on streams of several FILTER_CHUNKs per slice (hot events growing from none to
-    most, so that the Bloom filter is given up part-way), with float32 times (still AVX-512)
-    and datetime64 times (the two-pass path): numpy's kept events, in order."""
+    most), with float32 times (still AVX-512) and datetime64 times (the two-pass path): numpy's
+    kept events, in order."""
     w, h = 64, 32
     n = 5 * _kernels.FILTER_CHUNK + 77
     t, x, y, p = stream(n, w, h, seed=21)
