@@ -616,9 +616,9 @@ def _chunk_keep(x, y, a, nb, width, height, keep_bits, words):
     (:func:`_gather64`).  Returns the index of the first event outside the sensor in the
     first block holding one, or -1."""
     for b in range(nb):
-        keep, out = _gather64(x, y, a + 64 * b, width, height, keep_bits)  # type: ignore[call-arg, misc]
+        keep, out = _gather64(x, y, a + 64 * b, width, height, keep_bits)  # type: ignore[call-arg, var-annotated]
         if out:
-            return a + 64 * b + np.int64(_lowest_bit(out))  # type: ignore[call-arg]
+            return a + 64 * b + np.int64(_lowest_bit(out))
         words[b] = keep
     return -1
 

@@ -760,8 +760,8 @@ def _filter_converging(cols: tuple[np.ndarray, ...], pixels: npt.ArrayLike, w: i
 
     def run(c: int, _: int) -> tuple[int, int]:
         if c == 0:
-            return _kernels.filter_down(*(a[:b] for a in cols), w, h, bits)  # type: ignore[no-any-return]
-        return _kernels.filter_up(*(a[b:] for a in cols), w, h, bits)  # type: ignore[no-any-return]
+            return _kernels.filter_down(*(a[:b] for a in cols), w, h, bits)  # type: ignore[call-arg]
+        return _kernels.filter_up(*(a[b:] for a in cols), w, h, bits)  # type: ignore[call-arg]
 
     (start, bad0), (k1, bad1) = _in_parts(run, 2, 2) if b else [(0, -1), run(1, 2)]
     if bad0 >= 0:  # events [0, bad0] untouched: the first outside is among them
