@@ -14,7 +14,9 @@ Counting and filtering run in numba kernels over the raw ``uint16`` coordinates:
 ``uint8`` count array per thread (with a list of wrap-arounds); then the keep bits of the events,
 64 to a word (an AVX-512 Bloom filter of the hot pixels in registers, its candidates looked up in
 a bit table of the pixels to keep), and single-pass compaction; the sensor bounds are checked
-inside both passes; ``threads=`` splits the events into contiguous slices.
+inside both passes; ``threads=`` splits the events into contiguous slices.  In place on one or
+two threads, one pass: the bit table looked up by AVX-512 gathers as the events are compacted,
+two slices converging on their boundary.
 """
 
 from __future__ import annotations
