@@ -14,7 +14,9 @@ Counting and filtering run in numba kernels over the raw ``uint16`` coordinates:
 ``uint8`` count array per thread (with a list of wrap-arounds); then the keep bits of the events,
 64 to a word (an AVX-512 Bloom filter of the hot pixels in registers, its candidates looked up in
 a bit table of the pixels to keep), and single-pass compaction; the sensor bounds are checked
-inside both passes; ``threads=`` splits the events into contiguous slices.
+inside both passes; ``threads=`` splits the events into contiguous slices.  In place on one or
+two threads, one pass: the bit table looked up by AVX-512 gathers as the events are compacted,
+two slices converging on their boundary.
 """
 
 from __future__ import annotations
@@ -678,14 +680,20 @@ def filter_arrays(
     the output (AVX-512 compress stores where the CPU has them, else a scalar loop; the same
     events either way).
 
-    ``inplace=True`` compacts into the given arrays themselves and returns views of their
-    first K elements (the kept events, in order); their elements from K on are left
-    unspecified.  It needs writeable, C-contiguous numpy arrays that share no memory (so not
-    an :class:`Events`' read-only arrays), and spares the new output arrays: their allocation
-    and first-touch page faults cost as much as the compaction itself.  Extra memory: the
-    keep bits (N / 8 bytes) and, on several threads, a copy of the events that the later slices'
-    output overwrites before the earlier slices have read them (the events discarded before
-    each slice boundary; one thread is used when that would exceed the kept events).
+    ``inplace=True`` compacts into the given arrays themselves and returns views of K
+    contiguous elements of them (the kept events, in order; the same place in all four, not
+    necessarily from index 0), the other elements left unspecified.  It needs writeable,
+    C-contiguous numpy arrays that share no memory (so not an :class:`Events`' read-only
+    arrays), and spares the new output arrays: their allocation and first-touch page faults
+    cost as much as the compaction itself.  On one or two threads, with uint16 coordinates and
+    AVX-512 dtypes, it is one pass with no extra memory: the hot pixels and sensor bounds are
+    tested as the events are compacted, and two slices converge on their boundary (the first
+    compacted backwards, its kept events packed against the boundary, the second forwards from
+    it).  Otherwise the two passes above; extra memory: the keep bits (N / 8 bytes) and, on
+    several threads, a copy of the events that the later slices' output overwrites before the
+    earlier slices have read them (one thread is used when that copy would exceed the kept
+    events).  An event outside the sensor is refused by name (the first in the stream); in
+    place, the arrays may then be part compacted.
 
     Examples
     --------
@@ -703,8 +711,10 @@ def filter_arrays(
         raise IbiscapeError(f"t, x, y, p lengths differ: {ta.shape}, {xa.shape}, {ya.shape}, {pa.shape}")
     n = xa.shape[0]
     parts = _threads(n, threads)
-    words, off, bd = _keep_words(xa, ya, pixels, w, h, parts)
     cols = (ta, xa, ya, pa)
+    if inplace and parts <= 2 and _fused_ok(cols, w, h):
+        return _filter_converging(cols, pixels, w, h, parts)
+    words, off, bd = _keep_words(xa, ya, pixels, w, h, parts)
     compact: Any = (_kernels.compact_simd if _kernels.simd_ok(*(a.dtype for a in cols))
                     else _kernels.compact_into)
     if inplace:
@@ -722,6 +732,45 @@ def filter_arrays(
 
     _in_parts(run, parts, parts)
     to, xo, yo, po = outs
+    return to, xo, yo, po
+
+
+def _fused_ok(cols: tuple[np.ndarray, ...], w: int, h: int) -> bool:
+    """Whether the one-pass in-place kernels (``_kernels.filter_up`` / ``filter_down``) take
+    these columns: uint16 coordinates and AVX-512 dtypes (see ``_kernels.simd_ok``)."""
+    from . import _kernels
+
+    return (cols[1].dtype == np.uint16 and cols[2].dtype == np.uint16 and w * h <= 2**32
+            and _kernels.simd_ok(*(a.dtype for a in cols)))
+
+
+def _filter_converging(cols: tuple[np.ndarray, ...], pixels: npt.ArrayLike, w: int, h: int,
+                       parts: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Filter ``cols`` in place in one pass (no keep bits of the whole stream, no copies): on
+    one thread packed from index 0 on (``_kernels.filter_up``); on two, the slices converge on
+    their boundary ``b`` (a multiple of 64): the first is compacted backwards, its kept events
+    packed against ``b`` (``_kernels.filter_down``), the second forwards from ``b`` on, so the
+    kept events lie contiguous in ``[b - k0, b + k1)``, in order.  Each kernel tests the hot
+    pixels and the sensor bounds as it goes, 64 events at a time, and stops before writing the
+    chunk of an event outside the sensor: the first in the stream is then found in the
+    untouched part and refused by name (the arrays are left part compacted)."""
+    from . import _kernels
+
+    bits = _keep_bits(_hot_flat(pixels, w, h), w, h)
+    n = cols[0].shape[0]
+    b = _bounds(n, 2, 64)[1] if parts == 2 else 0
+
+    def run(c: int, _: int) -> tuple[int, int]:
+        if c == 0:
+            return _kernels.filter_down(*(a[:b] for a in cols), w, h, bits)  # type: ignore[call-arg]
+        return _kernels.filter_up(*(a[b:] for a in cols), w, h, bits)  # type: ignore[call-arg]
+
+    (start, bad0), (k1, bad1) = _in_parts(run, 2, 2) if b else [(0, -1), run(1, 2)]
+    if bad0 >= 0:  # events [0, bad0] untouched: the first outside is among them
+        raise _outside(cols[1], cols[2], _first_outside(cols[1][:bad0 + 1], cols[2][:bad0 + 1], w, h), w, h)
+    if bad1 >= 0:
+        raise _outside(cols[1], cols[2], b + int(bad1), w, h)
+    to, xo, yo, po = (a[int(start):b + int(k1)] for a in cols)
     return to, xo, yo, po
 
 

@@ -192,19 +192,32 @@ def order(request, monkeypatch):
 @pytest.mark.parametrize("hot_fraction", [0.0, 0.08, 0.5, 0.97, 1.0])
 @pytest.mark.parametrize("n", [0, 1, 64, 4097, 100_003])
 def test_in_place_filter_keeps_what_numpy_keeps(n, hot_fraction, n_threads, simd, order):
-    """filter_arrays(inplace=True) on one or several threads (slice tails copied first, or one
-    thread when that copy would exceed the kept events): the kept events of numpy, returned as
-    views of the start of the given arrays."""
+    """filter_arrays(inplace=True) on one or several threads (one pass, the two slices
+    converging on their boundary; on three, the slice tails copied first, or one thread when
+    that copy would exceed the kept events): the kept events of numpy, returned as views of K
+    contiguous elements of the given arrays, at the same place in all four."""
     w, h = 37, 23
     t, x, y, p = stream(n, w, h, seed=n + 1)
     pixels = all_pixels(w, h)[np.random.default_rng(2).random(w * h) < hot_fraction]
     want = reference(t, x, y, p, pixels, w)
     cols = [a.copy() for a in (t, x, y, p)]
     out = filter_arrays(*cols, pixels, sensor_size=(w, h), threads=n_threads, inplace=True)
-    for got, col, ref in zip(out, cols, want, strict=True):
+    for got, ref in zip(out, want, strict=True):
         assert got.dtype == ref.dtype
         np.testing.assert_array_equal(got, ref)
-        assert got.size == 0 or (np.shares_memory(got, col) and got.ctypes.data == col.ctypes.data)
+    assert_views_inside(out, cols)
+
+
+def assert_views_inside(out, cols):
+    """``out`` are views of the same K contiguous elements of each of ``cols``."""
+    starts = set()
+    for got, col in zip(out, cols, strict=True):
+        assert got.base is col or got.size == 0
+        assert got.flags.c_contiguous and got.dtype == col.dtype
+        start, rem = divmod(got.ctypes.data - col.ctypes.data, col.itemsize)
+        assert rem == 0 and start >= 0 and start + got.size <= col.size
+        starts.add(start if got.size else None)
+    assert len(starts) == 1
 
 
 @pytest.mark.parametrize("n_threads", [2, 3])
@@ -248,11 +261,8 @@ def test_in_place_refuses_what_it_cannot_overwrite():
                       inplace=True)
     cols = [a.copy() for a in (t, x, y, p)]
     cols[1][321] = w
-    before = [a.copy() for a in cols]
-    with pytest.raises(IbiscapeError, match="event 321 at pixel"):
+    with pytest.raises(IbiscapeError, match="event 321 at pixel"):  # the arrays left unspecified
         filter_arrays(*cols, pixels, sensor_size=(w, h), inplace=True, threads=2)
-    for a, b in zip(cols, before, strict=True):
-        np.testing.assert_array_equal(a, b)
 
 
 @pytest.mark.parametrize("bad", [0, -1, 1.5, True, "2"])
@@ -292,7 +302,7 @@ def test_uint16_events_outside_the_sensor_are_refused_naming_the_first(where, n_
     """uint16 coordinates (checked by the Bloom pass and the counting kernel themselves, 64 at
     a time, the last partial block one by one): the first event outside is named wherever it
     falls (a block's first or last event, the tail, a later slice), with a second one after it;
-    nothing written in place."""
+    the input arrays untouched (in place: copies, left unspecified)."""
     w, h = 37, 23
     t, x, y, p = stream(8192 - 5, w, h, seed=where)
     where = min(where, len(x) - 1)
@@ -301,7 +311,8 @@ def test_uint16_events_outside_the_sensor_are_refused_naming_the_first(where, n_
     cols = [a.copy() for a in (t, x, y, p)]
     for call in (lambda: filter_arrays(t, x, y, p, pixels, sensor_size=(w, h), threads=n_threads),
                  lambda: hot_pixel_mask(x, y, pixels, sensor_size=(w, h), threads=n_threads),
-                 lambda: filter_arrays(*cols, pixels, sensor_size=(w, h), threads=n_threads, inplace=True),
+                 lambda: filter_arrays(*(a.copy() for a in cols), pixels, sensor_size=(w, h),
+                                       threads=n_threads, inplace=True),
                  lambda: count_events(x, y, sensor_size=(w, h), threads=n_threads)):
         with pytest.raises(IbiscapeError, match=rf"event {where} at pixel \(x={w}, .* outside the 37x23 sensor"):
             call()
@@ -361,3 +372,72 @@ def test_keep_mask_over_several_chunks(n_threads, simd):
     y[bad] = h
     with pytest.raises(IbiscapeError, match=rf"event {bad} at pixel"):
         hot_pixel_mask(x, y, pixels, sensor_size=(w, h), threads=n_threads)
+
+
+def converge(cols, b, w, h, hot):
+    """The two one-pass kernels on the slices ``[:b]`` (backwards) and ``[b:]`` (forwards) of
+    copies of ``cols``: the kept events ``[start, b + k1)`` and either kernel's outside event."""
+    cols = [a.copy() for a in cols]
+    bits = hotpix._keep_bits(hot, w, h)
+    start, bad0 = _kernels.filter_down(*(a[:b] for a in cols), w, h, bits)
+    k1, bad1 = _kernels.filter_up(*(a[b:] for a in cols), w, h, bits)
+    return [a[start:b + k1] for a in cols], bad0, bad1
+
+
+@pytest.mark.parametrize("hot_fraction", [0.0, 0.08, 0.5, 1.0])
+@pytest.mark.parametrize("n", [1, 2, 63, 64, 65, 127, 129, 200, 4097])
+def test_converging_kernels_keep_what_numpy_keeps(n, hot_fraction):
+    """filter_down on the first slice and filter_up on the second, split anywhere (slices of 0
+    and 1 element, boundaries off the multiples of 64, lengths not multiples of 64): the kept
+    events of numpy, in order, contiguous around the boundary."""
+    if not _kernels.simd_ok(np.int64, np.uint16, np.bool_):
+        pytest.skip("no AVX-512 VBMI2 here")
+    w, h = 37, 23
+    t, x, y, p = stream(n, w, h, seed=n + 3)
+    hot = np.flatnonzero(np.random.default_rng(n).random(w * h) < hot_fraction)
+    pixels = np.stack([hot % w, hot // w], 1)
+    want = reference(t, x, y, p, pixels, w)
+    for b in sorted({0, 1, n // 2, n // 2 // 64 * 64, n - 1, n}):
+        got, bad0, bad1 = converge((t, x, y, p), b, w, h, hot)
+        assert bad0 == bad1 == -1
+        for g, r in zip(got, want, strict=True):
+            assert g.dtype == r.dtype
+            np.testing.assert_array_equal(g, r)
+
+
+@pytest.mark.parametrize("n_threads", [2, 3])
+def test_in_place_over_several_chunks_and_dtypes(n_threads, simd):
+    """In place on streams of several FILTER_CHUNKs per slice (hot events growing from none to
+    most), with float32 times (still AVX-512) and datetime64 times (the two-pass path): numpy's
+    kept events, in order."""
+    w, h = 64, 32
+    n = 5 * _kernels.FILTER_CHUNK + 77
+    t, x, y, p = stream(n, w, h, seed=21)
+    x[n // 2:] = np.where(np.random.default_rng(4).random(n - n // 2) < 0.9, 3, x[n // 2:])
+    pixels = np.array([[3, r] for r in range(h)] + [[5, 5], [60, 31]])
+    for times in (t, t.astype(np.float32), t.astype("datetime64[ns]")):
+        want = reference(times, x, y, p, pixels, w)
+        cols = [a.copy() for a in (times, x, y, p)]
+        out = filter_arrays(*cols, pixels, sensor_size=(w, h), threads=n_threads, inplace=True)
+        for got, ref in zip(out, want, strict=True):
+            assert got.dtype == ref.dtype
+            np.testing.assert_array_equal(got, ref)
+        assert_views_inside(out, cols)
+
+
+@pytest.mark.parametrize("where", [[5], [5, 90_000], [70_000, 130_000], [129_999], [131_000, 200_000],
+                                   [199_999], [64, 65_600, 262_150]])
+@pytest.mark.parametrize("n_threads", [1, 2])
+def test_in_place_names_the_first_event_outside_in_stream_order(where, n_threads, simd):
+    """Events outside the sensor in the first slice (found by the backward pass from its end:
+    the first in the stream is then looked for in the untouched part), the second, both, in
+    several chunks or at their edges: the error names the first of them, with its pixel."""
+    w, h = 50, 40
+    n = 4 * _kernels.FILTER_CHUNK + 11
+    t, x, y, p = stream(n, w, h, seed=sum(where))
+    for i in where:
+        x[i] = w + i % 7
+    pixels = all_pixels(w, h)[::11]
+    cols = [a.copy() for a in (t, x, y, p)]
+    with pytest.raises(IbiscapeError, match=rf"event {where[0]} at pixel \(x={w + where[0] % 7}, "):
+        filter_arrays(*cols, pixels, sensor_size=(w, h), threads=n_threads, inplace=True)
