@@ -355,7 +355,7 @@ class Renderer:
         or board corner thinner than a third of the pixel between the coarse rays."""
         import cv2
 
-        from ._kernels import board_footprints_flat, pixel_means
+        from ._kernels import pixel_means
 
         H, W = model.height_px, model.width_px
         s = self.options.target_supersample
@@ -367,21 +367,16 @@ class Renderer:
         spread = cv2.dilate(g, k) - cv2.erode(g, k)
         edge = (cv2.dilate(on, k) > 0) & ((spread > 0.004 * scale) | (cv2.erode(on, k) == 0))
         rows, cols = np.nonzero(edge)
-        sub = world_rays(subpixel_rays(model, rows, cols, s), T).reshape(-1, 6)
         c2 = code.reshape(H, W)
         c = c2[rows, cols]
         uniform = (c > 0) & (cv2.dilate(c2, k)[rows, cols] == cv2.erode(c2, k)[rows, cols])
         n = s * s
         if uniform.any():
-            poses, diffs = board_footprint_tables(self.static.targets)
-            flat = board_footprints_flat(sub, n, uniform, _code_board(c), poses,
-                                         board_tables(self.static.targets), diffs,
-                                         np.empty(len(rows), np.bool_))
-            cross = ~flat
-            rows, cols, c, uniform = rows[cross], cols[cross], c[cross], uniform[cross]
-            sub = sub.reshape(-1, n, 6)[cross].reshape(-1, 6)
+            cast = self._uniform_board_pixels(model, T, w, light, scale, rows, cols, c, uniform, rad)
+            rows, cols, c, uniform = rows[cast], cols[cast], c[cast], uniform[cast]
         if not len(rows):
             return
+        sub = world_rays(subpixel_rays(model, rows, cols, s), T).reshape(-1, 6)
         means, decided, clear, coarse_rad, coarse_idx = self._plane_supersamples(sub, s, c, uniform, t_ns, w,
                                                                                  light, scale)
         d = decided | clear
@@ -394,6 +389,29 @@ class Renderer:
         full[:, coarse_idx] = coarse_rad[m]
         full[:, rest_idx] = self._radiance(rest, t_ns, w, light, scale=scale, lit_code=lit)[0].reshape(len(m), -1, 3)
         pixel_means(full.reshape(-1, 3), n, rows[m] * W + cols[m], rad)
+
+    def _uniform_board_pixels(self, model: CameraModel, T: np.ndarray, w: WeatherState, light: Lighting,
+                              scale: float, rows: npt.NDArray[np.intp], cols: npt.NDArray[np.intp],
+                              c: npt.NDArray[np.uint16], uniform: npt.NDArray[np.bool_], rad: F32
+                              ) -> npt.NDArray[np.bool_]:
+        """Decide the candidates (``rows``, ``cols``, board code ``c``) whose neighbourhood sees one
+        board side (``uniform``) from their ``s x s`` rays' footprints on the board's plane alone
+        (``_board_kernels.uniform_board_pixels``: the centre sample where the footprint lies in one
+        uniform patch of the print, else the rays' mean on the plane into ``rad`` where the
+        footprint lies on the print).  Returns which candidates are left to cast (all but those)."""
+        from ._board_kernels import CAST, uniform_board_pixels
+
+        s = self.options.target_supersample
+        u = np.flatnonzero(uniform)
+        W = model.width_px
+        sub = world_rays(subpixel_rays(model, rows[u], cols[u], s), T).reshape(-1, 6)
+        poses, diffs = board_footprint_tables(self.static.targets)
+        state = uniform_board_pixels(sub, s * s, c[u], poses, board_tables(self.static.targets), diffs,
+                                     np.asarray(light.sun_dir, np.float64), *self._shading(w, light)[1:],
+                                     np.float32(scale), rows[u] * W + cols[u], rad, np.empty(len(u), np.uint8))
+        cast = ~uniform
+        cast[u[state == CAST]] = True
+        return cast
 
     def _plane_supersamples(self, sub: F32, s: int, c: npt.NDArray[np.uint16], uniform: npt.NDArray[np.bool_],
                             t_ns: int, w: WeatherState, light: Lighting, scale: float

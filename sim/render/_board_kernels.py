@@ -1,0 +1,121 @@
+"""numba kernel of the target supersampling's common case (``Renderer._supersample_targets``).
+
+:func:`uniform_board_pixels` takes the candidate pixels whose 3 x 3 neighbourhood sees one board
+side, lit alike, and decides each in one pass over its ``s x s`` rays: the footprint test of
+:func:`._kernels.board_footprints_flat` (all rays inside one uniform patch of the print: the pixel
+keeps its centre sample), else, when the four corner rays meet the board's plane inside its print
+(a texel of margin; the board is a convex quad, so every other ray does too), the mean of all its
+rays on that plane, shaded as :func:`._kernels.board_plane_means` does.  Only the rest (a corner
+ray off the print, or a side facing the sun in shadow) is left to the casts.  Before this kernel
+those pixels cast a coarse 3 x 3 subset of their rays against the whole scene to confirm what their
+neighbours already showed (about a tenth of the 384 px calibration drive's CPU).
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+from ._kernels import _plane_hit, _texel
+
+FLAT, PLANE, CAST = 0, 1, 2
+
+
+@nb.njit(cache=True, inline="always")
+def _corner_texels(rays, k, per_pixel, P, x0, y0, sign, ppm):
+    # texel rows r0..r1 and columns c0..c1 (a texel of margin) holding where the corner rays of
+    # pixel k's s x s grid meet the plane of the board at pose P; ok False when one misses it
+    rmin, cmin, rmax, cmax = 1 << 30, 1 << 30, -(1 << 30), -(1 << 30)
+    s = int(np.sqrt(per_pixel) + 0.5)
+    for q in (0, s - 1, per_pixel - s, per_pixel - 1):
+        i = k * per_pixel + q
+        ox, oy, oz = rays[i, 0] - P[0, 3], rays[i, 1] - P[1, 3], rays[i, 2] - P[2, 3]
+        dx, dy, dz = np.float64(rays[i, 3]), np.float64(rays[i, 4]), np.float64(rays[i, 5])
+        dn = P[0, 2] * dx + P[1, 2] * dy + P[2, 2] * dz
+        t = -(P[0, 2] * ox + P[1, 2] * oy + P[2, 2] * oz) / dn if dn != 0.0 else -1.0
+        if not t > 0.0:
+            return False, 0, 0, 0, 0
+        px, py, pz = ox + t * dx, oy + t * dy, oz + t * dz
+        x = P[0, 0] * px + P[1, 0] * py + P[2, 0] * pz
+        y = P[0, 1] * px + P[1, 1] * py + P[2, 1] * pz
+        c = int(np.floor((x - x0) * ppm))
+        r = int(np.floor((y - y0) * ppm)) if sign > 0 else int(np.floor((y0 - y) * ppm))
+        rmin, rmax, cmin, cmax = min(rmin, r), max(rmax, r), min(cmin, c), max(cmax, c)
+    return True, rmin - 1, rmax + 1, cmin - 1, cmax + 1
+
+
+@nb.njit(cache=True, inline="always")
+def _plane_mean(rays, k, per_pixel, P, board, front, lit, sun, e_sun, e_sky, beta, air, sky_distance, scale):
+    # board_plane_means' mean radiance of pixel k's rays on the plane of the board at pose P, with
+    # what is the same for every ray of the pixel (origin, shading terms) taken out of the loop
+    tex, x0, y0, sign, ppm = board
+    i0 = k * per_pixel
+    ox, oy, oz = rays[i0, 0] - P[0, 3], rays[i0, 1] - P[1, 3], rays[i0, 2] - P[2, 3]
+    _, _, _, ndl, amb = _plane_hit(rays, i0, P, sun, lit)  # the same for every ray meeting the plane
+    e = e_sun * np.float32(ndl) + e_sky * np.float32(amb)
+    a0 = a1 = a2 = 0.0
+    for i in range(i0, i0 + per_pixel):
+        if rays[i, 0] != rays[i0, 0] or rays[i, 1] != rays[i0, 1] or rays[i, 2] != rays[i0, 2]:
+            ox, oy, oz = rays[i, 0] - P[0, 3], rays[i, 1] - P[1, 3], rays[i, 2] - P[2, 3]
+        dx, dy, dz = np.float64(rays[i, 3]), np.float64(rays[i, 4]), np.float64(rays[i, 5])
+        dn = P[0, 2] * dx + P[1, 2] * dy + P[2, 2] * dz
+        t = -(P[0, 2] * ox + P[1, 2] * oy + P[2, 2] * oz) / dn if dn != 0.0 else np.inf
+        px, py, pz = ox + t * dx, oy + t * dy, oz + t * dz
+        alb = np.float32(0.35)
+        if front:
+            alb = _texel(tex, x0, y0, sign, ppm, np.float32(P[0, 0] * px + P[1, 0] * py + P[2, 0] * pz),
+                         np.float32(P[0, 1] * px + P[1, 1] * py + P[2, 1] * pz))
+        r = g = bl = alb * e
+        if beta > 0.0:
+            dnorm = np.sqrt(rays[i, 3] * rays[i, 3] + rays[i, 4] * rays[i, 4] + rays[i, 5] * rays[i, 5])
+            tr = np.exp(-beta * min(np.float32(t) * dnorm, sky_distance))
+            r = r * tr + air[0] * (1.0 - tr)
+            g = g * tr + air[1] * (1.0 - tr)
+            bl = bl * tr + air[2] * (1.0 - tr)
+        a0 += float(np.float32(r * scale))
+        a1 += float(np.float32(g * scale))
+        a2 += float(np.float32(bl * scale))
+    return a0 / per_pixel, a1 / per_pixel, a2 / per_pixel
+
+
+@nb.njit(cache=True, nogil=True)
+def uniform_board_pixels(rays, per_pixel, code, poses, boards, diffs, sun, sky, optics, scale, rows_flat, out,
+                         state):
+    """Decide the pixels k whose 3 x 3 neighbourhood sees the board side ``code[k]``
+    (``Renderer._radiance``'s board code, lit as it says), their ``per_pixel = s * s`` rays at
+    rows ``k per_pixel ...`` of ``rays`` (an s x s grid).  ``state[k]``:
+
+    - ``FLAT``: every ray meets the board's plane inside one uniform patch of its print, a texel of
+      margin all round (:func:`._kernels.board_footprints_flat`): the pixel keeps its centre sample;
+    - ``PLANE``: the corner rays meet the plane inside the print (a texel of margin), so all rays
+      do; ``out[rows_flat[k]]`` gets their mean radiance (times ``scale``) there, textured and
+      shaded as :func:`._kernels.board_plane_means` (``sky``, ``optics`` as there);
+    - ``CAST``: the rest, for the caller's casts: a corner ray off the print, or a side that faces
+      the sun but is unlit (its neighbours in a shadow that may end inside the pixel).
+
+    Like the centre-sample test, this assumes no occluder, shadow edge or board corner inside the
+    pixel that none of its 3 x 3 neighbours' centre rays sees."""
+    e_sun, e_sky = sky[0], sky[1]
+    beta, air, sky_distance = optics[2], optics[3], optics[4]
+    for k in range(code.shape[0]):
+        c = code[k] - 1
+        b, front, lit = c >> 2, (c >> 1) % 2 == 1, c % 2 == 1
+        P = poses[b]
+        tex, x0, y0, sign, ppm = boards[b]
+        sat = diffs[b]
+        h, w = tex.shape
+        state[k] = CAST
+        ok, r0, r1, c0, c1 = _corner_texels(rays, k, per_pixel, P, x0, y0, sign, ppm)
+        if not ok or r0 < 0 or c0 < 0 or r1 >= h or c1 >= w:
+            continue
+        if sat[r1 + 1, c1 + 1] - sat[r0 + 1, c1 + 1] - sat[r1 + 1, c0 + 1] + sat[r0 + 1, c0 + 1] == 0:
+            state[k] = FLAT
+            continue
+        i = k * per_pixel  # the side faces the sun when max(0, n.s) of its normal facing the ray is > 0
+        if not lit and _plane_hit(rays, i, P, sun, True)[3] > 0.0:
+            continue
+        j = rows_flat[k]
+        out[j, 0], out[j, 1], out[j, 2] = _plane_mean(rays, k, per_pixel, P, boards[b], front, lit, sun, e_sun,
+                                                      e_sky, beta, air, sky_distance, scale)
+        state[k] = PLANE
+    return state
