@@ -103,8 +103,8 @@ def write_png(path: str | os.PathLike[str], image: npt.ArrayLike, *, compression
             img.ndim == 2 or (img.ndim == 3 and img.shape[2] in (3, 4))) or img.size == 0:
         raise IbiscapeError(f"{path}: a PNG image must be uint8/uint16 (H, W) or (H, W, 3|4), "
                             f"got {img.dtype} {img.shape}")
-    if img.ndim == 3:
-        img = img[..., [2, 1, 0]] if img.shape[2] == 3 else img[..., [2, 1, 0, 3]]
+    if img.ndim == 3:  # OpenCV writes BGR(A); one cvtColor pass (a fancy-index copy took 20x longer)
+        img = cv2.cvtColor(np.ascontiguousarray(img), cv2.COLOR_RGB2BGR if img.shape[2] == 3 else cv2.COLOR_RGBA2BGRA)
     with atomic_output_path(path) as tmp:
         try:
             params = [cv2.IMWRITE_PNG_COMPRESSION, int(compression)]
@@ -251,8 +251,8 @@ def read_png(path: str | os.PathLike[str]) -> npt.NDArray[Any]:
 
     img = imread_checked(path, cv2.IMREAD_UNCHANGED, missing="image file not found",
                          unreadable="not a readable image (expected a PNG)")
-    if img.ndim == 3:
-        img = img[..., [2, 1, 0]] if img.shape[2] == 3 else img[..., [2, 1, 0, 3]]
+    if img.ndim == 3:  # OpenCV reads BGR(A)
+        img = cv2.cvtColor(img, cv2.COLOR_BGR2RGB if img.shape[2] == 3 else cv2.COLOR_BGRA2RGBA)
     return np.ascontiguousarray(img)
 
 
