@@ -78,6 +78,28 @@ def _plane_mean(rays, k, per_pixel, P, board, front, lit, sun, e_sun, e_sky, bet
     return a0 / per_pixel, a1 / per_pixel, a2 / per_pixel
 
 
+@nb.njit(cache=True, inline="always")
+def _decide(rays, k, per_pixel, code, poses, boards, diffs, sun, sky, optics, scale, out, j):
+    # uniform_board_pixels' state of pixel k (its code ``code``), its mean into out[j] when PLANE
+    c = code - 1
+    b, front, lit = c >> 2, (c >> 1) % 2 == 1, c % 2 == 1
+    P = poses[b]
+    tex, x0, y0, sign, ppm = boards[b]
+    sat = diffs[b]
+    h, w = tex.shape
+    ok, r0, r1, c0, c1 = _corner_texels(rays, k, per_pixel, P, x0, y0, sign, ppm)
+    if not ok or r0 < 0 or c0 < 0 or r1 >= h or c1 >= w:
+        return CAST
+    if sat[r1 + 1, c1 + 1] - sat[r0 + 1, c1 + 1] - sat[r1 + 1, c0 + 1] + sat[r0 + 1, c0 + 1] == 0:
+        return FLAT
+    # the side faces the sun when max(0, n.s) of its normal facing the ray is > 0
+    if not lit and _plane_hit(rays, k * per_pixel, P, sun, True)[3] > 0.0:
+        return CAST
+    out[j, 0], out[j, 1], out[j, 2] = _plane_mean(rays, k, per_pixel, P, boards[b], front, lit, sun, sky[0], sky[1],
+                                                  optics[2], optics[3], optics[4], scale)
+    return PLANE
+
+
 @nb.njit(cache=True, nogil=True)
 def uniform_board_pixels(rays, per_pixel, code, poses, boards, diffs, sun, sky, optics, scale, rows_flat, out,
                          state):
@@ -95,27 +117,32 @@ def uniform_board_pixels(rays, per_pixel, code, poses, boards, diffs, sun, sky, 
 
     Like the centre-sample test, this assumes no occluder, shadow edge or board corner inside the
     pixel that none of its 3 x 3 neighbours' centre rays sees."""
-    e_sun, e_sky = sky[0], sky[1]
-    beta, air, sky_distance = optics[2], optics[3], optics[4]
     for k in range(code.shape[0]):
-        c = code[k] - 1
-        b, front, lit = c >> 2, (c >> 1) % 2 == 1, c % 2 == 1
-        P = poses[b]
-        tex, x0, y0, sign, ppm = boards[b]
-        sat = diffs[b]
-        h, w = tex.shape
-        state[k] = CAST
-        ok, r0, r1, c0, c1 = _corner_texels(rays, k, per_pixel, P, x0, y0, sign, ppm)
-        if not ok or r0 < 0 or c0 < 0 or r1 >= h or c1 >= w:
-            continue
-        if sat[r1 + 1, c1 + 1] - sat[r0 + 1, c1 + 1] - sat[r1 + 1, c0 + 1] + sat[r0 + 1, c0 + 1] == 0:
-            state[k] = FLAT
-            continue
-        i = k * per_pixel  # the side faces the sun when max(0, n.s) of its normal facing the ray is > 0
-        if not lit and _plane_hit(rays, i, P, sun, True)[3] > 0.0:
-            continue
-        j = rows_flat[k]
-        out[j, 0], out[j, 1], out[j, 2] = _plane_mean(rays, k, per_pixel, P, boards[b], front, lit, sun, e_sun,
-                                                      e_sky, beta, air, sky_distance, scale)
-        state[k] = PLANE
+        state[k] = _decide(rays, k, per_pixel, code[k], poses, boards, diffs, sun, sky, optics, scale, out,
+                           rows_flat[k])
+    return state
+
+
+@nb.njit(cache=True, nogil=True)
+def uniform_board_pixels_pinhole(rows, cols, off, fxy, R, origin, code, poses, boards, diffs, sun, sky, optics,
+                                 scale, rows_flat, out, state):
+    """:func:`uniform_board_pixels` of a camera without distortion, its rays made per pixel
+    instead of read: the s x s grid ``off`` (s,) inside pixel ``(rows[k], cols[k])`` as
+    ``_kernels.pinhole_subpixel_dirs`` (``fxy = (fx, fy, cx, cy)``) turned into the world as
+    ``_kernels.transform_rays`` (float32 ``R`` (3, 3) and ``origin`` (3,)): the same float32 rays."""
+    s = off.shape[0]
+    fx, fy, cx, cy = fxy
+    rays = np.empty((s * s, 6), np.float32)
+    for k in range(code.shape[0]):
+        for i in range(s):
+            y = np.float32((rows[k] + off[i] - cy) / fy)
+            for j in range(s):
+                x = np.float32((cols[k] + off[j] - cx) / fx)
+                z = np.float32(1.0)
+                q = i * s + j
+                rays[q, 0], rays[q, 1], rays[q, 2] = origin[0], origin[1], origin[2]
+                rays[q, 3] = R[0, 0] * x + R[0, 1] * y + R[0, 2] * z
+                rays[q, 4] = R[1, 0] * x + R[1, 1] * y + R[1, 2] * z
+                rays[q, 5] = R[2, 0] * x + R[2, 1] * y + R[2, 2] * z
+        state[k] = _decide(rays, 0, s * s, code[k], poses, boards, diffs, sun, sky, optics, scale, out, rows_flat[k])
     return state

@@ -342,17 +342,19 @@ class Renderer:
         sample).
 
         A pixel whose 3x3 neighbourhood sees one board side, lit alike (``code``, see
-        :meth:`_radiance`), and whose ``s x s`` rays all meet that board's plane inside one
-        uniform patch of the print (a texel of margin) keeps its centre sample: its rays would
-        all return that sample's radiance (the ~35 % of candidates beside an edge that does not
-        cross them).  The others cast a coarse 3 x 3 subset of their rays first
+        :meth:`_radiance`), is decided from its ``s x s`` rays' footprint on that board's plane
+        alone (:meth:`_uniform_board_pixels`): it keeps its centre sample when the footprint lies
+        in one uniform patch of the print (a texel of margin; its rays would all return that
+        sample's radiance), else it gets the mean of its rays on the plane when the footprint
+        lies on the print (no cast at all: ~80 % of the candidates on the calibration drive).
+        The others cast a coarse 3 x 3 subset of their rays first
         (:meth:`_plane_supersamples`): the pixels whose coarse rays all see one board side, lit
         alike, get all their rays on that board's plane (also beside the board's outline), those
         whose coarse rays see no board (the background beside the board's outline) the mean of
         the coarse rays, and only the rest cast their other rays (the coarse ones are kept).  The rays of a
         pixel whose neighbours all see one lit board side that meet that side are taken as lit
         without shadow rays.  Like the centre-sample test, this assumes no shadow edge, occluder
-        or board corner thinner than a third of the pixel between the coarse rays."""
+        or board corner inside a pixel that neither its neighbours' centre rays nor its coarse rays see."""
         import cv2
 
         from ._kernels import pixel_means
@@ -399,16 +401,23 @@ class Renderer:
         (``_board_kernels.uniform_board_pixels``: the centre sample where the footprint lies in one
         uniform patch of the print, else the rays' mean on the plane into ``rad`` where the
         footprint lies on the print).  Returns which candidates are left to cast (all but those)."""
-        from ._board_kernels import CAST, uniform_board_pixels
+        from ._board_kernels import CAST, uniform_board_pixels, uniform_board_pixels_pinhole
 
         s = self.options.target_supersample
         u = np.flatnonzero(uniform)
         W = model.width_px
-        sub = world_rays(subpixel_rays(model, rows[u], cols[u], s), T).reshape(-1, 6)
         poses, diffs = board_footprint_tables(self.static.targets)
-        state = uniform_board_pixels(sub, s * s, c[u], poses, board_tables(self.static.targets), diffs,
-                                     np.asarray(light.sun_dir, np.float64), *self._shading(w, light)[1:],
-                                     np.float32(scale), rows[u] * W + cols[u], rad, np.empty(len(u), np.uint8))
+        args = (c[u], poses, board_tables(self.static.targets), diffs, np.asarray(light.sun_dir, np.float64),
+                *self._shading(w, light)[1:], np.float32(scale), rows[u] * W + cols[u], rad, np.empty(len(u), np.uint8))
+        if model.distortion == "none":  # the rays made in the kernel, pixel by pixel (subpixel_rays' arithmetic)
+            Tf = np.asarray(T, np.float64)
+            state = uniform_board_pixels_pinhole(
+                rows[u].astype(np.float64), cols[u].astype(np.float64), (np.arange(s) + 0.5) / s - 0.5,
+                (float(model.fx), float(model.fy), float(model.cx), float(model.cy)), Tf[:3, :3].astype(np.float32),
+                Tf[:3, 3].astype(np.float32), *args)
+        else:
+            state = uniform_board_pixels(world_rays(subpixel_rays(model, rows[u], cols[u], s), T).reshape(-1, 6), s * s,
+                                         *args)
         cast = ~uniform
         cast[u[state == CAST]] = True
         return cast

@@ -48,14 +48,16 @@ def test_skipped_footprints_equal_casting_every_candidate(calib: Any, monkeypatc
     model = CameraModel.from_fov(192, 160, 80.0)
     T = look_at_board(target, dist, yaw, pitch, roll)
     states: list[np.ndarray] = []
-    real = board_kernels.uniform_board_pixels
 
-    def counted(*a: Any) -> Any:
-        out = real(*a)
-        states.append(out.copy())
-        return out
+    def counted(real: Any) -> Any:
+        def run(*a: Any) -> Any:
+            out = real(*a)
+            states.append(out.copy())
+            return out
+        return run
 
-    monkeypatch.setattr(board_kernels, "uniform_board_pixels", counted)
+    for name in ("uniform_board_pixels", "uniform_board_pixels_pinhole"):
+        monkeypatch.setattr(board_kernels, name, counted(getattr(board_kernels, name)))
     fast = r.render_pose(model, T, weather=DAY).radiance
     counts = np.bincount(states[0], minlength=3)
     assert counts[board_kernels.FLAT] > 100  # pixels keeping their centre sample
@@ -188,3 +190,33 @@ def test_uniform_board_pixels_flat_plane_and_cast(calib: Any) -> None:
     away = board_kernels.uniform_board_pixels(rays[:4], 4, np.array([lit - 1], np.uint16), poses, args[1], diffs, -sun,
                                               *args[4:], np.arange(1), out, np.empty(1, np.uint8))
     assert away.tolist() == [board_kernels.PLANE]  # unlit because it faces away from the sun: no shadow to find
+
+
+def test_pinhole_kernel_makes_the_same_rays(calib: Any) -> None:
+    """The pinhole kernel's rays made per pixel decide every pixel as the general kernel does on
+    subpixel_rays + world_rays, to the bit."""
+    from ibiscape_eval.sim.render.rays import subpixel_rays, world_rays
+    from ibiscape_eval.sim.render.textures import board_footprint_tables, board_tables
+
+    r, target = calib
+    k = r.static.targets.index(target)
+    model = CameraModel.from_fov(192, 160, 80.0)
+    T = look_at_board(target, 5.0, 20.0, -10.0, 5.0)
+    rows, cols = np.mgrid[40:120, 50:150]
+    rows, cols = rows.ravel(), cols.ravel()
+    poses, diffs = board_footprint_tables(r.static.targets)
+    sky = (np.float32(1.0), np.float32(0.2))
+    optics = (np.float32(0), np.float32(np.inf), np.float32(0.002), np.full(3, 0.5, np.float32), np.float32(1000.0))
+    code = np.full(len(rows), 1 + 4 * k + 2 + 1, np.uint16)
+    args = (code, poses, board_tables(r.static.targets), diffs, np.array([0.3, -0.2, 0.93]), sky, optics,
+            np.float32(255.0), np.arange(len(rows)))
+    s = 6
+    out_a, out_b = np.zeros((len(rows), 3), np.float32), np.zeros((len(rows), 3), np.float32)
+    a = board_kernels.uniform_board_pixels(world_rays(subpixel_rays(model, rows, cols, s), T).reshape(-1, 6), s * s,
+                                           *args, out_a, np.empty(len(rows), np.uint8))
+    b = board_kernels.uniform_board_pixels_pinhole(
+        rows.astype(np.float64), cols.astype(np.float64), (np.arange(s) + 0.5) / s - 0.5,
+        (model.fx, model.fy, model.cx, model.cy), T[:3, :3].astype(np.float32), T[:3, 3].astype(np.float32), *args,
+        out_b, np.empty(len(rows), np.uint8))
+    assert np.array_equal(a, b) and np.array_equal(out_a, out_b)
+    assert min(np.bincount(a, minlength=3)) > 50  # flat, plane and cast pixels all compared
