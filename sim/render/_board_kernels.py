@@ -146,3 +146,50 @@ def uniform_board_pixels_pinhole(rows, cols, off, fxy, R, origin, code, poses, b
                 rays[q, 5] = R[2, 0] * x + R[2, 1] * y + R[2, 2] * z
         state[k] = _decide(rays, 0, s * s, code[k], poses, boards, diffs, sun, sky, optics, scale, out, rows_flat[k])
     return state
+
+
+@nb.njit(cache=True, nogil=True)
+def outline_board_rays(rays, per_pixel, code, poses, boards, sun, sky, optics, scale, eps, out, hit, shadow):
+    """For the pixels k beside a board's outline (their ``per_pixel`` rays at rows ``k per_pixel
+    ...`` of ``rays``) whose coarse rays saw one board side ``code[k]`` (``Renderer._radiance``'s
+    board code, lit as it says; 0: none): ``hit[k, q]`` whether ray q meets that board's plane in
+    front inside its print (the board's quad), and there ``out[k, q]`` its radiance (times
+    ``scale``), textured and shaded as :func:`._kernels.board_plane_means` shades each ray, and
+    ``shadow[k, q]`` the ray toward the sun from there (lifted by ``eps`` [m] along the normal
+    facing the ray, like ``_kernels.surfaces``' shadow rays) for the caller to test a lit side."""
+    e_sun, e_sky = sky[0], sky[1]
+    beta, air, sky_distance = optics[2], optics[3], optics[4]
+    for k in range(code.shape[0]):
+        for q in range(per_pixel):
+            hit[k, q] = False
+        if code[k] == 0:
+            continue
+        c = code[k] - 1
+        b, front, lit = c >> 2, (c >> 1) % 2 == 1, c % 2 == 1
+        P = poses[b]
+        tex, x0, y0, sign, ppm = boards[b]
+        h, w = tex.shape
+        for q in range(per_pixel):
+            i = k * per_pixel + q
+            t, u, v, ndl, amb = _plane_hit(rays, i, P, sun, lit)
+            uf, vf = np.float64(np.float32(u)), np.float64(np.float32(v))
+            cf = (uf - x0) * ppm
+            rf = (vf - y0) * ppm if sign > 0 else (y0 - vf) * ppm
+            if not (t > 0.0 and 0.0 <= cf < w and 0.0 <= rf < h):
+                continue
+            hit[k, q] = True
+            sgn = -1.0 if P[0, 2] * rays[i, 3] + P[1, 2] * rays[i, 4] + P[2, 2] * rays[i, 5] > 0.0 else 1.0
+            for a in range(3):
+                shadow[k, q, a] = rays[i, a] + t * rays[i, 3 + a] + eps * sgn * P[a, 2]
+                shadow[k, q, 3 + a] = sun[a]
+            alb = _texel(tex, x0, y0, sign, ppm, np.float32(u), np.float32(v)) if front else np.float32(0.35)
+            e = e_sun * np.float32(ndl) + e_sky * np.float32(amb)
+            r = g = bl = alb * e
+            if beta > 0.0:
+                dn = np.sqrt(rays[i, 3] * rays[i, 3] + rays[i, 4] * rays[i, 4] + rays[i, 5] * rays[i, 5])
+                tr = np.exp(-beta * min(np.float32(t) * dn, sky_distance))
+                r = r * tr + air[0] * (1.0 - tr)
+                g = g * tr + air[1] * (1.0 - tr)
+                bl = bl * tr + air[2] * (1.0 - tr)
+            out[k, q, 0], out[k, q, 1], out[k, q, 2] = r * scale, g * scale, bl * scale
+    return hit
