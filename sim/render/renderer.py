@@ -379,18 +379,17 @@ class Renderer:
         if not len(rows):
             return
         sub = world_rays(subpixel_rays(model, rows, cols, s), T).reshape(-1, 6)
-        means, decided, clear, coarse_rad, coarse_idx, seen = self._plane_supersamples(sub, s, c, uniform, t_ns, w,
-                                                                                       light, scale)
+        means, decided, clear, coarse_rad, coarse_idx = self._plane_supersamples(sub, s, c, uniform, t_ns, w,
+                                                                                 light, scale)
         d = decided | clear
         rad[rows[d] * W + cols[d]] = means[d]
         m = np.flatnonzero(~d)
+        rest_idx = np.setdiff1d(np.arange(n), coarse_idx)
+        rest = np.ascontiguousarray(sub.reshape(-1, n, 6)[m][:, rest_idx].reshape(-1, 6))
+        lit = np.repeat(np.where(uniform[m], _code_lit(c[m]), 0).astype(np.uint16), len(rest_idx))
         full = np.empty((len(m), n, 3), np.float32)
         full[:, coarse_idx] = coarse_rad[m]
-        sub_m = np.ascontiguousarray(sub.reshape(-1, n, 6)[m])
-        pix, q = np.nonzero(self._outline_board_rays(sub_m, seen[m], coarse_idx, t_ns, w, light, scale, full))
-        lit = np.where(uniform[m], _code_lit(c[m]), 0).astype(np.uint16)
-        full[pix, q] = self._radiance(np.ascontiguousarray(sub_m[pix, q]), t_ns, w, light, scale=scale,
-                                      lit_code=lit[pix])[0]
+        full[:, rest_idx] = self._radiance(rest, t_ns, w, light, scale=scale, lit_code=lit)[0].reshape(len(m), -1, 3)
         pixel_means(full.reshape(-1, 3), n, rows[m] * W + cols[m], rad)
 
     def _uniform_board_pixels(self, model: CameraModel, T: np.ndarray, w: WeatherState, light: Lighting,
@@ -425,14 +424,13 @@ class Renderer:
 
     def _plane_supersamples(self, sub: F32, s: int, c: npt.NDArray[np.uint16], uniform: npt.NDArray[np.bool_],
                             t_ns: int, w: WeatherState, light: Lighting, scale: float
-                            ) -> tuple[F32, npt.NDArray[np.bool_], npt.NDArray[np.bool_], F32, npt.NDArray[np.intp],
-                                       npt.NDArray[np.uint16]]:
+                            ) -> tuple[F32, npt.NDArray[np.bool_], npt.NDArray[np.bool_], F32, npt.NDArray[np.intp]]:
         """Cast a coarse 3 x 3 subset of the ``s x s`` rays ``sub`` (K s s, 6) of K pixels (board
         code ``c`` of their centre, ``uniform`` where their neighbours all see that side) and
         decide the pixels whose coarse rays agree.  Returns the mean radiance (K, 3) of the
         decided pixels (the coarse rays' mean where they see no board), which pixels are decided
-        (K,), which see no board with any coarse ray (K,), the coarse rays' radiance (K, 9, 3),
-        their indices in the s x s grid (9,) and their board codes (K, 9).
+        (K,), which see no board with any coarse ray (K,), the coarse rays' radiance (K, 9, 3)
+        and their indices in the s x s grid (9,).
 
         Decided are the pixels whose coarse rays all see one board side lit alike: the mean of all
         ``s x s`` rays where they meet the board's plane, shaded like a cast hit (lit as the
@@ -464,50 +462,7 @@ class Renderer:
         clear = (seen == 0).all(axis=1)
         none = np.flatnonzero(clear)
         pixel_means(np.ascontiguousarray(crad.reshape(K, nc, 3)[none]).reshape(-1, 3), nc, none, means)
-        return means, decided, clear, crad, coarse_idx, seen
-
-    def _outline_board_rays(self, sub: F32, seen: npt.NDArray[np.uint16], coarse_idx: npt.NDArray[np.intp],
-                            t_ns: int, w: WeatherState, light: Lighting, scale: float, full: F32
-                            ) -> npt.NDArray[np.bool_]:
-        """Which of the ``s x s`` rays ``sub`` (K, s s, 6) of K pixels beside a board's outline are
-        left to cast (K, s s): not the coarse rays (``coarse_idx``, board codes ``seen`` (K, 9)),
-        nor the rays that meet the print of the one board side the coarse rays saw when every
-        coarse ray's cast agrees with that (those that saw it meet its print, the others do not:
-        no occluder in front of it was seen); their radiance goes into ``full`` (K, s s, 3)
-        (``_board_kernels.outline_board_rays``, shaded like a cast hit, lit as the coarse rays
-        say, a lit side after a shadow ray: those in shadow are cast): the assumption of the
-        pixels whose coarse rays all see the board (:meth:`_plane_supersamples`), cell by cell."""
-        from ._board_kernels import outline_board_rays
-
-        K, n = sub.shape[:2]
-        cast = np.ones((K, n), bool)
-        cast[:, coarse_idx] = False
-        top = seen.max(axis=1) if K else np.zeros(0, np.uint16)
-        code = np.where(((seen == 0) | (seen == top[:, None])).all(axis=1), top, 0).astype(np.uint16)
-        if not code.any():
-            return cast
-        targets = self.static.targets
-        plane = np.empty((K, n, 3), np.float32)
-        shadow = np.empty((K, n, 6), np.float32)
-        hit = outline_board_rays(sub.reshape(-1, 6), n, code, board_footprint_tables(targets)[0],
-                                 board_tables(targets), np.asarray(light.sun_dir, np.float64),
-                                 *self._shading(w, light)[1:], np.float32(scale), _SHADOW_EPS_M, plane,
-                                 np.empty((K, n), np.bool_), shadow)
-        agree = (hit[:, coarse_idx] == (seen > 0)).all(axis=1) & (code > 0)
-        # only rays inside a cell of the 3 x 3 coarse grid whose four corner rays saw the board
-        # side (an occluder beside the outline, the board's stand, may cover the print there)
-        s = round(np.sqrt(n))
-        on = (seen > 0).reshape(K, 3, 3)
-        cell = on[:, :2, :2] & on[:, 1:, :2] & on[:, :2, 1:] & on[:, 1:, 1:]
-        a = (np.arange(s) > coarse_idx[4] // s).astype(np.intp)  # the cell row (column) of a grid row (column)
-        use = hit & agree[:, None] & cell[:, a[:, None], a[None, :]].reshape(K, n)
-        use[:, coarse_idx] = False
-        lit = use & (_code_lit(code) > 0)[:, None]
-        if self.options.shadows and light.e_sun > 0.0 and lit.any():
-            occ = self._occluded(np.ascontiguousarray(shadow[lit]), np.ones(int(lit.sum()), bool), t_ns)
-            use[lit] = ~occ  # a lit ray in shadow: cast
-        full[use] = plane[use]
-        return cast & ~use
+        return means, decided, clear, crad, coarse_idx
 
     def _lit_side_seen(self, rays: F32, lit_c: npt.NDArray[np.uint16], nc: int, light: Lighting
                        ) -> npt.NDArray[np.bool_]:
