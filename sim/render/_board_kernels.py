@@ -16,7 +16,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from ._kernels import _plane_hit, _texel
+from ._kernels import _plane_hit
 
 FLAT, PLANE, CAST = 0, 1, 2
 
@@ -45,44 +45,54 @@ def _corner_texels(rays, k, per_pixel, P, x0, y0, sign, ppm):
 
 
 @nb.njit(cache=True, inline="always")
-def _plane_mean(rays, k, per_pixel, P, board, front, lit, sun, e_sun, e_sky, beta, air, sky_distance, scale):
-    # board_plane_means' mean radiance of pixel k's rays on the plane of the board at pose P, with
-    # what is the same for every ray of the pixel (origin, shading terms) taken out of the loop
+def _plane_mean(rays, k, per_pixel, P, board, front, lit, sun, e_sun, e_sky, beta, air, sky_distance, scale, work):
+    # board_plane_means' mean radiance of pixel k's rays (one origin) on the plane of the board at
+    # pose P: a branch-free pass finding each ray's texel (_texel's arithmetic) into ``work``, then
+    # the sum (one channel without fog: a board's albedo is grey)
     tex, x0, y0, sign, ppm = board
+    rr, cc, tt = work
+    h, w = tex.shape
     i0 = k * per_pixel
     ox, oy, oz = rays[i0, 0] - P[0, 3], rays[i0, 1] - P[1, 3], rays[i0, 2] - P[2, 3]
     _, _, _, ndl, amb = _plane_hit(rays, i0, P, sun, lit)  # the same for every ray meeting the plane
     e = e_sun * np.float32(ndl) + e_sky * np.float32(amb)
-    a0 = a1 = a2 = 0.0
-    for i in range(i0, i0 + per_pixel):
-        if rays[i, 0] != rays[i0, 0] or rays[i, 1] != rays[i0, 1] or rays[i, 2] != rays[i0, 2]:
-            ox, oy, oz = rays[i, 0] - P[0, 3], rays[i, 1] - P[1, 3], rays[i, 2] - P[2, 3]
+    num = -(P[0, 2] * ox + P[1, 2] * oy + P[2, 2] * oz)
+    for q in range(per_pixel):
+        i = i0 + q
         dx, dy, dz = np.float64(rays[i, 3]), np.float64(rays[i, 4]), np.float64(rays[i, 5])
-        dn = P[0, 2] * dx + P[1, 2] * dy + P[2, 2] * dz
-        t = -(P[0, 2] * ox + P[1, 2] * oy + P[2, 2] * oz) / dn if dn != 0.0 else np.inf
+        t = num / (P[0, 2] * dx + P[1, 2] * dy + P[2, 2] * dz)
         px, py, pz = ox + t * dx, oy + t * dy, oz + t * dz
-        alb = np.float32(0.35)
-        if front:
-            alb = _texel(tex, x0, y0, sign, ppm, np.float32(P[0, 0] * px + P[1, 0] * py + P[2, 0] * pz),
-                         np.float32(P[0, 1] * px + P[1, 1] * py + P[2, 1] * pz))
+        u = np.float64(np.float32(P[0, 0] * px + P[1, 0] * py + P[2, 0] * pz))
+        v = np.float64(np.float32(P[0, 1] * px + P[1, 1] * py + P[2, 1] * pz))
+        cf = (u - x0) * ppm - 0.5
+        rf = (v - y0) * ppm - 0.5 if sign > 0 else (y0 - v) * ppm - 0.5
+        cc[q] = min(max(np.int64(np.floor(cf + 0.5)), 0), w - 1)
+        rr[q] = min(max(np.int64(np.floor(rf + 0.5)), 0), h - 1)
+        tt[q] = t
+    a0 = a1 = a2 = 0.0
+    for q in range(per_pixel):
+        alb = tex[rr[q], cc[q]] if front else np.float32(0.35)
         r = g = bl = alb * e
         if beta > 0.0:
+            i = i0 + q
             dnorm = np.sqrt(rays[i, 3] * rays[i, 3] + rays[i, 4] * rays[i, 4] + rays[i, 5] * rays[i, 5])
-            tr = np.exp(-beta * min(np.float32(t) * dnorm, sky_distance))
+            tr = np.exp(-beta * min(np.float32(tt[q]) * dnorm, sky_distance))
             r = r * tr + air[0] * (1.0 - tr)
             g = g * tr + air[1] * (1.0 - tr)
             bl = bl * tr + air[2] * (1.0 - tr)
+            a1 += float(np.float32(g * scale))
+            a2 += float(np.float32(bl * scale))
         a0 += float(np.float32(r * scale))
-        a1 += float(np.float32(g * scale))
-        a2 += float(np.float32(bl * scale))
+    if not beta > 0.0:
+        a1 = a2 = a0
     return a0 / per_pixel, a1 / per_pixel, a2 / per_pixel
 
 
 @nb.njit(cache=True, inline="always")
-def _decide(rays, k, per_pixel, code, poses, boards, diffs, sun, sky, optics, scale, out, j):
-    # uniform_board_pixels' state of pixel k (its code ``code``), its mean into out[j] when PLANE
+def _classify(rays, k, per_pixel, code, poses, boards, diffs, sun):
+    # FLAT, CAST or PLANE for pixel k (board code ``code``) from its corner rays alone
     c = code - 1
-    b, front, lit = c >> 2, (c >> 1) % 2 == 1, c % 2 == 1
+    b, lit = c >> 2, c % 2 == 1
     P = poses[b]
     tex, x0, y0, sign, ppm = boards[b]
     sat = diffs[b]
@@ -95,9 +105,16 @@ def _decide(rays, k, per_pixel, code, poses, boards, diffs, sun, sky, optics, sc
     # the side faces the sun when max(0, n.s) of its normal facing the ray is > 0
     if not lit and _plane_hit(rays, k * per_pixel, P, sun, True)[3] > 0.0:
         return CAST
-    out[j, 0], out[j, 1], out[j, 2] = _plane_mean(rays, k, per_pixel, P, boards[b], front, lit, sun, sky[0], sky[1],
-                                                  optics[2], optics[3], optics[4], scale)
     return PLANE
+
+
+@nb.njit(cache=True, inline="always")
+def _mean_into(rays, k, per_pixel, code, poses, boards, sun, sky, optics, scale, out, j, work):
+    # out[j]: the PLANE mean of pixel k (board code ``code``)
+    c = code - 1
+    b, front, lit = c >> 2, (c >> 1) % 2 == 1, c % 2 == 1
+    out[j, 0], out[j, 1], out[j, 2] = _plane_mean(rays, k, per_pixel, poses[b], boards[b], front, lit, sun, sky[0],
+                                                  sky[1], optics[2], optics[3], optics[4], scale, work)
 
 
 @nb.njit(cache=True, nogil=True)
@@ -117,10 +134,26 @@ def uniform_board_pixels(rays, per_pixel, code, poses, boards, diffs, sun, sky, 
 
     Like the centre-sample test, this assumes no occluder, shadow edge or board corner inside the
     pixel that none of its 3 x 3 neighbours' centre rays sees."""
+    work = (np.empty(per_pixel, np.int64), np.empty(per_pixel, np.int64), np.empty(per_pixel, np.float64))
     for k in range(code.shape[0]):
-        state[k] = _decide(rays, k, per_pixel, code[k], poses, boards, diffs, sun, sky, optics, scale, out,
-                           rows_flat[k])
+        state[k] = _classify(rays, k, per_pixel, code[k], poses, boards, diffs, sun)
+        if state[k] == PLANE:
+            _mean_into(rays, k, per_pixel, code[k], poses, boards, sun, sky, optics, scale, out, rows_flat[k], work)
     return state
+
+
+@nb.njit(cache=True, inline="always")
+def _pinhole_ray(row, col, off, fxy, R, origin, i, j, rays):
+    # ray i s + j of the s x s grid in pixel (row, col): pinhole_subpixel_dirs then transform_rays
+    fx, fy, cx, cy = fxy
+    x = np.float32((col + off[j] - cx) / fx)
+    y = np.float32((row + off[i] - cy) / fy)
+    z = np.float32(1.0)
+    q = i * off.shape[0] + j
+    rays[q, 0], rays[q, 1], rays[q, 2] = origin[0], origin[1], origin[2]
+    rays[q, 3] = R[0, 0] * x + R[0, 1] * y + R[0, 2] * z
+    rays[q, 4] = R[1, 0] * x + R[1, 1] * y + R[1, 2] * z
+    rays[q, 5] = R[2, 0] * x + R[2, 1] * y + R[2, 2] * z
 
 
 @nb.njit(cache=True, nogil=True)
@@ -131,18 +164,18 @@ def uniform_board_pixels_pinhole(rows, cols, off, fxy, R, origin, code, poses, b
     ``_kernels.pinhole_subpixel_dirs`` (``fxy = (fx, fy, cx, cy)``) turned into the world as
     ``_kernels.transform_rays`` (float32 ``R`` (3, 3) and ``origin`` (3,)): the same float32 rays."""
     s = off.shape[0]
-    fx, fy, cx, cy = fxy
     rays = np.empty((s * s, 6), np.float32)
+    work = (np.empty(s * s, np.int64), np.empty(s * s, np.int64), np.empty(s * s, np.float64))
+    n = s * s
+    corners = np.array([0, s - 1, n - s, n - 1])
     for k in range(code.shape[0]):
+        for q in corners:  # the corner rays decide FLAT and CAST; PLANE needs them all
+            _pinhole_ray(rows[k], cols[k], off, fxy, R, origin, q // s, q % s, rays)
+        state[k] = _classify(rays, 0, n, code[k], poses, boards, diffs, sun)
+        if state[k] != PLANE:
+            continue
         for i in range(s):
-            y = np.float32((rows[k] + off[i] - cy) / fy)
             for j in range(s):
-                x = np.float32((cols[k] + off[j] - cx) / fx)
-                z = np.float32(1.0)
-                q = i * s + j
-                rays[q, 0], rays[q, 1], rays[q, 2] = origin[0], origin[1], origin[2]
-                rays[q, 3] = R[0, 0] * x + R[0, 1] * y + R[0, 2] * z
-                rays[q, 4] = R[1, 0] * x + R[1, 1] * y + R[1, 2] * z
-                rays[q, 5] = R[2, 0] * x + R[2, 1] * y + R[2, 2] * z
-        state[k] = _decide(rays, 0, s * s, code[k], poses, boards, diffs, sun, sky, optics, scale, out, rows_flat[k])
+                _pinhole_ray(rows[k], cols[k], off, fxy, R, origin, i, j, rays)
+        _mean_into(rays, 0, n, code[k], poses, boards, sun, sky, optics, scale, out, rows_flat[k], work)
     return state
