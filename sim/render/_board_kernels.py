@@ -168,6 +168,7 @@ def uniform_board_pixels_pinhole(rows, cols, off, fxy, R, origin, code, poses, b
     work = (np.empty(s * s, np.int64), np.empty(s * s, np.int64), np.empty(s * s, np.float64))
     n = s * s
     corners = np.array([0, s - 1, n - s, n - 1])
+    xs, ys = np.empty(s, np.float32), np.empty(s, np.float32)
     for k in range(code.shape[0]):
         for q in corners:  # the corner rays decide FLAT and CAST; PLANE needs them all
             _pinhole_ray(rows[k], cols[k], off, fxy, R, origin, q // s, q % s, rays)
@@ -175,7 +176,15 @@ def uniform_board_pixels_pinhole(rows, cols, off, fxy, R, origin, code, poses, b
         if state[k] != PLANE:
             continue
         for i in range(s):
+            xs[i] = np.float32((cols[k] + off[i] - fxy[2]) / fxy[0])  # _pinhole_ray's x of column i, y of row i
+            ys[i] = np.float32((rows[k] + off[i] - fxy[3]) / fxy[1])
+        for i in range(s):
             for j in range(s):
-                _pinhole_ray(rows[k], cols[k], off, fxy, R, origin, i, j, rays)
+                x, y, z = xs[j], ys[i], np.float32(1.0)
+                q = i * s + j
+                rays[q, 0], rays[q, 1], rays[q, 2] = origin[0], origin[1], origin[2]
+                rays[q, 3] = R[0, 0] * x + R[0, 1] * y + R[0, 2] * z
+                rays[q, 4] = R[1, 0] * x + R[1, 1] * y + R[1, 2] * z
+                rays[q, 5] = R[2, 0] * x + R[2, 1] * y + R[2, 2] * z
         _mean_into(rays, 0, n, code[k], poses, boards, sun, sky, optics, scale, out, rows_flat[k], work)
     return state

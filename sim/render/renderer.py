@@ -384,8 +384,10 @@ class Renderer:
         d = decided | clear
         rad[rows[d] * W + cols[d]] = means[d]
         m = np.flatnonzero(~d)
-        rest_idx = np.setdiff1d(np.arange(n), coarse_idx)
-        rest = np.ascontiguousarray(sub.reshape(-1, n, 6)[m][:, rest_idx].reshape(-1, 6))
+        others = np.ones(n, bool)
+        others[coarse_idx] = False
+        rest_idx = np.flatnonzero(others)
+        rest = sub.reshape(-1, n, 6)[m[:, None], rest_idx[None, :]].reshape(-1, 6)  # one gather, C-contiguous
         lit = np.repeat(np.where(uniform[m], _code_lit(c[m]), 0).astype(np.uint16), len(rest_idx))
         full = np.empty((len(m), n, 3), np.float32)
         full[:, coarse_idx] = coarse_rad[m]
