@@ -50,11 +50,12 @@ def test_png_channel_order_against_opencv(tmp_path: Path, channels: int, dtype: 
     """RGB(A) in memory is BGR(A) in OpenCV's reading of the file, also from a non-contiguous view."""
     import cv2
 
-    img = np.random.default_rng(channels).integers(0, np.iinfo(dtype).max, (5, 8, channels), endpoint=True).astype(dtype)
+    img: np.ndarray = np.random.default_rng(channels).integers(0, np.iinfo(dtype).max, (5, 8, channels),
+                                                                endpoint=True).astype(dtype)
     view = img[:, ::-1]
     write_png(tmp_path / "a.png", view, photo=photo)
     raw = cv2.imread(str(tmp_path / "a.png"), cv2.IMREAD_UNCHANGED)
-    assert raw.dtype == dtype and np.array_equal(raw[..., [2, 1, 0, 3][:channels]], view)
+    assert raw is not None and raw.dtype == dtype and np.array_equal(raw[..., [2, 1, 0, 3][:channels]], view)
     assert np.array_equal(read_png(tmp_path / "a.png"), view)
 
 
