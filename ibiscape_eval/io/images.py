@@ -92,9 +92,11 @@ def write_png(path: str | os.PathLike[str], image: npt.ArrayLike, *, compression
     compression : int
         zlib level 0..9 (1: fast, about 10 % larger than 9).
     photo : bool
-        A noisy camera image: zlib's run-length strategy after PNG's 'average' filter, about
+        A noisy camera image: zlib's Huffman-only strategy after PNG's 'average' filter, about
         half the encoding time of the default at level 1 and 7 % smaller files (rendered RGB
-        frames; flat depth or label images compress worse that way).
+        frames; flat depth or label images compress worse that way).  The filtered noise has
+        hardly any repeats: the run-length strategy gave the same size (+0.01 %) 14 % slower
+        (384 px calibration drive: 4.34 -> 3.74 ms per frame).
     """
     import cv2
 
@@ -109,7 +111,7 @@ def write_png(path: str | os.PathLike[str], image: npt.ArrayLike, *, compression
         try:
             params = [cv2.IMWRITE_PNG_COMPRESSION, int(compression)]
             if photo:
-                params += [cv2.IMWRITE_PNG_STRATEGY, cv2.IMWRITE_PNG_STRATEGY_RLE,
+                params += [cv2.IMWRITE_PNG_STRATEGY, cv2.IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY,
                            cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_AVG]
             ok = cv2.imwrite(str(tmp), np.ascontiguousarray(img), params)
         except cv2.error as e:
