@@ -44,6 +44,7 @@ from __future__ import annotations
 import argparse
 import collections
 import functools
+import os
 import resource
 import shutil
 import sys
@@ -217,8 +218,9 @@ def _calib_drive(cli: str, seconds: float) -> tuple[float, float, float, int]:
     return res.wall_s, cpu, res.peak_mb, frames
 
 
-def _calib_rows(seconds: float, clis: list[str], repeat: int) -> None:
-    """The calibration-drive rows: every ``cli`` against the raw cast of the drive's rays."""
+def _calib_rows(seconds: float, clis: list[str], repeat: int, pairs: int = 1) -> None:
+    """The calibration-drive rows: every ``cli`` against the raw cast of the drive's rays, ``pairs``
+    rounds alternating between them."""
     from ibiscape_eval.core.camera import CameraModel
     from ibiscape_eval.sim.render import Renderer
     from ibiscape_eval.sim.render.rays import camera_rays, world_rays
@@ -236,13 +238,15 @@ def _calib_rows(seconds: float, clis: list[str], repeat: int) -> None:
     t_cast, c_cast = _time(cast, repeat)
     print(f"\nSVI calibration drive, 384x384, {seconds:g} s (fresh process, PNG writing included); peer: "
           f"open3d raw cast of one 384x384 stereo step {1000 * t_cast:.1f} ms wall, {1000 * c_cast:.1f} ms CPU")
-    print(f"{'ibiscape-eval':<44} {'frames':>6} {'wall [s]':>9} {'cpu [s]':>8} {'peak [MB]':>10} "
-          f"{'cpu/frame [ms]':>15} {'RATIO cpu':>10}")
-    for cli in clis:
-        wall, cpu, peak, frames = _calib_drive(cli, seconds)
-        per = cpu / max(frames, 1)
-        print(f"{cli[-44:]:<44} {frames:>6} {wall:>9.1f} {cpu:>8.1f} {peak:>10.0f} {1000 * per:>15.1f} "
-              f"{per / c_cast:>10.1f}")
+    print(f"{'ibiscape-eval':<44} {'frames':>6} {'wall [s]':>9} {'load':>5} {'cpu [s]':>8} {'peak [MB]':>10} "
+          f"{'cpu/frame [ms]':>15} {'RATIO cpu':>10} {'cpu/52.0 s':>10}")
+    for _ in range(pairs):  # alternating: every cli once per round
+        for cli in clis:
+            wall, cpu, peak, frames = _calib_drive(cli, seconds)
+            per = cpu / max(frames, 1)
+            base = f"{cpu / (52.0 * seconds / 10.0):>10.2f}"  # the session-8 drive: 52.0 s CPU per 10 s
+            print(f"{cli[-44:]:<44} {frames:>6} {wall:>9.1f} {os.getloadavg()[0]:>5.1f} {cpu:>8.1f} {peak:>10.0f} "
+                  f"{1000 * per:>15.1f} {per / c_cast:>10.1f} {base}", flush=True)
 
 
 def main() -> None:
@@ -256,9 +260,11 @@ def main() -> None:
                     help="duration of the 384 px SVI calibration drive row (0: skip)")
     ap.add_argument("--cli", action="append", default=[],
                     help="another ibiscape-eval to time on the calibration drive (repeatable)")
+    ap.add_argument("--calib-pairs", type=int, default=1,
+                    help="rounds of the calibration drive, alternating between this build and every --cli")
     a = ap.parse_args()
     if a.calib_seconds > 0:
-        _calib_rows(a.calib_seconds, [CLI, *a.cli], a.repeat)
+        _calib_rows(a.calib_seconds, [CLI, *a.cli], a.repeat, a.calib_pairs)
     if not a.sizes:
         return
 

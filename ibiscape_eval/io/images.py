@@ -92,9 +92,11 @@ def write_png(path: str | os.PathLike[str], image: npt.ArrayLike, *, compression
     compression : int
         zlib level 0..9 (1: fast, about 10 % larger than 9).
     photo : bool
-        A noisy camera image: zlib's run-length strategy after PNG's 'average' filter, about
+        A noisy camera image: zlib's Huffman-only strategy after PNG's 'average' filter, about
         half the encoding time of the default at level 1 and 7 % smaller files (rendered RGB
-        frames; flat depth or label images compress worse that way).
+        frames; flat depth or label images compress worse that way).  The filtered noise has
+        hardly any repeats: the run-length strategy gave the same size (+0.01 %) 14 % slower
+        (384 px calibration drive: 4.34 -> 3.74 ms per frame).
     """
     import cv2
 
@@ -103,13 +105,13 @@ def write_png(path: str | os.PathLike[str], image: npt.ArrayLike, *, compression
             img.ndim == 2 or (img.ndim == 3 and img.shape[2] in (3, 4))) or img.size == 0:
         raise IbiscapeError(f"{path}: a PNG image must be uint8/uint16 (H, W) or (H, W, 3|4), "
                             f"got {img.dtype} {img.shape}")
-    if img.ndim == 3:
-        img = img[..., [2, 1, 0]] if img.shape[2] == 3 else img[..., [2, 1, 0, 3]]
+    if img.ndim == 3:  # OpenCV writes BGR(A); one cvtColor pass (a fancy-index copy took 20x longer)
+        img = cv2.cvtColor(np.ascontiguousarray(img), cv2.COLOR_RGB2BGR if img.shape[2] == 3 else cv2.COLOR_RGBA2BGRA)
     with atomic_output_path(path) as tmp:
         try:
             params = [cv2.IMWRITE_PNG_COMPRESSION, int(compression)]
             if photo:
-                params += [cv2.IMWRITE_PNG_STRATEGY, cv2.IMWRITE_PNG_STRATEGY_RLE,
+                params += [cv2.IMWRITE_PNG_STRATEGY, cv2.IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY,
                            cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_AVG]
             ok = cv2.imwrite(str(tmp), np.ascontiguousarray(img), params)
         except cv2.error as e:
@@ -251,8 +253,8 @@ def read_png(path: str | os.PathLike[str]) -> npt.NDArray[Any]:
 
     img = imread_checked(path, cv2.IMREAD_UNCHANGED, missing="image file not found",
                          unreadable="not a readable image (expected a PNG)")
-    if img.ndim == 3:
-        img = img[..., [2, 1, 0]] if img.shape[2] == 3 else img[..., [2, 1, 0, 3]]
+    if img.ndim == 3:  # OpenCV reads BGR(A)
+        img = cv2.cvtColor(img, cv2.COLOR_BGR2RGB if img.shape[2] == 3 else cv2.COLOR_BGRA2RGBA)
     return np.ascontiguousarray(img)
 
 

@@ -343,20 +343,22 @@ class Renderer:
         sample).
 
         A pixel whose 3x3 neighbourhood sees one board side, lit alike (``code``, see
-        :meth:`_radiance`), and whose ``s x s`` rays all meet that board's plane inside one
-        uniform patch of the print (a texel of margin) keeps its centre sample: its rays would
-        all return that sample's radiance (the ~35 % of candidates beside an edge that does not
-        cross them).  The others cast a coarse 3 x 3 subset of their rays first
+        :meth:`_radiance`), is decided from its ``s x s`` rays' footprint on that board's plane
+        alone (:meth:`_uniform_board_pixels`): it keeps its centre sample when the footprint lies
+        in one uniform patch of the print (a texel of margin; its rays would all return that
+        sample's radiance), else it gets the mean of its rays on the plane when the footprint
+        lies on the print (no cast at all: ~80 % of the candidates on the calibration drive).
+        The others cast a coarse 3 x 3 subset of their rays first
         (:meth:`_plane_supersamples`): the pixels whose coarse rays all see one board side, lit
         alike, get all their rays on that board's plane (also beside the board's outline), those
         whose coarse rays see no board (the background beside the board's outline) the mean of
         the coarse rays, and only the rest cast their other rays (the coarse ones are kept).  The rays of a
         pixel whose neighbours all see one lit board side that meet that side are taken as lit
         without shadow rays.  Like the centre-sample test, this assumes no shadow edge, occluder
-        or board corner thinner than a third of the pixel between the coarse rays."""
+        or board corner inside a pixel that neither its neighbours' centre rays nor its coarse rays see."""
         import cv2
 
-        from ._kernels import board_footprints_flat, pixel_means
+        from ._kernels import pixel_means
 
         H, W = model.height_px, model.width_px
         s = self.options.target_supersample
@@ -368,33 +370,60 @@ class Renderer:
         spread = cv2.dilate(g, k) - cv2.erode(g, k)
         edge = (cv2.dilate(on, k) > 0) & ((spread > 0.004 * scale) | (cv2.erode(on, k) == 0))
         rows, cols = np.nonzero(edge)
-        sub = world_rays(subpixel_rays(model, rows, cols, s), T).reshape(-1, 6)
         c2 = code.reshape(H, W)
         c = c2[rows, cols]
         uniform = (c > 0) & (cv2.dilate(c2, k)[rows, cols] == cv2.erode(c2, k)[rows, cols])
         n = s * s
         if uniform.any():
-            poses, diffs = board_footprint_tables(self.static.targets)
-            flat = board_footprints_flat(sub, n, uniform, _code_board(c), poses,
-                                         board_tables(self.static.targets), diffs,
-                                         np.empty(len(rows), np.bool_))
-            cross = ~flat
-            rows, cols, c, uniform = rows[cross], cols[cross], c[cross], uniform[cross]
-            sub = sub.reshape(-1, n, 6)[cross].reshape(-1, 6)
+            cast = self._uniform_board_pixels(model, T, w, light, scale, rows, cols, c, uniform, rad)
+            rows, cols, c, uniform = rows[cast], cols[cast], c[cast], uniform[cast]
         if not len(rows):
             return
+        sub = world_rays(subpixel_rays(model, rows, cols, s), T).reshape(-1, 6)
         means, decided, clear, coarse_rad, coarse_idx = self._plane_supersamples(sub, s, c, uniform, t_ns, w,
                                                                                  light, scale)
         d = decided | clear
         rad[rows[d] * W + cols[d]] = means[d]
         m = np.flatnonzero(~d)
-        rest_idx = np.setdiff1d(np.arange(n), coarse_idx)
-        rest = np.ascontiguousarray(sub.reshape(-1, n, 6)[m][:, rest_idx].reshape(-1, 6))
+        others = np.ones(n, bool)
+        others[coarse_idx] = False
+        rest_idx = np.flatnonzero(others)
+        rest = sub.reshape(-1, n, 6)[m[:, None], rest_idx[None, :]].reshape(-1, 6)  # one gather, C-contiguous
         lit = np.repeat(np.where(uniform[m], _code_lit(c[m]), 0).astype(np.uint16), len(rest_idx))
         full = np.empty((len(m), n, 3), np.float32)
         full[:, coarse_idx] = coarse_rad[m]
         full[:, rest_idx] = self._radiance(rest, t_ns, w, light, scale=scale, lit_code=lit)[0].reshape(len(m), -1, 3)
         pixel_means(full.reshape(-1, 3), n, rows[m] * W + cols[m], rad)
+
+    def _uniform_board_pixels(self, model: CameraModel, T: np.ndarray, w: WeatherState, light: Lighting,
+                              scale: float, rows: npt.NDArray[np.intp], cols: npt.NDArray[np.intp],
+                              c: npt.NDArray[np.uint16], uniform: npt.NDArray[np.bool_], rad: F32
+                              ) -> npt.NDArray[np.bool_]:
+        """Decide the candidates (``rows``, ``cols``, board code ``c``) whose neighbourhood sees one
+        board side (``uniform``) from their ``s x s`` rays' footprints on the board's plane alone
+        (``_board_kernels.uniform_board_pixels``: the centre sample where the footprint lies in one
+        uniform patch of the print, else the rays' mean on the plane into ``rad`` where the
+        footprint lies on the print).  Returns which candidates are left to cast (all but those)."""
+        from ._board_kernels import CAST, uniform_board_pixels, uniform_board_pixels_pinhole
+
+        s = self.options.target_supersample
+        u = np.flatnonzero(uniform)
+        W = model.width_px
+        poses, diffs = board_footprint_tables(self.static.targets)
+        args = (c[u], poses, board_tables(self.static.targets), diffs, np.asarray(light.sun_dir, np.float64),
+                *self._shading(w, light)[1:], np.float32(scale), rows[u] * W + cols[u], rad, np.empty(len(u), np.uint8))
+        if model.distortion == "none":  # the rays made in the kernel, pixel by pixel (subpixel_rays' arithmetic)
+            Tf = np.asarray(T, np.float64)
+            state = uniform_board_pixels_pinhole(
+                rows[u].astype(np.float64), cols[u].astype(np.float64), (np.arange(s) + 0.5) / s - 0.5,
+                (float(model.fx), float(model.fy), float(model.cx), float(model.cy)), Tf[:3, :3].astype(np.float32),
+                Tf[:3, 3].astype(np.float32), *args)
+        else:
+            state = uniform_board_pixels(world_rays(subpixel_rays(model, rows[u], cols[u], s), T).reshape(-1, 6), s * s,
+                                         *args)
+        cast = ~uniform
+        cast[u[state == CAST]] = True
+        return cast
 
     def _plane_supersamples(self, sub: F32, s: int, c: npt.NDArray[np.uint16], uniform: npt.NDArray[np.bool_],
                             t_ns: int, w: WeatherState, light: Lighting, scale: float

@@ -44,6 +44,21 @@ def test_rgb_png_round_trip(tmp_path_factory: pytest.TempPathFactory, img: np.nd
     assert back.dtype == np.uint8 and np.array_equal(back, img)
 
 
+@pytest.mark.parametrize(("channels", "dtype"), [(3, np.uint8), (4, np.uint8), (3, np.uint16), (4, np.uint16)])
+@pytest.mark.parametrize("photo", [False, True])
+def test_png_channel_order_against_opencv(tmp_path: Path, channels: int, dtype: type, photo: bool) -> None:
+    """RGB(A) in memory is BGR(A) in OpenCV's reading of the file, also from a non-contiguous view."""
+    import cv2
+
+    img: np.ndarray = np.random.default_rng(channels).integers(0, np.iinfo(dtype).max, (5, 8, channels),
+                                                                endpoint=True).astype(dtype)
+    view = img[:, ::-1]
+    write_png(tmp_path / "a.png", view, photo=photo)
+    raw = cv2.imread(str(tmp_path / "a.png"), cv2.IMREAD_UNCHANGED)
+    assert raw is not None and raw.dtype == dtype and np.array_equal(raw[..., [2, 1, 0, 3][:channels]], view)
+    assert np.array_equal(read_png(tmp_path / "a.png"), view)
+
+
 @settings(max_examples=25)
 @given(mm=arrays(np.uint16, shapes, elements=st.integers(1, 65535)))
 def test_depth_mm_round_trip(tmp_path_factory: pytest.TempPathFactory, mm: np.ndarray) -> None:

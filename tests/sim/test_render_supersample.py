@@ -13,6 +13,7 @@ import pytest
 
 from ibiscape_eval.core.camera import CameraModel
 from ibiscape_eval.sim.render import Renderer, RenderOptions
+from ibiscape_eval.sim.render import _board_kernels as board_kernels
 from ibiscape_eval.sim.render import _kernels as kernels
 from ibiscape_eval.sim.render.shading import WeatherState
 from ibiscape_eval.sim.world import build_world
@@ -46,32 +47,21 @@ def test_skipped_footprints_equal_casting_every_candidate(calib: Any, monkeypatc
     r, target = calib
     model = CameraModel.from_fov(192, 160, 80.0)
     T = look_at_board(target, dist, yaw, pitch, roll)
-    flat_counts: list[int] = []
-    real = kernels.board_footprints_flat
+    states: list[np.ndarray] = []
 
-    def counted(*a: Any) -> Any:
-        out = real(*a)
-        flat_counts.append(int(out.sum()))
-        return out
+    def counted(real: Any) -> Any:
+        def run(*a: Any) -> Any:
+            out = real(*a)
+            states.append(out.copy())
+            return out
+        return run
 
-    real_seen = Renderer._lit_side_seen
-    seen_by_codes: list[int] = []
-
-    def seen(self: Renderer, *a: Any) -> Any:
-        out = real_seen(self, *a)
-        seen_by_codes.append(int(out.sum()))
-        return out
-
-    monkeypatch.setattr(kernels, "board_footprints_flat", counted)
-    monkeypatch.setattr(Renderer, "_lit_side_seen", seen)
+    for name in ("uniform_board_pixels", "uniform_board_pixels_pinhole"):
+        monkeypatch.setattr(board_kernels, name, counted(getattr(board_kernels, name)))
     fast = r.render_pose(model, T, weather=DAY).radiance
-    assert flat_counts and flat_counts[0] > 100  # the skip is taken
-    assert seen_by_codes[0] > 100  # pixels whose coarse rays were only cast, not shaded
-
-    def never(*a: Any) -> Any:
-        out = a[-1]
-        out[:] = False
-        return out
+    counts = np.bincount(states[0], minlength=3)
+    assert counts[board_kernels.FLAT] > 100  # pixels keeping their centre sample
+    assert counts[board_kernels.PLANE] > 100  # pixels decided on the board's plane without a cast
 
     real_radiance = Renderer._radiance
     shadow_skips: list[int] = []
@@ -91,7 +81,7 @@ def test_skipped_footprints_equal_casting_every_candidate(calib: Any, monkeypatc
         outline_pixels.append(int((decided & ~a[3]).sum()))  # a neighbour off the board side
         return means, np.zeros_like(decided), clear & keep_clear[0], coarse, idx
 
-    monkeypatch.setattr(kernels, "board_footprints_flat", never)
+    monkeypatch.setattr(Renderer, "_uniform_board_pixels", lambda self, *a: np.ones(len(a[5]), bool))
     monkeypatch.setattr(Renderer, "_radiance", every_shadow_ray)
     monkeypatch.setattr(Renderer, "_plane_supersamples", no_plane)
     monkeypatch.setattr(Renderer, "_lit_side_seen", lambda self, rays, lit_c, *a: np.zeros(len(lit_c), bool))
@@ -153,3 +143,80 @@ def test_footprint_crossing_a_printed_edge_is_not_flat(calib: Any) -> None:
     kernels.board_footprints_flat(np.concatenate([straddle, inside]), 4, np.array([True, True]),
                                   np.array([k, k], np.intp), poses, board_tables(r.static.targets), diffs, out)
     assert out.tolist() == [False, True]
+
+
+def test_uniform_board_pixels_flat_plane_and_cast(calib: Any) -> None:
+    """The fused kernel keeps the centre sample of a footprint inside one printed patch, gives a
+    footprint straddling a printed edge board_plane_means' mean, and leaves a footprint off the
+    print (or a sunward side in shadow) to the casts."""
+    from ibiscape_eval.sim.render.textures import board_footprint_tables, board_tables
+
+    r, target = calib
+    k = r.static.targets.index(target)
+    poses, diffs = board_footprint_tables(r.static.targets)
+    tex, x0, y0, sign, ppm = board_tables(r.static.targets)[k]
+    col = tex[:, tex.shape[1] // 2]
+    edges = np.flatnonzero(col[1:] != col[:-1]) + 1
+    r_mid = (edges[2] + edges[3]) // 2
+    c_edge = int(np.flatnonzero(tex[r_mid, 1:] != tex[r_mid, :-1])[2]) + 1
+    y = y0 + sign * (r_mid + 0.5) / ppm
+    P = poses[k]
+    origin = P[:3, 3] + 3.0 * P[:3, 2]
+
+    def rays_at(xs: np.ndarray) -> np.ndarray:  # a 2 x 2 grid: two columns, two rows a texel apart
+        xy = np.array([[x, y + dy] for dy in (0.0, 1.0 / ppm) for x in xs])
+        pts = np.concatenate([xy, np.zeros((4, 1))], 1) @ P[:3, :3].T + P[:3, 3]
+        d = pts - origin
+        return np.concatenate([np.broadcast_to(origin, d.shape), d], -1).astype(np.float32)
+
+    x_edge = x0 + c_edge / ppm
+    rays = np.concatenate([rays_at(x_edge + np.array([-2.0, 2.0]) / ppm), rays_at(x_edge + np.array([3.0, 6.0]) / ppm),
+                           rays_at(np.array([x0 + 0.2 / ppm, x0 + 3.0 / ppm]))])
+    sun = np.asarray(P[:3, 2], np.float64)  # toward the camera's side of the board
+    lit = 1 + 4 * k + 2 + 1
+    sky = (np.float32(1.0), np.float32(0.2))
+    optics = (np.float32(0), np.float32(np.inf), np.float32(0.0), np.zeros(3, np.float32), np.float32(1000.0))
+    args = (poses, board_tables(r.static.targets), diffs, sun, sky, optics, np.float32(255.0))
+    out = np.zeros((3, 3), np.float32)
+    state = board_kernels.uniform_board_pixels(rays, 4, np.array([lit] * 3, np.uint16), *args, np.arange(3), out,
+                                               np.empty(3, np.uint8))
+    assert state.tolist() == [board_kernels.PLANE, board_kernels.FLAT, board_kernels.CAST]
+    ref = kernels.board_plane_means(rays[:4], 4, np.array([lit], np.uint16), poses, args[1], sun, sky, optics,
+                                    np.float32(255.0), np.array([0]), np.zeros((1, 3), np.float32))
+    assert np.array_equal(out[0], ref[0]) and 0.0 < out[0, 0] < 255.0
+    shade = board_kernels.uniform_board_pixels(rays[:4], 4, np.array([lit - 1], np.uint16), *args, np.arange(1),
+                                               out, np.empty(1, np.uint8))
+    assert shade.tolist() == [board_kernels.CAST]  # faces the sun but unlit: a shadow may end inside
+    away = board_kernels.uniform_board_pixels(rays[:4], 4, np.array([lit - 1], np.uint16), poses, args[1], diffs, -sun,
+                                              *args[4:], np.arange(1), out, np.empty(1, np.uint8))
+    assert away.tolist() == [board_kernels.PLANE]  # unlit because it faces away from the sun: no shadow to find
+
+
+def test_pinhole_kernel_makes_the_same_rays(calib: Any) -> None:
+    """The pinhole kernel's rays made per pixel decide every pixel as the general kernel does on
+    subpixel_rays + world_rays, to the bit."""
+    from ibiscape_eval.sim.render.rays import subpixel_rays, world_rays
+    from ibiscape_eval.sim.render.textures import board_footprint_tables, board_tables
+
+    r, target = calib
+    k = r.static.targets.index(target)
+    model = CameraModel.from_fov(192, 160, 80.0)
+    T = look_at_board(target, 5.0, 20.0, -10.0, 5.0)
+    rows, cols = np.mgrid[40:120, 50:150]
+    rows, cols = rows.ravel(), cols.ravel()
+    poses, diffs = board_footprint_tables(r.static.targets)
+    sky = (np.float32(1.0), np.float32(0.2))
+    optics = (np.float32(0), np.float32(np.inf), np.float32(0.002), np.full(3, 0.5, np.float32), np.float32(1000.0))
+    code = np.full(len(rows), 1 + 4 * k + 2 + 1, np.uint16)
+    args = (code, poses, board_tables(r.static.targets), diffs, np.array([0.3, -0.2, 0.93]), sky, optics,
+            np.float32(255.0), np.arange(len(rows)))
+    s = 6
+    out_a, out_b = np.zeros((len(rows), 3), np.float32), np.zeros((len(rows), 3), np.float32)
+    a = board_kernels.uniform_board_pixels(world_rays(subpixel_rays(model, rows, cols, s), T).reshape(-1, 6), s * s,
+                                           *args, out_a, np.empty(len(rows), np.uint8))
+    b = board_kernels.uniform_board_pixels_pinhole(
+        rows.astype(np.float64), cols.astype(np.float64), (np.arange(s) + 0.5) / s - 0.5,
+        (model.fx, model.fy, model.cx, model.cy), T[:3, :3].astype(np.float32), T[:3, 3].astype(np.float32), *args,
+        out_b, np.empty(len(rows), np.uint8))
+    assert np.array_equal(a, b) and np.array_equal(out_a, out_b)
+    assert min(np.bincount(a, minlength=3)) > 50  # flat, plane and cast pixels all compared
