@@ -14,6 +14,7 @@ Colours are linear reflectances in 0..1 (RGB).
 from __future__ import annotations
 
 import functools
+import threading
 from typing import Any
 
 import numpy as np
@@ -74,8 +75,19 @@ def sample_bilinear(table: np.ndarray, x: npt.ArrayLike, y: npt.ArrayLike, *, wr
     return out[:, 0] if t.ndim == 2 else out
 
 
-@functools.lru_cache(maxsize=8)
+#: One board texture is built at a time: the stereo views render on two threads, and both asked
+#: for the textures at their first frame (the AprilGrid's temporaries twice: +50 MB of peak memory)
+_TEXTURE_LOCK = threading.Lock()
+
+
 def _target_texture(target: Any) -> npt.NDArray[np.float32]:
+    """The board's printed texture as float32 reflectance (built once per board: cached)."""
+    with _TEXTURE_LOCK:
+        return _target_texture_cached(target)
+
+
+@functools.lru_cache(maxsize=8)
+def _target_texture_cached(target: Any) -> npt.NDArray[np.float32]:
     tex = target.texture(TARGET_PX_PER_M).astype(np.float32) / 255.0
     # printed paper: black is not perfectly black, white is not perfectly white
     return (0.04 + 0.84 * tex).astype(np.float32)
