@@ -181,6 +181,40 @@ def _data_ptr(context, builder, arrty, arr, elem):
     return builder.bitcast(data, elem.as_pointer())
 
 
+class _CompressVectors:
+    """What the two compress codegens (:func:`_compress64`, :func:`_compress64_down`) share:
+    the vector and mask types of ``src``'s element size (64 elements = 512 // bits lanes per
+    vector, 64 // lanes vectors), the data pointers, and the compress of one vector."""
+
+    def __init__(self, context, builder, signature, args):
+        srcty, _, dstty, _, _ = signature.args
+        s_arr, self.i_v, d_arr, self.k, self.m_v = args
+        bits = 8 * context.get_abi_sizeof(context.get_data_type(srcty.dtype))
+        self.builder, self.lanes = builder, 512 // bits
+        ety, self.i64 = ir.IntType(bits), ir.IntType(64)
+        self.vty, self.mty = ir.VectorType(ety, self.lanes), ir.VectorType(ir.IntType(1), self.lanes)
+        self.sp = _data_ptr(context, builder, srcty, s_arr, ety)
+        self.dp = _data_ptr(context, builder, dstty, d_arr, ety)
+        self.comp = cgutils.get_or_insert_function(
+            builder.module, ir.FunctionType(self.vty, [self.vty, self.vty, self.mty]),
+            f"llvm.x86.avx512.mask.compress.v{self.lanes}i{bits}")
+        self.ctpop = cgutils.get_or_insert_function(builder.module, ir.FunctionType(self.i64, [self.i64]),
+                                                    "llvm.ctpop.i64")
+
+    def compressed(self, sub):
+        """Vector ``sub`` of ``src[i:i + 64]`` compressed in a register by its bits of the mask,
+        and those bits (``sm``, an i64)."""
+        b, lanes, i64 = self.builder, self.lanes, self.i64
+        ptr = b.gep(self.sp, [b.add(self.i_v, ir.Constant(i64, sub * lanes))])
+        v = b.load(b.bitcast(ptr, self.vty.as_pointer()), align=1)
+        sm = self.m_v
+        if lanes < 64:
+            sm = b.lshr(self.m_v, ir.Constant(i64, sub * lanes))
+            sm = b.and_(sm, ir.Constant(i64, (1 << lanes) - 1))
+        mvec = b.bitcast(b.trunc(sm, ir.IntType(lanes)) if lanes < 64 else sm, self.mty)
+        return b.call(self.comp, [v, ir.Constant(self.vty, None), mvec]), sm
+
+
 @intrinsic
 def _compress64(typingctx, src, i, dst, k, bits):
     """AVX-512 compress of ``src[i:i + 64]``: the elements whose bit is set in ``bits`` are
@@ -190,27 +224,10 @@ def _compress64(typingctx, src, i, dst, k, bits):
     sig = types.int64(src, types.int64, dst, types.int64, types.uint64)
 
     def codegen(context, builder, signature, args):
-        srcty, _, dstty, _, _ = signature.args
-        s_arr, i_v, d_arr, k, m_v = args
-        bits = 8 * context.get_abi_sizeof(context.get_data_type(srcty.dtype))
-        lanes = 512 // bits
-        ety, i64 = ir.IntType(bits), ir.IntType(64)
-        vty, mty = ir.VectorType(ety, lanes), ir.VectorType(ir.IntType(1), lanes)
-        sp = _data_ptr(context, builder, srcty, s_arr, ety)
-        dp = _data_ptr(context, builder, dstty, d_arr, ety)
-        comp = cgutils.get_or_insert_function(builder.module, ir.FunctionType(vty, [vty, vty, mty]),
-                                              f"llvm.x86.avx512.mask.compress.v{lanes}i{bits}")
-        ctpop = cgutils.get_or_insert_function(builder.module, ir.FunctionType(i64, [i64]),
-                                               "llvm.ctpop.i64")
-        for sub in range(64 // lanes):
-            ptr = builder.gep(sp, [builder.add(i_v, ir.Constant(i64, sub * lanes))])
-            v = builder.load(builder.bitcast(ptr, vty.as_pointer()), align=1)
-            sm = m_v
-            if lanes < 64:
-                sm = builder.lshr(m_v, ir.Constant(i64, sub * lanes))
-                sm = builder.and_(sm, ir.Constant(i64, (1 << lanes) - 1))
-            mvec = builder.bitcast(builder.trunc(sm, ir.IntType(lanes)) if lanes < 64 else sm, mty)
-            c = builder.call(comp, [v, ir.Constant(vty, None), mvec])
+        v = _CompressVectors(context, builder, signature, args)
+        vty, dp, k, ctpop = v.vty, v.dp, v.k, v.ctpop
+        for sub in range(64 // v.lanes):
+            c, sm = v.compressed(sub)
             builder.store(c, builder.bitcast(builder.gep(dp, [k]), vty.as_pointer()), align=1)
             k = builder.add(k, builder.call(ctpop, [sm]))
         return k
@@ -526,31 +543,14 @@ def _compress64_down(typingctx, src, i, dst, k, bits):
     sig = types.int64(src, types.int64, dst, types.int64, types.uint64)
 
     def codegen(context, builder, signature, args):
-        srcty, _, dstty, _, _ = signature.args
-        s_arr, i_v, d_arr, k, m_v = args
-        bits = 8 * context.get_abi_sizeof(context.get_data_type(srcty.dtype))
-        lanes = 512 // bits
-        ety, i64 = ir.IntType(bits), ir.IntType(64)
-        vty, mty = ir.VectorType(ety, lanes), ir.VectorType(ir.IntType(1), lanes)
-        sp = _data_ptr(context, builder, srcty, s_arr, ety)
-        dp = _data_ptr(context, builder, dstty, d_arr, ety)
-        comp = cgutils.get_or_insert_function(builder.module, ir.FunctionType(vty, [vty, vty, mty]),
-                                              f"llvm.x86.avx512.mask.compress.v{lanes}i{bits}")
+        v = _CompressVectors(context, builder, signature, args)
+        lanes, i64, vty, mty, dp, k, ctpop = v.lanes, v.i64, v.vty, v.mty, v.dp, v.k, v.ctpop
         store = cgutils.get_or_insert_function(
             builder.module, ir.FunctionType(ir.VoidType(), [vty, dp.type, ir.IntType(32), mty]),
-            f"llvm.masked.store.v{lanes}i{bits}.p0")
-        ctpop = cgutils.get_or_insert_function(builder.module, ir.FunctionType(i64, [i64]),
-                                               "llvm.ctpop.i64")
+            f"llvm.masked.store.v{lanes}i{512 // lanes}.p0")
         ones = ir.Constant(i64, -1)
         for sub in reversed(range(64 // lanes)):
-            ptr = builder.gep(sp, [builder.add(i_v, ir.Constant(i64, sub * lanes))])
-            v = builder.load(builder.bitcast(ptr, vty.as_pointer()), align=1)
-            sm = m_v
-            if lanes < 64:
-                sm = builder.lshr(m_v, ir.Constant(i64, sub * lanes))
-                sm = builder.and_(sm, ir.Constant(i64, (1 << lanes) - 1))
-            mvec = builder.bitcast(builder.trunc(sm, ir.IntType(lanes)) if lanes < 64 else sm, mty)
-            c = builder.call(comp, [v, ir.Constant(vty, None), mvec])
+            c, sm = v.compressed(sub)
             pop = builder.call(ctpop, [sm])
             k = builder.sub(k, pop)
             # the low ``pop`` lanes: ~0 >> (64 - pop), none when pop = 0 (a shift by 64 is undefined)
