@@ -124,7 +124,6 @@ def _stages(r: Any, step: Callable[[], None], repeat: int) -> list[tuple[str, fl
                (renderer.Renderer, "_radiance", "per-ray work (casts + kernels)"),
                (renderer.Renderer, "_supersample_targets", "target supersampling (all of it)"),
                (_kernels, "board_texels", "numba: board texels"),
-               (_kernels, "board_footprints_flat", "numba: footprints in one printed patch"),
                (_kernels, "board_plane_means", "numba: supersamples on the board's plane"),
                (renderer.Renderer, "_plane_supersamples", "supersamples on the board's plane (coarse cast + numba)"),
                (renderer.Renderer, "render_pose", "whole view")]

@@ -1,9 +1,9 @@
 """numba kernel of the target supersampling's common case (``Renderer._supersample_targets``).
 
 :func:`uniform_board_pixels` takes the candidate pixels whose 3 x 3 neighbourhood sees one board
-side, lit alike, and decides each in one pass over its ``s x s`` rays: the footprint test of
-:func:`._kernels.board_footprints_flat` (all rays inside one uniform patch of the print: the pixel
-keeps its centre sample), else, when the four corner rays meet the board's plane inside its print
+side, lit alike, and decides each in one pass over its ``s x s`` rays: the footprint test (its
+corner rays bound the others; all of them inside one uniform patch of the print, a texel of margin
+all round, by :func:`._kernels.texel_diff_table`: the pixel keeps its centre sample), else, when the four corner rays meet the board's plane inside its print
 (a texel of margin; the board is a convex quad, so every other ray does too), the mean of all its
 rays on that plane, shaded as :func:`._kernels.board_plane_means` does.  Only the rest (a corner
 ray off the print, or a side facing the sun in shadow) is left to the casts.  Before this kernel
@@ -125,7 +125,8 @@ def uniform_board_pixels(rays, per_pixel, code, poses, boards, diffs, sun, sky, 
     rows ``k per_pixel ...`` of ``rays`` (an s x s grid).  ``state[k]``:
 
     - ``FLAT``: every ray meets the board's plane inside one uniform patch of its print, a texel of
-      margin all round (:func:`._kernels.board_footprints_flat`): the pixel keeps its centre sample;
+      margin all round (the summed-area table ``diffs`` of :func:`._kernels.texel_diff_table`): the
+      pixel keeps its centre sample;
     - ``PLANE``: the corner rays meet the plane inside the print (a texel of margin), so all rays
       do; ``out[rows_flat[k]]`` gets their mean radiance (times ``scale``) there, textured and
       shaded as :func:`._kernels.board_plane_means` (``sky``, ``optics`` as there);

@@ -537,54 +537,6 @@ def streaks_into(img, cov, glow):
 
 
 @nb.njit(cache=True, nogil=True)
-def board_footprints_flat(rays, per_pixel, cand, var, poses, boards, diffs, out):
-    """``out[k]``: whether the ``per_pixel = s * s`` rays of pixel ``k`` (rows ``k per_pixel ...``
-    of ``rays`` (K per_pixel, 6), an s x s grid) all meet the plane of board ``var[k]`` (pose
-    ``poses[var[k]]`` ``T_world_target`` (B, 4, 4)) inside one uniform patch of its printed
-    texture, one texel of margin all round (only where ``cand[k]``; False elsewhere).  The four
-    corner rays of the grid decide: a plane seen in front of the camera maps the grid to a convex
-    quadrilateral holding every other ray's hit.
-
-    ``boards`` are :func:`board_texels`' tables (the texel of a point as that kernel finds it),
-    ``diffs[b]`` the summed-area table ``(H + 1, W + 1)`` of board ``b``'s texels that differ from
-    their left or upper neighbour (:func:`texel_diff_table`): the patch of texel rows
-    ``r0..r1`` and columns ``c0..c1`` is uniform when no texel of rows ``r0 + 1..r1``, columns
-    ``c0 + 1..c1`` differs from those neighbours."""
-    for k in range(cand.shape[0]):
-        out[k] = False
-        if not cand[k]:
-            continue
-        b = var[k]
-        P = poses[b]
-        tex, x0, y0, sign, ppm = boards[b]
-        sat = diffs[b]
-        h, w = tex.shape
-        rmin, cmin, rmax, cmax = 1 << 30, 1 << 30, -(1 << 30), -(1 << 30)
-        ok = True
-        s = int(np.sqrt(per_pixel) + 0.5)  # the outermost rays of the s x s grid bound the others
-        for q in (0, s - 1, per_pixel - s, per_pixel - 1):
-            i = k * per_pixel + q
-            ox, oy, oz = rays[i, 0] - P[0, 3], rays[i, 1] - P[1, 3], rays[i, 2] - P[2, 3]
-            dx, dy, dz = np.float64(rays[i, 3]), np.float64(rays[i, 4]), np.float64(rays[i, 5])
-            dn = P[0, 2] * dx + P[1, 2] * dy + P[2, 2] * dz
-            t = -(P[0, 2] * ox + P[1, 2] * oy + P[2, 2] * oz) / dn if dn != 0.0 else -1.0
-            if not t > 0.0:
-                ok = False
-                break
-            px, py, pz = ox + t * dx, oy + t * dy, oz + t * dz
-            x = P[0, 0] * px + P[1, 0] * py + P[2, 0] * pz
-            y = P[0, 1] * px + P[1, 1] * py + P[2, 1] * pz
-            c = int(np.floor((x - x0) * ppm))
-            r = int(np.floor((y - y0) * ppm)) if sign > 0 else int(np.floor((y0 - y) * ppm))
-            rmin, rmax, cmin, cmax = min(rmin, r), max(rmax, r), min(cmin, c), max(cmax, c)
-        r0, r1, c0, c1 = rmin - 1, rmax + 1, cmin - 1, cmax + 1
-        if not ok or r0 < 0 or c0 < 0 or r1 >= h or c1 >= w:
-            continue
-        out[k] = sat[r1 + 1, c1 + 1] - sat[r0 + 1, c1 + 1] - sat[r1 + 1, c0 + 1] + sat[r0 + 1, c0 + 1] == 0
-    return out
-
-
-@nb.njit(cache=True, nogil=True)
 def texel_diff_table(tex):
     """Summed-area table ``S`` (H + 1, W + 1) int32 of the texels of ``tex`` (H, W) that differ from
     their left or upper neighbour: ``S[i, j]`` counts them in rows ``< i``, columns ``< j``."""

@@ -163,7 +163,7 @@ def board_tables(targets: tuple[Any, ...]) -> tuple[tuple[Any, ...], ...]:
 
 @functools.lru_cache(maxsize=8)
 def board_footprint_tables(targets: tuple[Any, ...]) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
-    """The board arguments of ``_kernels.board_footprints_flat`` besides :func:`board_tables`: the
+    """The board arguments of ``_board_kernels.uniform_board_pixels`` besides :func:`board_tables`: the
     poses ``T_world_target`` (B, 4, 4) and per board the summed-area table of its texels that
     differ from a neighbour (``_kernels.texel_diff_table``)."""
     from ._kernels import texel_diff_table

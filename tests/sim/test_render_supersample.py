@@ -114,37 +114,6 @@ def test_texel_diff_table_counts_changes() -> None:
         assert got == brute[r0:r1 + 1, c0:c1 + 1].sum()
 
 
-def test_footprint_crossing_a_printed_edge_is_not_flat(calib: Any) -> None:
-    """Rays straddling a square's edge are not flat; the same rays moved inside a square are."""
-    from ibiscape_eval.sim.render.textures import board_footprint_tables, board_tables
-
-    r, target = calib
-    k = r.static.targets.index(target)
-    poses, diffs = board_footprint_tables(r.static.targets)
-    tex, x0, y0, sign, ppm = board_tables(r.static.targets)[k]
-    # a texel row in the middle of a row of squares and a column where the print changes along it
-    col = tex[:, tex.shape[1] // 2]
-    edges = np.flatnonzero(col[1:] != col[:-1]) + 1
-    r_mid = (edges[2] + edges[3]) // 2
-    c_edge = int(np.flatnonzero(tex[r_mid, 1:] != tex[r_mid, :-1])[2]) + 1
-    y = y0 + sign * (r_mid + 0.5) / ppm
-    P = poses[k]
-
-    def rays_at(xs: np.ndarray) -> np.ndarray:
-        pts = np.stack([xs, np.full_like(xs, y), np.zeros_like(xs)], -1) @ P[:3, :3].T + P[:3, 3]
-        origin = P[:3, 3] + 3.0 * P[:3, 2]
-        d = pts - origin
-        return np.concatenate([np.broadcast_to(origin, d.shape), d], -1).astype(np.float32)
-
-    x_edge = x0 + c_edge / ppm
-    straddle = rays_at(x_edge + np.linspace(-2.0, 2.0, 4) / ppm)
-    inside = rays_at(x_edge + np.linspace(3.0, 6.0, 4) / ppm)
-    out = np.empty(2, np.bool_)
-    kernels.board_footprints_flat(np.concatenate([straddle, inside]), 4, np.array([True, True]),
-                                  np.array([k, k], np.intp), poses, board_tables(r.static.targets), diffs, out)
-    assert out.tolist() == [False, True]
-
-
 def test_uniform_board_pixels_flat_plane_and_cast(calib: Any) -> None:
     """The fused kernel keeps the centre sample of a footprint inside one printed patch, gives a
     footprint straddling a printed edge board_plane_means' mean, and leaves a footprint off the
