@@ -50,21 +50,6 @@ from ibiscape_eval.events import (
 SENSOR = (1024, 1024)  # IBISCape's DVS resolution
 
 
-def best_times(fn: Callable[..., object], repeat: int,
-               setup: Callable[[], Any] | None = None) -> tuple[float, float, float]:
-    """Best CPU time, best and median wall time of ``repeat`` runs after a warm-up; with
-    ``setup``, each run is ``fn(setup())`` and the setup is not timed."""
-    def once() -> tuple[float, float]:
-        arg = () if setup is None else (setup(),)
-        t0, w0 = time.process_time(), time.perf_counter()
-        fn(*arg)
-        return time.process_time() - t0, time.perf_counter() - w0
-
-    once()  # warm-up (numba compile / page faults)
-    cpu, wall = zip(*(once() for _ in range(repeat)), strict=True)
-    return min(cpu), min(wall), float(np.median(wall))
-
-
 def _rss_bytes() -> int:
     with open("/proc/self/statm") as fh:
         return int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
@@ -178,8 +163,9 @@ def _check_same(ev: Events, hot: np.ndarray, steps: list[Any]) -> None:
 
 def interleaved(fns: list[Callable[..., object]], repeat: int,
                 setup: Callable[[], Any] | None = None) -> list[tuple[float, float, float]]:
-    """:func:`best_times` of every function of ``fns``, run in turn round by round (a busy
-    machine slows them alike)."""
+    """Best CPU time, best and median wall time of ``repeat`` runs of every function of ``fns``
+    after a warm-up round, run in turn round by round (a busy machine slows them alike); with
+    ``setup``, each run is ``fn(setup())`` and the setup is not timed."""
     times: list[list[tuple[float, float]]] = [[] for _ in fns]
     for r in range(repeat + 1):  # round 0 warms up
         for f, out in zip(fns, times, strict=True):

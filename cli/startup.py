@@ -47,4 +47,3 @@ def numba_startup() -> Iterator[None]:
         gc.freeze()
         if collecting:
             gc.enable()
-

@@ -306,29 +306,23 @@ def _radtan_undistort(xy_d, coeffs, fx, fy, iterations, tol_px, xy, ok):
     for n in range(xy_d.shape[0]):
         xd, yd = xy_d[n, 0], xy_d[n, 1]
         x, y = xd, yd
-        for _ in range(iterations):
+        for it in range(iterations + 1):  # the last pass only evaluates the result's residual and Jacobian
             r2 = x * x + y * y
             s = 1.0 + r2 * (k1 + k2 * r2)
             ds = k1 + 2.0 * k2 * r2  # d s / d r2
-            fx_ = x * s + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x) - xd
-            fy_ = y * s + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y - yd
+            ex = x * s + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x) - xd
+            ey = y * s + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y - yd
             a = s + 2.0 * x * x * ds + 2.0 * p1 * y + 6.0 * p2 * x
             b = 2.0 * x * y * ds + 2.0 * p1 * x + 2.0 * p2 * y
             d = s + 2.0 * y * y * ds + 6.0 * p1 * y + 2.0 * p2 * x
+            if it == iterations:
+                break
             det = a * d - b * b
-            xn = x - (d * fx_ - b * fy_) / det
-            yn = y - (a * fy_ - b * fx_) / det
-            if xn == x and yn == y:
+            xn = x - (d * ex - b * ey) / det
+            yn = y - (a * ey - b * ex) / det
+            if xn == x and yn == y:  # the residual and Jacobian above are those of the result
                 break
             x, y = xn, yn
-        r2 = x * x + y * y
-        s = 1.0 + r2 * (k1 + k2 * r2)
-        ds = k1 + 2.0 * k2 * r2
-        a = s + 2.0 * x * x * ds + 2.0 * p1 * y + 6.0 * p2 * x
-        b = 2.0 * x * y * ds + 2.0 * p1 * x + 2.0 * p2 * y
-        d = s + 2.0 * y * y * ds + 6.0 * p1 * y + 2.0 * p2 * x
-        ex = (x * s + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x)) - xd
-        ey = (y * s + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y) - yd
         err = np.hypot(ex * fx, ey * fy)
         xy[n, 0], xy[n, 1] = x, y
         ok[n] = np.isfinite(err) and err < tol_px and a * d - b * b > 0

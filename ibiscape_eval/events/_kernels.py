@@ -262,6 +262,14 @@ def _lowest_bit(typingctx, v):
     return sig, codegen
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _keep_bit(keep_bits, j):
+    """Bit ``j`` (uint32, a pixel index ``y * width + x``) of the bit table ``keep_bits`` (uint32
+    words, bit ``j % 32`` of word ``j // 32``: 128 KiB for a megapixel sensor, which stays in the
+    L2 cache where a byte per pixel does not), as a uint64 0 or 1: 1 if the pixel is kept."""
+    return np.uint64((keep_bits[j >> np.uint32(5)] >> (j & np.uint32(31))) & np.uint32(1))
+
+
 @njit(cache=True, nogil=True)
 def keep_words(x, y, width, keep_bits, words):
     """The keep bits of the events (see :func:`_keep_bit`), 64 to a uint64 word: bit ``e`` of
@@ -275,8 +283,7 @@ def keep_words(x, y, width, keep_bits, words):
         i0 = b * 64
         m = np.uint64(0)
         for e in range(min(64, n - i0)):
-            j = np.uint32(y[i0 + e]) * w + np.uint32(x[i0 + e])
-            m |= np.uint64((keep_bits[j >> np.uint32(5)] >> (j & np.uint32(31))) & np.uint32(1)) << np.uint64(e)
+            m |= _keep_bit(keep_bits, np.uint32(y[i0 + e]) * w + np.uint32(x[i0 + e])) << np.uint64(e)
         words[b] = m
         k += _popcount(m)  # type: ignore[call-arg]
     return k
@@ -370,8 +377,7 @@ def _checked_bits(x, y, i, cand, width, height, keep_bits):
         yi = np.uint64(y[i + e])
         if xi >= w or yi >= h:
             return np.uint64(0), i + np.int64(e)
-        j = yi * w + xi
-        keep |= ((np.uint64(keep_bits[j >> np.uint64(5)]) >> (j & np.uint64(31))) & np.uint64(1)) << e
+        keep |= _keep_bit(keep_bits, np.uint32(yi * w + xi)) << e  # < width * height <= 2**32
         cand &= cand - np.uint64(1)
     return keep, -1
 
@@ -381,8 +387,7 @@ def _looked_up(buf, keep_bits):
     """The keep bits of the 64 pixel indices ``buf`` (see :func:`_index64`) as a uint64."""
     m = np.uint64(0)
     for e in range(64):
-        j = buf[e]
-        m |= np.uint64((keep_bits[j >> np.uint32(5)] >> (j & np.uint32(31))) & np.uint32(1)) << np.uint64(e)
+        m |= _keep_bit(keep_bits, buf[e]) << np.uint64(e)
     return m
 
 
@@ -697,6 +702,7 @@ def filter_down(t, x, y, p, width, height, keep_bits):
             k -= 1
             t[k], x[k], y[k], p[k] = t[e], x[e], y[e], p[e]
     return k, -1
+
 
 @functools.cache
 def _cpu_simd() -> bool:

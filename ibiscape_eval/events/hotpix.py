@@ -211,6 +211,15 @@ _PAD = 16  # uint32 counters = one 64-byte cache line of row padding (see _kerne
 _PAD8 = 64  # the same for uint8 counters
 
 
+def _simd_coords(x: np.ndarray, y: np.ndarray, places: int, *dtypes: np.dtype[Any]) -> bool:
+    """Whether the AVX-512 kernels take these events: uint16 coordinates, ``places`` counters or
+    pixels indexed in 32 bits, and (for the compaction) columns of ``dtypes`` (see
+    ``_kernels.simd_ok``)."""
+    from . import _kernels
+
+    return x.dtype == np.uint16 and y.dtype == np.uint16 and places <= 2**32 and _kernels.simd_ok(*dtypes)
+
+
 def _count8(x: np.ndarray, y: np.ndarray, w: int, h: int, out: np.ndarray, parts: int) -> None:
     """Add the events per pixel to the int64 (H, W) ``out`` through uint8 counters, one set per
     thread (see ``_kernels.count_xy8``), then fold them (rows split over the threads too).  The
@@ -220,8 +229,7 @@ def _count8(x: np.ndarray, y: np.ndarray, w: int, h: int, out: np.ndarray, parts
 
     stride = w + _PAD8
     n = x.shape[0]
-    simd = (x.dtype == np.uint16 and y.dtype == np.uint16 and h * stride < 2**32
-            and _kernels.simd_ok())
+    simd = _simd_coords(x, y, h * stride)
     if not simd:
         _check_inside(x, y, w, h, parts)
     counts = np.zeros((parts, h * stride), np.uint8)
@@ -571,7 +579,7 @@ def _keep_words(x: np.ndarray, y: np.ndarray, pixels: npt.ArrayLike, w: int, h: 
     n = x.shape[0]
     bd = _bounds(n, parts, 64)
     words = np.empty(0 if mask is not None else (n + 63) // 64, np.uint64)
-    simd = (x.dtype == np.uint16 and y.dtype == np.uint16 and w * h <= 2**32 and _kernels.simd_ok())
+    simd = _simd_coords(x, y, w * h)
     tab, use_bloom = _kernels.bloom_table(hot), hot.size <= BLOOM_MAX_HOT
     if not simd:
         _check_inside(x, y, w, h, parts)
@@ -712,7 +720,7 @@ def filter_arrays(
     n = xa.shape[0]
     parts = _threads(n, threads)
     cols = (ta, xa, ya, pa)
-    if inplace and parts <= 2 and _fused_ok(cols, w, h):
+    if inplace and parts <= 2 and _simd_coords(xa, ya, w * h, *(a.dtype for a in cols)):
         return _filter_converging(cols, pixels, w, h, parts)
     words, off, bd = _keep_words(xa, ya, pixels, w, h, parts)
     compact: Any = (_kernels.compact_simd if _kernels.simd_ok(*(a.dtype for a in cols))
@@ -733,15 +741,6 @@ def filter_arrays(
     _in_parts(run, parts, parts)
     to, xo, yo, po = outs
     return to, xo, yo, po
-
-
-def _fused_ok(cols: tuple[np.ndarray, ...], w: int, h: int) -> bool:
-    """Whether the one-pass in-place kernels (``_kernels.filter_up`` / ``filter_down``) take
-    these columns: uint16 coordinates and AVX-512 dtypes (see ``_kernels.simd_ok``)."""
-    from . import _kernels
-
-    return (cols[1].dtype == np.uint16 and cols[2].dtype == np.uint16 and w * h <= 2**32
-            and _kernels.simd_ok(*(a.dtype for a in cols)))
 
 
 def _filter_converging(cols: tuple[np.ndarray, ...], pixels: npt.ArrayLike, w: int, h: int,

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from ibiscape_eval.vio.estimator import rotvec_matrix
+from ibiscape_eval.core.so3 import exp_so3
 from ibiscape_eval.vio.frontend import _min_eigen, good_features
 
 
@@ -64,11 +64,11 @@ def test_good_features_of_a_flat_image_or_a_closed_mask_are_none() -> None:
 
 
 @pytest.mark.parametrize("scale", [0.0, 1e-9, 1e-5, 1e-4, 1e-2, 1.0, 3.0])
-def test_rotvec_matrix_is_scipys(scale: float) -> None:
+def test_exp_so3_is_scipys(scale: float) -> None:
     rng = np.random.default_rng(7)
     for _ in range(50):
         rv = rng.normal(size=3) * scale
-        np.testing.assert_allclose(rotvec_matrix(rv), Rotation.from_rotvec(rv).as_matrix(),
+        np.testing.assert_allclose(exp_so3(rv), Rotation.from_rotvec(rv).as_matrix(),
                                    rtol=0, atol=2e-15)
 
 
